@@ -1,0 +1,108 @@
+#include "stepcal/common/chain.hpp"
+
+#include <utility>
+
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/lie.hpp"
+
+namespace stepcal {
+
+KinematicChain::KinematicChain(std::vector<ChainJoint> joints, std::vector<Pose> initial_poses,
+                               std::vector<AttachedFrame> frames)
+    : joints_(std::move(joints)), initial_(std::move(initial_poses)), frames_(std::move(frames)) {
+  STEPCAL_INVARIANT(joints_.size() <= static_cast<size_t>(kMaxJoints),
+                    "chain has more joints than kMaxJoints");
+  STEPCAL_INVARIANT(initial_.size() == joints_.size() + 1,
+                    "a chain of n joints needs n+1 initial poses");
+  for (const AttachedFrame& f : frames_) {
+    STEPCAL_INVARIANT(f.parent >= 0 && f.parent <= dof(), "attached frame parent out of range");
+  }
+}
+
+int KinematicChain::findFrame(const std::string& name) const noexcept {
+  for (size_t i = 0; i < frames_.size(); ++i) {
+    if (frames_[i].name == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+void KinematicChain::setInitialPose(int k, const Pose& X) {
+  STEPCAL_INVARIANT(k >= 0 && k <= dof(), "initial pose index out of range");
+  initial_[static_cast<size_t>(k)] = X;
+}
+
+KinematicChain KinematicChain::corrected(const Eigen::VectorXd& delta) const {
+  STEPCAL_INVARIANT(delta.size() == 6 * (dof() + 1), "correction needs 6(n+1) entries");
+  KinematicChain out = *this;
+  for (int k = 0; k <= dof(); ++k) {
+    out.initial_[static_cast<size_t>(k)] =
+        initial_[static_cast<size_t>(k)] * lie::expSE3(delta.segment<6>(6 * k));
+  }
+  return out;
+}
+
+KinematicChain KinematicChain::rerooted(const Pose& X_NewRootOldRoot) const {
+  KinematicChain out = *this;
+  out.initial_[0] = X_NewRootOldRoot * initial_[0];
+  for (AttachedFrame& f : out.frames_) {
+    if (f.parent == 0) f.X_ParentFrame = X_NewRootOldRoot * f.X_ParentFrame;
+  }
+  return out;
+}
+
+bool forwardKinematics(const KinematicChain& chain, const JointVector& q,
+                       ChainWorkspace& ws) noexcept {
+  const int n = chain.dof();
+  if (q.size() != n) return false;
+  ws.dof = n;
+  ws.X_RootFrame[0] = Pose::Identity();
+  for (int i = 1; i <= n; ++i) {
+    const Vec6& s = chain.joints()[static_cast<size_t>(i - 1)].twist_Local;
+    ws.X_RootFrame[static_cast<size_t>(i)] = ws.X_RootFrame[static_cast<size_t>(i - 1)] *
+                                             chain.initialPose(i - 1) * lie::expSE3(s * q(i - 1));
+  }
+  ws.X_RootFrame[static_cast<size_t>(n + 1)] =
+      ws.X_RootFrame[static_cast<size_t>(n)] * chain.initialPose(n);
+  return true;
+}
+
+Pose framePose(const KinematicChain& chain, const ChainWorkspace& ws, int frame_index) noexcept {
+  const AttachedFrame& f = chain.frames()[static_cast<size_t>(frame_index)];
+  return ws.X_RootFrame[static_cast<size_t>(f.parent)] * f.X_ParentFrame;
+}
+
+void spatialJacobian(const KinematicChain& chain, const ChainWorkspace& ws, Jacobian& J) noexcept {
+  const int n = chain.dof();
+  J.resize(6, n);
+  for (int i = 1; i <= n; ++i) {
+    J.col(i - 1) = lie::adjoint(ws.X_RootFrame[static_cast<size_t>(i)]) *
+                   chain.joints()[static_cast<size_t>(i - 1)].twist_Local;
+  }
+}
+
+void bodyJacobian(const KinematicChain& chain, const ChainWorkspace& ws, Jacobian& J) noexcept {
+  spatialJacobian(chain, ws, J);
+  const Mat6 Ad_TipRoot = lie::adjoint(tipPose(ws).inverse());
+  for (int i = 0; i < J.cols(); ++i) J.col(i) = Ad_TipRoot * J.col(i);
+}
+
+void tipPointJacobian(const KinematicChain& chain, const ChainWorkspace& ws,
+                      Jacobian& J) noexcept {
+  spatialJacobian(chain, ws, J);
+  // ṗ = v + ω × p for the point p attached to the moving body.
+  const Mat3 p_hat = lie::hat(tipPose(ws).translation());
+  for (int i = 0; i < J.cols(); ++i) {
+    J.col(i).head<3>() -= p_hat * J.col(i).tail<3>();
+  }
+}
+
+void parameterJacobian(const KinematicChain& chain, const ChainWorkspace& ws,
+                       Eigen::Ref<Eigen::Matrix<double, 6, Eigen::Dynamic>> J) noexcept {
+  const int n = chain.dof();
+  for (int k = 0; k <= n; ++k) {
+    J.block<6, 6>(0, 6 * k) =
+        lie::adjoint(ws.X_RootFrame[static_cast<size_t>(k)] * chain.initialPose(k));
+  }
+}
+
+}  // namespace stepcal

@@ -1,0 +1,174 @@
+#include "stepcal/common/urdf.hpp"
+
+#include <console_bridge/console.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include "stepcal/common/error.hpp"
+
+namespace stepcal {
+namespace {
+
+// Collects urdfdom's console messages so a parse failure can say why.
+class CapturingHandler : public console_bridge::OutputHandler {
+ public:
+  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
+    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_WARN) {
+      if (!messages.empty()) messages += "; ";
+      messages += text;
+    }
+  }
+  std::string messages;
+};
+
+Pose toPose(const urdf::Pose& p) {
+  Pose X = Pose::Identity();
+  X.translation() = Vec3(p.position.x, p.position.y, p.position.z);
+  X.linear() =
+      Eigen::Quaterniond(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z)
+          .normalized()
+          .toRotationMatrix();
+  return X;
+}
+
+// Joints from base_link down to link, in chain order; throws if link is not below base.
+std::vector<urdf::JointConstSharedPtr> pathFromBase(const urdf::ModelInterface& model,
+                                                     const std::string& base,
+                                                     const std::string& link,
+                                                     const std::string& source,
+                                                     const std::string& role) {
+  std::vector<urdf::JointConstSharedPtr> path;
+  urdf::LinkConstSharedPtr current = model.getLink(link);
+  if (!current) {
+    std::string names;
+    for (const auto& [name, l] : model.links_) names += (names.empty() ? "" : ", ") + name;
+    throw InputError(role + " '" + link + "' is not a link of the robot description (links: " +
+                         names + ")",
+                     source);
+  }
+  while (current->name != base) {
+    const urdf::JointConstSharedPtr joint = current->parent_joint;
+    if (!joint) {
+      throw InputError(role + " '" + link + "' is not below base_link '" + base +
+                           "' in the robot description; hint: check base_link and the joint tree",
+                       source);
+    }
+    path.insert(path.begin(), joint);
+    current = model.getLink(joint->parent_link_name);
+  }
+  return path;
+}
+
+bool isRevolute(const urdf::Joint& j) {
+  return j.type == urdf::Joint::REVOLUTE || j.type == urdf::Joint::CONTINUOUS;
+}
+
+}  // namespace
+
+KinematicChain chainFromUrdf(const std::string& urdf_xml, const std::string& base_link,
+                             const std::string& tip_link,
+                             const std::vector<std::string>& attached_links,
+                             const std::string& source) {
+  CapturingHandler handler;
+  console_bridge::useOutputHandler(&handler);
+  const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(urdf_xml);
+  console_bridge::restorePreviousOutputHandler();
+  if (!model) {
+    throw InputError("not a valid URDF robot description: " +
+                         (handler.messages.empty() ? std::string("parse failed") : handler.messages),
+                     source);
+  }
+  if (!model->getLink(base_link)) {
+    throw InputError("base_link '" + base_link + "' is not a link of the robot description",
+                     source);
+  }
+
+  std::vector<ChainJoint> joints;
+  std::vector<Pose> initial;
+  Pose X_accumulated = Pose::Identity();
+  for (const urdf::JointConstSharedPtr& j : pathFromBase(*model, base_link, tip_link, source,
+                                                         "tip_link")) {
+    X_accumulated = X_accumulated * toPose(j->parent_to_joint_origin_transform);
+    if (j->type == urdf::Joint::FIXED) continue;
+    if (!isRevolute(*j)) {
+      throw InputError("joint '" + j->name +
+                           "' is neither revolute, continuous nor fixed; stepcal models "
+                           "revolute serial chains only",
+                       source);
+    }
+    const Vec3 axis(j->axis.x, j->axis.y, j->axis.z);
+    if (!(axis.norm() > 1e-9)) {
+      throw InputError("joint '" + j->name + "' has a zero <axis>; expected a direction", source);
+    }
+    ChainJoint cj;
+    cj.name = j->name;
+    cj.twist_Local << Vec3::Zero(), axis.normalized();
+    if (j->type == urdf::Joint::CONTINUOUS || !j->limits) {
+      cj.lower_rad = -std::numeric_limits<double>::infinity();
+      cj.upper_rad = std::numeric_limits<double>::infinity();
+    } else {
+      cj.lower_rad = j->limits->lower;
+      cj.upper_rad = j->limits->upper;
+    }
+    joints.push_back(cj);
+    initial.push_back(X_accumulated);
+    X_accumulated = Pose::Identity();
+  }
+  if (joints.empty()) {
+    throw InputError("no revolute joint between base_link '" + base_link + "' and tip_link '" +
+                         tip_link + "'",
+                     source);
+  }
+  if (joints.size() > static_cast<size_t>(kMaxJoints)) {
+    throw InputError("chain has " + std::to_string(joints.size()) + " revolute joints; at most " +
+                         std::to_string(kMaxJoints) + " are supported",
+                     source);
+  }
+  initial.push_back(X_accumulated);
+
+  std::vector<AttachedFrame> frames;
+  for (const std::string& name : attached_links) {
+    AttachedFrame f;
+    f.name = name;
+    f.X_ParentFrame = Pose::Identity();
+    for (const urdf::JointConstSharedPtr& j :
+         pathFromBase(*model, base_link, name, source, "link")) {
+      if (j->type == urdf::Joint::FIXED) {
+        f.X_ParentFrame = f.X_ParentFrame * toPose(j->parent_to_joint_origin_transform);
+        continue;
+      }
+      if (f.parent >= static_cast<int>(joints.size()) ||
+          joints[static_cast<size_t>(f.parent)].name != j->name) {
+        throw InputError("link '" + name + "' moves with joint '" + j->name +
+                             "', which is not on the chain from '" + base_link + "' to '" +
+                             tip_link + "'",
+                         source);
+      }
+      ++f.parent;
+      f.X_ParentFrame = Pose::Identity();
+    }
+    frames.push_back(f);
+  }
+  return KinematicChain(std::move(joints), std::move(initial), std::move(frames));
+}
+
+std::string readTextFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError("cannot open file for reading", path);
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw InputError("read error", path);
+  return text.str();
+}
+
+KinematicChain chainFromUrdfFile(const std::string& path, const std::string& base_link,
+                                 const std::string& tip_link,
+                                 const std::vector<std::string>& attached_links) {
+  return chainFromUrdf(readTextFile(path), base_link, tip_link, attached_links, path);
+}
+
+}  // namespace stepcal

@@ -1,0 +1,45 @@
+// Accuracy of a pose model against measured rows (METHOD.md eq. 11–12).
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "stepcal/common/campaign.hpp"
+
+namespace stepcal::trainer {
+
+/// Predicts X_TrackerTip for a measured row.
+using PoseModel = std::function<Pose(const Measurement&)>;
+
+/// Error of one row.
+struct RowError {
+  double position_m = 0.0;
+  double orientation_rad = 0.0;  ///< NaN when the row has no orientation
+};
+
+/// Summary over a group of rows; orientation over the rows that have one.
+struct AccuracySummary {
+  std::string method;
+  RowSet set = RowSet::kValidation;
+  double load_kg = 0.0;
+  int rows = 0;
+  int rows_with_orientation = 0;
+  double mean_position_m = 0.0;      ///< ΔP (eq. 12)
+  double rms_position_m = 0.0;
+  double max_position_m = 0.0;
+  double mean_orientation_rad = 0.0;  ///< ΔR (eq. 11)
+  double max_orientation_rad = 0.0;
+};
+
+/// Position and rotation error of a predicted pose against a measured row.
+RowError rowError(const Pose& X_TrackerTip_predicted, const Measurement& row);
+
+/// Summaries of one method per (set, load) group, groups in (set, load) order.
+std::vector<AccuracySummary> summarize(const std::string& method, const PoseModel& model,
+                                       const std::vector<Measurement>& rows);
+
+/// Mean error that measurement noise alone gives (χ with 3 dof): σ·2·√(2/π), for σ per axis.
+double noiseFloorMean(double sigma_per_axis);
+
+}  // namespace stepcal::trainer

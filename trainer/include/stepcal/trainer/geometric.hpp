@@ -1,0 +1,75 @@
+// Step 1: geometric calibration with the local product-of-exponentials error model.
+//
+// All geometric error is put into the n+1 initial pose matrices (METHOD.md eq. 7–9):
+// T_{k,k+1}(0) ← T_{k,k+1}(0)·exp(δt_k). Each measured row contributes its tip position
+// error (3 rows) and, when measured, its rotation error (3 rows), each weighted by the
+// tracker's stated 1-σ noise, so the lever arm to a distant tracker does not leak rotation
+// noise into position (METHOD.md, "Weighting matters"). Gauss–Newton with a truncated-SVD
+// pseudo-inverse: unobservable parameter combinations get no update and are reported.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/common/chain.hpp"
+
+namespace stepcal::trainer {
+
+/// Which initial poses are identified.
+enum class GeometricScope {
+  kFramesOnly,  ///< tracker (T_{0,1}) and tool (T_{n,n+1}) only: registration of both frames
+  kFullPoe,     ///< every initial pose: the full local-POE model (METHOD.md eq. 7)
+};
+
+struct GeometricOptions {
+  GeometricScope scope = GeometricScope::kFullPoe;
+  int max_iterations = 20;
+  /// Converged when the weighted cost drops by less than this fraction in one iteration.
+  double relative_cost_tolerance = 1e-9;
+  /// Singular values below this fraction of the largest count as unobservable.
+  double rank_tolerance = 1e-9;
+};
+
+/// Fit statistics of one Gauss–Newton iteration (before its update).
+struct IterationRecord {
+  int iteration = 0;
+  double rms_position_m = 0.0;     ///< RMS tip position error of the fit rows
+  double rms_orientation_rad = 0.0;  ///< RMS rotation error of rows with orientation
+  double weighted_cost = 0.0;      ///< Σ ((error)/σ)², dimensionless
+};
+
+/// A parameter combination that the data cannot observe.
+struct UnobservableCombination {
+  std::string description;  ///< e.g. "rotation about joint_2's axis (joint zero)"
+  bool structural = false;  ///< true: no data can observe it (a redundancy of the model)
+};
+
+/// Rank and conditioning of the (weighted, column-normalised) identification matrix.
+struct Observability {
+  int parameter_count = 0;
+  int rank = 0;
+  double condition_number = 0.0;  ///< σ_max / σ_min over the retained singular values
+  std::vector<UnobservableCombination> unobservable;
+};
+
+struct GeometricResult {
+  KinematicChain chain_Tracker;  ///< calibrated chain, root = tracker frame
+  Pose X_TrackerBase;            ///< closed-form registration (base_link in tracker)
+  std::vector<IterationRecord> history;  ///< one entry per iteration, then the final state
+  int iterations = 0;            ///< Gauss–Newton updates applied
+  bool converged = false;
+  Observability observability;
+  int fit_rows = 0;
+};
+
+/// Calibrates the chain (rooted at base_link) on the given rows. Throws InputError when the
+/// rows are too few or their joint count disagrees with the chain.
+GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
+                                  const std::vector<const Measurement*>& rows,
+                                  const TrackerNoise& noise, const GeometricOptions& options = {});
+
+/// Names of the 6(n+1) parameters, e.g. "T(joint_1→joint_2).ωy".
+std::vector<std::string> parameterNames(const KinematicChain& chain);
+
+}  // namespace stepcal::trainer

@@ -1,0 +1,58 @@
+#include "stepcal/trainer/accuracy.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <utility>
+
+#include "stepcal/common/lie.hpp"
+
+namespace stepcal::trainer {
+
+RowError rowError(const Pose& X_TrackerTip_predicted, const Measurement& row) {
+  RowError e;
+  e.position_m = (X_TrackerTip_predicted.translation() - row.p_TipInTracker_m).norm();
+  e.orientation_rad = row.has_orientation
+                          ? lie::angleBetween(row.q_TrackerTip.toRotationMatrix(),
+                                              X_TrackerTip_predicted.linear())
+                          : std::numeric_limits<double>::quiet_NaN();
+  return e;
+}
+
+std::vector<AccuracySummary> summarize(const std::string& method, const PoseModel& model,
+                                       const std::vector<Measurement>& rows) {
+  std::map<std::pair<int, double>, AccuracySummary> groups;
+  for (const Measurement& row : rows) {
+    AccuracySummary& g = groups[{static_cast<int>(row.set), row.load_kg}];
+    g.method = method;
+    g.set = row.set;
+    g.load_kg = row.load_kg;
+    const RowError e = rowError(model(row), row);
+    ++g.rows;
+    g.mean_position_m += e.position_m;
+    g.rms_position_m += e.position_m * e.position_m;
+    g.max_position_m = std::max(g.max_position_m, e.position_m);
+    if (row.has_orientation) {
+      ++g.rows_with_orientation;
+      g.mean_orientation_rad += e.orientation_rad;
+      g.max_orientation_rad = std::max(g.max_orientation_rad, e.orientation_rad);
+    }
+  }
+  std::vector<AccuracySummary> out;
+  for (auto& [key, g] : groups) {
+    g.mean_position_m /= g.rows;
+    g.rms_position_m = std::sqrt(g.rms_position_m / g.rows);
+    g.mean_orientation_rad = g.rows_with_orientation > 0
+                                 ? g.mean_orientation_rad / g.rows_with_orientation
+                                 : std::numeric_limits<double>::quiet_NaN();
+    out.push_back(g);
+  }
+  return out;
+}
+
+double noiseFloorMean(double sigma_per_axis) {
+  return sigma_per_axis * 2.0 * std::sqrt(2.0 / M_PI);
+}
+
+}  // namespace stepcal::trainer

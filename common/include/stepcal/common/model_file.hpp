@@ -1,0 +1,103 @@
+// The calibrated model file: everything the runtime needs to correct poses (METHOD.md eq. 32,
+// T_C2 = T_C(q) · T_STIF(q, F) · T_GPR(q, F)), written once by the offline trainer.
+//
+// Layout (format version 1). Integers and doubles are little-endian, doubles IEEE-754 binary64:
+//
+//   header   24 B  magic "STEPCAL\0", u32 format version, u32 flags (0), u64 file size in bytes
+//   sections       each u32 tag (FourCC), u32 reserved (0), u64 payload length, payload;
+//                  exactly these five, in this order:
+//     "CHAN"  u32 n; n × {str name, f64 twist (v, ω)[6], f64 lower_rad, f64 upper_rad};
+//             n+1 × pose T_{k,k+1}(0); u32 f; f × {str name, u32 parent, pose X_ParentFrame}
+//     "REGI"  pose X_TrackerBase; f64 gravity_Base[3]; i32 sensor_frame
+//     "COMP"  u32 c (0 or n); f64 compliance_rad_per_nm[c]; f64 compliance_sigma_rad_per_nm[c]
+//     "GPR "  u32 m, D, P (all 0 = no residual step); f64 input_offset[D], input_scale[D],
+//             output_mean[P], output_scale[P], length_scales[D], signal_sigma, noise_sigma;
+//             inputs_normalised, targets_standardised, alpha as m rows each
+//     "PROV"  str campaign_hash, created_utc, trainer_version, campaign_path; u32 v;
+//             v × {str method, f64 load_kg, i32 rows, f64 mean_position_m, max_position_m,
+//             mean_orientation_rad}
+//   trailer   4 B  u32 CRC-32 (IEEE 802.3) of every preceding byte
+//
+// pose = 12 f64, row-major [R | p]; str = u32 byte count (≤ 4096) then the bytes, no terminator.
+// Every double is finite, except that a continuous joint's limits are −inf … inf.
+// The GPR's Cholesky factor is not stored: the runtime refactors K + σ_n² I from the inputs and
+// hyperparameters at load, and the loader checks α against the stored targets instead.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "stepcal/common/chain.hpp"
+#include "stepcal/common/types.hpp"
+
+namespace stepcal {
+
+/// Model file format version this build writes and reads.
+inline constexpr uint32_t kModelFormatVersion = 1;
+
+/// Gaussian-process residual model: shared squared-exponential ARD kernel over normalised
+/// inputs, standardised outputs (METHOD.md eq. 27, 30).
+struct GprParameters {
+  Eigen::MatrixXd inputs_normalised;          ///< m × D training inputs after normalisation
+  Eigen::VectorXd input_offset, input_scale;  ///< D: x_norm = (x_raw − offset) / scale
+  Eigen::VectorXd output_mean, output_scale;  ///< P: y_raw = mean + scale ⊙ y_std
+  Eigen::VectorXd length_scales;              ///< D, normalised input units
+  double signal_sigma = 0, noise_sigma = 0;   ///< standardised output units
+  Eigen::MatrixXd targets_standardised;       ///< m × P, lets the loader check α
+  Eigen::MatrixXd alpha;                      ///< m × P, (K + σ_n² I)⁻¹ Y (eq. 30)
+};
+
+/// One line of the accuracy table measured on held-out poses when the model was trained.
+struct ValidationFigure {
+  std::string method;  ///< e.g. "POE + stiffness + GPR"
+  double load_kg = 0;
+  int rows = 0;
+  double mean_position_m = 0, max_position_m = 0, mean_orientation_rad = 0;
+};
+
+/// Where a model came from, so a runtime can say which campaign and trainer built it.
+struct ModelProvenance {
+  std::string campaign_hash;  ///< hex digits, empty = unknown
+  std::string created_utc;    ///< ISO 8601
+  std::string trainer_version;
+  std::string campaign_path;
+  std::vector<ValidationFigure> validation;
+};
+
+/// Everything the runtime needs to correct a pose.
+struct CalibratedModel {
+  /// Calibrated initial poses (tracker-rooted), joint twists, limits, names and attached frames
+  /// (including the sensor frame).
+  KinematicChain chain_Tracker;
+  Pose X_TrackerBase = Pose::Identity();  ///< tracker registration
+  int sensor_frame = -1;                  ///< index into chain_Tracker.frames(), −1 = no sensor
+  Vec3 gravity_Base = Vec3::Zero();       ///< m/s²
+  /// Empty = no compliance step; else n entries, C_θ = K_θ⁻¹ (eq. 19–22), rad/(N·m).
+  JointVector compliance_rad_per_nm;
+  JointVector compliance_sigma_rad_per_nm;  ///< 1-σ, same size, rad/(N·m)
+  std::optional<GprParameters> gpr;         ///< absent = no residual step
+  ModelProvenance provenance;
+};
+
+/// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320) of a byte range.
+uint32_t crc32Ieee(const uint8_t* data, size_t size) noexcept;
+
+/// Serialises to the fixed little-endian layout above. Throws InputError when the model has
+/// inconsistent sizes or would not pass parseModel, so no file the runtime refuses is written.
+std::vector<uint8_t> serializeModel(const CalibratedModel& model);
+
+/// Parses bytes; throws InputError naming `source`, the byte offset and field, and what was
+/// expected. Never crashes and never reads out of bounds, on any input.
+CalibratedModel parseModel(const uint8_t* data, size_t size, const std::string& source);
+
+/// Writes atomically (temporary file in the same folder, fsync, rename), so a crash never
+/// leaves half a model. Throws InputError.
+void writeModelFile(const CalibratedModel& model, const std::string& path);
+
+/// Reads and parses a model file. Throws InputError.
+CalibratedModel readModelFile(const std::string& path);
+
+}  // namespace stepcal

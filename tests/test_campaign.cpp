@@ -1,0 +1,784 @@
+// Campaign files (campaign-format.md): reading, writing, exact round trip, and refusal of
+// broken input with file, line, column, the bad value and what was expected.
+//
+// Decided: a measurements.csv with a header but no rows is refused (a campaign without rows
+// is never meaningful and usually a failed export); writeCampaign refuses it likewise.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/common/error.hpp"
+
+namespace stepcal {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Line numbers below refer to these texts: yaml keys on lines 1…10, csv header on line 1.
+const char* const kValidYaml =
+    "format: stepcal-campaign/1\n"
+    "robot: robot.urdf\n"
+    "base_link: base_link\n"
+    "tip_link: tmac\n"
+    "sensor_link: ft_sensor\n"
+    "measurements: measurements.csv\n"
+    "tracker:\n"
+    "  position_sigma_mm: 0.015\n"
+    "  orientation_sigma_deg: 0.01\n"
+    "gravity_in_base: [0, 0, -9.80665]\n";
+
+const char* const kValidCsv =
+    "seq,pose_id,set,load_kg,q1_deg,q2_deg,q3_deg,fx_n,fy_n,fz_n,mx_nm,my_nm,mz_nm,"
+    "x_mm,y_mm,z_mm,qw,qx,qy,qz,temp_c,note\n"
+    "1,p1,geometry,0,10,-20.5,90,,,,,,,1000.5,-200,300,1,0,0,0,21.5,first\n"
+    "2,p1,stiffness,20,10,-20.5,90,1,2,-196.133,0.1,0.2,0.3,1000.25,-200.125,299.5,,,,,21.75,\n"
+    "3,p2,validation,0,-45,0,180,0,0,0,0,0,0,500,600,700,0.5,0.5,-0.5,0.5,,third\n";
+
+const char* const kUrdf = "<robot name=\"r\"><link name=\"base_link\"/></robot>\n";
+
+/// A fresh folder per test, removed afterwards.
+class TempDir {
+ public:
+  TempDir() {
+    static int count = 0;
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path_ =
+        fs::temp_directory_path() / ("stepcal_test_campaign_" + std::string(info->name()) + "_" +
+                                     std::to_string(::getpid()) + "_" + std::to_string(count++));
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+void writeText(const fs::path& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+}
+
+/// Writes a campaign folder from texts (the robot file is always robot.urdf).
+void writeFolder(const fs::path& dir, const std::string& yaml, const std::string& csv) {
+  writeText(dir / "campaign.yaml", yaml);
+  writeText(dir / "robot.urdf", kUrdf);
+  writeText(dir / "measurements.csv", csv);
+}
+
+std::string replaced(std::string text, const std::string& from, const std::string& to) {
+  const size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << "test bug: '" << from << "' not in text";
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+std::vector<std::string> splitOn(const std::string& s, char separator) {
+  std::vector<std::string> parts;
+  std::string part;
+  std::istringstream in(s);
+  while (std::getline(in, part, separator)) parts.push_back(part);
+  if (!s.empty() && s.back() == separator) parts.emplace_back();
+  return parts;
+}
+
+/// The csv text with the field of `column` on 1-based `line` set to value (line 1 = header).
+std::string withField(const std::string& csv, int line, const std::string& column,
+                      const std::string& value) {
+  std::vector<std::string> lines = splitOn(csv, '\n');
+  const std::vector<std::string> header = splitOn(lines[0], ',');
+  const auto it = std::find(header.begin(), header.end(), column);
+  EXPECT_NE(it, header.end()) << "test bug: no column " << column;
+  std::vector<std::string> fields = splitOn(lines[static_cast<size_t>(line - 1)], ',');
+  fields[static_cast<size_t>(it - header.begin())] = value;
+  std::string joined_line;
+  for (size_t i = 0; i < fields.size(); ++i) joined_line += (i ? "," : "") + fields[i];
+  lines[static_cast<size_t>(line - 1)] = joined_line;
+  std::string out;
+  for (size_t i = 0; i + 1 < lines.size(); ++i) out += lines[i] + "\n";
+  return out + lines.back();
+}
+
+/// The csv text without one column.
+std::string withoutColumn(const std::string& csv, const std::string& column) {
+  std::vector<std::string> lines = splitOn(csv, '\n');
+  const std::vector<std::string> header = splitOn(lines[0], ',');
+  const size_t index =
+      static_cast<size_t>(std::find(header.begin(), header.end(), column) - header.begin());
+  std::string out;
+  for (size_t l = 0; l < lines.size(); ++l) {
+    if (lines[l].empty()) continue;
+    std::vector<std::string> fields = splitOn(lines[l], ',');
+    fields.erase(fields.begin() + static_cast<std::ptrdiff_t>(index));
+    for (size_t i = 0; i < fields.size(); ++i) out += (i ? "," : "") + fields[i];
+    out += "\n";
+  }
+  return out;
+}
+
+/// What a failed read reported.
+struct Refusal {
+  std::string file;  // file name only
+  int line = -1;
+  std::string column;
+  std::string what;
+};
+
+Refusal refusalOf(const fs::path& path) {
+  try {
+    readCampaign(path.string());
+  } catch (const InputError& e) {
+    return {fs::path(e.file()).filename().string(), e.line(), e.column(), e.what()};
+  }
+  ADD_FAILURE() << "readCampaign accepted a broken campaign";
+  return {};
+}
+
+/// Reads a folder built from the texts and checks where and what it reports.
+void expectRefused(const std::string& yaml, const std::string& csv, const std::string& file,
+                   int line, const std::string& column,
+                   std::initializer_list<const char*> message_parts) {
+  TempDir dir;
+  writeFolder(dir.path(), yaml, csv);
+  const Refusal r = refusalOf(dir.path());
+  EXPECT_EQ(r.file, file) << r.what;
+  EXPECT_EQ(r.line, line) << r.what;
+  EXPECT_EQ(r.column, column) << r.what;
+  for (const char* part : message_parts) {
+    EXPECT_NE(r.what.find(part), std::string::npos) << "'" << part << "' not in: " << r.what;
+  }
+}
+
+void expectCsvRefused(const std::string& csv, int line, const std::string& column,
+                      std::initializer_list<const char*> message_parts) {
+  expectRefused(kValidYaml, csv, "measurements.csv", line, column, message_parts);
+}
+
+void expectYamlRefused(const std::string& yaml, int line,
+                       std::initializer_list<const char*> message_parts) {
+  expectRefused(yaml, kValidCsv, "campaign.yaml", line, "", message_parts);
+}
+
+constexpr double kDeg = M_PI / 180.0;
+
+// ---------------------------------------------------------------------------------------------
+// Reading valid files
+
+TEST(Campaign, ReadsTheValidExampleInSiUnits) {
+  TempDir dir;
+  writeFolder(dir.path(), kValidYaml, kValidCsv);
+  const Campaign c = readCampaign(dir.path().string());
+
+  EXPECT_EQ(c.directory, dir.path().string());
+  EXPECT_EQ(c.robot_file, "robot.urdf");
+  EXPECT_EQ(c.urdf_xml, kUrdf);
+  EXPECT_EQ(c.base_link, "base_link");
+  EXPECT_EQ(c.tip_link, "tmac");
+  EXPECT_EQ(c.sensor_link, "ft_sensor");
+  EXPECT_EQ(c.measurements_file, "measurements.csv");
+  EXPECT_TRUE(c.tracker.stated);
+  EXPECT_DOUBLE_EQ(c.tracker.position_sigma_m, 15e-6);
+  EXPECT_DOUBLE_EQ(c.tracker.orientation_sigma_rad, 0.01 * kDeg);
+  ASSERT_TRUE(c.gravity_in_base.has_value());
+  EXPECT_EQ(*c.gravity_in_base, Vec3(0, 0, -9.80665));
+  EXPECT_EQ(c.joint_count, 3);
+  EXPECT_EQ(c.extra_columns, std::vector<std::string>{"note"});
+  ASSERT_EQ(c.rows.size(), 3u);
+
+  const Measurement& a = c.rows[0];
+  EXPECT_EQ(a.seq, 1);
+  EXPECT_EQ(a.pose_id, "p1");
+  EXPECT_EQ(a.set, RowSet::kGeometry);
+  EXPECT_EQ(a.load_kg, 0.0);
+  ASSERT_EQ(a.q_rad.size(), 3);
+  EXPECT_DOUBLE_EQ(a.q_rad[0], 10 * kDeg);
+  EXPECT_DOUBLE_EQ(a.q_rad[1], -20.5 * kDeg);
+  EXPECT_EQ(a.q_rad[2], M_PI / 2);  // correctly rounded: "90" is exactly the double nearest π/2
+  EXPECT_FALSE(a.has_wrench);
+  EXPECT_EQ(a.wrenchOrZero(), Vec6::Zero());
+  EXPECT_EQ(a.p_TipInTracker_m, Vec3(1.0005, -0.2, 0.3));  // mm → m by moving the point: exact
+  EXPECT_TRUE(a.has_orientation);
+  EXPECT_EQ(a.q_TrackerTip.coeffs(), Eigen::Quaterniond::Identity().coeffs());
+  EXPECT_EQ(a.temp_c, 21.5);
+  EXPECT_EQ(a.extra, std::vector<std::string>{"first"});
+  EXPECT_EQ(a.source_line, 2);
+
+  const Measurement& b = c.rows[1];
+  EXPECT_EQ(b.set, RowSet::kStiffness);
+  EXPECT_EQ(b.load_kg, 20.0);
+  EXPECT_TRUE(b.has_wrench);
+  Vec6 wrench;
+  wrench << 1, 2, -196.133, 0.1, 0.2, 0.3;
+  EXPECT_EQ(b.wrench_Sensor, wrench);
+  EXPECT_FALSE(b.has_orientation);
+  EXPECT_TRUE(b.X_TrackerTip().linear().isIdentity(0.0));
+  EXPECT_EQ(b.X_TrackerTip().translation(), Vec3(1.00025, -0.200125, 0.2995));
+  EXPECT_EQ(b.extra, std::vector<std::string>{""});
+
+  const Measurement& d = c.rows[2];
+  EXPECT_EQ(d.set, RowSet::kValidation);
+  EXPECT_TRUE(d.has_wrench);  // zeros given on an unloaded row: a reading of zero
+  EXPECT_EQ(d.wrench_Sensor, Vec6::Zero());
+  EXPECT_FALSE(d.temp_c.has_value());
+  // qw, qx, qy, qz = 0.5, 0.5, −0.5, 0.5: columns of R are the tip axes in tracker axes.
+  const Mat3 R = d.X_TrackerTip().linear();
+  const Mat3 expected = Eigen::Quaterniond(0.5, 0.5, -0.5, 0.5).toRotationMatrix();
+  EXPECT_TRUE(R.isApprox(expected, 1e-15));
+  EXPECT_EQ(d.X_TrackerTip().translation(), Vec3(0.5, 0.6, 0.7));
+
+  EXPECT_EQ(c.rowsIn(RowSet::kGeometry).size(), 1u);
+  EXPECT_EQ(c.rowsIn(RowSet::kStiffness).front(), &c.rows[1]);
+  EXPECT_TRUE(c.rowsIn(RowSet::kResidual).empty());
+  EXPECT_EQ(c.rowsIn(RowSet::kValidation).front(), &c.rows[2]);
+}
+
+TEST(Campaign, AcceptsYamlPathJsonCrlfNoFinalNewlineAndAnyColumnOrder) {
+  TempDir dir;
+  std::string crlf;
+  for (const char ch : std::string(kValidCsv))
+    crlf += ch == '\n' ? std::string("\r\n") : std::string(1, ch);
+  crlf.resize(crlf.size() - 2);  // and no final newline
+  const char* json =
+      "{\"format\": \"stepcal-campaign/1\", \"robot\": \"robot.urdf\", \"base_link\": "
+      "\"base_link\", \"tip_link\": \"tmac\", \"measurements\": \"m.csv\"}";
+  writeText(dir.path() / "c.json", json);
+  writeText(dir.path() / "robot.urdf", kUrdf);
+  // Columns reversed.
+  std::string reversed;
+  for (const std::string& line : splitOn(kValidCsv, '\n')) {
+    if (line.empty()) continue;
+    const std::vector<std::string> f = splitOn(line, ',');
+    for (size_t i = f.size(); i-- > 0;) reversed += f[i] + (i ? "," : "\n");
+  }
+  writeText(dir.path() / "m.csv", crlf);
+  const Campaign a = readCampaign((dir.path() / "c.json").string());
+  writeText(dir.path() / "m.csv", reversed);
+  const Campaign b = readCampaign((dir.path() / "c.json").string());
+
+  EXPECT_FALSE(a.tracker.stated);
+  EXPECT_FALSE(a.gravity_in_base.has_value());
+  EXPECT_TRUE(a.sensor_link.empty());
+  ASSERT_EQ(a.rows.size(), 3u);
+  ASSERT_EQ(b.rows.size(), 3u);
+  EXPECT_EQ(a.rows[2].extra, std::vector<std::string>{"third"});  // no CR left on the last field
+  for (size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(a.rows[i].q_rad, b.rows[i].q_rad);
+    EXPECT_EQ(a.rows[i].p_TipInTracker_m, b.rows[i].p_TipInTracker_m);
+    EXPECT_EQ(a.rows[i].wrench_Sensor, b.rows[i].wrench_Sensor);
+    EXPECT_EQ(a.rows[i].extra, b.rows[i].extra);
+  }
+}
+
+TEST(Campaign, MinimalCsvWithoutOptionalColumns) {
+  TempDir dir;
+  writeFolder(dir.path(), kValidYaml,
+              "seq,pose_id,set,load_kg,q1_deg,x_mm,y_mm,z_mm\n7,a,residual,0,1e1,-0,1.5e-3,2E2\n");
+  const Campaign c = readCampaign((dir.path() / "campaign.yaml").string());
+  ASSERT_EQ(c.rows.size(), 1u);
+  const Measurement& m = c.rows[0];
+  EXPECT_EQ(c.joint_count, 1);
+  EXPECT_TRUE(c.extra_columns.empty());
+  EXPECT_EQ(m.set, RowSet::kResidual);
+  EXPECT_DOUBLE_EQ(m.q_rad[0], 10 * kDeg);
+  EXPECT_TRUE(std::signbit(m.p_TipInTracker_m.x()));
+  EXPECT_EQ(m.p_TipInTracker_m.y(), 1.5e-6);
+  EXPECT_EQ(m.p_TipInTracker_m.z(), 0.2);
+  EXPECT_FALSE(m.has_wrench);
+  EXPECT_FALSE(m.has_orientation);
+  EXPECT_FALSE(m.temp_c.has_value());
+}
+
+TEST(Campaign, SetNames) {
+  EXPECT_STREQ(toString(RowSet::kGeometry), "geometry");
+  EXPECT_STREQ(toString(RowSet::kStiffness), "stiffness");
+  EXPECT_STREQ(toString(RowSet::kResidual), "residual");
+  EXPECT_STREQ(toString(RowSet::kValidation), "validation");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Round trip
+
+bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+/// Values with many digits and extreme magnitudes, to stress the mm and deg conversions.
+double awkward(std::mt19937_64& rng, double scale) {
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  std::uniform_int_distribution<int> pick(0, 19);
+  switch (pick(rng)) {
+    case 0:
+      return 0.0;
+    case 1:
+      return -0.0;
+    case 2:
+      return std::ldexp(uniform(rng), -1000);  // near the bottom of the double range
+    case 3:
+      return uniform(rng) * 1e12;
+    case 4:
+      return std::nextafter(scale, 0.0);
+    default:
+      return uniform(rng) * scale;
+  }
+}
+
+Campaign randomCampaign(std::mt19937_64& rng, int rows) {
+  Campaign c;
+  c.urdf_xml = "<robot name=\"x\">\r\n  <!-- kept verbatim -->\n</robot>";
+  c.base_link = "base_link";
+  c.tip_link = "tool0";
+  c.sensor_link = "ft_sensor";
+  c.tracker.stated = true;
+  c.tracker.position_sigma_m = 0.1 + 1e-17;
+  c.tracker.orientation_sigma_rad = 1e-3 / 3.0;
+  c.gravity_in_base = Vec3(0.1 / 3.0, -1e-300, -9.80665);
+  c.joint_count = 6;
+  c.extra_columns = {"note", "std_x_mm", "q_tag"};
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  for (int i = 0; i < rows; ++i) {
+    Measurement m;
+    m.seq = 1000 - 3 * i;
+    m.pose_id = "p" + std::to_string(i / 4) + "_x";
+    m.set = static_cast<RowSet>(i % 4);
+    m.has_wrench = i % 3 != 0;
+    m.load_kg = m.has_wrench ? 40.0 / 3.0 : 0.0;
+    m.q_rad.resize(6);
+    for (int j = 0; j < 6; ++j) m.q_rad[j] = awkward(rng, 2.0 * M_PI);
+    for (int a = 0; a < 6; ++a) m.wrench_Sensor[a] = m.has_wrench ? awkward(rng, 300.0) : 0.0;
+    for (int a = 0; a < 3; ++a) m.p_TipInTracker_m[a] = awkward(rng, 5.0);
+    m.has_orientation = i % 5 != 1;
+    if (m.has_orientation) {
+      m.q_TrackerTip =
+          Eigen::Quaterniond(uniform(rng), uniform(rng), uniform(rng), uniform(rng)).normalized();
+    }
+    if (i % 7 != 2) m.temp_c = 20.0 + uniform(rng);
+    m.extra = {i % 2 ? "text with spaces and \"quotes\"" : "", std::to_string(uniform(rng)),
+               "t" + std::to_string(i)};
+    c.rows.push_back(m);
+  }
+  return c;
+}
+
+void expectSameCampaign(const Campaign& a, const Campaign& b) {
+  EXPECT_EQ(a.urdf_xml, b.urdf_xml);
+  EXPECT_EQ(a.base_link, b.base_link);
+  EXPECT_EQ(a.tip_link, b.tip_link);
+  EXPECT_EQ(a.sensor_link, b.sensor_link);
+  EXPECT_EQ(a.tracker.stated, b.tracker.stated);
+  EXPECT_TRUE(sameBits(a.tracker.position_sigma_m, b.tracker.position_sigma_m));
+  EXPECT_TRUE(sameBits(a.tracker.orientation_sigma_rad, b.tracker.orientation_sigma_rad));
+  ASSERT_EQ(a.gravity_in_base.has_value(), b.gravity_in_base.has_value());
+  if (a.gravity_in_base) {
+    EXPECT_EQ(*a.gravity_in_base, *b.gravity_in_base);
+  }
+  EXPECT_EQ(a.joint_count, b.joint_count);
+  EXPECT_EQ(a.extra_columns, b.extra_columns);
+  ASSERT_EQ(a.rows.size(), b.rows.size());
+  for (size_t i = 0; i < a.rows.size(); ++i) {
+    SCOPED_TRACE("row " + std::to_string(i));
+    const Measurement& x = a.rows[i];
+    const Measurement& y = b.rows[i];
+    EXPECT_EQ(x.seq, y.seq);
+    EXPECT_EQ(x.pose_id, y.pose_id);
+    EXPECT_EQ(x.set, y.set);
+    EXPECT_TRUE(sameBits(x.load_kg, y.load_kg));
+    ASSERT_EQ(x.q_rad.size(), y.q_rad.size());
+    for (int j = 0; j < x.q_rad.size(); ++j) {
+      EXPECT_TRUE(sameBits(x.q_rad[j], y.q_rad[j])) << x.q_rad[j] << " vs " << y.q_rad[j];
+    }
+    EXPECT_EQ(x.has_wrench, y.has_wrench);
+    for (int k = 0; k < 6; ++k) EXPECT_TRUE(sameBits(x.wrench_Sensor[k], y.wrench_Sensor[k]));
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_TRUE(sameBits(x.p_TipInTracker_m[k], y.p_TipInTracker_m[k]))
+          << x.p_TipInTracker_m[k] << " vs " << y.p_TipInTracker_m[k];
+    }
+    EXPECT_EQ(x.has_orientation, y.has_orientation);
+    if (x.has_orientation) {
+      for (int k = 0; k < 4; ++k) {
+        EXPECT_TRUE(sameBits(x.q_TrackerTip.coeffs()[k], y.q_TrackerTip.coeffs()[k]));
+      }
+    }
+    ASSERT_EQ(x.temp_c.has_value(), y.temp_c.has_value());
+    if (x.temp_c) {
+      EXPECT_TRUE(sameBits(*x.temp_c, *y.temp_c));
+    }
+    EXPECT_EQ(x.extra, y.extra);
+  }
+}
+
+TEST(Campaign, RoundTripIsBitExact) {
+  std::mt19937_64 rng(20240607);
+  const Campaign original = randomCampaign(rng, 2000);
+  TempDir dir;
+  const fs::path folder = dir.path() / "nested" / "campaign";
+  writeCampaign(original, folder.string());
+  const Campaign once = readCampaign(folder.string());
+  expectSameCampaign(original, once);
+  EXPECT_EQ(once.robot_file, "robot.urdf");
+  EXPECT_EQ(once.measurements_file, "measurements.csv");
+  // Written again, the files are identical: the written form is a fixed point.
+  const fs::path again = dir.path() / "again";
+  writeCampaign(once, again.string());
+  for (const char* name : {"campaign.yaml", "robot.urdf", "measurements.csv"}) {
+    std::ifstream f1(folder / name, std::ios::binary), f2(again / name, std::ios::binary);
+    const std::string t1((std::istreambuf_iterator<char>(f1)), {});
+    const std::string t2((std::istreambuf_iterator<char>(f2)), {});
+    EXPECT_EQ(t1, t2) << name;
+  }
+}
+
+TEST(Campaign, WritesReadableNumbersAndOmitsUnusedColumns) {
+  Campaign c;
+  c.urdf_xml = kUrdf;
+  c.base_link = "base_link";
+  c.tip_link = "tmac";
+  c.joint_count = 2;
+  Measurement m;
+  m.seq = 0;
+  m.pose_id = "r0000";
+  m.q_rad.resize(2);
+  m.q_rad << M_PI / 2, -0.1 * kDeg;
+  m.p_TipInTracker_m = Vec3(1.2345, -0.0005, 12.0);
+  c.rows.push_back(m);
+  TempDir dir;
+  writeCampaign(c, dir.path().string());
+  std::ifstream csv(dir.path() / "measurements.csv");
+  const std::string text((std::istreambuf_iterator<char>(csv)), {});
+  EXPECT_EQ(text,
+            "seq,pose_id,set,load_kg,q1_deg,q2_deg,x_mm,y_mm,z_mm\n"
+            "0,r0000,geometry,0,90,-0.1,1234.5,-0.5,12000\n");
+  std::ifstream yaml(dir.path() / "campaign.yaml");
+  const std::string yaml_text((std::istreambuf_iterator<char>(yaml)), {});
+  EXPECT_EQ(yaml_text.find("tracker"), std::string::npos);
+  EXPECT_EQ(yaml_text.find("sensor_link"), std::string::npos);
+  EXPECT_EQ(yaml_text.find("gravity_in_base"), std::string::npos);
+  expectSameCampaign(c, readCampaign(dir.path().string()));
+}
+
+/// writeCampaign refuses what the format cannot hold, naming the row and column.
+void expectWriteRefused(const Campaign& c, int line, const std::string& column,
+                        const char* message_part) {
+  TempDir dir;
+  try {
+    writeCampaign(c, (dir.path() / "out").string());
+    ADD_FAILURE() << "writeCampaign accepted it";
+  } catch (const InputError& e) {
+    EXPECT_EQ(fs::path(e.file()).filename(), "measurements.csv") << e.what();
+    EXPECT_EQ(e.line(), line) << e.what();
+    EXPECT_EQ(e.column(), column) << e.what();
+    EXPECT_NE(std::string(e.what()).find(message_part), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir.path() / "out")) << "nothing is written on a refusal";
+}
+
+TEST(Campaign, WriteRefusesWhatTheFormatCannotHold) {
+  std::mt19937_64 rng(1);
+  const Campaign valid = randomCampaign(rng, 3);
+
+  Campaign comma = valid;
+  comma.rows[1].pose_id = "a,b";
+  expectWriteRefused(comma, 3, "pose_id", "'a,b'");
+
+  Campaign quote = valid;
+  quote.rows[2].pose_id = "say \"x\"";
+  expectWriteRefused(quote, 4, "pose_id", "quotes");
+
+  Campaign extra = valid;
+  extra.rows[0].extra[1] = "1,5";
+  expectWriteRefused(extra, 2, "std_x_mm", "'1,5'");
+
+  Campaign loaded = valid;
+  loaded.rows[0].load_kg = 20.0;
+  loaded.rows[0].has_wrench = false;
+  expectWriteRefused(loaded, 2, "load_kg", "wrench");
+
+  Campaign seq = valid;
+  seq.rows[2].seq = seq.rows[0].seq;
+  expectWriteRefused(seq, 4, "seq", "unique");
+
+  Campaign clash = valid;
+  clash.extra_columns[0] = "q7_deg";  // would read back as a joint column
+  expectWriteRefused(clash, 1, "q7_deg", "not a format column");
+
+  Campaign empty = valid;
+  empty.rows.clear();
+  expectWriteRefused(empty, 0, "", "no rows");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Broken campaign.yaml
+
+TEST(CampaignRefuses, WrongFormatString) {
+  expectYamlRefused(replaced(kValidYaml, "stepcal-campaign/1", "stepcal-campaign/2"), 1,
+                    {"'stepcal-campaign/2'", "expected 'stepcal-campaign/1'"});
+}
+
+TEST(CampaignRefuses, MissingYamlKey) {
+  expectYamlRefused(replaced(kValidYaml, "tip_link: tmac\n", ""), 0,
+                    {"'tip_link'", "missing", "expected the keys"});
+}
+
+TEST(CampaignRefuses, UnknownYamlKey) {
+  expectYamlRefused(replaced(kValidYaml, "tip_link:", "tip_lnk:"), 4,
+                    {"unknown key 'tip_lnk'", "did you mean 'tip_link'"});
+}
+
+TEST(CampaignRefuses, DuplicateYamlKey) {
+  expectYamlRefused(std::string(kValidYaml) + "robot: other.urdf\n", 11,
+                    {"'robot'", "twice", "line 2"});
+}
+
+TEST(CampaignRefuses, UnknownTrackerKey) {
+  expectYamlRefused(replaced(kValidYaml, "position_sigma_mm", "position_sigma_m"), 8,
+                    {"unknown key 'position_sigma_m'", "did you mean 'position_sigma_mm'"});
+}
+
+TEST(CampaignRefuses, NonPositiveTrackerSigma) {
+  expectYamlRefused(replaced(kValidYaml, "0.015", "-0.015"), 8,
+                    {"'-0.015'", "expected a number > 0 (millimetres)"});
+}
+
+TEST(CampaignRefuses, GravityWithTwoNumbers) {
+  expectYamlRefused(replaced(kValidYaml, "[0, 0, -9.80665]", "[0, -9.80665]"), 10,
+                    {"gravity_in_base", "expected a list of 3 numbers", "a list"});
+}
+
+TEST(CampaignRefuses, GravityNotANumber) {
+  expectYamlRefused(replaced(kValidYaml, "[0, 0, -9.80665]", "[0, 0, .nan]"), 10,
+                    {"'.nan'", "expected a number (m/s^2)"});
+}
+
+TEST(CampaignRefuses, EmptyLinkName) {
+  expectYamlRefused(replaced(kValidYaml, "base_link: base_link", "base_link:"), 3,
+                    {"'base_link'", "expected a link name", "got nothing"});
+}
+
+TEST(CampaignRefuses, YamlSyntaxError) {
+  expectYamlRefused(replaced(kValidYaml, "[0, 0, -9.80665]", "[0, 0, -9.80665"), 11,
+                    {"not valid YAML"});
+}
+
+TEST(CampaignRefuses, RobotFileMissing) {
+  expectYamlRefused(replaced(kValidYaml, "robot: robot.urdf", "robot: robt.urdf"), 2,
+                    {"robt.urdf", "does not exist", "relative to the folder of campaign.yaml"});
+}
+
+TEST(CampaignRefuses, MeasurementsFileMissing) {
+  expectYamlRefused(replaced(kValidYaml, "measurements: measurements.csv", "measurements: m.csv"),
+                    6, {"m.csv", "does not exist"});
+}
+
+TEST(CampaignRefuses, NoCampaignAtPath) {
+  TempDir dir;
+  const Refusal r = refusalOf(dir.path());
+  EXPECT_EQ(r.file, "campaign.yaml");
+  EXPECT_EQ(r.line, 0);
+  EXPECT_NE(r.what.find("expected a campaign folder containing campaign.yaml"), std::string::npos)
+      << r.what;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Broken measurements.csv: header
+
+TEST(CampaignRefuses, EmptyFile) {
+  expectCsvRefused("", 1, "", {"the file is empty", "expected a header line"});
+}
+
+TEST(CampaignRefuses, HeaderOnly) {
+  expectCsvRefused(splitOn(kValidCsv, '\n')[0] + "\n", 1, "",
+                   {"no rows", "expected at least one measurement"});
+}
+
+TEST(CampaignRefuses, MissingRequiredColumn) {
+  expectCsvRefused(withField(kValidCsv, 1, "x_mm", "x_m"), 1, "x_mm",
+                   {"required column 'x_mm' is missing", "did you mean 'x_m'"});
+  expectCsvRefused(withoutColumn(kValidCsv, "set"), 1, "set", {"required column 'set'"});
+}
+
+TEST(CampaignRefuses, NoJointColumns) {
+  std::string csv = kValidCsv;
+  for (const char* q : {"q1_deg", "q2_deg", "q3_deg"}) csv = withoutColumn(csv, q);
+  expectCsvRefused(csv, 1, "q1_deg", {"'q1_deg' is missing", "q1_deg … qN_deg"});
+}
+
+TEST(CampaignRefuses, DuplicateColumn) {
+  expectCsvRefused(withField(kValidCsv, 1, "note", "temp_c"), 1, "temp_c",
+                   {"'temp_c' appears twice"});
+}
+
+TEST(CampaignRefuses, GapInJointColumns) {
+  expectCsvRefused(withField(kValidCsv, 1, "q3_deg", "q4_deg"), 1, "q3_deg",
+                   {"'q3_deg' is missing but 'q4_deg' exists", "without gaps"});
+}
+
+TEST(CampaignRefuses, BadJointColumnName) {
+  expectCsvRefused(withField(kValidCsv, 1, "q3_deg", "q03_deg"), 1, "q03_deg",
+                   {"'q03_deg'", "no leading zeros"});
+}
+
+TEST(CampaignRefuses, TooManyJoints) {
+  std::string header = "seq,pose_id,set,load_kg";
+  std::string row = "1,a,geometry,0";
+  for (int k = 1; k <= kMaxJoints + 1; ++k) {
+    header += ",q" + std::to_string(k) + "_deg";
+    row += ",0";
+  }
+  const std::string last = "q" + std::to_string(kMaxJoints + 1) + "_deg";
+  expectCsvRefused(header + ",x_mm,y_mm,z_mm\n" + row + ",1,2,3\n", 1, last,
+                   {"too many joint columns", "at most 8"});
+}
+
+TEST(CampaignRefuses, HalfAWrenchInTheHeader) {
+  expectCsvRefused(withoutColumn(kValidCsv, "my_nm"), 1, "my_nm",
+                   {"'my_nm' is missing", "all together or none"});
+}
+
+TEST(CampaignRefuses, HalfAQuaternionInTheHeader) {
+  expectCsvRefused(withoutColumn(kValidCsv, "qw"), 1, "qw", {"'qw' is missing"});
+}
+
+TEST(CampaignRefuses, SemicolonSeparated) {
+  std::string csv = kValidCsv;
+  std::replace(csv.begin(), csv.end(), ',', ';');
+  expectCsvRefused(csv, 1, "seq", {"'seq' is missing", "separated by ',', not ';'"});
+}
+
+TEST(CampaignRefuses, ByteOrderMark) {
+  expectCsvRefused("\xEF\xBB\xBF" + std::string(kValidCsv), 1, "", {"byte-order mark"});
+}
+
+TEST(CampaignRefuses, EmptyColumnName) {
+  expectCsvRefused(withField(kValidCsv, 1, "note", "note,"), 1, "",
+                   {"column 23 has an empty name"});
+}
+
+// ---------------------------------------------------------------------------------------------
+// Broken measurements.csv: rows
+
+TEST(CampaignRefuses, NonNumericValue) {
+  expectCsvRefused(withField(kValidCsv, 3, "q2_deg", "abc"), 3, "q2_deg",
+                   {"expected a number (degrees), got 'abc'"});
+}
+
+TEST(CampaignRefuses, TrailingCharacters) {
+  expectCsvRefused(withField(kValidCsv, 2, "y_mm", "1.5x"), 2, "y_mm",
+                   {"expected a number (millimetres), got '1.5x'"});
+  expectCsvRefused(withField(kValidCsv, 2, "y_mm", "1e+-5"), 2, "y_mm", {"got '1e+-5'"});
+}
+
+TEST(CampaignRefuses, EmptyRequiredValue) {
+  expectCsvRefused(withField(kValidCsv, 4, "q1_deg", ""), 4, "q1_deg",
+                   {"got ''", "the field is empty"});
+}
+
+TEST(CampaignRefuses, SpacesAroundValue) {
+  expectCsvRefused(withField(kValidCsv, 4, "load_kg", " 0"), 4, "load_kg",
+                   {"got ' 0'", "no spaces"});
+}
+
+TEST(CampaignRefuses, DecimalComma) {
+  // "12,5" splits into two fields: the row is one field too long.
+  expectCsvRefused(withField(kValidCsv, 3, "q3_deg", "12,5"), 3, "",
+                   {"row has 23 fields; expected 22", "decimal point must be '.'"});
+}
+
+TEST(CampaignRefuses, NotANumber) {
+  expectCsvRefused(withField(kValidCsv, 2, "x_mm", "nan"), 2, "x_mm",
+                   {"got 'nan'", "must be finite"});
+}
+
+TEST(CampaignRefuses, Infinity) {
+  expectCsvRefused(withField(kValidCsv, 3, "fx_n", "inf"), 3, "fx_n",
+                   {"expected a number (newtons), got 'inf'", "must be finite"});
+}
+
+TEST(CampaignRefuses, OutOfRange) {
+  expectCsvRefused(withField(kValidCsv, 2, "temp_c", "1e999"), 2, "temp_c",
+                   {"got '1e999'", "out of range"});
+}
+
+TEST(CampaignRefuses, ShortRow) {
+  expectCsvRefused(withoutColumn(kValidCsv, "note") + "4,p9,geometry,0\n", 5, "",
+                   {"row has 4 fields; expected 21"});
+}
+
+TEST(CampaignRefuses, BadSetName) {
+  expectCsvRefused(withField(kValidCsv, 2, "set", "Geometry"), 2, "set",
+                   {"expected geometry, stiffness, residual or validation, got 'Geometry'"});
+}
+
+TEST(CampaignRefuses, NegativeLoad) {
+  expectCsvRefused(withField(kValidCsv, 4, "load_kg", "-1"), 4, "load_kg",
+                   {"expected a mass >= 0 (kilograms), got '-1'"});
+}
+
+TEST(CampaignRefuses, HalfAWrenchOnARow) {
+  expectCsvRefused(withField(kValidCsv, 3, "fz_n", ""), 3, "fz_n",
+                   {"got '' but fx_n is '1'", "all six wrench values or none"});
+}
+
+TEST(CampaignRefuses, WrenchMissingOnALoadedRow) {
+  std::string csv = kValidCsv;
+  for (const char* f : {"fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm"}) {
+    csv = withField(csv, 3, f, "");
+  }
+  expectCsvRefused(csv, 3, "fx_n", {"load_kg '20'", "expected the F/T reading"});
+}
+
+TEST(CampaignRefuses, LoadedRowWithoutWrenchColumns) {
+  std::string csv = kValidCsv;
+  for (const char* f : {"fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm"}) {
+    csv = withoutColumn(csv, f);
+  }
+  expectCsvRefused(csv, 3, "load_kg", {"'20'", "no wrench columns"});
+}
+
+TEST(CampaignRefuses, NonUnitQuaternion) {
+  expectCsvRefused(withField(kValidCsv, 4, "qw", "0.6"), 4, "qw",
+                   {"(0.6, 0.5, -0.5, 0.5)", "has norm", "expected a unit quaternion"});
+}
+
+TEST(CampaignRefuses, HalfAQuaternionOnARow) {
+  expectCsvRefused(withField(kValidCsv, 2, "qy", ""), 2, "qy",
+                   {"got '' but qw is '1'", "all four quaternion values"});
+}
+
+TEST(CampaignRefuses, DuplicateSeq) {
+  expectCsvRefused(withField(kValidCsv, 4, "seq", "1"), 4, "seq",
+                   {"seq '1' already appears on line 2", "unique"});
+}
+
+TEST(CampaignRefuses, NonIntegerSeq) {
+  expectCsvRefused(withField(kValidCsv, 3, "seq", "2.0"), 3, "seq",
+                   {"expected an integer, got '2.0'"});
+}
+
+TEST(CampaignRefuses, EmptyPoseId) {
+  expectCsvRefused(withField(kValidCsv, 3, "pose_id", ""), 3, "pose_id",
+                   {"expected a pose id", "got ''"});
+}
+
+TEST(CampaignRefuses, EmptyLineInTheMiddle) {
+  expectCsvRefused(replaced(kValidCsv, "\n3,", "\n\n3,"), 4, "", {"empty line"});
+}
+
+TEST(CampaignRefuses, TwoNewlinesAtTheEnd) {
+  expectCsvRefused(std::string(kValidCsv) + "\n", 5, "", {"empty line"});
+}
+
+}  // namespace
+}  // namespace stepcal

@@ -1,0 +1,156 @@
+// End to end through the `stepcal` command: simulate → calibrate --json, a campaign written
+// by this test (not the twin) through the file format, and bad input → exit status 2.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/common/lie.hpp"
+#include "stepcal/common/model_file.hpp"
+#include "stepcal/common/urdf.hpp"
+
+namespace stepcal {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CommandResult {
+  int status = -1;
+  std::string out;
+};
+
+// Runs a shell command, capturing stdout (and stderr when asked).
+CommandResult run(const std::string& command) {
+  CommandResult r;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  std::array<char, 4096> buf{};
+  size_t n = 0;
+  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
+  const int status = pclose(pipe);
+  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+const std::string kStepcal = std::string(STEPCAL_BIN_DIR) + "/stepcal";
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("stepcal_test_cli_" + name);
+  fs::remove_all(dir);
+  return dir;
+}
+
+nlohmann::json calibrateJson(const fs::path& campaign, const fs::path& model) {
+  const CommandResult r = run(kStepcal + " calibrate " + campaign.string() + " --out " + model.string() +
+                    " --json 2>/dev/null");
+  EXPECT_EQ(r.status, 0) << r.out;
+  return nlohmann::json::parse(r.out.substr(r.out.find('{')));
+}
+
+const nlohmann::json& validationRow(const nlohmann::json& report, const std::string& method,
+                                    double load_kg) {
+  for (const auto& row : report["validation"]) {
+    if (row["method"] == method && row["load_kg"] == load_kg) return row;
+  }
+  static const nlohmann::json none;
+  ADD_FAILURE() << "no validation row for " << method << " at " << load_kg << " kg";
+  return none;
+}
+
+TEST(Cli, SimulatedPaperCampaignReachesTheNoiseFloor) {
+  const fs::path dir = scratch("paper");
+  ASSERT_EQ(run(kStepcal + " simulate --protocol paper --seed 3 --out " + dir.string()).status, 0);
+  const nlohmann::json report = calibrateJson(dir, dir / "model.stepcal");
+  const double floor_mm = report["noise_floor"]["mean_position_mm"];
+  const double floor_deg = report["noise_floor"]["mean_orientation_deg"];
+  EXPECT_NEAR(floor_mm, 0.016, 0.001);
+  const auto& nominal = validationRow(report, "nominal", 0.0);
+  const auto& poe = validationRow(report, "poe", 0.0);
+  EXPECT_GT(nominal["mean_position_mm"].get<double>(), 2.0);
+  EXPECT_LE(poe["mean_position_mm"].get<double>(), 1.25 * floor_mm);
+  EXPECT_LE(poe["mean_orientation_deg"].get<double>(), 1.25 * floor_deg);
+  EXPECT_LE(report["geometry"]["iterations"].get<int>(), 5);
+  EXPECT_EQ(report["geometry"]["rank"].get<int>(), 30);
+  EXPECT_EQ(report["geometry"]["unobservable"].size(), 12u);
+  // The model file was written and reads back.
+  const CalibratedModel model = readModelFile((dir / "model.stepcal").string());
+  EXPECT_EQ(model.chain_Tracker.dof(), 6);
+  EXPECT_FALSE(model.provenance.validation.empty());
+}
+
+TEST(Cli, CampaignNotWrittenByTheTwinCalibratesToo) {
+  // A UR10 with its own geometric errors, written through the campaign format by this test.
+  const std::string urdf_path = std::string(STEPCAL_ROBOTS_DIR) + "/ur10.urdf";
+  const KinematicChain nominal = chainFromUrdfFile(urdf_path, "base_link", "tool0");
+  std::mt19937_64 rng(42);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  Eigen::VectorXd delta(42);
+  for (int i = 0; i < 42; ++i) delta(i) = (i % 6 < 3 ? 2e-4 : 4e-4) * g(rng);
+  const Pose X_TrackerBase = lie::expSE3((Vec6() << -2.0, 3.0, 0.7, 0.0, 0.01, -1.9).finished());
+  const KinematicChain truth = nominal.corrected(delta).rerooted(X_TrackerBase);
+  const double sigma_p = 20e-6, sigma_r = 0.01 * M_PI / 180;
+  Campaign c;
+  c.urdf_xml = readTextFile(urdf_path);
+  c.base_link = "base_link";
+  c.tip_link = "tool0";
+  c.tracker = {sigma_p, sigma_r, true};
+  c.joint_count = 6;
+  ChainWorkspace ws;
+  for (int i = 0; i < 200; ++i) {
+    Measurement m;
+    m.seq = i;
+    m.pose_id = "p" + std::to_string(i);
+    m.set = i < 100 ? RowSet::kGeometry : RowSet::kValidation;
+    m.q_rad.resize(6);
+    for (int j = 0; j < 6; ++j) m.q_rad(j) = u(rng);
+    forwardKinematics(truth, m.q_rad, ws);
+    m.p_TipInTracker_m = tipPose(ws).translation() + sigma_p * Vec3(g(rng), g(rng), g(rng));
+    m.has_orientation = i % 4 != 0;  // a quarter of the rows are position-only
+    m.q_TrackerTip = Eigen::Quaterniond(lie::expSO3(sigma_r * Vec3(g(rng), g(rng), g(rng))) *
+                                        tipPose(ws).linear());
+    c.rows.push_back(m);
+  }
+  const fs::path dir = scratch("foreign");
+  writeCampaign(c, dir.string());
+  const nlohmann::json report = calibrateJson(dir, dir / "model.stepcal");
+  const auto& poe = validationRow(report, "poe", 0.0);
+  EXPECT_LE(poe["mean_position_mm"].get<double>(), 1.25 * 2 * std::sqrt(2 / M_PI) * 0.020);
+  EXPECT_EQ(report["geometry"]["rank"].get<int>(), 30);
+}
+
+TEST(Cli, BadInputEndsWithAClearErrorAndStatusTwo) {
+  const fs::path dir = scratch("bad");
+  ASSERT_EQ(run(kStepcal + " simulate --protocol geometry --seed 1 --out " + dir.string()).status, 0);
+  // Corrupt one joint angle on line 5.
+  const fs::path csv = dir / "measurements.csv";
+  std::string text = readTextFile(csv.string());
+  size_t line_start = 0;
+  for (int line = 1; line < 5; ++line) line_start = text.find('\n', line_start) + 1;
+  const size_t field = text.find(',', text.find(',', text.find(',', text.find(',', line_start) + 1) + 1) + 1);
+  text.replace(field + 1, 0, "x");
+  FILE* f = fopen(csv.string().c_str(), "w");
+  fwrite(text.data(), 1, text.size(), f);
+  fclose(f);
+  const CommandResult r = run(kStepcal + " calibrate " + dir.string());
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.out.find("measurements.csv:5"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("q1_deg"), std::string::npos) << r.out;
+
+  const CommandResult missing = run(kStepcal + " calibrate /nonexistent/campaign");
+  EXPECT_EQ(missing.status, 2);
+  EXPECT_NE(missing.out.find("/nonexistent/campaign"), std::string::npos) << missing.out;
+  const CommandResult robot = run(kStepcal + " simulate --robot ur5 --out " + dir.string());
+  EXPECT_EQ(robot.status, 2);
+  EXPECT_NE(robot.out.find("--robot 'ur5'"), std::string::npos) << robot.out;
+}
+
+}  // namespace
+}  // namespace stepcal

@@ -1,0 +1,575 @@
+// Model file: bit-exact round trips, every corrupted byte and every truncation refused, each
+// semantic check proven by editing the bytes and re-fixing the checksum, atomic writes.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <limits>
+#include <random>
+
+#include <Eigen/Cholesky>
+
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/lie.hpp"
+#include "stepcal/common/model_file.hpp"
+#include "stepcal/common/urdf.hpp"
+
+namespace stepcal {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kIrb = std::string(STEPCAL_ROBOTS_DIR) + "/irb4400.urdf";
+constexpr size_t kHeaderBytes = 24;
+
+/// Squared-exponential ARD kernel (METHOD.md eq. 27), written independently of the loader's.
+Eigen::MatrixXd kernel(const Eigen::MatrixXd& X, const Eigen::VectorXd& length_scales,
+                       double signal_sigma) {
+  const Eigen::Index m = X.rows();
+  Eigen::MatrixXd K(m, m);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    for (Eigen::Index j = 0; j < m; ++j) {
+      const double d2 =
+          ((X.row(i) - X.row(j)).transpose().array() / length_scales.array()).square().sum();
+      K(i, j) = signal_sigma * signal_sigma * std::exp(-0.5 * d2);
+    }
+  }
+  return K;
+}
+
+/// Random GPR parts (inputs q, F → outputs ξ) with α solved by Cholesky, as the trainer does.
+GprParameters randomGpr(std::mt19937_64& rng, int m, int D, int P, double length_scale = 2.0,
+                        double signal_sigma = 0.9, double noise_sigma = 0.08) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  const auto randn = [&](Eigen::Index rows, Eigen::Index cols) {
+    Eigen::MatrixXd M(rows, cols);
+    for (Eigen::Index i = 0; i < M.size(); ++i) M(i) = normal(rng);
+    return M;
+  };
+  GprParameters g;
+  g.inputs_normalised = randn(m, D);
+  g.input_offset = 0.3 * randn(D, 1);
+  g.input_scale = Eigen::VectorXd(D);
+  g.length_scales = Eigen::VectorXd(D);
+  for (int d = 0; d < D; ++d) {
+    g.input_scale(d) = d < D / 2 ? 1.2 + uniform(rng) : 50.0 + 100.0 * uniform(rng);
+    g.length_scales(d) = length_scale * (1.0 + uniform(rng));
+  }
+  g.output_mean = 1e-4 * randn(P, 1);
+  g.output_scale = Eigen::VectorXd::Constant(P, 2e-4) + 1e-4 * randn(P, 1).cwiseAbs();
+  g.signal_sigma = signal_sigma;
+  g.noise_sigma = noise_sigma;
+  g.targets_standardised = randn(m, P);
+  const Eigen::MatrixXd K = kernel(g.inputs_normalised, g.length_scales, g.signal_sigma) +
+                            g.noise_sigma * g.noise_sigma * Eigen::MatrixXd::Identity(m, m);
+  g.alpha = K.llt().solve(g.targets_standardised);
+  return g;
+}
+
+/// An IRB 4400 model as the trainer would write it: calibrated, registered, all three steps.
+CalibratedModel realisticModel(int m = 300) {
+  std::mt19937_64 rng(42);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const KinematicChain chain_Base =
+      chainFromUrdfFile(kIrb, "base_link", "tmac", {"flange", "ft_sensor"});
+  Eigen::VectorXd delta(6 * (chain_Base.dof() + 1));
+  for (Eigen::Index i = 0; i < delta.size(); ++i) delta(i) = 1e-3 * normal(rng);
+
+  CalibratedModel model;
+  model.X_TrackerBase = Pose::Identity();
+  model.X_TrackerBase.linear() = lie::rotationFromRpy(0.01, -0.02, 2.3);
+  model.X_TrackerBase.translation() = Vec3(3.812, -1.274, 0.391);
+  model.chain_Tracker = chain_Base.corrected(delta).rerooted(model.X_TrackerBase);
+  model.sensor_frame = model.chain_Tracker.findFrame("ft_sensor");
+  model.gravity_Base = Vec3(0.0, 0.0, -9.80665);
+  // Paper's identified joint stiffnesses (N·m/rad), as compliances.
+  const Eigen::Matrix<double, 6, 1> stiffness(501130, 633590, 508209, 124391, 75782, 74226);
+  model.compliance_rad_per_nm = stiffness.cwiseInverse();
+  model.compliance_sigma_rad_per_nm = 0.05 * model.compliance_rad_per_nm;
+  model.gpr = randomGpr(rng, m, 12, 6);
+  ModelProvenance& p = model.provenance;
+  p.campaign_hash = "9f86d081884c7d659a2feaa0c55ad015a3bf4f1b2b0b822cd15d6c15b0f00a08";
+  p.created_utc = "2024-05-01T12:34:56Z";
+  p.trainer_version = "stepcal 0.1.0";
+  p.campaign_path = "/data/campaigns/irb4400-2024-05";
+  const double kMm = 1e-3, kDeg = M_PI / 180;
+  p.validation = {{"POE", 20, 30, 0.5712 * kMm, 1.41 * kMm, 0.0286 * kDeg},
+                  {"POE + stiffness", 20, 30, 0.3952 * kMm, 0.97 * kMm, 0.0176 * kDeg},
+                  {"POE + stiffness + GPR", 20, 30, 0.1032 * kMm, 0.31 * kMm, 0.0104 * kDeg},
+                  {"POE + stiffness + GPR", 40, 30, 0.1129 * kMm, 0.35 * kMm, 0.0122 * kDeg}};
+  return model;
+}
+
+bool sameMatrix(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return a.rows() == b.rows() && a.cols() == b.cols() && (a.array() == b.array()).all();
+}
+
+void expectSameModel(const CalibratedModel& a, const CalibratedModel& b) {
+  const KinematicChain& ca = a.chain_Tracker;
+  const KinematicChain& cb = b.chain_Tracker;
+  ASSERT_EQ(ca.dof(), cb.dof());
+  for (int i = 0; i < ca.dof(); ++i) {
+    const ChainJoint& ja = ca.joints()[size_t(i)];
+    const ChainJoint& jb = cb.joints()[size_t(i)];
+    EXPECT_EQ(ja.name, jb.name);
+    EXPECT_TRUE(sameMatrix(ja.twist_Local, jb.twist_Local));
+    EXPECT_EQ(ja.lower_rad, jb.lower_rad);
+    EXPECT_EQ(ja.upper_rad, jb.upper_rad);
+  }
+  for (int k = 0; k <= ca.dof(); ++k) {
+    EXPECT_TRUE(sameMatrix(ca.initialPose(k).matrix(), cb.initialPose(k).matrix())) << k;
+  }
+  ASSERT_EQ(ca.frames().size(), cb.frames().size());
+  for (size_t i = 0; i < ca.frames().size(); ++i) {
+    EXPECT_EQ(ca.frames()[i].name, cb.frames()[i].name);
+    EXPECT_EQ(ca.frames()[i].parent, cb.frames()[i].parent);
+    EXPECT_TRUE(sameMatrix(ca.frames()[i].X_ParentFrame.matrix(),
+                           cb.frames()[i].X_ParentFrame.matrix()));
+  }
+  EXPECT_TRUE(sameMatrix(a.X_TrackerBase.matrix(), b.X_TrackerBase.matrix()));
+  EXPECT_EQ(a.sensor_frame, b.sensor_frame);
+  EXPECT_TRUE(sameMatrix(a.gravity_Base, b.gravity_Base));
+  EXPECT_TRUE(sameMatrix(a.compliance_rad_per_nm, b.compliance_rad_per_nm));
+  EXPECT_TRUE(sameMatrix(a.compliance_sigma_rad_per_nm, b.compliance_sigma_rad_per_nm));
+  ASSERT_EQ(a.gpr.has_value(), b.gpr.has_value());
+  if (a.gpr) {
+    const GprParameters& ga = *a.gpr;
+    const GprParameters& gb = *b.gpr;
+    EXPECT_TRUE(sameMatrix(ga.inputs_normalised, gb.inputs_normalised));
+    EXPECT_TRUE(sameMatrix(ga.input_offset, gb.input_offset));
+    EXPECT_TRUE(sameMatrix(ga.input_scale, gb.input_scale));
+    EXPECT_TRUE(sameMatrix(ga.output_mean, gb.output_mean));
+    EXPECT_TRUE(sameMatrix(ga.output_scale, gb.output_scale));
+    EXPECT_TRUE(sameMatrix(ga.length_scales, gb.length_scales));
+    EXPECT_EQ(ga.signal_sigma, gb.signal_sigma);
+    EXPECT_EQ(ga.noise_sigma, gb.noise_sigma);
+    EXPECT_TRUE(sameMatrix(ga.targets_standardised, gb.targets_standardised));
+    EXPECT_TRUE(sameMatrix(ga.alpha, gb.alpha));
+  }
+  const ModelProvenance& pa = a.provenance;
+  const ModelProvenance& pb = b.provenance;
+  EXPECT_EQ(pa.campaign_hash, pb.campaign_hash);
+  EXPECT_EQ(pa.created_utc, pb.created_utc);
+  EXPECT_EQ(pa.trainer_version, pb.trainer_version);
+  EXPECT_EQ(pa.campaign_path, pb.campaign_path);
+  ASSERT_EQ(pa.validation.size(), pb.validation.size());
+  for (size_t i = 0; i < pa.validation.size(); ++i) {
+    EXPECT_EQ(pa.validation[i].method, pb.validation[i].method);
+    EXPECT_EQ(pa.validation[i].load_kg, pb.validation[i].load_kg);
+    EXPECT_EQ(pa.validation[i].rows, pb.validation[i].rows);
+    EXPECT_EQ(pa.validation[i].mean_position_m, pb.validation[i].mean_position_m);
+    EXPECT_EQ(pa.validation[i].max_position_m, pb.validation[i].max_position_m);
+    EXPECT_EQ(pa.validation[i].mean_orientation_rad, pb.validation[i].mean_orientation_rad);
+  }
+}
+
+CalibratedModel parse(const std::vector<uint8_t>& bytes) {
+  return parseModel(bytes.data(), bytes.size(), "test.model");
+}
+
+/// Message of the InputError parsing `bytes` throws, or "" when it parses.
+std::string refusal(const std::vector<uint8_t>& bytes) {
+  try {
+    parse(bytes);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// Little-endian edits at a byte offset, as the format stores them.
+void putU32(std::vector<uint8_t>& b, size_t at, uint32_t v) {
+  for (int i = 0; i < 4; ++i) b[at + size_t(i)] = uint8_t(v >> (8 * i));
+}
+void putF64(std::vector<uint8_t>& b, size_t at, double v) {
+  uint64_t bits = 0;
+  std::memcpy(&bits, &v, 8);
+  for (int i = 0; i < 8; ++i) b[at + size_t(i)] = uint8_t(bits >> (8 * i));
+}
+double getF64(const std::vector<uint8_t>& b, size_t at) {
+  uint64_t bits = 0;
+  for (int i = 0; i < 8; ++i) bits |= uint64_t(b[at + size_t(i)]) << (8 * i);
+  double v = 0;
+  std::memcpy(&v, &bits, 8);
+  return v;
+}
+uint32_t getU32(const std::vector<uint8_t>& b, size_t at) {
+  uint32_t v = 0;
+  for (int i = 0; i < 4; ++i) v |= uint32_t(b[at + size_t(i)]) << (8 * i);
+  return v;
+}
+
+/// Re-stamps the size field and the CRC, so only the deliberate edit is left to be caught.
+void refix(std::vector<uint8_t>& b) {
+  const uint64_t size = b.size();
+  for (int i = 0; i < 8; ++i) b[16 + size_t(i)] = uint8_t(size >> (8 * i));
+  putU32(b, b.size() - 4, crc32Ieee(b.data(), b.size() - 4));
+}
+
+/// Byte offset of a section's payload, found by walking the section headers.
+size_t payloadOf(const std::vector<uint8_t>& b, const char (&tag)[5]) {
+  size_t at = kHeaderBytes;
+  while (at + 16 <= b.size() - 4) {
+    uint64_t length = 0;
+    for (int i = 0; i < 8; ++i) length |= uint64_t(b[at + 8 + size_t(i)]) << (8 * i);
+    if (std::memcmp(&b[at], tag, 4) == 0) return at + 16;
+    at += 16 + size_t(length);
+  }
+  ADD_FAILURE() << "no section " << tag;
+  return 0;
+}
+
+/// Offset of the GPR's first input, and of α, for D inputs, P outputs and m samples.
+size_t gprInputsAt(const std::vector<uint8_t>& b, size_t D, size_t P) {
+  return payloadOf(b, "GPR ") + 12 + 8 * (3 * D + 2 * P + 2);
+}
+
+class ModelFileTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    model_ = new CalibratedModel(realisticModel());
+    bytes_ = new std::vector<uint8_t>(serializeModel(*model_));
+  }
+  static void TearDownTestSuite() {
+    delete model_;
+    delete bytes_;
+  }
+  static const CalibratedModel& model() { return *model_; }
+  static const std::vector<uint8_t>& bytes() { return *bytes_; }
+
+ private:
+  static CalibratedModel* model_;
+  static std::vector<uint8_t>* bytes_;
+};
+CalibratedModel* ModelFileTest::model_ = nullptr;
+std::vector<uint8_t>* ModelFileTest::bytes_ = nullptr;
+
+/// A fresh empty folder, removed at the end of the test.
+class ScratchFolder {
+ public:
+  ScratchFolder() {
+    path_ = fs::temp_directory_path() /
+            ("stepcal_model_file_" + std::to_string(::getpid()) + "_" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~ScratchFolder() { fs::remove_all(path_); }
+  const fs::path& path() const { return path_; }
+  std::vector<std::string> entries() const {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(path_)) names.push_back(e.path().filename());
+    return names;
+  }
+
+ private:
+  fs::path path_;
+};
+
+/// Bit-at-a-time CRC-32, the definition the table-driven one must match.
+uint32_t crc32Bitwise(const uint8_t* data, size_t size) {
+  uint32_t c = 0xFFFFFFFFu;
+  for (size_t i = 0; i < size; ++i) {
+    c ^= data[i];
+    for (int k = 0; k < 8; ++k) c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+  }
+  return ~c;
+}
+
+TEST(Crc32, StandardCheckValueAndEveryLengthAndAlignment) {
+  const std::string text = "123456789";
+  EXPECT_EQ(crc32Ieee(reinterpret_cast<const uint8_t*>(text.data()), text.size()), 0xCBF43926u);
+  EXPECT_EQ(crc32Ieee(nullptr, 0), 0u);
+  std::mt19937 rng(7);
+  std::vector<uint8_t> bytes(100);
+  for (uint8_t& b : bytes) b = uint8_t(rng());
+  for (size_t start = 0; start < 8; ++start) {
+    for (size_t length = 0; start + length <= bytes.size(); ++length) {
+      ASSERT_EQ(crc32Ieee(bytes.data() + start, length), crc32Bitwise(bytes.data() + start, length))
+          << start << " " << length;
+    }
+  }
+}
+
+TEST_F(ModelFileTest, RoundTripIsBitExactAndKeepsEveryField) {
+  const CalibratedModel parsed = parse(bytes());
+  expectSameModel(model(), parsed);
+  EXPECT_EQ(serializeModel(parsed), bytes());
+  // m = 300, D = 12, P = 6: inputs, targets and α dominate; no Cholesky factor is stored.
+  std::cout << "[          ] model file size for m = 300, D = 12, P = 6: " << bytes().size()
+            << " bytes\n";
+  RecordProperty("model_file_bytes_m300", std::to_string(bytes().size()));
+  EXPECT_LT(bytes().size(), 100000u);
+  EXPECT_GT(bytes().size(), 300u * (12 + 6 + 6) * 8);
+}
+
+TEST_F(ModelFileTest, RoundTripWithoutOptionalSteps) {
+  CalibratedModel bare = model();
+  bare.gpr.reset();
+  bare.compliance_rad_per_nm.resize(0);
+  bare.compliance_sigma_rad_per_nm.resize(0);
+  bare.sensor_frame = -1;
+  bare.provenance = {};
+  // A continuous joint has infinite limits.
+  ChainJoint continuous = bare.chain_Tracker.joints()[5];
+  continuous.lower_rad = -std::numeric_limits<double>::infinity();
+  continuous.upper_rad = std::numeric_limits<double>::infinity();
+  std::vector<ChainJoint> joints = bare.chain_Tracker.joints();
+  joints[5] = continuous;
+  bare.chain_Tracker = KinematicChain(joints, bare.chain_Tracker.initialPoses(),
+                                      bare.chain_Tracker.frames());
+  const std::vector<uint8_t> b = serializeModel(bare);
+  const CalibratedModel parsed = parse(b);
+  expectSameModel(bare, parsed);
+  EXPECT_EQ(serializeModel(parsed), b);
+  EXPECT_LT(b.size(), 2000u);
+}
+
+TEST_F(ModelFileTest, IllConditionedButConsistentGprIsAccepted) {
+  // Long length scales and σ_f/σ_n = 1e6: α from Cholesky leaves ‖(K + σ_n² I) α − Y‖ / ‖Y‖
+  // around 1e-3, yet it is the exact solution to working precision (backward error ~1e-16).
+  std::mt19937_64 rng(5);
+  CalibratedModel ill = model();
+  ill.gpr = randomGpr(rng, 300, 12, 6, 100.0, 100.0, 1e-4);
+  const GprParameters& g = *ill.gpr;
+  const Eigen::MatrixXd K = kernel(g.inputs_normalised, g.length_scales, g.signal_sigma) +
+                            g.noise_sigma * g.noise_sigma * Eigen::MatrixXd::Identity(300, 300);
+  EXPECT_GT((K * g.alpha - g.targets_standardised).norm() / g.targets_standardised.norm(), 1e-6);
+  const std::vector<uint8_t> b = serializeModel(ill);
+  expectSameModel(ill, parse(b));
+}
+
+TEST_F(ModelFileTest, FileRoundTripReplacesAtomicallyAndLeavesNoTemporary) {
+  const ScratchFolder folder;
+  const std::string path = (folder.path() / "irb4400.stepcal").string();
+  writeModelFile(model(), path);
+  expectSameModel(model(), readModelFile(path));
+  EXPECT_EQ(fs::file_size(path), bytes().size());
+
+  CalibratedModel other = model();
+  other.gpr.reset();
+  other.provenance.trainer_version = "stepcal 0.2.0";
+  writeModelFile(other, path);
+  expectSameModel(other, readModelFile(path));
+  EXPECT_EQ(folder.entries(), std::vector<std::string>{"irb4400.stepcal"});
+}
+
+TEST_F(ModelFileTest, WriteRefusesMissingFolderAndReadRefusesMissingFile) {
+  const ScratchFolder folder;
+  const std::string path = (folder.path() / "no_such_folder" / "m.stepcal").string();
+  try {
+    writeModelFile(model(), path);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(readModelFile(path), InputError);
+  EXPECT_THROW(readModelFile(folder.path().string()), InputError);  // a folder, not a file
+  EXPECT_TRUE(folder.entries().empty());
+}
+
+TEST_F(ModelFileTest, EveryFlippedBitIsRefused) {
+  std::vector<uint8_t> b = bytes();
+  const auto start = std::chrono::steady_clock::now();
+  size_t accepted = 0;
+  for (size_t at = 0; at < b.size(); ++at) {
+    const uint8_t mask = uint8_t(1u << (at % 8));
+    b[at] ^= mask;
+    if (refusal(b).empty()) {
+      ++accepted;
+      ADD_FAILURE() << "flipping bit " << at % 8 << " of byte " << at << " was not noticed";
+    }
+    b[at] ^= mask;
+  }
+  EXPECT_EQ(accepted, 0u);
+  std::cout << "[          ] " << b.size() << " bit flips checked in "
+            << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()
+            << " s\n";
+}
+
+TEST_F(ModelFileTest, EveryTruncationAndExtensionIsRefused) {
+  const std::vector<uint8_t>& b = bytes();
+  for (size_t length = 0; length < b.size(); ++length) {
+    EXPECT_THROW(parseModel(b.data(), length, "truncated.model"), InputError) << length;
+  }
+  std::vector<uint8_t> longer = b;
+  longer.push_back(0);
+  EXPECT_NE(refusal(longer).find("truncated or extended"), std::string::npos);
+  EXPECT_NE(refusal(std::vector<uint8_t>(b.begin(), b.end() - 1)).find("truncated or extended"),
+            std::string::npos);
+}
+
+TEST_F(ModelFileTest, ChecksumMismatchSaysCorrupted) {
+  std::vector<uint8_t> b = bytes();
+  b[b.size() / 2] ^= 0x10;
+  const std::string message = refusal(b);
+  EXPECT_NE(message.find("corrupted"), std::string::npos) << message;
+  EXPECT_EQ(message.rfind("test.model: byte ", 0), 0u) << message;
+}
+
+TEST_F(ModelFileTest, VersionMismatchNamesBothVersions) {
+  std::vector<uint8_t> b = bytes();
+  putU32(b, 8, 2);
+  refix(b);
+  const std::string message = refusal(b);
+  EXPECT_NE(message.find("model format version 2, this build reads 1; hint: retrain or use a "
+                         "matching runtime"),
+            std::string::npos)
+      << message;
+}
+
+TEST_F(ModelFileTest, BadMagicIsNotAModelFile) {
+  std::vector<uint8_t> b = bytes();
+  b[0] = 'X';
+  refix(b);
+  EXPECT_NE(refusal(b).find("not a stepcal model file"), std::string::npos);
+  const std::string text = "solver: lm\n";
+  EXPECT_NE(refusal(std::vector<uint8_t>(text.begin(), text.end())).find("not a stepcal model"),
+            std::string::npos);
+  EXPECT_NE(refusal({}).find("not a stepcal model file"), std::string::npos);
+}
+
+TEST_F(ModelFileTest, NonFiniteValueIsRefusedWithItsField) {
+  std::vector<uint8_t> b = bytes();
+  const size_t at = gprInputsAt(b, 12, 6) + 8 * (12 * 7 + 3);  // inputs_normalised(7, 3)
+  ASSERT_EQ(getF64(b, at), model().gpr->inputs_normalised(7, 3));
+  putF64(b, at, std::numeric_limits<double>::quiet_NaN());
+  refix(b);
+  const std::string message = refusal(b);
+  EXPECT_NE(message.find("byte " + std::to_string(at) + ", gpr.inputs_normalised(7, 3): nan; "
+                         "expected a finite number"),
+            std::string::npos)
+      << message;
+}
+
+TEST_F(ModelFileTest, NonOrthonormalRotationIsRefused) {
+  std::vector<uint8_t> b = bytes();
+  const size_t at = payloadOf(b, "REGI");  // X_TrackerBase R(0, 0)
+  ASSERT_EQ(getF64(b, at), model().X_TrackerBase.linear()(0, 0));
+  putF64(b, at, getF64(b, at) * (1 + 1e-6));
+  refix(b);
+  const std::string message = refusal(b);
+  EXPECT_NE(message.find("registration.X_TrackerBase: rotation is not orthonormal"),
+            std::string::npos)
+      << message;
+}
+
+TEST_F(ModelFileTest, ReflectionIsRefused) {
+  std::vector<uint8_t> b = bytes();
+  const size_t at = payloadOf(b, "REGI");
+  for (int c = 0; c < 3; ++c) putF64(b, at + 8 * size_t(c), -getF64(b, at + 8 * size_t(c)));
+  refix(b);
+  EXPECT_NE(refusal(b).find("determinant"), std::string::npos);
+}
+
+TEST_F(ModelFileTest, InconsistentAlphaIsRefused) {
+  std::vector<uint8_t> b = bytes();
+  const size_t alpha_at = gprInputsAt(b, 12, 6) + 8 * 300 * (12 + 6);
+  const size_t at = alpha_at + 8 * (6 * 150 + 2);  // α(150, 2)
+  ASSERT_EQ(getF64(b, at), model().gpr->alpha(150, 2));
+  putF64(b, at, getF64(b, at) * (1 + 1e-5));
+  refix(b);
+  const std::string message = refusal(b);
+  EXPECT_NE(message.find("byte " + std::to_string(alpha_at) + ", gpr.alpha"), std::string::npos)
+      << message;
+  EXPECT_NE(message.find("inconsistent"), std::string::npos) << message;
+
+  // A changed hyperparameter makes the stored α wrong as well.
+  b = bytes();
+  const size_t noise_at = gprInputsAt(b, 12, 6) - 8;
+  ASSERT_EQ(getF64(b, noise_at), model().gpr->noise_sigma);
+  putF64(b, noise_at, 0.09);
+  refix(b);
+  EXPECT_NE(refusal(b).find("inconsistent"), std::string::npos);
+}
+
+TEST_F(ModelFileTest, SensorFrameOutOfRangeIsRefused) {
+  std::vector<uint8_t> b = bytes();
+  const size_t at = payloadOf(b, "REGI") + 8 * (12 + 3);
+  ASSERT_EQ(int(getU32(b, at)), model().sensor_frame);
+  putU32(b, at, 3);
+  refix(b);
+  const std::string message = refusal(b);
+  EXPECT_NE(message.find("registration.sensor_frame: 3; expected −1 (no sensor) or 0 … 1"),
+            std::string::npos)
+      << message;
+}
+
+TEST_F(ModelFileTest, OtherSemanticChecks) {
+  const auto edited = [&](auto edit) {
+    std::vector<uint8_t> b = bytes();
+    edit(b);
+    refix(b);
+    return refusal(b);
+  };
+  const size_t chain = payloadOf(bytes(), "CHAN");
+  const size_t name0 = getU32(bytes(), chain + 4);
+  const size_t twist0 = chain + 4 + 4 + name0;
+  EXPECT_NE(edited([&](auto& b) { putF64(b, twist0 + 40, 1.001); }).find("rotation axis has norm"),
+            std::string::npos);
+  EXPECT_NE(edited([&](auto& b) { putU32(b, chain, 0); }).find("chain.dof: 0; expected 1 … 8"),
+            std::string::npos);
+  EXPECT_NE(edited([&](auto& b) { putU32(b, chain, 9); }).find("chain.dof: 9; expected 1 … 8"),
+            std::string::npos);
+  EXPECT_NE(edited([&](auto& b) { putU32(b, chain + 4, 5000); }).find("at most 4096"),
+            std::string::npos);
+  EXPECT_NE(edited([&](auto& b) { putF64(b, twist0 + 48, 4.0); }).find("expected lower ≤ upper"),
+            std::string::npos);
+  EXPECT_NE(edited([&](auto& b) { putF64(b, twist0 + 48, std::nan("")); })
+                .find("chain.joints[0].lower_rad: nan"),
+            std::string::npos);
+  EXPECT_NE(edited([&](auto& b) {
+              putF64(b, twist0 + 48, std::numeric_limits<double>::infinity());
+              putF64(b, twist0 + 56, std::numeric_limits<double>::infinity());
+            }).find("expected lower ≤ upper"),
+            std::string::npos);
+  const size_t compliance = payloadOf(bytes(), "COMP");
+  EXPECT_NE(edited([&](auto& b) { putF64(b, compliance + 4 + 8, -1e-6); })
+                .find("compliance.compliance_rad_per_nm[1]: -1e-06; expected ≥ 0"),
+            std::string::npos);
+  EXPECT_NE(edited([&](auto& b) { putU32(b, compliance, 5); }).find("compliance.count"),
+            std::string::npos);
+  const size_t gpr = payloadOf(bytes(), "GPR ");
+  EXPECT_NE(edited([&](auto& b) { putF64(b, gpr + 12 + 8 * 12, 0.0); })
+                .find("gpr.input_scale[0]: 0; expected > 0"),
+            std::string::npos);
+  EXPECT_NE(edited([&](auto& b) { putU32(b, gpr + 4, 65); }).find("gpr.m/D/P"),
+            std::string::npos);
+  EXPECT_NE(edited([&](auto& b) { putU32(b, gpr, 299); }).find("payload has"),
+            std::string::npos);
+  // Swapping the order of two sections is a structural error even with a valid checksum.
+  EXPECT_NE(edited([&](auto& b) { std::memcpy(&b[chain - 16], "REGI", 4); })
+                .find("expected the sections CHAN, REGI, COMP, GPR, PROV in that order"),
+            std::string::npos);
+  EXPECT_NE(edited([&](auto& b) { putU32(b, chain - 12, 1); }).find("reserved word"),
+            std::string::npos);
+  EXPECT_NE(edited([&](auto& b) { putU32(b, 12, 4); }).find("flags"), std::string::npos);
+  const size_t provenance = payloadOf(bytes(), "PROV");
+  EXPECT_NE(edited([&](auto& b) { b[provenance + 4] = 'g'; }).find("hexadecimal"),
+            std::string::npos);
+}
+
+TEST_F(ModelFileTest, SerialiseRefusesWhatTheLoaderWouldRefuse) {
+  CalibratedModel bad = model();
+  bad.compliance_rad_per_nm(2) = -1;
+  EXPECT_THROW(serializeModel(bad), InputError);
+  bad = model();
+  bad.compliance_sigma_rad_per_nm.resize(3);
+  EXPECT_THROW(serializeModel(bad), InputError);
+  bad = model();
+  bad.gpr->alpha.conservativeResize(299, 6);
+  EXPECT_THROW(serializeModel(bad), InputError);
+  bad = model();
+  bad.gravity_Base.x() = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(serializeModel(bad), InputError);
+  EXPECT_THROW(serializeModel(CalibratedModel{}), InputError);  // no chain
+}
+
+}  // namespace
+}  // namespace stepcal

@@ -1,0 +1,179 @@
+// stepcal: the offline command line. Every subcommand reads and writes campaign folders
+// (campaign-format.md); errors in the user's input end with exit status 2 and one clear line.
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <iostream>
+
+#include "report.hpp"
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/model_file.hpp"
+#include "stepcal/importers/ipa.hpp"
+#include "stepcal/trainer/pipeline.hpp"
+#include "stepcal/twin/twin.hpp"
+
+namespace {
+
+using namespace stepcal;
+
+constexpr double kDegToRad = M_PI / 180.0;
+
+struct SimulateArgs {
+  std::string robot = "irb4400";
+  std::string protocol = "paper";
+  uint64_t seed = 1;
+  std::string out;
+  double position_sigma_mm = 0.010;
+  double orientation_sigma_deg = 0.005;
+};
+
+std::string robotUrdf(const std::string& robot) {
+  return std::string(STEPCAL_ROBOTS_DIR) + "/" + robot + ".urdf";
+}
+
+void runSimulate(const SimulateArgs& a) {
+  if (a.robot != "irb4400") {
+    throw InputError("--robot '" + a.robot +
+                     "': the twin simulates 'irb4400' (its pose ranges and stiffness are the "
+                     "paper's); hint: use --robot irb4400");
+  }
+  twin::TwinOptions options;
+  options.urdf_path = robotUrdf(a.robot);
+  options.protocol = a.protocol;
+  options.seed = a.seed;
+  options.tracker_position_sigma_m = a.position_sigma_mm * 1e-3;
+  options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kDegToRad;
+  twin::writeSimulation(options, a.out);
+}
+
+void runCalibrate(const std::string& dir, const std::string& model_out, bool json) {
+  const Campaign campaign = readCampaign(dir);
+  const trainer::CalibrationOutcome outcome = trainer::calibrateCampaign(campaign);
+  if (!model_out.empty()) {
+    writeModelFile(trainer::modelFromOutcome(campaign, outcome), model_out);
+    std::cerr << "wrote model " << model_out << "\n";
+  }
+  if (json) {
+    std::cout << cli::reportJson(campaign, outcome).dump(2) << "\n";
+  } else {
+    std::cout << cli::formatReport(campaign, outcome);
+  }
+}
+
+// Accuracy of a model file's calibrated chain on every row of a campaign.
+// With refit_frames, the tracker and tool frames are fitted again on the campaign's rows
+// (12 parameters; the joint frames stay the model's): for a campaign measured with the
+// tracker or the target moved.
+void runValidate(const std::string& model_path, const std::string& dir, bool refit_frames,
+                 bool json) {
+  const CalibratedModel model = readModelFile(model_path);
+  const Campaign campaign = readCampaign(dir);
+  if (campaign.joint_count != model.chain_Tracker.dof()) {
+    throw InputError("campaign has " + std::to_string(campaign.joint_count) +
+                         " joints, the model " + std::to_string(model.chain_Tracker.dof()),
+                     dir);
+  }
+  KinematicChain chain = model.chain_Tracker;
+  if (refit_frames) {
+    trainer::GeometricOptions frames_only;
+    frames_only.scope = trainer::GeometricScope::kFramesOnly;
+    std::vector<const Measurement*> rows;
+    for (const Measurement& m : campaign.rows) rows.push_back(&m);
+    chain = trainer::calibrateGeometry(chain.rerooted(model.X_TrackerBase.inverse()), rows,
+                                       campaign.tracker, frames_only)
+                .chain_Tracker;
+  }
+  const auto summaries = trainer::summarize(refit_frames ? "model, frames refit" : "model", [&chain](const Measurement& row) {
+    ChainWorkspace ws;
+    forwardKinematics(chain, row.q_rad, ws);
+    return tipPose(ws);
+  }, campaign.rows);
+  if (json) {
+    std::cout << cli::accuracyJson(summaries).dump(2) << "\n";
+  } else {
+    std::cout << "model " << model_path << " (campaign " << model.provenance.campaign_path
+              << ") on " << dir << "\n" << cli::formatAccuracyTable(summaries);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"stepcal: stepwise calibration of heavy-duty robots (geometry, compliance, residual)"};
+  app.require_subcommand(1);
+
+  SimulateArgs sim;
+  CLI::App* simulate = app.add_subcommand("simulate", "write a campaign of the simulated robot (twin) and its truth.json");
+  simulate->add_option("--robot", sim.robot, "robot to simulate")->capture_default_str();
+  simulate->add_option("--protocol", sim.protocol, "paper | geometry")->capture_default_str();
+  simulate->add_option("--seed", sim.seed, "random seed")->capture_default_str();
+  simulate->add_option("--tracker-position-sigma-mm", sim.position_sigma_mm,
+                       "tracker position noise per axis, 1-sigma, mm")->capture_default_str();
+  simulate->add_option("--tracker-orientation-sigma-deg", sim.orientation_sigma_deg,
+                       "tracker orientation noise per axis, 1-sigma, deg")->capture_default_str();
+  simulate->add_option("--out", sim.out, "campaign folder to write")->required();
+
+  CLI::App* import = app.add_subcommand("import", "convert foreign measurements into a campaign");
+  import->require_subcommand(1);
+  std::string ipa_csv, ipa_out, ipa_urdf = robotUrdf("ur10");
+  int validation_from_row = -1;
+  CLI::App* ipa = import->add_subcommand("ipa", "a series of the IPA UR10 data set (ipa-robot-accuracy)");
+  ipa->add_option("csv", ipa_csv, "the series' measurements CSV")->required();
+  ipa->add_option("--validation-from-row", validation_from_row,
+                  "rows from N on (0-based, after the header) become set=validation");
+  ipa->add_option("--urdf", ipa_urdf, "nominal UR10 description")->capture_default_str();
+  ipa->add_option("--out", ipa_out, "campaign folder to write")->required();
+
+  std::string campaign_dir, model_out;
+  bool json = false;
+  CLI::App* calibrate = app.add_subcommand("calibrate", "calibrate a campaign and print its accuracy tables");
+  calibrate->add_option("campaign", campaign_dir, "campaign folder (or its campaign.yaml)")->required();
+  calibrate->add_option("--out", model_out, "model file to write");
+  calibrate->add_flag("--json", json, "print the report as JSON");
+
+  std::string validate_model, validate_dir;
+  bool validate_json = false;
+  CLI::App* validate = app.add_subcommand(
+      "validate", "accuracy of a model file on another campaign's rows (e.g. fit on one series, check on another)");
+  validate->add_option("model", validate_model, "model file")->required();
+  validate->add_option("campaign", validate_dir, "campaign folder")->required();
+  validate->add_flag("--json", validate_json, "print the table as JSON");
+  bool refit_frames = false;
+  validate->add_flag("--refit-frames", refit_frames,
+                     "fit the tracker and tool frames again on this campaign (joint frames kept)");
+
+  std::string demo_out = "out/demo-campaign";
+  uint64_t demo_seed = 1;
+  CLI::App* demo = app.add_subcommand(
+      "demo", "the main job: simulate the paper's IRB4400 campaign, calibrate it, print the tables");
+  demo->add_option("--out", demo_out, "where the simulated campaign goes")->capture_default_str();
+  demo->add_option("--seed", demo_seed, "random seed of the twin")->capture_default_str();
+
+  CLI11_PARSE(app, argc, argv);
+  try {
+    if (*simulate) {
+      runSimulate(sim);
+      std::cerr << "wrote " << sim.out << " (campaign + truth.json)\n";
+    } else if (*ipa) {
+      writeCampaign(importers::importIpaSeries(ipa_csv, validation_from_row, ipa_urdf), ipa_out);
+      std::cerr << "wrote " << ipa_out << "\n";
+    } else if (*calibrate) {
+      runCalibrate(campaign_dir, model_out, json);
+    } else if (*validate) {
+      runValidate(validate_model, validate_dir, refit_frames, validate_json);
+    } else if (*demo) {
+      SimulateArgs paper;
+      paper.seed = demo_seed;
+      paper.out = demo_out;
+      runSimulate(paper);
+      std::cout << "simulated the paper's IRB4400 campaign (seed " << demo_seed << ") into "
+                << demo_out << "\n\n";
+      runCalibrate(demo_out, demo_out + "/model.stepcal", false);
+    }
+  } catch (const InputError& e) {
+    std::cerr << "stepcal: error: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}

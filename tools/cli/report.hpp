@@ -1,0 +1,26 @@
+// Human-readable and JSON renderings of a calibration outcome (mm and degrees).
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/trainer/pipeline.hpp"
+
+namespace stepcal::cli {
+
+/// The accuracy tables and step reports as text.
+std::string formatReport(const Campaign& campaign, const trainer::CalibrationOutcome& outcome);
+
+/// The same as JSON: `validation` → [{method, load_kg, rows, mean_position_mm, max_position_mm,
+/// mean_orientation_deg}], plus `fit`, `noise_floor`, `geometry`.
+nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOutcome& outcome);
+
+/// Accuracy table (rows = set and load, columns = methods) as text.
+std::string formatAccuracyTable(const std::vector<trainer::AccuracySummary>& summaries);
+
+/// Accuracy summaries as a JSON list.
+nlohmann::json accuracyJson(const std::vector<trainer::AccuracySummary>& summaries);
+
+}  // namespace stepcal::cli

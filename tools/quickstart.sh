@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# Quick start, command 1: install what is missing, build, and run the main job: simulate the
+# paper's IRB4400 campaign, calibrate it and print its accuracy table.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+tools/setup.sh
+build/bin/stepcal demo --out out/demo-campaign "$@"

@@ -1,0 +1,182 @@
+// The simulated robot (digital twin): a robot that differs from its nominal URDF the way a real
+// one does, measured by a laser tracker and an F/T sensor.
+//
+// The campaign it writes has the form of a real one (campaign-format.md); the true parameters go
+// to a separate truth.json that calibration never reads. Everything is SI inside.
+//
+// Randomness: every draw comes from std::mt19937_64 engines seeded from TwinOptions::seed, one
+// independent stream each for the truth, the commanded poses and the measurement noise, so that
+// switching a mechanism or a noise level off leaves every other draw unchanged. Normal variates
+// use Box–Muller on 53-bit uniforms rather than std::normal_distribution, whose output differs
+// between standard libraries.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/common/chain.hpp"
+#include "stepcal/common/types.hpp"
+#include "stepcal/twin/effects.hpp"
+
+namespace stepcal::twin {
+
+inline constexpr double kPi = 3.14159265358979323846;
+inline constexpr double kDegToRad = kPi / 180.0;
+
+/// Joint stiffness identified in the reference paper for the IRB4400, joints 1–6, N·m/rad.
+inline const std::vector<double> kPaperStiffnessNmPerRad = {501130.0, 633590.0, 508209.0,
+                                                            124391.0, 75782.0,  74226.0};
+
+/// Where one joint's commanded angle is drawn from (clipped to the URDF limits).
+struct JointSampleRange {
+  double lower_rad = 0.0;    ///< rad
+  double upper_rad = 0.0;    ///< rad
+  double min_abs_rad = 0.0;  ///< angles with |q| below this are redrawn (singularity), rad
+};
+
+/// Sampling ranges for the IRB4400: tip in front of the robot, |q5| ≥ 15° (wrist singularity),
+/// elbow away from stretched.
+std::vector<JointSampleRange> defaultIrb4400PoseRanges();
+
+/// Everything that defines a simulated campaign. Bad values throw InputError.
+struct TwinOptions {
+  /// Nominal robot description; empty: the shipped robots/irb4400.urdf.
+  std::string urdf_path;
+  std::string base_link = "base_link";  ///< root of the chain
+  std::string tip_link = "tmac";        ///< frame the tracker measures
+  std::string sensor_link = "ft_sensor";  ///< F/T sensor frame; the payload hangs from it
+  /// "paper" (the reference protocol, 1070 rows) or "geometry" (its 80 + 50 unloaded rows).
+  std::string protocol = "paper";
+  /// Seeds every random draw; same seed, same campaign.
+  uint64_t seed = 1;
+
+  /// Tracker position noise per axis, 1-σ, m.
+  double tracker_position_sigma_m = 10e-6;
+  /// Tracker orientation noise per axis (rotation vector in tracker axes), 1-σ, rad.
+  double tracker_orientation_sigma_rad = 0.005 * kDegToRad;
+  /// F/T force noise per axis, 1-σ, N.
+  double ft_force_sigma_n = 0.2;
+  /// F/T moment noise per axis, 1-σ, N·m.
+  double ft_moment_sigma_nm = 0.01;
+  /// Ambient temperature written to temp_c, °C (no thermal effect yet).
+  double temperature_c = 20.0;
+  /// Noise of the temperature reading, 1-σ, °C.
+  double temperature_sigma_c = 0.05;
+
+  /// Tracker placement: horizontal distance of the tracker from the base origin, m (uniform
+  /// in [min, max]); it stands within ±60° of base +x, its head 0.8–1.6 m above the base
+  /// origin, levelled to within ±2°, its frame's zero azimuth arbitrary.
+  double tracker_distance_min_m = 3.0;
+  double tracker_distance_max_m = 5.0;  ///< m
+
+  /// Perturb the initial pose matrices (false: the true geometry is the nominal one).
+  bool geometric_errors = true;
+  /// Joint frames T_{k,k+1}(0), k < n: translation error per axis, 1-σ, m.
+  double joint_frame_translation_sigma_m = 0.3e-3;
+  /// Joint frames: rotation error per axis, 1-σ, rad.
+  double joint_frame_rotation_sigma_rad = 0.03 * kDegToRad;
+  /// Tool frame T_{n,n+1}: length of the translation error (direction uniform), m.
+  double tool_translation_error_m = 4.5e-3;
+  /// Tool frame: angle of the rotation error (axis uniform), rad.
+  double tool_rotation_error_rad = 1.25 * kDegToRad;
+
+  /// Joints deflect under the payload (JointCompliance).
+  bool compliance = true;
+  /// K_θ per joint, N·m/rad; one per revolute joint of the chain.
+  std::vector<double> stiffness_nm_per_rad = kPaperStiffnessNmPerRad;
+
+  /// Payload centre of gravity in sensor_link, m.
+  Vec3 p_CoGInSensor_m = Vec3(0.03, -0.02, 0.15);
+  /// Gravity in base_link axes, m/s².
+  Vec3 gravity_in_base_m_per_s2 = Vec3(0.0, 0.0, -9.80665);
+
+  /// Commanded joint angles are drawn uniformly from these, one per joint.
+  std::vector<JointSampleRange> pose_ranges = defaultIrb4400PoseRanges();
+  /// Nominal tip at least this far along base +x (in front of the robot), m.
+  double min_tip_forward_m = 0.5;
+  /// Nominal tip at least this high above the base origin, m.
+  double min_tip_height_m = 0.2;
+};
+
+/// The options as JSON (SI, units in the names), as stored in truth.json.
+nlohmann::json toJson(const TwinOptions& options);
+
+/// The true robot: its geometry, where the tracker stands, its hidden mechanisms. Noiseless;
+/// noise is added by simulateCampaign. Every initial pose is the nominal one times exp(δ)
+/// (TwinOptions geometric error sizes); the F/T sensor keeps its nominal offset from joint n, so
+/// the tool error lies between the sensor and the tip. The payload is a point mass at
+/// p_CoGInSensor_m; joint torques τ = J_sᵀ W with W its wrench at the base origin (effects.hpp).
+class TwinRobot {
+ public:
+  /// Reads the nominal URDF and draws the truth from the seed. Throws InputError.
+  explicit TwinRobot(const TwinOptions& options);
+  /// Rebuilds a robot from truthJson(). Throws InputError naming the bad key.
+  static TwinRobot fromTruthJson(const nlohmann::json& truth);
+  /// Everything true, SI, units in the key names (format "stepcal-twin-truth/1").
+  nlohmann::json truthJson() const;
+
+  /// Link angles the robot reaches at commanded angles q_cmd_rad [rad] under a payload of
+  /// load_kg [kg] at the CoG: the pipeline's fixed point, to 1e-12 rad. rad.
+  JointVector linkAngles(const JointVector& q_cmd_rad, double load_kg) const;
+  /// True tip pose in base_link, deflected, m.
+  Pose X_BaseTip(const JointVector& q_cmd_rad, double load_kg) const;
+  /// True tip pose in the tracker frame, deflected, noiseless, m.
+  Pose X_TrackerTip(const JointVector& q_cmd_rad, double load_kg) const;
+  /// Noiseless wrench the payload exerts on the sensor, tared: (f [N], m [N·m]) in sensor_link
+  /// axes, moment about the sensor_link origin, at the true deflected pose.
+  Vec6 sensorWrench(const JointVector& q_cmd_rad, double load_kg) const;
+
+  /// True chain, root base_link, tip tip_link; the sensor is attached frame sensorFrame().
+  const KinematicChain& trueChain() const noexcept { return chain_; }
+  int sensorFrame() const noexcept { return sensor_frame_; }
+  /// Pose of base_link in the tracker frame, m.
+  const Pose& X_TrackerBase() const noexcept { return X_TrackerBase_; }
+  /// Payload centre of gravity in sensor_link, m.
+  const Vec3& p_CoGInSensor_m() const noexcept { return p_CoGInSensor_m_; }
+  /// Gravity in base_link axes, m/s².
+  const Vec3& gravityInBase() const noexcept { return gravity_in_base_; }
+  /// Link-angle effects in pipeline order.
+  const std::vector<std::shared_ptr<const LinkAngleEffect>>& effects() const noexcept {
+    return effects_;
+  }
+
+ private:
+  TwinRobot() = default;
+  // Payload wrench at the base origin, base axes, (f [N], m [N·m]), from frames in ws.
+  Vec6 payloadWrenchAtBase(const ChainWorkspace& ws, double load_kg) const;
+
+  KinematicChain chain_;
+  int sensor_frame_ = -1;
+  Pose X_TrackerBase_ = Pose::Identity();
+  Vec3 p_CoGInSensor_m_ = Vec3::Zero();
+  Vec3 gravity_in_base_ = Vec3::Zero();
+  std::vector<std::shared_ptr<const LinkAngleEffect>> effects_;
+  std::vector<Vec6> geometric_errors_;  // δ_k: true T_k = nominal T_k · exp(δ_k), for truth.json
+  std::string base_link_, tip_link_, sensor_link_;
+  nlohmann::json provenance_;  // seed and options the truth was drawn from
+};
+
+/// Simulates a campaign: the rows of options.protocol in time order, measured on the true robot
+/// with noise. The campaign carries the nominal URDF text, the stated tracker noise (stated only
+/// when both sigmas are > 0), gravity and the sensor. truth_out (may be null) receives
+/// truthJson(). Throws InputError on bad options.
+///
+/// Protocol "paper", in measurement order (pose_id prefix, set, poses × loads in kg):
+///   geo  geometry   80 × 0            geov validation  50 × 0
+///   stf  stiffness  80 × 0,20,30,40   stfv validation  30 × 0,20,30,40
+///   res  residual  100 × 20,30,40     resv validation  50 × 20,30,40
+///   ext  validation 50 × 55 (load extrapolation)
+/// Within a block every pose is measured at one load before the payload changes. "geometry" is
+/// the first two blocks. Every row has a wrench: the sensor stays mounted and tared unloaded, so
+/// unloaded rows read its noise around zero.
+Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out);
+
+/// Writes the simulated campaign into out_dir (writeCampaign) and truth.json beside it.
+void writeSimulation(const TwinOptions& options, const std::string& out_dir);
+
+}  // namespace stepcal::twin

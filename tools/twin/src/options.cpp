@@ -1,0 +1,196 @@
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "internal.hpp"
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/urdf.hpp"
+
+namespace stepcal::twin {
+namespace {
+
+std::string show(double v) {
+  std::ostringstream s;
+  s.precision(10);
+  s << v;
+  return s.str();
+}
+
+void requireFinite(double v, const std::string& name, const std::string& hint) {
+  if (!std::isfinite(v)) {
+    throw InputError("TwinOptions." + name + " = " + show(v) + "; expected a finite value (hint: " +
+                     hint + ")");
+  }
+}
+
+void requireNonNegative(double v, const std::string& name, const std::string& hint) {
+  if (!(std::isfinite(v) && v >= 0.0)) {
+    throw InputError("TwinOptions." + name + " = " + show(v) +
+                     "; expected a finite value >= 0 (hint: " + hint + ")");
+  }
+}
+
+}  // namespace
+
+std::vector<JointSampleRange> defaultIrb4400PoseRanges() {
+  const double d = kDegToRad;
+  return {{-60 * d, 60 * d, 0.0},   {-30 * d, 60 * d, 0.0},   {-50 * d, 40 * d, 0.0},
+          {-150 * d, 150 * d, 0.0}, {-110 * d, 110 * d, 15 * d}, {-180 * d, 180 * d, 0.0}};
+}
+
+std::string resolvedUrdfPath(const TwinOptions& options) {
+  return options.urdf_path.empty() ? std::string(STEPCAL_TWIN_DEFAULT_URDF) : options.urdf_path;
+}
+
+KinematicChain nominalChain(const std::string& urdf_xml, const TwinOptions& options,
+                            const std::string& source) {
+  if (options.sensor_link.empty()) {
+    throw InputError(
+        "TwinOptions.sensor_link is empty; expected the link of the F/T sensor the payload hangs "
+        "from (hint: 'ft_sensor' in robots/irb4400.urdf)");
+  }
+  return chainFromUrdf(urdf_xml, options.base_link, options.tip_link, {options.sensor_link},
+                       source);
+}
+
+void validateOptions(const TwinOptions& options, const KinematicChain& nominal) {
+  if (options.protocol != "paper" && options.protocol != "geometry") {
+    throw InputError("TwinOptions.protocol = '" + options.protocol +
+                     "'; expected 'paper' or 'geometry' (hint: 'geometry' writes only the 130 "
+                     "unloaded rows, for quick tests)");
+  }
+  const std::string noise_hint = "0 switches this noise off";
+  requireNonNegative(options.tracker_position_sigma_m, "tracker_position_sigma_m",
+                     noise_hint + "; a laser tracker is about 10e-6 m");
+  requireNonNegative(options.tracker_orientation_sigma_rad, "tracker_orientation_sigma_rad",
+                     noise_hint + "; a T-Mac is about 8.7e-5 rad (0.005 deg)");
+  requireNonNegative(options.ft_force_sigma_n, "ft_force_sigma_n", noise_hint);
+  requireNonNegative(options.ft_moment_sigma_nm, "ft_moment_sigma_nm", noise_hint);
+  requireNonNegative(options.temperature_sigma_c, "temperature_sigma_c", noise_hint);
+  requireFinite(options.temperature_c, "temperature_c", "degrees Celsius, e.g. 20");
+  requireNonNegative(options.joint_frame_translation_sigma_m, "joint_frame_translation_sigma_m",
+                     "metres, e.g. 0.3e-3");
+  requireNonNegative(options.joint_frame_rotation_sigma_rad, "joint_frame_rotation_sigma_rad",
+                     "radians, e.g. 5.2e-4 (0.03 deg)");
+  requireNonNegative(options.tool_translation_error_m, "tool_translation_error_m",
+                     "metres, e.g. 4.5e-3");
+  requireNonNegative(options.tool_rotation_error_rad, "tool_rotation_error_rad",
+                     "radians, e.g. 0.022 (1.25 deg)");
+  if (!(std::isfinite(options.tracker_distance_min_m) &&
+        std::isfinite(options.tracker_distance_max_m) && options.tracker_distance_min_m > 0.0 &&
+        options.tracker_distance_min_m <= options.tracker_distance_max_m)) {
+    throw InputError("TwinOptions.tracker_distance_min_m/max_m = " +
+                     show(options.tracker_distance_min_m) + "/" +
+                     show(options.tracker_distance_max_m) +
+                     "; expected 0 < min <= max, metres (hint: a tracker stands 3 to 5 m away)");
+  }
+  for (int a = 0; a < 3; ++a) {
+    const std::string axis = std::string("[") + "xyz"[a] + "]";
+    requireFinite(options.p_CoGInSensor_m[a], "p_CoGInSensor_m" + axis, "metres");
+    requireFinite(options.gravity_in_base_m_per_s2[a], "gravity_in_base_m_per_s2" + axis,
+                  "m/s^2, e.g. (0, 0, -9.80665)");
+  }
+  requireFinite(options.min_tip_forward_m, "min_tip_forward_m", "metres along base +x");
+  requireFinite(options.min_tip_height_m, "min_tip_height_m", "metres along base +z");
+
+  const size_t n = static_cast<size_t>(nominal.dof());
+  if (options.compliance && options.stiffness_nm_per_rad.size() != n) {
+    throw InputError("TwinOptions.stiffness_nm_per_rad has " +
+                     std::to_string(options.stiffness_nm_per_rad.size()) +
+                     " values; expected one per revolute joint, " + std::to_string(n) +
+                     " (hint: kPaperStiffnessNmPerRad is for a 6-axis robot)");
+  }
+  if (options.pose_ranges.size() != n) {
+    throw InputError("TwinOptions.pose_ranges has " + std::to_string(options.pose_ranges.size()) +
+                     " ranges; expected one per revolute joint, " + std::to_string(n) +
+                     " (hint: defaultIrb4400PoseRanges() is for the IRB4400)");
+  }
+  for (size_t i = 0; i < n; ++i) {
+    const JointSampleRange& r = options.pose_ranges[i];
+    const ChainJoint& joint = nominal.joints()[i];
+    const double lo = std::max(r.lower_rad, joint.lower_rad);
+    const double hi = std::min(r.upper_rad, joint.upper_rad);
+    const bool ok = std::isfinite(r.lower_rad) && std::isfinite(r.upper_rad) &&
+                    std::isfinite(r.min_abs_rad) && r.min_abs_rad >= 0.0 && lo <= hi &&
+                    std::max(std::abs(lo), std::abs(hi)) >= r.min_abs_rad;
+    if (!ok) {
+      throw InputError("TwinOptions.pose_ranges[" + std::to_string(i) + "] = [" +
+                       show(r.lower_rad) + ", " + show(r.upper_rad) + "] rad, |q| >= " +
+                       show(r.min_abs_rad) + " rad; expected a finite range that overlaps the " +
+                       "URDF limits [" + show(joint.lower_rad) + ", " + show(joint.upper_rad) +
+                       "] of joint '" + joint.name + "' outside |q| < min_abs_rad");
+    }
+  }
+}
+
+nlohmann::json toJson(const TwinOptions& o) {
+  nlohmann::json ranges = nlohmann::json::array();
+  for (const JointSampleRange& r : o.pose_ranges) {
+    ranges.push_back(
+        {{"lower_rad", r.lower_rad}, {"upper_rad", r.upper_rad}, {"min_abs_rad", r.min_abs_rad}});
+  }
+  const auto vec3 = [](const Vec3& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); };
+  return {
+      {"urdf_path", resolvedUrdfPath(o)},
+      {"base_link", o.base_link},
+      {"tip_link", o.tip_link},
+      {"sensor_link", o.sensor_link},
+      {"protocol", o.protocol},
+      {"seed", o.seed},
+      {"tracker_position_sigma_m", o.tracker_position_sigma_m},
+      {"tracker_orientation_sigma_rad", o.tracker_orientation_sigma_rad},
+      {"ft_force_sigma_n", o.ft_force_sigma_n},
+      {"ft_moment_sigma_nm", o.ft_moment_sigma_nm},
+      {"temperature_c", o.temperature_c},
+      {"temperature_sigma_c", o.temperature_sigma_c},
+      {"tracker_distance_min_m", o.tracker_distance_min_m},
+      {"tracker_distance_max_m", o.tracker_distance_max_m},
+      {"geometric_errors", o.geometric_errors},
+      {"joint_frame_translation_sigma_m", o.joint_frame_translation_sigma_m},
+      {"joint_frame_rotation_sigma_rad", o.joint_frame_rotation_sigma_rad},
+      {"tool_translation_error_m", o.tool_translation_error_m},
+      {"tool_rotation_error_rad", o.tool_rotation_error_rad},
+      {"compliance", o.compliance},
+      {"stiffness_nm_per_rad", o.stiffness_nm_per_rad},
+      {"p_CoGInSensor_m", vec3(o.p_CoGInSensor_m)},
+      {"gravity_in_base_m_per_s2", vec3(o.gravity_in_base_m_per_s2)},
+      {"pose_ranges", ranges},
+      {"min_tip_forward_m", o.min_tip_forward_m},
+      {"min_tip_height_m", o.min_tip_height_m},
+  };
+}
+
+nlohmann::json poseToJson(const Pose& X) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) {
+    rows.push_back({X.matrix()(r, 0), X.matrix()(r, 1), X.matrix()(r, 2), X.matrix()(r, 3)});
+  }
+  return rows;
+}
+
+Pose poseFromJson(const nlohmann::json& j, const std::string& key) {
+  Eigen::Matrix4d M;
+  if (!j.is_array() || j.size() != 4) {
+    throw InputError("'" + key + "' is not a 4x4 matrix; expected 4 rows of 4 numbers");
+  }
+  for (int r = 0; r < 4; ++r) {
+    if (!j[r].is_array() || j[r].size() != 4) {
+      throw InputError("'" + key + "' row " + std::to_string(r) +
+                       " is not 4 numbers; expected a 4x4 matrix");
+    }
+    for (int c = 0; c < 4; ++c) M(r, c) = j[r][c].get<double>();
+  }
+  const Mat3 R = M.topLeftCorner<3, 3>();
+  const bool rigid = M.allFinite() && (R.transpose() * R - Mat3::Identity()).norm() < 1e-9 &&
+                     R.determinant() > 0.0 &&
+                     (M.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).norm() == 0.0;
+  if (!rigid) {
+    throw InputError("'" + key +
+                     "' is not a rigid transform; expected a rotation block and last row 0 0 0 1");
+  }
+  Pose X;
+  X.matrix() = M;
+  return X;
+}
+
+}  // namespace stepcal::twin

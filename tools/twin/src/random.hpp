@@ -1,0 +1,34 @@
+// Reproducible random draws for the twin (internal).
+#pragma once
+
+#include <cstdint>
+#include <random>
+
+#include "stepcal/common/types.hpp"
+
+namespace stepcal::twin {
+
+/// Independent random streams of one seed: changing what one stream is used for leaves the
+/// others unchanged.
+enum class Stream : uint32_t { kTruth = 1, kPoses = 2, kNoise = 3 };
+
+/// std::mt19937_64 with platform-independent uniform and normal variates.
+class Rng {
+ public:
+  Rng(uint64_t seed, Stream stream);
+  /// Uniform in [lo, hi).
+  double uniform(double lo, double hi);
+  /// Standard normal (Box–Muller).
+  double normal();
+  /// Three independent N(0, sigma²) values.
+  Vec3 normal3(double sigma);
+  /// Uniformly distributed unit vector.
+  Vec3 unitVector();
+
+ private:
+  // Uniform in [0, 1) with 53 random bits.
+  double canonical();
+  std::mt19937_64 engine_;
+};
+
+}  // namespace stepcal::twin

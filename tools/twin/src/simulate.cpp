@@ -1,0 +1,154 @@
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "internal.hpp"
+#include "random.hpp"
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/lie.hpp"
+#include "stepcal/common/urdf.hpp"
+#include "stepcal/twin/twin.hpp"
+
+namespace stepcal::twin {
+namespace {
+
+constexpr int kMaxPoseDraws = 100000;
+
+/// Poses measured together: every pose at the first load, then every pose at the next, as in a
+/// real campaign where changing the payload is the slow step.
+struct Block {
+  const char* pose_prefix;
+  RowSet set;
+  int poses;
+  std::vector<double> loads_kg;
+};
+
+// The reference paper's protocol (campaign-format.md), in measurement order.
+std::vector<Block> protocolBlocks(const std::string& protocol) {
+  std::vector<Block> blocks = {{"geo", RowSet::kGeometry, 80, {0.0}},
+                               {"geov", RowSet::kValidation, 50, {0.0}}};
+  if (protocol == "paper") {
+    blocks.push_back({"stf", RowSet::kStiffness, 80, {0.0, 20.0, 30.0, 40.0}});
+    blocks.push_back({"stfv", RowSet::kValidation, 30, {0.0, 20.0, 30.0, 40.0}});
+    blocks.push_back({"res", RowSet::kResidual, 100, {20.0, 30.0, 40.0}});
+    blocks.push_back({"resv", RowSet::kValidation, 50, {20.0, 30.0, 40.0}});
+    blocks.push_back({"ext", RowSet::kValidation, 50, {55.0}});
+  }
+  return blocks;
+}
+
+// A commanded pose: uniform in the sampling ranges (clipped to the URDF limits), redrawn until
+// the nominal tip is in front of the robot and high enough. The planner knows only the nominal.
+JointVector drawPose(Rng& rng, const KinematicChain& nominal, const TwinOptions& o) {
+  const int n = nominal.dof();
+  ChainWorkspace ws;
+  JointVector q(n);
+  for (int draw = 0; draw < kMaxPoseDraws; ++draw) {
+    bool accepted = true;
+    for (int i = 0; i < n; ++i) {
+      const JointSampleRange& r = o.pose_ranges[static_cast<size_t>(i)];
+      const ChainJoint& joint = nominal.joints()[static_cast<size_t>(i)];
+      q(i) = rng.uniform(std::max(r.lower_rad, joint.lower_rad),
+                         std::min(r.upper_rad, joint.upper_rad));
+      accepted = accepted && std::abs(q(i)) >= r.min_abs_rad;
+    }
+    if (!accepted) continue;
+    forwardKinematics(nominal, q, ws);
+    const Vec3 p_TipInBase = tipPose(ws).translation();
+    if (p_TipInBase.x() >= o.min_tip_forward_m && p_TipInBase.z() >= o.min_tip_height_m) {
+      return q;
+    }
+  }
+  throw InputError("no commanded pose within TwinOptions.pose_ranges puts the nominal tip at "
+                   "x >= " +
+                   std::to_string(o.min_tip_forward_m) + " m and z >= " +
+                   std::to_string(o.min_tip_height_m) + " m in " +
+                   std::to_string(kMaxPoseDraws) +
+                   " draws; expected ranges that reach in front of the robot (hint: widen "
+                   "pose_ranges or lower min_tip_forward_m / min_tip_height_m)");
+}
+
+std::string poseId(const char* prefix, int index) {
+  char id[32];
+  std::snprintf(id, sizeof id, "%s-%03d", prefix, index);
+  return id;
+}
+
+}  // namespace
+
+Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out) {
+  const TwinRobot robot(options);  // validates the options
+  const std::string path = resolvedUrdfPath(options);
+  const std::string urdf_xml = readTextFile(path);
+  const KinematicChain nominal = nominalChain(urdf_xml, options, path);
+
+  Campaign campaign;
+  campaign.urdf_xml = urdf_xml;
+  campaign.base_link = options.base_link;
+  campaign.tip_link = options.tip_link;
+  campaign.sensor_link = options.sensor_link;
+  campaign.tracker.position_sigma_m = options.tracker_position_sigma_m;
+  campaign.tracker.orientation_sigma_rad = options.tracker_orientation_sigma_rad;
+  // A zero sigma is no statement a weighting could use.
+  campaign.tracker.stated =
+      options.tracker_position_sigma_m > 0.0 && options.tracker_orientation_sigma_rad > 0.0;
+  campaign.gravity_in_base = options.gravity_in_base_m_per_s2;
+  campaign.joint_count = nominal.dof();
+
+  Rng pose_rng(options.seed, Stream::kPoses);
+  Rng noise_rng(options.seed, Stream::kNoise);
+  int64_t seq = 1;
+  for (const Block& block : protocolBlocks(options.protocol)) {
+    std::vector<JointVector> poses;
+    for (int i = 0; i < block.poses; ++i) poses.push_back(drawPose(pose_rng, nominal, options));
+    for (double load_kg : block.loads_kg) {
+      for (int i = 0; i < block.poses; ++i) {
+        const JointVector& q = poses[static_cast<size_t>(i)];
+        const Pose X_TrackerTip = robot.X_TrackerTip(q, load_kg);
+        // Every noise draw happens whatever its sigma, so sigmas do not shift the stream.
+        const Vec3 dp = noise_rng.normal3(options.tracker_position_sigma_m);
+        const Vec3 dr = noise_rng.normal3(options.tracker_orientation_sigma_rad);
+        const Vec3 df = noise_rng.normal3(options.ft_force_sigma_n);
+        const Vec3 dm = noise_rng.normal3(options.ft_moment_sigma_nm);
+        const double dtemp = options.temperature_sigma_c * noise_rng.normal();
+
+        Measurement m;
+        m.seq = seq++;
+        m.pose_id = poseId(block.pose_prefix, i);
+        m.set = block.set;
+        m.load_kg = load_kg;
+        m.q_rad = q;
+        m.p_TipInTracker_m = X_TrackerTip.translation() + dp;
+        Eigen::Quaterniond quat(lie::expSO3(dr) * X_TrackerTip.linear());
+        quat.normalize();
+        if (quat.w() < 0.0) quat.coeffs() = -quat.coeffs();
+        m.has_orientation = true;
+        m.q_TrackerTip = quat;
+        // The sensor is always mounted and tared unloaded: unloaded rows read pure noise.
+        m.has_wrench = true;
+        m.wrench_Sensor = robot.sensorWrench(q, load_kg);
+        m.wrench_Sensor.head<3>() += df;
+        m.wrench_Sensor.tail<3>() += dm;
+        m.temp_c = options.temperature_c + dtemp;
+        campaign.rows.push_back(std::move(m));
+      }
+    }
+  }
+  if (truth_out != nullptr) *truth_out = robot.truthJson();
+  return campaign;
+}
+
+void writeSimulation(const TwinOptions& options, const std::string& out_dir) {
+  nlohmann::json truth;
+  const Campaign campaign = simulateCampaign(options, &truth);
+  writeCampaign(campaign, out_dir);
+  const std::string path = out_dir + "/truth.json";
+  std::ofstream out(path);
+  out << truth.dump(2) << '\n';
+  if (!out) throw InputError("cannot write the truth file", path);
+}
+
+}  // namespace stepcal::twin

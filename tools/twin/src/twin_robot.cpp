@@ -1,0 +1,250 @@
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "internal.hpp"
+#include "random.hpp"
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/lie.hpp"
+#include "stepcal/common/urdf.hpp"
+#include "stepcal/twin/twin.hpp"
+
+namespace stepcal::twin {
+namespace {
+
+constexpr char kTruthFormat[] = "stepcal-twin-truth/1";
+// The compliance fixed point contracts by about m·g·r/K ≈ 1e-3 per iteration; 100 iterations
+// are only reached when a mechanism makes the structure unstable.
+constexpr int kMaxFixedPointIterations = 100;
+constexpr double kFixedPointTolerance_rad = 1e-12;
+
+nlohmann::json vecToJson(const Eigen::Ref<const Eigen::VectorXd>& v) {
+  nlohmann::json a = nlohmann::json::array();
+  for (Eigen::Index i = 0; i < v.size(); ++i) a.push_back(v(i));
+  return a;
+}
+
+template <int N>
+Eigen::Matrix<double, N, 1> vecFromJson(const nlohmann::json& j, const std::string& key) {
+  if (!j.is_array() || j.size() != static_cast<size_t>(N)) {
+    throw InputError("'" + key + "' is not " + std::to_string(N) + " numbers");
+  }
+  Eigen::Matrix<double, N, 1> v;
+  for (int i = 0; i < N; ++i) v(i) = j[static_cast<size_t>(i)].get<double>();
+  return v;
+}
+
+// JSON has no infinity: an unlimited (continuous) joint limit is written as null.
+nlohmann::json limitToJson(double v) { return std::isfinite(v) ? nlohmann::json(v) : nullptr; }
+double limitFromJson(const nlohmann::json& j, double if_null) {
+  return j.is_null() ? if_null : j.get<double>();
+}
+
+// Where the tracker stands: see TwinOptions::tracker_distance_min_m.
+Pose drawTrackerBase(Rng& rng, const TwinOptions& o) {
+  const double distance = rng.uniform(o.tracker_distance_min_m, o.tracker_distance_max_m);
+  const double azimuth = rng.uniform(-60.0 * kDegToRad, 60.0 * kDegToRad);
+  const double height = rng.uniform(0.8, 1.6);
+  const double yaw = rng.uniform(-kPi, kPi);
+  const double tilt_x = rng.uniform(-2.0 * kDegToRad, 2.0 * kDegToRad);
+  const double tilt_y = rng.uniform(-2.0 * kDegToRad, 2.0 * kDegToRad);
+  Pose X_BaseTracker = Pose::Identity();
+  X_BaseTracker.translation() =
+      Vec3(distance * std::cos(azimuth), distance * std::sin(azimuth), height);
+  X_BaseTracker.linear() = lie::rotationFromRpy(tilt_x, tilt_y, yaw);
+  return X_BaseTracker.inverse();
+}
+
+}  // namespace
+
+TwinRobot::TwinRobot(const TwinOptions& options) {
+  const std::string path = resolvedUrdfPath(options);
+  const KinematicChain nominal = nominalChain(readTextFile(path), options, path);
+  validateOptions(options, nominal);
+
+  // Draw order is part of the format: the tracker first, then the initial poses.
+  Rng rng(options.seed, Stream::kTruth);
+  X_TrackerBase_ = drawTrackerBase(rng, options);
+  chain_ = nominal;
+  const int n = nominal.dof();
+  geometric_errors_.assign(static_cast<size_t>(n + 1), Vec6::Zero());
+  if (options.geometric_errors) {
+    for (int k = 0; k <= n; ++k) {
+      Vec6& delta = geometric_errors_[static_cast<size_t>(k)];
+      if (k < n) {
+        delta << rng.normal3(options.joint_frame_translation_sigma_m),
+            rng.normal3(options.joint_frame_rotation_sigma_rad);
+      } else {
+        // The tool (T-Mac mount) is where a real robot's nominal model is worst.
+        delta << options.tool_translation_error_m * rng.unitVector(),
+            options.tool_rotation_error_rad * rng.unitVector();
+      }
+      chain_.setInitialPose(k, nominal.initialPose(k) * lie::expSE3(delta));
+    }
+  }
+  // The sensor keeps its nominal offset from joint n: the tool error lies beyond it.
+  sensor_frame_ = chain_.findFrame(options.sensor_link);
+  p_CoGInSensor_m_ = options.p_CoGInSensor_m;
+  gravity_in_base_ = options.gravity_in_base_m_per_s2;
+  if (options.compliance) {
+    effects_.push_back(std::make_shared<JointCompliance>(options.stiffness_nm_per_rad));
+  }
+  base_link_ = options.base_link;
+  tip_link_ = options.tip_link;
+  sensor_link_ = options.sensor_link;
+  provenance_ = {
+      {"seed", options.seed},
+      {"options", toJson(options)},
+      {"noise",
+       {{"tracker_position_sigma_m", options.tracker_position_sigma_m},
+        {"tracker_orientation_sigma_rad", options.tracker_orientation_sigma_rad},
+        {"ft_force_sigma_n", options.ft_force_sigma_n},
+        {"ft_moment_sigma_nm", options.ft_moment_sigma_nm},
+        {"temperature_sigma_c", options.temperature_sigma_c}}},
+  };
+}
+
+Vec6 TwinRobot::payloadWrenchAtBase(const ChainWorkspace& ws, double load_kg) const {
+  const Vec3 p_CoGInBase = framePose(chain_, ws, sensor_frame_) * p_CoGInSensor_m_;
+  const Vec3 f = load_kg * gravity_in_base_;
+  Vec6 W;
+  W << f, p_CoGInBase.cross(f);
+  return W;
+}
+
+JointVector TwinRobot::linkAngles(const JointVector& q_cmd_rad, double load_kg) const {
+  STEPCAL_INVARIANT(q_cmd_rad.size() == chain_.dof(), "one commanded angle per joint");
+  ChainWorkspace ws;
+  Jacobian J;
+  JointVector theta = q_cmd_rad;
+  for (int iteration = 0; iteration < kMaxFixedPointIterations; ++iteration) {
+    forwardKinematics(chain_, theta, ws);
+    spatialJacobian(chain_, ws, J);
+    const JointVector tau = J.transpose() * payloadWrenchAtBase(ws, load_kg);
+    JointVector next = q_cmd_rad;
+    for (const auto& effect : effects_) effect->apply(q_cmd_rad, tau, next);
+    const double step = (next - theta).cwiseAbs().maxCoeff();
+    theta = next;
+    if (step <= kFixedPointTolerance_rad) return theta;
+  }
+  throw InputError("the link angles under a " + std::to_string(load_kg) +
+                   " kg payload did not converge; expected a structure stiff enough to carry it "
+                   "(hint: check stiffness_nm_per_rad and the payload)");
+}
+
+Pose TwinRobot::X_BaseTip(const JointVector& q_cmd_rad, double load_kg) const {
+  ChainWorkspace ws;
+  forwardKinematics(chain_, linkAngles(q_cmd_rad, load_kg), ws);
+  return tipPose(ws);
+}
+
+Pose TwinRobot::X_TrackerTip(const JointVector& q_cmd_rad, double load_kg) const {
+  return X_TrackerBase_ * X_BaseTip(q_cmd_rad, load_kg);
+}
+
+Vec6 TwinRobot::sensorWrench(const JointVector& q_cmd_rad, double load_kg) const {
+  ChainWorkspace ws;
+  forwardKinematics(chain_, linkAngles(q_cmd_rad, load_kg), ws);
+  const Mat3 R_BaseSensor = framePose(chain_, ws, sensor_frame_).linear();
+  const Vec3 f_Sensor = R_BaseSensor.transpose() * (load_kg * gravity_in_base_);
+  Vec6 W;
+  W << f_Sensor, p_CoGInSensor_m_.cross(f_Sensor);
+  return W;
+}
+
+nlohmann::json TwinRobot::truthJson() const {
+  nlohmann::json joints = nlohmann::json::array();
+  for (const ChainJoint& j : chain_.joints()) {
+    joints.push_back({{"name", j.name},
+                      {"twist_local", vecToJson(j.twist_Local)},
+                      {"lower_rad", limitToJson(j.lower_rad)},
+                      {"upper_rad", limitToJson(j.upper_rad)}});
+  }
+  nlohmann::json initial = nlohmann::json::array();
+  for (const Pose& X : chain_.initialPoses()) initial.push_back(poseToJson(X));
+  nlohmann::json errors = nlohmann::json::array();
+  for (const Vec6& d : geometric_errors_) errors.push_back(vecToJson(d));
+  nlohmann::json effects = nlohmann::json::array();
+  for (const auto& e : effects_) effects.push_back(e->toJson());
+  const AttachedFrame& sensor = chain_.frames()[static_cast<size_t>(sensor_frame_)];
+
+  nlohmann::json truth = provenance_;
+  truth["format"] = kTruthFormat;
+  truth["base_link"] = base_link_;
+  truth["tip_link"] = tip_link_;
+  truth["sensor_link"] = sensor_link_;
+  truth["X_TrackerBase_m"] = poseToJson(X_TrackerBase_);
+  truth["joints"] = joints;
+  truth["initial_poses_m"] = initial;
+  truth["initial_pose_errors_m_rad"] = errors;
+  truth["sensor_frame"] = {{"parent_joint", sensor.parent},
+                           {"X_ParentSensor_m", poseToJson(sensor.X_ParentFrame)}};
+  truth["effects"] = effects;
+  truth["p_CoGInSensor_m"] = vecToJson(p_CoGInSensor_m_);
+  truth["gravity_in_base_m_per_s2"] = vecToJson(gravity_in_base_);
+  return truth;
+}
+
+TwinRobot TwinRobot::fromTruthJson(const nlohmann::json& truth) {
+  try {
+    const std::string format = truth.at("format").get<std::string>();
+    if (format != kTruthFormat) {
+      throw InputError("truth format '" + format + "'; expected '" + kTruthFormat + "'");
+    }
+    TwinRobot robot;
+    std::vector<ChainJoint> joints;
+    for (const nlohmann::json& j : truth.at("joints")) {
+      ChainJoint joint;
+      joint.name = j.at("name").get<std::string>();
+      joint.twist_Local = vecFromJson<6>(j.at("twist_local"), "twist_local");
+      joint.lower_rad =
+          limitFromJson(j.at("lower_rad"), -std::numeric_limits<double>::infinity());
+      joint.upper_rad = limitFromJson(j.at("upper_rad"), std::numeric_limits<double>::infinity());
+      joints.push_back(joint);
+    }
+    std::vector<Pose> initial;
+    for (const nlohmann::json& X : truth.at("initial_poses_m")) {
+      initial.push_back(poseFromJson(X, "initial_poses_m"));
+    }
+    if (joints.empty() || joints.size() > static_cast<size_t>(kMaxJoints) ||
+        initial.size() != joints.size() + 1) {
+      throw InputError("truth has " + std::to_string(joints.size()) + " joints and " +
+                       std::to_string(initial.size()) + " initial poses; expected 1 to " +
+                       std::to_string(kMaxJoints) + " joints and one initial pose more");
+    }
+    for (const nlohmann::json& d : truth.at("initial_pose_errors_m_rad")) {
+      robot.geometric_errors_.push_back(vecFromJson<6>(d, "initial_pose_errors_m_rad"));
+    }
+    robot.sensor_link_ = truth.at("sensor_link").get<std::string>();
+    const nlohmann::json& sensor = truth.at("sensor_frame");
+    AttachedFrame frame;
+    frame.name = robot.sensor_link_;
+    frame.parent = sensor.at("parent_joint").get<int>();
+    frame.X_ParentFrame = poseFromJson(sensor.at("X_ParentSensor_m"), "X_ParentSensor_m");
+    if (frame.parent < 0 || frame.parent > static_cast<int>(joints.size())) {
+      throw InputError("sensor_frame.parent_joint = " + std::to_string(frame.parent) +
+                       "; expected 0 to the number of joints");
+    }
+    const size_t n = joints.size();
+    robot.chain_ = KinematicChain(std::move(joints), std::move(initial), {frame});
+    robot.sensor_frame_ = 0;
+    for (const nlohmann::json& e : truth.at("effects")) {
+      robot.effects_.push_back(linkAngleEffectFromJson(e, static_cast<int>(n)));
+    }
+    robot.X_TrackerBase_ = poseFromJson(truth.at("X_TrackerBase_m"), "X_TrackerBase_m");
+    robot.p_CoGInSensor_m_ = vecFromJson<3>(truth.at("p_CoGInSensor_m"), "p_CoGInSensor_m");
+    robot.gravity_in_base_ =
+        vecFromJson<3>(truth.at("gravity_in_base_m_per_s2"), "gravity_in_base_m_per_s2");
+    robot.base_link_ = truth.at("base_link").get<std::string>();
+    robot.tip_link_ = truth.at("tip_link").get<std::string>();
+    for (const char* key : {"seed", "options", "noise"}) {
+      if (truth.contains(key)) robot.provenance_[key] = truth.at(key);
+    }
+    return robot;
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(std::string("truth JSON: ") + e.what() +
+                     "; expected the layout written by TwinRobot::truthJson");
+  }
+}
+
+}  // namespace stepcal::twin

@@ -1,0 +1,51 @@
+// The whole offline calibration of a campaign, step by step, with its accuracy tables.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/common/chain.hpp"
+#include "stepcal/common/model_file.hpp"
+#include "stepcal/trainer/accuracy.hpp"
+#include "stepcal/trainer/geometric.hpp"
+
+namespace stepcal::trainer {
+
+struct CalibrationOptions {
+  GeometricOptions geometric;
+};
+
+/// Everything the trainer found, for reports and the model file.
+struct CalibrationOutcome {
+  KinematicChain nominal_Base;     ///< the campaign's robot description
+  int sensor_frame = -1;           ///< index of sensor_link in the chain's frames, −1 = none
+  Pose X_TrackerBase_nominal;      ///< tracker registered to the nominal chain (closed form)
+  GeometricResult frames;          ///< tracker and tool frames fitted, joints nominal
+  GeometricResult poe;             ///< step 1: full local POE (METHOD.md eq. 7–9)
+  std::vector<AccuracySummary> accuracy;  ///< every method on every (set, load) group
+  double floor_position_m = 0.0;   ///< mean error the tracker noise alone gives
+  double floor_orientation_rad = 0.0;
+};
+
+/// Method names in report order.
+inline const char* const kMethodNominal = "nominal";
+inline const char* const kMethodFrames = "frames";
+inline const char* const kMethodPoe = "poe";
+
+/// Builds the campaign's chain from its URDF (base_link → tip_link, sensor_link attached).
+/// Throws InputError naming the robot file when it does not fit the campaign.
+KinematicChain campaignChain(const Campaign& campaign, int* sensor_frame = nullptr);
+
+/// Runs every calibration step that exists on the campaign. Throws InputError.
+CalibrationOutcome calibrateCampaign(const Campaign& campaign, const CalibrationOptions& options = {});
+
+/// The model file's contents for a calibrated campaign, with provenance (campaign hash,
+/// creation time, trainer version, validation figures of every method).
+CalibratedModel modelFromOutcome(const Campaign& campaign, const CalibrationOutcome& outcome);
+
+/// FNV-1a 64 of the campaign's robot description and rows as read, in hex: two campaigns
+/// with the same hash hold the same data.
+std::string campaignHash(const Campaign& campaign);
+
+}  // namespace stepcal::trainer

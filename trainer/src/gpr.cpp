@@ -1,0 +1,574 @@
+#include "stepcal/trainer/gpr.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <limits>
+#include <string>
+#include <thread>
+
+#include <Eigen/Cholesky>
+#include <LBFGSB.h>
+
+#include "stepcal/common/error.hpp"
+
+namespace stepcal::trainer {
+namespace {
+
+constexpr double kLog2Pi = 1.8378770664093454836;  // log(2π)
+// Column-block width of the blocked triangular inverse and K⁻¹ product.
+constexpr Eigen::Index kBlockWidth = 48;
+// Per-sample objective returned to the optimiser where the Cholesky factorisation fails.
+constexpr double kFailedObjective = 1e10;
+// A column whose sample std is at most this fraction of its largest magnitude is constant.
+constexpr double kConstantColumnTolerance = 1e-10;
+// fromParts rejects α whose normwise backward error exceeds this.
+constexpr double kAlphaBackwardErrorLimit = 1e-8;
+
+/// Lower triangle (with diagonal) of E_ij = exp(−½ ‖z_i − z_j‖²) for scaled inputs Z (m × D).
+void fillUnitKernelLower(const Eigen::MatrixXd& Z, Eigen::MatrixXd& E) {
+  const Eigen::Index m = Z.rows();
+  for (Eigen::Index j = 0; j < m; ++j) {
+    auto column = E.col(j).tail(m - j);
+    column.setZero();
+    for (Eigen::Index d = 0; d < Z.cols(); ++d) {
+      column.array() += (Z.col(d).tail(m - j).array() - Z(j, d)).square();
+    }
+    column.array() = (-0.5 * column.array()).exp();
+  }
+}
+
+/// Lower triangle of K = σ_f² E + v I from the lower triangle of E (m × m); v is the diagonal
+/// variance (σ_n², plus the jitter while fitting).
+void fillCovarianceLower(const Eigen::MatrixXd& E, double signal_variance, double diagonal_variance,
+                         Eigen::MatrixXd& K) {
+  K.triangularView<Eigen::Lower>() = signal_variance * E;
+  K.diagonal().array() += diagonal_variance;
+}
+
+/// Factorises the lower triangle of K in place into L (L Lᵀ = K); false when K is not
+/// numerically positive definite.
+bool choleskyInPlace(Eigen::MatrixXd& K) {
+  Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Lower> llt(K);
+  return llt.info() == Eigen::Success && K.diagonal().allFinite() &&
+         (K.diagonal().array() > 0.0).all();
+}
+
+/// Lower triangle of K⁻¹ = L⁻ᵀ L⁻¹ from the Cholesky factor L (lower, m × m), blocked so
+/// both the triangular inverse and the product exploit the triangular shapes (≈ m³/3 flops).
+/// inverse_factor receives L⁻¹ in its lower triangle.
+void inverseFromCholesky(const Eigen::MatrixXd& L, Eigen::MatrixXd& inverse_factor,
+                         Eigen::MatrixXd& inverse_lower) {
+  const Eigen::Index m = L.rows();
+  for (Eigen::Index c0 = 0; c0 < m; c0 += kBlockWidth) {
+    const Eigen::Index rows = m - c0, width = std::min(kBlockWidth, rows);
+    auto block = inverse_factor.block(c0, c0, rows, width);
+    block.setZero();
+    block.topRows(width).setIdentity();
+    L.block(c0, c0, rows, rows).triangularView<Eigen::Lower>().solveInPlace(block);
+  }
+  for (Eigen::Index c0 = 0; c0 < m; c0 += kBlockWidth) {
+    const Eigen::Index rows = m - c0, width = std::min(kBlockWidth, rows);
+    inverse_lower.block(c0, c0, rows, width).noalias() =
+        inverse_factor.block(c0, c0, rows, rows).transpose().triangularView<Eigen::Upper>() *
+        inverse_factor.block(c0, c0, rows, width);
+  }
+}
+
+/// −½ Σ_o y_oᵀ α_o − P Σ_i log L_ii − P (m/2) log 2π (METHOD.md eq. 26, summed over outputs).
+double logMarginalLikelihoodFromFactor(const Eigen::MatrixXd& L, const Eigen::MatrixXd& Yn,
+                                       const Eigen::MatrixXd& alpha) {
+  const double outputs = static_cast<double>(Yn.cols());
+  const double m = static_cast<double>(Yn.rows());
+  return -0.5 * Yn.cwiseProduct(alpha).sum() - outputs * L.diagonal().array().log().sum() -
+         0.5 * outputs * m * kLog2Pi;
+}
+
+/// Log marginal likelihood and its gradient for fixed training data, with buffers sized once.
+class LikelihoodEvaluator {
+ public:
+  LikelihoodEvaluator(const Eigen::MatrixXd& Xn, const Eigen::MatrixXd& Yn)
+      : Xn_(Xn),
+        Yn_(Yn),
+        scaled_inputs_(Xn.rows(), Xn.cols()),
+        unit_kernel_(Xn.rows(), Xn.rows()),
+        factor_(Xn.rows(), Xn.rows()),
+        inverse_factor_(Xn.rows(), Xn.rows()),
+        weights_(Xn.rows(), Xn.rows()),
+        alpha_(Xn.rows(), Yn.cols()),
+        column_products_(Xn.rows()) {}
+
+  /// L(θ) summed over outputs; gradient (D + 2) receives ∂L/∂θ when given. −∞ on failure.
+  double evaluate(const Eigen::VectorXd& log_theta, Eigen::VectorXd* gradient) {
+    const Eigen::Index D = Xn_.cols();
+    const double signal_variance = std::exp(2.0 * log_theta(D));
+    const double noise_variance = std::exp(2.0 * log_theta(D + 1));
+    scaled_inputs_ = Xn_ * (-log_theta.head(D)).array().exp().matrix().asDiagonal();
+    fillUnitKernelLower(scaled_inputs_, unit_kernel_);
+    fillCovarianceLower(unit_kernel_, signal_variance,
+                        kGprRelativeJitter * signal_variance + noise_variance, factor_);
+    const double failed = -std::numeric_limits<double>::infinity();
+    if (gradient) gradient->setZero(D + 2);
+    if (!choleskyInPlace(factor_)) return failed;
+    alpha_ = factor_.triangularView<Eigen::Lower>().solve(Yn_);
+    factor_.triangularView<Eigen::Lower>().transpose().solveInPlace(alpha_);
+    const double lml = logMarginalLikelihoodFromFactor(factor_, Yn_, alpha_);
+    if (!std::isfinite(lml)) return failed;
+    if (gradient) fillGradient(signal_variance, noise_variance, *gradient);
+    return lml;
+  }
+
+ private:
+  // ∂L/∂θ_j = ½ tr(W ∂K/∂θ_j), W = Σ_o α_o α_oᵀ − P K⁻¹ (METHOD.md eq. 26–27), with
+  // ∂K/∂log ℓ_d = σ_f² E ⊙ Δ_d²/ℓ_d², ∂K/∂log σ_f = 2 σ_f² (E + ε I), ∂K/∂log σ_n = 2 σ_n² I.
+  void fillGradient(double signal_variance, double noise_variance, Eigen::VectorXd& gradient) {
+    const Eigen::Index m = Xn_.rows(), D = Xn_.cols();
+    inverseFromCholesky(factor_, inverse_factor_, weights_);
+    weights_.triangularView<Eigen::Lower>() *= -static_cast<double>(Yn_.cols());
+    weights_.selfadjointView<Eigen::Lower>().rankUpdate(alpha_);
+    const double trace = weights_.diagonal().sum();
+    // Off-diagonal pairs (i > j) counted once; the diagonal does not depend on ℓ.
+    double weighted_kernel_sum = 0.0;
+    for (Eigen::Index j = 0; j + 1 < m; ++j) {
+      const Eigen::Index below = m - j - 1;
+      auto products = column_products_.head(below);
+      products.array() =
+          weights_.col(j).tail(below).array() * unit_kernel_.col(j).tail(below).array();
+      weighted_kernel_sum += products.sum();
+      for (Eigen::Index d = 0; d < D; ++d) {
+        gradient(d) += (products.array() *
+                        (scaled_inputs_.col(d).tail(below).array() - scaled_inputs_(j, d)).square())
+                           .sum();
+      }
+    }
+    gradient.head(D) *= signal_variance;
+    gradient(D) =
+        signal_variance * ((1.0 + kGprRelativeJitter) * trace + 2.0 * weighted_kernel_sum);
+    gradient(D + 1) = noise_variance * trace;
+  }
+
+  const Eigen::MatrixXd& Xn_;
+  const Eigen::MatrixXd& Yn_;
+  Eigen::MatrixXd scaled_inputs_;    // m × D: x_n / ℓ
+  Eigen::MatrixXd unit_kernel_;      // m × m lower: E
+  Eigen::MatrixXd factor_;           // m × m lower: L
+  Eigen::MatrixXd inverse_factor_;   // m × m lower: L⁻¹
+  Eigen::MatrixXd weights_;          // m × m lower: W
+  Eigen::MatrixXd alpha_;            // m × P
+  Eigen::VectorXd column_products_;  // m
+};
+
+/// −L/(m·P) and its gradient for L-BFGS-B (per sample, so tolerances do not depend on m, P);
+/// remembers the best point seen so a failed line search loses nothing.
+class NegativeLikelihoodObjective {
+ public:
+  NegativeLikelihoodObjective(LikelihoodEvaluator& evaluator, double samples)
+      : evaluator_(evaluator), samples_(samples) {}
+
+  double operator()(const Eigen::VectorXd& log_theta, Eigen::VectorXd& gradient) {
+    ++evaluations_;
+    const double lml = evaluator_.evaluate(log_theta, &gradient_);
+    double objective = kFailedObjective;
+    if (std::isfinite(lml) && gradient_.allFinite()) {
+      objective = -lml / samples_;
+      gradient = -gradient_ / samples_;
+    } else {
+      gradient.setZero(log_theta.size());
+    }
+    if (evaluations_ == 1) start_objective_ = objective;
+    if (objective < best_objective_) {
+      best_objective_ = objective;
+      best_log_theta_ = log_theta;
+    }
+    return objective;
+  }
+
+  int evaluations() const { return evaluations_; }
+  double startLml() const { return -start_objective_ * samples_; }
+  double bestLml() const { return -best_objective_ * samples_; }
+  const Eigen::VectorXd& bestLogTheta() const { return best_log_theta_; }
+
+ private:
+  LikelihoodEvaluator& evaluator_;
+  double samples_;
+  Eigen::VectorXd gradient_;
+  int evaluations_ = 0;
+  double start_objective_ = kFailedObjective;
+  double best_objective_ = std::numeric_limits<double>::infinity();
+  Eigen::VectorXd best_log_theta_;
+};
+
+/// Maximises the log marginal likelihood from one start inside [lower, upper] (log θ).
+GprRestart optimiseFrom(const Eigen::MatrixXd& Xn, const Eigen::MatrixXd& Yn,
+                        const Eigen::VectorXd& start, const Eigen::VectorXd& lower,
+                        const Eigen::VectorXd& upper, int max_iterations) {
+  LikelihoodEvaluator evaluator(Xn, Yn);
+  NegativeLikelihoodObjective objective(evaluator, static_cast<double>(Yn.size()));
+  LBFGSpp::LBFGSBParam<double> param;
+  param.m = 10;          // correction pairs: about as many as hyperparameters for D = 12
+  param.epsilon = 1e-4;  // ∞-norm of the projected per-sample gradient: |∂L/∂θ| ≤ 1e-4·m·P
+  param.epsilon_rel = 0.0;
+  param.past = 1;
+  param.delta = 1e-8;  // or the per-sample objective changed by < 1e-8 in one iteration
+  param.max_iterations = std::max(1, max_iterations);
+  LBFGSpp::LBFGSBSolver<double> solver(param);
+
+  GprRestart restart;
+  restart.start_log_theta = start;
+  Eigen::VectorXd log_theta = start;
+  double value = 0.0;
+  try {
+    restart.iterations = solver.minimize(objective, log_theta, value, lower, upper);
+  } catch (const std::runtime_error&) {
+    restart.stopped_by_line_search = true;  // line search could not improve: keep the best seen
+  } catch (const std::logic_error&) {
+    restart.stopped_by_line_search = true;  // search direction not downhill (round-off)
+  }
+  restart.evaluations = objective.evaluations();
+  restart.start_lml = objective.startLml();
+  restart.final_lml = objective.bestLml();
+  restart.final_log_theta = objective.bestLogTheta();
+  return restart;
+}
+
+void requireFiniteData(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y) {
+  if (X.rows() < 1 || X.cols() < 1 || Y.cols() < 1) {
+    throw InputError("GPR needs at least one training point, input and output; got " +
+                     std::to_string(X.rows()) + " × " + std::to_string(X.cols()) + " inputs and " +
+                     std::to_string(Y.cols()) + " outputs");
+  }
+  if (Y.rows() != X.rows()) {
+    throw InputError("GPR inputs have " + std::to_string(X.rows()) + " rows but outputs have " +
+                     std::to_string(Y.rows()));
+  }
+  if (!X.allFinite() || !Y.allFinite()) throw InputError("GPR training data are not finite");
+}
+
+void requireValidScaling(const GprScaling& s, Eigen::Index D, Eigen::Index P) {
+  if (s.input_offset.size() != D || s.input_scale.size() != D || s.output_mean.size() != P ||
+      s.output_scale.size() != P) {
+    throw InputError("GPR scaling sizes do not match " + std::to_string(D) + " inputs and " +
+                     std::to_string(P) + " outputs");
+  }
+  const bool finite = s.input_offset.allFinite() && s.input_scale.allFinite() &&
+                      s.output_mean.allFinite() && s.output_scale.allFinite();
+  if (!finite || (s.input_scale.array() <= 0.0).any() || (s.output_scale.array() <= 0.0).any()) {
+    throw InputError("GPR scaling must be finite with positive scales");
+  }
+}
+
+void requireValidHyperparameters(const GprHyperparameters& h, Eigen::Index D) {
+  if (h.length_scales.size() != D) {
+    throw InputError("GPR has " + std::to_string(h.length_scales.size()) + " length scales for " +
+                     std::to_string(D) + " inputs");
+  }
+  const bool valid = h.length_scales.allFinite() && (h.length_scales.array() > 0.0).all() &&
+                     std::isfinite(h.signal_sigma) && h.signal_sigma > 0.0 &&
+                     std::isfinite(h.noise_sigma) && h.noise_sigma >= 0.0;
+  if (!valid) {
+    throw InputError("GPR hyperparameters must be finite, length scales and σ_f positive, σ_n ≥ 0");
+  }
+}
+
+/// Sample std of each column, or 1 where the column is constant.
+Eigen::VectorXd columnScales(const Eigen::MatrixXd& A, const Eigen::VectorXd& means) {
+  Eigen::VectorXd scales(A.cols());
+  const double dof = static_cast<double>(std::max<Eigen::Index>(A.rows() - 1, 1));
+  for (Eigen::Index c = 0; c < A.cols(); ++c) {
+    const double std_dev = std::sqrt((A.col(c).array() - means(c)).square().sum() / dof);
+    const double magnitude = A.col(c).cwiseAbs().maxCoeff();
+    scales(c) = std_dev > kConstantColumnTolerance * magnitude ? std_dev : 1.0;
+  }
+  return scales;
+}
+
+Eigen::MatrixXd normaliseInputs(const Eigen::MatrixXd& X, const GprScaling& scaling) {
+  return (X.rowwise() - scaling.input_offset.transpose()).array().rowwise() /
+         scaling.input_scale.transpose().array();
+}
+
+Eigen::MatrixXd standardiseOutputs(const Eigen::MatrixXd& Y, const GprScaling& scaling) {
+  return (Y.rowwise() - scaling.output_mean.transpose()).array().rowwise() /
+         scaling.output_scale.transpose().array();
+}
+
+}  // namespace
+
+GprScaling GprScaling::fromData(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y) {
+  requireFiniteData(X, Y);
+  GprScaling s;
+  s.input_offset = X.colwise().mean().transpose();
+  s.input_scale = columnScales(X, s.input_offset);
+  s.output_mean = Y.colwise().mean().transpose();
+  s.output_scale = columnScales(Y, s.output_mean);
+  return s;
+}
+
+GprScaling GprScaling::identity(int input_dim, int output_dim) {
+  GprScaling s;
+  s.input_offset.setZero(input_dim);
+  s.input_scale.setOnes(input_dim);
+  s.output_mean.setZero(output_dim);
+  s.output_scale.setOnes(output_dim);
+  return s;
+}
+
+Eigen::VectorXd GaussianProcess::startingPoint(int index, int input_dim, const GprBounds& bounds) {
+  // k = 0, 1, 2, −1, 3, −2, 4, −3, …
+  const int k = index < 3 ? index : (index % 2 == 1 ? -(index - 1) / 2 : (index + 2) / 2);
+  Eigen::VectorXd start(input_dim + 2);
+  start.head(input_dim).setConstant(std::clamp(k * std::log(3.0), std::log(bounds.min_length_scale),
+                                               std::log(bounds.max_length_scale)));
+  start(input_dim) =
+      std::clamp(0.0, std::log(bounds.min_signal_sigma), std::log(bounds.max_signal_sigma));
+  start(input_dim + 1) =
+      std::clamp(std::log(index % 2 == 0 ? 0.1 : 0.01), std::log(bounds.min_noise_sigma),
+                 std::log(bounds.max_noise_sigma));
+  return start;
+}
+
+GaussianProcess GaussianProcess::fit(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y,
+                                     const GprOptions& options, GprFitReport* report) {
+  const GprScaling scaling = GprScaling::fromData(X, Y);
+  const Eigen::Index D = X.cols();
+  const Eigen::MatrixXd Xn = normaliseInputs(X, scaling);
+  const Eigen::MatrixXd Yn = standardiseOutputs(Y, scaling);
+
+  const GprBounds& b = options.bounds;
+  Eigen::VectorXd lower(D + 2), upper(D + 2);
+  lower << Eigen::VectorXd::Constant(D, std::log(b.min_length_scale)), std::log(b.min_signal_sigma),
+      std::log(b.min_noise_sigma);
+  upper << Eigen::VectorXd::Constant(D, std::log(b.max_length_scale)), std::log(b.max_signal_sigma),
+      std::log(b.max_noise_sigma);
+  if (!((lower.array() < upper.array()).all() && lower.allFinite() && upper.allFinite())) {
+    throw InputError("GPR bounds must be positive, finite and increasing");
+  }
+
+  const int restarts = std::max(1, options.restarts);
+  const int threads = std::clamp(options.threads, 1, restarts);
+  std::vector<GprRestart> results(restarts);
+  std::vector<std::exception_ptr> failures(threads);
+  std::atomic<int> next_restart{0};  // starts differ in cost: hand them out on demand
+  auto work = [&](int thread) {
+    try {
+      for (int r = next_restart++; r < restarts; r = next_restart++) {
+        results[r] = optimiseFrom(Xn, Yn, startingPoint(r, static_cast<int>(D), b), lower, upper,
+                                  options.max_iterations);
+      }
+    } catch (...) {
+      failures[thread] = std::current_exception();
+    }
+  };
+  std::vector<std::thread> workers;
+  for (int t = 1; t < threads; ++t) workers.emplace_back(work, t);
+  work(0);
+  for (std::thread& worker : workers) worker.join();
+  for (const std::exception_ptr& failure : failures) {
+    if (failure) std::rethrow_exception(failure);
+  }
+
+  int best = 0;
+  for (int r = 1; r < restarts; ++r) {
+    if (results[r].final_lml > results[best].final_lml) best = r;
+  }
+  const Eigen::VectorXd theta = results[best].final_log_theta.array().exp();
+  GprHyperparameters hyperparameters;
+  hyperparameters.length_scales = theta.head(D);
+  hyperparameters.signal_sigma = theta(D);
+  // The model's K = σ_f² E + σ_n² I equals the K whose likelihood was maximised.
+  hyperparameters.noise_sigma =
+      std::sqrt(theta(D + 1) * theta(D + 1) + kGprRelativeJitter * theta(D) * theta(D));
+  GaussianProcess gp = withHyperparameters(X, Y, scaling, hyperparameters);
+
+  if (report) {
+    report->restarts = results;
+    report->best_restart = best;
+    report->cv_mse = options.cv_folds >= 2 && X.rows() >= 2
+                         ? gp.crossValidationMse(options.cv_folds)
+                         : Eigen::VectorXd();
+  }
+  return gp;
+}
+
+GaussianProcess GaussianProcess::withHyperparameters(const Eigen::MatrixXd& X,
+                                                     const Eigen::MatrixXd& Y,
+                                                     const GprScaling& scaling,
+                                                     const GprHyperparameters& hyperparameters) {
+  requireFiniteData(X, Y);
+  requireValidScaling(scaling, X.cols(), Y.cols());
+  requireValidHyperparameters(hyperparameters, X.cols());
+  GaussianProcess gp;
+  gp.scaling_ = scaling;
+  gp.hyperparameters_ = hyperparameters;
+  gp.normalised_inputs_ = normaliseInputs(X, scaling);
+  gp.standardised_targets_ = standardiseOutputs(Y, scaling);
+  gp.factorise();
+  gp.alpha_ = gp.cholesky_lower_.triangularView<Eigen::Lower>().solve(gp.standardised_targets_);
+  gp.cholesky_lower_.triangularView<Eigen::Lower>().transpose().solveInPlace(gp.alpha_);
+  gp.log_marginal_likelihood_ =
+      logMarginalLikelihoodFromFactor(gp.cholesky_lower_, gp.standardised_targets_, gp.alpha_);
+  return gp;
+}
+
+GaussianProcess GaussianProcess::fromParts(Eigen::MatrixXd normalised_inputs, GprScaling scaling,
+                                           GprHyperparameters hyperparameters,
+                                           Eigen::MatrixXd alpha,
+                                           Eigen::MatrixXd standardised_targets) {
+  requireFiniteData(normalised_inputs, standardised_targets);
+  if (alpha.rows() != standardised_targets.rows() || alpha.cols() != standardised_targets.cols() ||
+      !alpha.allFinite()) {
+    throw InputError("GPR α must be finite and " + std::to_string(standardised_targets.rows()) +
+                     " × " + std::to_string(standardised_targets.cols()) + ", got " +
+                     std::to_string(alpha.rows()) + " × " + std::to_string(alpha.cols()));
+  }
+  requireValidScaling(scaling, normalised_inputs.cols(), standardised_targets.cols());
+  requireValidHyperparameters(hyperparameters, normalised_inputs.cols());
+  GaussianProcess gp;
+  gp.normalised_inputs_ = std::move(normalised_inputs);
+  gp.scaling_ = std::move(scaling);
+  gp.hyperparameters_ = std::move(hyperparameters);
+  gp.alpha_ = std::move(alpha);
+  gp.standardised_targets_ = std::move(standardised_targets);
+  gp.factorise();
+  const double backward_error = gp.alphaBackwardError();
+  if (!(backward_error <= kAlphaBackwardErrorLimit)) {
+    throw InputError(
+        "GPR α does not solve (K + σ_n² I) α = Y for the stored inputs and "
+        "hyperparameters (backward error " +
+        std::to_string(backward_error) + ")");
+  }
+  gp.log_marginal_likelihood_ =
+      logMarginalLikelihoodFromFactor(gp.cholesky_lower_, gp.standardised_targets_, gp.alpha_);
+  return gp;
+}
+
+void GaussianProcess::factorise() {
+  inverse_length_scales_ = hyperparameters_.length_scales.cwiseInverse();
+  scaled_inputs_ = normalised_inputs_ * inverse_length_scales_.asDiagonal();
+  const Eigen::Index m = normalised_inputs_.rows();
+  Eigen::MatrixXd unit_kernel(m, m);
+  fillUnitKernelLower(scaled_inputs_, unit_kernel);
+  cholesky_lower_.setZero(m, m);
+  fillCovarianceLower(unit_kernel, hyperparameters_.signal_sigma * hyperparameters_.signal_sigma,
+                      hyperparameters_.noise_sigma * hyperparameters_.noise_sigma, cholesky_lower_);
+  if (!choleskyInPlace(cholesky_lower_)) {
+    throw InputError("GPR kernel matrix is not positive definite for these hyperparameters");
+  }
+}
+
+double GaussianProcess::alphaBackwardError() const {
+  const Eigen::Index m = trainingSize();
+  const Eigen::MatrixXd L = cholesky_lower_.triangularView<Eigen::Lower>();
+  const Eigen::MatrixXd K = L * L.transpose();
+  const Eigen::MatrixXd residual = K * alpha_ - standardised_targets_;
+  const double k_norm = K.cwiseAbs().rowwise().sum().maxCoeff();
+  double worst = 0.0;
+  for (Eigen::Index o = 0; o < alpha_.cols(); ++o) {
+    const double denominator = k_norm * alpha_.col(o).cwiseAbs().maxCoeff() +
+                               standardised_targets_.col(o).cwiseAbs().maxCoeff();
+    const double numerator = residual.col(o).cwiseAbs().maxCoeff();
+    worst = std::max(worst, denominator > 0.0 ? numerator / denominator : numerator);
+  }
+  return m > 0 ? worst : 0.0;
+}
+
+Eigen::VectorXd GaussianProcess::crossValidationMse(int folds) const {
+  const Eigen::Index m = trainingSize(), P = outputDim();
+  if (folds < 2 || m < 2) {
+    throw InputError("cross-validation needs at least 2 folds and 2 training points, got " +
+                     std::to_string(folds) + " folds and " + std::to_string(m) + " points");
+  }
+  const Eigen::Index k = std::min<Eigen::Index>(folds, m);
+  Eigen::MatrixXd inverse_factor(m, m), inverse(m, m);
+  inverseFromCholesky(cholesky_lower_, inverse_factor, inverse);
+  inverse.triangularView<Eigen::StrictlyUpper>() = inverse.transpose();
+  // Held-out residual of fold F: y_F − μ_F = ([K⁻¹]_FF)⁻¹ α_F.
+  Eigen::VectorXd sum_squares = Eigen::VectorXd::Zero(P);
+  for (Eigen::Index fold = 0; fold < k; ++fold) {
+    std::vector<Eigen::Index> rows;
+    for (Eigen::Index i = fold; i < m; i += k) rows.push_back(i);
+    const Eigen::MatrixXd inverse_block = inverse(rows, rows);
+    const Eigen::MatrixXd alpha_block = alpha_(rows, Eigen::all);
+    const Eigen::MatrixXd residual = inverse_block.llt().solve(alpha_block);
+    sum_squares += residual.colwise().squaredNorm().transpose();
+  }
+  return sum_squares.cwiseProduct(scaling_.output_scale.cwiseAbs2()) / static_cast<double>(m);
+}
+
+GprWorkspace GaussianProcess::makeWorkspace() const {
+  GprWorkspace workspace;
+  workspace.normalised_input.setZero(inputDim());
+  workspace.kernel_column.setZero(trainingSize());
+  return workspace;
+}
+
+void GaussianProcess::computeKernelColumn(const double* x, GprWorkspace& workspace) const noexcept {
+  Eigen::VectorXd& z = workspace.normalised_input;
+  Eigen::VectorXd& k = workspace.kernel_column;
+  for (Eigen::Index d = 0; d < z.size(); ++d) {
+    z(d) = (x[d] - scaling_.input_offset(d)) / scaling_.input_scale(d) * inverse_length_scales_(d);
+  }
+  k.setZero();
+  for (Eigen::Index d = 0; d < z.size(); ++d) {
+    k.array() += (scaled_inputs_.col(d).array() - z(d)).square();
+  }
+  const double signal_variance = hyperparameters_.signal_sigma * hyperparameters_.signal_sigma;
+  k.array() = signal_variance * (-0.5 * k.array()).exp();
+}
+
+void GaussianProcess::predictMeanInto(const double* x, double* mean_out,
+                                      GprWorkspace& workspace) const noexcept {
+  computeKernelColumn(x, workspace);
+  for (Eigen::Index o = 0; o < alpha_.cols(); ++o) {
+    mean_out[o] = scaling_.output_mean(o) +
+                  scaling_.output_scale(o) * workspace.kernel_column.dot(alpha_.col(o));
+  }
+}
+
+void GaussianProcess::predictInto(const double* x, double* mean_out, double* std_out,
+                                  GprWorkspace& workspace) const noexcept {
+  predictMeanInto(x, mean_out, workspace);
+  Eigen::VectorXd& v = workspace.kernel_column;
+  cholesky_lower_.triangularView<Eigen::Lower>().solveInPlace(v);
+  const double signal_variance = hyperparameters_.signal_sigma * hyperparameters_.signal_sigma;
+  const double latent_std = std::sqrt(std::max(0.0, signal_variance - v.squaredNorm()));
+  for (Eigen::Index o = 0; o < alpha_.cols(); ++o) {
+    std_out[o] = scaling_.output_scale(o) * latent_std;
+  }
+}
+
+Eigen::VectorXd GaussianProcess::predictMean(const Eigen::VectorXd& x) const {
+  if (x.size() != inputDim()) {
+    throw InputError("GPR query has " + std::to_string(x.size()) + " inputs, model has " +
+                     std::to_string(inputDim()));
+  }
+  GprWorkspace workspace = makeWorkspace();
+  Eigen::VectorXd mean(outputDim());
+  predictMeanInto(x.data(), mean.data(), workspace);
+  return mean;
+}
+
+Eigen::VectorXd GaussianProcess::predictStd(const Eigen::VectorXd& x) const {
+  if (x.size() != inputDim()) {
+    throw InputError("GPR query has " + std::to_string(x.size()) + " inputs, model has " +
+                     std::to_string(inputDim()));
+  }
+  GprWorkspace workspace = makeWorkspace();
+  Eigen::VectorXd mean(outputDim()), std_dev(outputDim());
+  predictInto(x.data(), mean.data(), std_dev.data(), workspace);
+  return std_dev;
+}
+
+double logMarginalLikelihood(const Eigen::MatrixXd& Xn, const Eigen::MatrixXd& Yn,
+                             const Eigen::VectorXd& log_theta, Eigen::VectorXd* gradient) {
+  requireFiniteData(Xn, Yn);
+  if (log_theta.size() != Xn.cols() + 2) {
+    throw InputError("GPR log-hyperparameters need " + std::to_string(Xn.cols() + 2) +
+                     " entries, got " + std::to_string(log_theta.size()));
+  }
+  LikelihoodEvaluator evaluator(Xn, Yn);
+  return evaluator.evaluate(log_theta, gradient);
+}
+
+}  // namespace stepcal::trainer

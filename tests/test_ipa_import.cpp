@@ -1,13 +1,10 @@
 // Importer of the IPA UR10 data set: the real Series C (skipped when the shared data folder
 // is absent), which way round Trafo_TM_F_init.txt is, and refusal of broken synthetic files.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <initializer_list>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -19,6 +16,9 @@
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/importers/ipa.hpp"
+#include "support/campaign_rows.hpp"
+#include "support/files.hpp"
+#include "support/input_error.hpp"
 
 namespace stepcal {
 namespace {
@@ -49,29 +49,8 @@ const Campaign& seriesC() {
   return campaign;
 }
 
-/// A fresh folder per test, removed afterwards.
-class TempDir {
- public:
-  TempDir() {
-    static int count = 0;
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ =
-        fs::temp_directory_path() / ("stepcal_test_ipa_" + std::string(info->name()) + "_" +
-                                     std::to_string(::getpid()) + "_" + std::to_string(count++));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
+using test::TempDir;
+using test::writeText;
 
 // ---------------------------------------------------------------------------------------------
 // The real Series C
@@ -143,19 +122,7 @@ TEST(IpaImport, SeriesCRoundTripsThroughCampaignFiles) {
   EXPECT_TRUE(back.tracker.stated);
   EXPECT_EQ(back.tracker.position_sigma_m, c.tracker.position_sigma_m);
   EXPECT_EQ(back.tracker.orientation_sigma_rad, c.tracker.orientation_sigma_rad);
-  ASSERT_EQ(back.rows.size(), c.rows.size());
-  for (size_t i = 0; i < c.rows.size(); ++i) {
-    const Measurement& a = c.rows[i];
-    const Measurement& b = back.rows[i];
-    ASSERT_EQ(a.seq, b.seq);
-    ASSERT_EQ(a.pose_id, b.pose_id);
-    ASSERT_EQ(a.set, b.set);
-    ASSERT_EQ(a.q_rad, b.q_rad) << "row " << i;
-    ASSERT_EQ(a.p_TipInTracker_m, b.p_TipInTracker_m) << "row " << i;
-    ASSERT_EQ(a.q_TrackerTip.coeffs(), b.q_TrackerTip.coeffs()) << "row " << i;
-    ASSERT_EQ(a.temp_c, b.temp_c);
-    ASSERT_EQ(a.extra, b.extra);
-  }
+  test::expectSameRows(c, back);
   // The tracker's digits survive: the written file shows the source's millimetres.
   std::ifstream csv(dir.path() / "series_c" / "measurements.csv");
   std::string header, first;
@@ -306,30 +273,19 @@ std::string seriesText(int line = 0, const std::string& column = "",
   return out;
 }
 
-void writeText(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-}
-
 /// Imports a synthetic series folder; expects a refusal at file/line/column naming parts.
 void expectRefused(const std::string& series, const char* trafo, const std::string& file, int line,
-                   const std::string& column, std::initializer_list<const char*> message_parts,
+                   const std::string& column, const std::vector<std::string>& message_parts,
                    int validation_from_row = -1, const std::string& urdf = kUr10Urdf) {
   TempDir dir;
   writeText(dir.path() / "series.csv", series);
   if (trafo) writeText(dir.path() / "Trafo_TM_F_init.txt", trafo);
-  try {
-    importers::importIpaSeries((dir.path() / "series.csv").string(), validation_from_row, urdf);
-    ADD_FAILURE() << "importIpaSeries accepted it";
-  } catch (const InputError& e) {
-    EXPECT_EQ(fs::path(e.file()).filename(), file) << e.what();
-    EXPECT_EQ(e.line(), line) << e.what();
-    EXPECT_EQ(e.column(), column) << e.what();
-    for (const char* part : message_parts) {
-      EXPECT_NE(std::string(e.what()).find(part), std::string::npos)
-          << "'" << part << "' not in: " << e.what();
-    }
-  }
+  test::expectInputError(
+      [&] {
+        importers::importIpaSeries((dir.path() / "series.csv").string(), validation_from_row,
+                                   urdf);
+      },
+      file, line, column, message_parts);
 }
 
 TEST(IpaImport, SyntheticSeriesImports) {

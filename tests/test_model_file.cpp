@@ -225,7 +225,7 @@ size_t payloadOf(const std::vector<uint8_t>& b, const char (&tag)[5]) {
   return 0;
 }
 
-/// Offset of the GPR's first input, and of α, for D inputs, P outputs and m samples.
+/// Byte offset of the GPR's first normalised input, for D inputs and P outputs.
 size_t gprInputsAt(const std::vector<uint8_t>& b, size_t D, size_t P) {
   return payloadOf(b, "GPR ") + 12 + 8 * (3 * D + 2 * P + 2);
 }

@@ -5,7 +5,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <fstream>
 #include <map>
 #include <set>
@@ -18,6 +17,8 @@
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/twin/twin.hpp"
+#include "support/campaign_rows.hpp"
+#include "support/files.hpp"
 
 namespace stepcal::twin {
 namespace {
@@ -50,22 +51,7 @@ Pose fk(const KinematicChain& chain, const JointVector& q) {
   return tipPose(ws);
 }
 
-void expectSameRows(const Campaign& a, const Campaign& b) {
-  ASSERT_EQ(a.rows.size(), b.rows.size());
-  for (size_t i = 0; i < a.rows.size(); ++i) {
-    const Measurement& x = a.rows[i];
-    const Measurement& y = b.rows[i];
-    EXPECT_EQ(x.seq, y.seq);
-    EXPECT_EQ(x.pose_id, y.pose_id);
-    EXPECT_EQ(x.set, y.set);
-    EXPECT_EQ(x.load_kg, y.load_kg);
-    EXPECT_EQ(x.q_rad, y.q_rad);
-    EXPECT_EQ(x.wrench_Sensor, y.wrench_Sensor);
-    EXPECT_EQ(x.p_TipInTracker_m, y.p_TipInTracker_m);
-    EXPECT_EQ(x.q_TrackerTip.coeffs(), y.q_TrackerTip.coeffs());
-    EXPECT_EQ(x.temp_c, y.temp_c);
-  }
-}
+using test::expectSameRows;
 
 TEST(Twin, SameSeedSameCampaignDifferentSeedDifferent) {
   nlohmann::json truth_a, truth_b, truth_c;
@@ -332,9 +318,8 @@ TEST(Twin, TruthJsonRoundTrip) {
 TEST(Twin, WriteSimulationWritesCampaignAndTruth) {
   TwinOptions o = paperOptions(2);
   o.protocol = "geometry";
-  const std::string dir =
-      (std::filesystem::temp_directory_path() / "stepcal_test_twin_campaign").string();
-  std::filesystem::remove_all(dir);
+  const test::TempDir temp;
+  const std::string dir = (temp.path() / "campaign").string();
   writeSimulation(o, dir);
   const Campaign read = readCampaign(dir);
   nlohmann::json truth;
@@ -343,7 +328,6 @@ TEST(Twin, WriteSimulationWritesCampaignAndTruth) {
   std::ifstream in(dir + "/truth.json");
   const nlohmann::json written = nlohmann::json::parse(in);
   EXPECT_EQ(written, truth);
-  std::filesystem::remove_all(dir);
 }
 
 TEST(Twin, NoiseStatisticsMatchTheOptions) {

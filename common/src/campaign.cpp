@@ -24,6 +24,7 @@
 #include <string_view>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/text_number.hpp"
 
 namespace stepcal {
 namespace {
@@ -46,32 +47,9 @@ constexpr std::array<const char*, 2> kTrackerKeys = {"position_sigma_mm", "orien
 // ---------------------------------------------------------------------------------------------
 // Numbers
 
-std::string inQuotes(std::string_view s) { return "'" + std::string(s) + "'"; }
-
-/// Whole text as a finite double, or nullopt (trailing characters, empty, nan, inf, overflow).
-std::optional<double> parseFinite(std::string_view s) {
-  double v = 0.0;
-  const char* end = s.data() + s.size();
-  const auto [ptr, ec] = std::from_chars(s.data(), end, v);
-  if (ec != std::errc() || ptr != end || !std::isfinite(v)) return std::nullopt;
-  return v;
-}
-
 /// Millimetre text as metres, by moving the decimal point three places (one rounding).
 std::optional<double> parseMillimetresAsMetres(std::string_view s) {
-  const size_t e = s.find_first_of("eE");
-  long long exponent = 0;
-  if (e != std::string_view::npos) {
-    std::string_view exp_text = s.substr(e + 1);
-    if (!exp_text.empty() && exp_text.front() == '+') {
-      exp_text.remove_prefix(1);
-      if (!exp_text.empty() && exp_text.front() == '-') return std::nullopt;
-    }
-    const char* end = exp_text.data() + exp_text.size();
-    const auto [ptr, ec] = std::from_chars(exp_text.data(), end, exponent);
-    if (ec != std::errc() || ptr != end) return std::nullopt;
-  }
-  return parseFinite(std::string(s.substr(0, e)) + "e" + std::to_string(exponent - 3));
+  return parseFiniteShifted(s, -3);
 }
 
 /// Degree text as radians, multiplied in extended precision.
@@ -83,13 +61,6 @@ std::optional<double> parseDegreesAsRadians(std::string_view s) {
   const double rad = static_cast<double>(deg * kRadPerDeg);
   if (!std::isfinite(rad)) return std::nullopt;
   return rad;
-}
-
-/// Shortest text that reads back to exactly v.
-std::string formatShortest(double v) {
-  std::array<char, 64> buf{};
-  const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), v);
-  return std::string(buf.data(), r.ptr);
 }
 
 /// Metres as millimetre text: the shortest metre text with the decimal point moved right by 3.

@@ -3,12 +3,15 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 
 #include "report.hpp"
+#include "report_html.hpp"
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/urdf.hpp"
 #include "stepcal/importers/ipa.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
@@ -47,9 +50,21 @@ void runSimulate(const SimulateArgs& a) {
   twin::writeSimulation(options, a.out);
 }
 
-void runCalibrate(const std::string& dir, const std::string& model_out, bool json) {
+void writeTextFile(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << text;
+  out.close();
+  if (!out) throw InputError("cannot write the report file", path);
+}
+
+void runCalibrate(const std::string& dir, const std::string& model_out,
+                  const std::string& report_out, bool json) {
   const Campaign campaign = readCampaign(dir);
   const trainer::CalibrationOutcome outcome = trainer::calibrateCampaign(campaign);
+  if (!report_out.empty()) {
+    writeTextFile(report_out, cli::htmlReport(campaign, outcome));
+    std::cerr << "wrote report " << report_out << "\n";
+  }
   if (!model_out.empty()) {
     writeModelFile(trainer::modelFromOutcome(campaign, outcome), model_out);
     std::cerr << "wrote model " << model_out << "\n";
@@ -131,6 +146,8 @@ int main(int argc, char** argv) {
   calibrate->add_option("campaign", campaign_dir, "campaign folder (or its campaign.yaml)")->required();
   calibrate->add_option("--out", model_out, "model file to write");
   calibrate->add_flag("--json", json, "print the report as JSON");
+  std::string report_out;
+  calibrate->add_option("--report", report_out, "HTML report with the figures to write");
 
   std::string validate_model, validate_dir;
   bool validate_json = false;
@@ -142,6 +159,10 @@ int main(int argc, char** argv) {
   bool refit_frames = false;
   validate->add_flag("--refit-frames", refit_frames,
                      "fit the tracker and tool frames again on this campaign (joint frames kept)");
+
+  std::string inspect_model;
+  CLI::App* inspect = app.add_subcommand("inspect", "print what a model file holds");
+  inspect->add_option("model", inspect_model, "model file")->required();
 
   std::string demo_out = "out/demo-campaign";
   uint64_t demo_seed = 1;
@@ -159,7 +180,12 @@ int main(int argc, char** argv) {
       writeCampaign(importers::importIpaSeries(ipa_csv, validation_from_row, ipa_urdf), ipa_out);
       std::cerr << "wrote " << ipa_out << "\n";
     } else if (*calibrate) {
-      runCalibrate(campaign_dir, model_out, json);
+      runCalibrate(campaign_dir, model_out, report_out, json);
+    } else if (*inspect) {
+      const std::string bytes = readTextFile(inspect_model);
+      std::cout << cli::formatModel(
+          parseModel(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), inspect_model),
+          bytes.size());
     } else if (*validate) {
       runValidate(validate_model, validate_dir, refit_frames, validate_json);
     } else if (*demo) {
@@ -169,7 +195,7 @@ int main(int argc, char** argv) {
       runSimulate(paper);
       std::cout << "simulated the paper's IRB4400 campaign (seed " << demo_seed << ") into "
                 << demo_out << "\n\n";
-      runCalibrate(demo_out, demo_out + "/model.stepcal", false);
+      runCalibrate(demo_out, demo_out + "/model.stepcal", demo_out + "/report.html", false);
     }
   } catch (const InputError& e) {
     std::cerr << "stepcal: error: " << e.what() << "\n";

@@ -7,6 +7,8 @@
 #include <set>
 #include <sstream>
 
+#include "stepcal/common/lie.hpp"
+
 namespace stepcal::cli {
 namespace {
 
@@ -79,9 +81,113 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
       << poe.observability.unobservable.size() << "):\n";
   for (const auto& u : poe.observability.unobservable) out << "    - " << u.description << "\n";
 
+  if (outcome.has_stiffness) {
+    out << printf_string("step 2, joint compliance: %d loaded/unloaded pairs, rms fit residual %.4f mm\n",
+                         outcome.stiffness.pairs, outcome.stiffness.rms_position_residual_m * kMm);
+    out << printf_string("  %-14s %14s %12s %8s %14s\n", "joint", "K (Nm/rad)", "1-sigma", "rel.", "max |tau| Nm");
+    for (const auto& j : outcome.stiffness.joints) {
+      if (j.excited) {
+        out << printf_string("  %-14s %14.0f %12.0f %7.1f%% %14.1f\n", j.joint.c_str(), j.stiffness_nm_per_rad,
+                             j.stiffness_sigma_nm_per_rad,
+                             100.0 * j.stiffness_sigma_nm_per_rad / j.stiffness_nm_per_rad, j.max_torque_nm);
+      } else {
+        out << printf_string("  %-14s %14s %12s %8s %14.1f  (too little torque from these loads to identify: taken as rigid)\n",
+                             j.joint.c_str(), "-", "-", "-", j.max_torque_nm);
+      }
+    }
+    out << "  check on validation pairs, modelled vs measured deflection (paper: 11.9 / 11.3 / 11.4 % mean):\n";
+    for (const auto& v : outcome.stiffness_validation) {
+      out << printf_string("    %5.1f kg: %3d pairs, deflection %.3f mm, deviation mean %.1f %%, max %.1f %%\n",
+                           v.load_kg, v.pairs, v.mean_deflection_m * kMm, v.mean_deviation_pct,
+                           v.max_deviation_pct);
+    }
+  } else {
+    out << "step 2, joint compliance: skipped (no loaded/unloaded stiffness pairs with a sensor_link)\n";
+  }
+  for (const auto* residual : {&outcome.gpr, &outcome.gpr_baseline}) {
+    if (!*residual) continue;
+    const auto& r = **residual;
+    const auto& h = r.gp.hyperparameters();
+    out << printf_string("step 3, GPR on the %s residual: %d %s rows, log marginal likelihood %.1f\n",
+                         residual == &outcome.gpr ? (outcome.has_stiffness ? "POE + stiffness" : "POE")
+                                                  : "POE (baseline POE + GPR)",
+                         r.training_rows, r.training_set.c_str(), r.gp.logMarginalLikelihood());
+    out << printf_string("  sigma_n %.4g, sigma_f %.4g (standardised outputs); length scales (normalised inputs):",
+                         h.noise_sigma, h.signal_sigma);
+    for (Eigen::Index d = 0; d < h.length_scales.size(); ++d) out << printf_string(" %.3g", h.length_scales(d));
+    out << "\n  10-fold CV mean squared error per output (mm^2 / deg^2 -> rms):";
+    for (Eigen::Index o = 0; o < r.report.cv_mse.size(); ++o) {
+      const double unit = o < 3 ? kMm : kDeg;
+      out << printf_string(" %.4f", std::sqrt(r.report.cv_mse(o)) * unit);
+    }
+    out << "\n";
+  }
+  out << printf_string("time: geometry %.3f s, stiffness %.3f s, GPR %.3f s\n", outcome.seconds_geometry,
+                       outcome.seconds_stiffness, outcome.seconds_gpr);
   out << "\n" << formatAccuracyTable(outcome.accuracy);
   out << "methods: nominal = nominal URDF, tracker registered (closed form); frames = tracker and "
-         "tool frames fitted; poe = every initial pose fitted (step 1)\n";
+         "tool frames fitted; poe = every initial pose fitted (step 1); +stiffness = joint compliance "
+         "(step 2); +gpr = Gaussian process on the residual (step 3)\n";
+  return out.str();
+}
+
+std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
+  std::ostringstream out;
+  const KinematicChain& chain = model.chain_Tracker;
+  const auto pose = [](const Pose& X) {
+    const Vec3 rpy = lie::rpyFromRotation(X.linear()) * kDeg;
+    const Vec3 p = X.translation() * kMm;
+    return printf_string("xyz (%.4f, %.4f, %.4f) mm, rpy (%.5f, %.5f, %.5f) deg", p.x(), p.y(), p.z(),
+                         rpy.x(), rpy.y(), rpy.z());
+  };
+  out << printf_string("stepcal model, format version %u, %zu bytes\n", kModelFormatVersion, file_bytes);
+  const ModelProvenance& prov = model.provenance;
+  out << "provenance: campaign " << prov.campaign_path << " (hash " << prov.campaign_hash << "), trained "
+      << prov.created_utc << " by stepcal " << prov.trainer_version << "\n";
+  out << "chain: " << chain.dof() << " revolute joints, rooted at the tracker frame\n";
+  for (int k = 0; k <= chain.dof(); ++k) {
+    const std::string name = k < chain.dof() ? chain.joints()[static_cast<size_t>(k)].name : "tip";
+    out << printf_string("  T_{%d,%d}(0) -> %-14s %s\n", k, k + 1, name.c_str(), pose(chain.initialPose(k)).c_str());
+  }
+  for (const ChainJoint& j : chain.joints()) {
+    const Vec6& s = j.twist_Local;
+    out << printf_string("  twist %-14s (%.3g, %.3g, %.3g, %.3g, %.3g, %.3g), limits [%.2f, %.2f] deg\n", j.name.c_str(),
+                         s(0), s(1), s(2), s(3), s(4), s(5), j.lower_rad * kDeg, j.upper_rad * kDeg);
+  }
+  out << "tracker registration X_TrackerBase: " << pose(model.X_TrackerBase) << "\n";
+  for (size_t f = 0; f < chain.frames().size(); ++f) {
+    const AttachedFrame& frame = chain.frames()[f];
+    out << printf_string("frame %s on chain frame %d: %s%s\n", frame.name.c_str(), frame.parent,
+                         pose(frame.X_ParentFrame).c_str(),
+                         static_cast<int>(f) == model.sensor_frame ? " (F/T sensor)" : "");
+  }
+  out << printf_string("gravity in base: (%.5f, %.5f, %.5f) m/s^2\n", model.gravity_Base.x(),
+                       model.gravity_Base.y(), model.gravity_Base.z());
+  if (model.compliance_rad_per_nm.size() == 0) {
+    out << "compliance: none (no step 2)\n";
+  } else {
+    out << "joint stiffness (Nm/rad, 1-sigma):";
+    for (Eigen::Index j = 0; j < model.compliance_rad_per_nm.size(); ++j) {
+      const double c = model.compliance_rad_per_nm(j), sc = model.compliance_sigma_rad_per_nm(j);
+      out << (c > 0 ? printf_string(" %.0f+-%.0f", 1 / c, sc / (c * c)) : std::string(" rigid"));
+    }
+    out << "\n";
+  }
+  if (!model.gpr) {
+    out << "GPR: none (no step 3)\n";
+  } else {
+    const GprParameters& g = *model.gpr;
+    out << printf_string("GPR: %ld training points, %ld inputs, %ld outputs; sigma_n %.4g, sigma_f %.4g; length scales:",
+                         static_cast<long>(g.inputs_normalised.rows()), static_cast<long>(g.inputs_normalised.cols()),
+                         static_cast<long>(g.alpha.cols()), g.noise_sigma, g.signal_sigma);
+    for (Eigen::Index d = 0; d < g.length_scales.size(); ++d) out << printf_string(" %.3g", g.length_scales(d));
+    out << "\n";
+  }
+  out << "validation figures at training time (mean / max position mm, mean orientation deg):\n";
+  for (const ValidationFigure& v : prov.validation) {
+    out << printf_string("  %-20s %5.1f kg %4d rows  %8.4f / %8.4f  %.4f\n", v.method.c_str(), v.load_kg, v.rows,
+                         v.mean_position_m * kMm, v.max_position_m * kMm, v.mean_orientation_rad * kDeg);
+  }
   return out.str();
 }
 
@@ -140,7 +246,44 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
   for (const auto& u : poe.observability.unobservable) {
     unobservable.push_back({{"description", u.description}, {"structural", u.structural}});
   }
+  nlohmann::json stiffness = nlohmann::json::array(), stiffness_validation = nlohmann::json::array();
+  for (const auto& j : outcome.stiffness.joints) {
+    stiffness.push_back({{"joint", j.joint},
+                         {"identified", j.excited},
+                         {"stiffness_nm_per_rad", j.excited ? nlohmann::json(j.stiffness_nm_per_rad) : nlohmann::json()},
+                         {"sigma_nm_per_rad", j.excited ? nlohmann::json(j.stiffness_sigma_nm_per_rad) : nlohmann::json()},
+                         {"max_torque_nm", j.max_torque_nm}});
+  }
+  for (const auto& v : outcome.stiffness_validation) {
+    stiffness_validation.push_back({{"load_kg", v.load_kg},
+                                    {"pairs", v.pairs},
+                                    {"mean_deflection_mm", v.mean_deflection_m * kMm},
+                                    {"mean_deviation_pct", v.mean_deviation_pct},
+                                    {"max_deviation_pct", v.max_deviation_pct}});
+  }
+  nlohmann::json gpr = nlohmann::json::array();
+  for (const auto* residual : {&outcome.gpr, &outcome.gpr_baseline}) {
+    if (!*residual) continue;
+    const auto& r = **residual;
+    const auto& h = r.gp.hyperparameters();
+    nlohmann::json cv = nlohmann::json::array();
+    for (Eigen::Index o = 0; o < r.report.cv_mse.size(); ++o) cv.push_back(std::sqrt(r.report.cv_mse(o)) * (o < 3 ? kMm : kDeg));
+    gpr.push_back({{"method", residual == &outcome.gpr
+                                  ? (outcome.has_stiffness ? trainer::kMethodPoeStiffnessGpr : trainer::kMethodPoeGpr)
+                                  : trainer::kMethodPoeGpr},
+                   {"training_rows", r.training_rows},
+                   {"training_set", r.training_set},
+                   {"noise_sigma", h.noise_sigma},
+                   {"signal_sigma", h.signal_sigma},
+                   {"length_scales", std::vector<double>(h.length_scales.data(), h.length_scales.data() + h.length_scales.size())},
+                   {"log_marginal_likelihood", r.gp.logMarginalLikelihood()},
+                   {"cv_rms_mm_deg", cv}});
+  }
   return {{"campaign", campaign.directory},
+          {"stiffness_nm_per_rad", stiffness},
+          {"stiffness_validation", stiffness_validation},
+          {"gpr", gpr},
+          {"seconds", {{"geometry", outcome.seconds_geometry}, {"stiffness", outcome.seconds_stiffness}, {"gpr", outcome.seconds_gpr}}},
           {"rows", campaign.rows.size()},
           {"noise_floor",
            {{"mean_position_mm", outcome.floor_position_m * kMm},

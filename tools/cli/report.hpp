@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "stepcal/common/campaign.hpp"
+#include "stepcal/common/model_file.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 
 namespace stepcal::cli {
@@ -14,8 +15,13 @@ namespace stepcal::cli {
 std::string formatReport(const Campaign& campaign, const trainer::CalibrationOutcome& outcome);
 
 /// The same as JSON: `validation` → [{method, load_kg, rows, mean_position_mm, max_position_mm,
-/// mean_orientation_deg}], plus `fit`, `noise_floor`, `geometry`.
+/// mean_orientation_deg}], `stiffness_nm_per_rad` → [{joint, identified, stiffness_nm_per_rad,
+/// sigma_nm_per_rad, max_torque_nm}], `stiffness_validation` → [{load_kg, pairs,
+/// mean_deviation_pct, max_deviation_pct}], `gpr`, plus `fit`, `noise_floor`, `geometry`.
 nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOutcome& outcome);
+
+/// What a model file holds, for people: chain, registration, compliances, GPR, provenance.
+std::string formatModel(const CalibratedModel& model, size_t file_bytes);
 
 /// Accuracy table (rows = set and load, columns = methods) as text.
 std::string formatAccuracyTable(const std::vector<trainer::AccuracySummary>& summaries);

@@ -20,15 +20,29 @@ RowError rowError(const Pose& X_TrackerTip_predicted, const Measurement& row) {
   return e;
 }
 
+std::vector<RowError> rowErrors(const PoseModel& model, const std::vector<Measurement>& rows) {
+  std::vector<RowError> errors;
+  errors.reserve(rows.size());
+  for (const Measurement& row : rows) errors.push_back(rowError(model(row), row));
+  return errors;
+}
+
 std::vector<AccuracySummary> summarize(const std::string& method, const PoseModel& model,
                                        const std::vector<Measurement>& rows) {
+  return summarize(method, rows, rowErrors(model, rows));
+}
+
+std::vector<AccuracySummary> summarize(const std::string& method,
+                                       const std::vector<Measurement>& rows,
+                                       const std::vector<RowError>& errors) {
   std::map<std::pair<int, double>, AccuracySummary> groups;
-  for (const Measurement& row : rows) {
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const Measurement& row = rows[i];
     AccuracySummary& g = groups[{static_cast<int>(row.set), row.load_kg}];
     g.method = method;
     g.set = row.set;
     g.load_kg = row.load_kg;
-    const RowError e = rowError(model(row), row);
+    const RowError& e = errors[i];
     ++g.rows;
     g.mean_position_m += e.position_m;
     g.rms_position_m += e.position_m * e.position_m;

@@ -163,48 +163,66 @@ class LikelihoodEvaluator {
 /// remembers the best point seen so a failed line search loses nothing.
 class NegativeLikelihoodObjective {
  public:
-  NegativeLikelihoodObjective(LikelihoodEvaluator& evaluator, double samples)
-      : evaluator_(evaluator), samples_(samples) {}
+  NegativeLikelihoodObjective(LikelihoodEvaluator& evaluator, double samples,
+                              double short_length_scale_prior)
+      : evaluator_(evaluator),
+        samples_(samples),
+        log_short_length_scale_(std::log(short_length_scale_prior)) {}
 
   double operator()(const Eigen::VectorXd& log_theta, Eigen::VectorXd& gradient) {
     ++evaluations_;
     const double lml = evaluator_.evaluate(log_theta, &gradient_);
+    double log_posterior = lml;
+    // One-sided log-normal prior on the length scales (see GprOptions).
+    for (Eigen::Index d = 0; d + 2 < log_theta.size() && gradient_.size() == log_theta.size(); ++d) {
+      const double z = log_theta(d) - log_short_length_scale_;
+      if (z < 0.0) {
+        log_posterior -= 0.5 * z * z;
+        gradient_(d) -= z;
+      }
+    }
     double objective = kFailedObjective;
-    if (std::isfinite(lml) && gradient_.allFinite()) {
-      objective = -lml / samples_;
+    if (std::isfinite(log_posterior) && gradient_.allFinite()) {
+      objective = -log_posterior / samples_;
       gradient = -gradient_ / samples_;
     } else {
       gradient.setZero(log_theta.size());
     }
-    if (evaluations_ == 1) start_objective_ = objective;
+    if (evaluations_ == 1) start_lml_ = std::isfinite(lml) ? lml : -kFailedObjective * samples_;
     if (objective < best_objective_) {
       best_objective_ = objective;
+      best_lml_ = lml;
       best_log_theta_ = log_theta;
     }
     return objective;
   }
 
   int evaluations() const { return evaluations_; }
-  double startLml() const { return -start_objective_ * samples_; }
-  double bestLml() const { return -best_objective_ * samples_; }
+  double startLml() const { return start_lml_; }
+  double bestLml() const { return best_lml_; }
+  double bestLogPosterior() const { return -best_objective_ * samples_; }
   const Eigen::VectorXd& bestLogTheta() const { return best_log_theta_; }
 
  private:
   LikelihoodEvaluator& evaluator_;
   double samples_;
+  double log_short_length_scale_;
   Eigen::VectorXd gradient_;
   int evaluations_ = 0;
-  double start_objective_ = kFailedObjective;
+  double start_lml_ = 0.0;
+  double best_lml_ = 0.0;
   double best_objective_ = std::numeric_limits<double>::infinity();
   Eigen::VectorXd best_log_theta_;
 };
 
-/// Maximises the log marginal likelihood from one start inside [lower, upper] (log θ).
+/// Maximises the log marginal likelihood (plus the length-scale prior) from one start inside
+/// [lower, upper] (log θ).
 GprRestart optimiseFrom(const Eigen::MatrixXd& Xn, const Eigen::MatrixXd& Yn,
                         const Eigen::VectorXd& start, const Eigen::VectorXd& lower,
-                        const Eigen::VectorXd& upper, int max_iterations) {
+                        const Eigen::VectorXd& upper, int max_iterations, double short_length_scale_prior) {
   LikelihoodEvaluator evaluator(Xn, Yn);
-  NegativeLikelihoodObjective objective(evaluator, static_cast<double>(Yn.size()));
+  NegativeLikelihoodObjective objective(evaluator, static_cast<double>(Yn.size()),
+                                        short_length_scale_prior);
   LBFGSpp::LBFGSBParam<double> param;
   param.m = 10;          // correction pairs: about as many as hyperparameters for D = 12
   param.epsilon = 1e-4;  // ∞-norm of the projected per-sample gradient: |∂L/∂θ| ≤ 1e-4·m·P
@@ -228,6 +246,7 @@ GprRestart optimiseFrom(const Eigen::MatrixXd& Xn, const Eigen::MatrixXd& Yn,
   restart.evaluations = objective.evaluations();
   restart.start_lml = objective.startLml();
   restart.final_lml = objective.bestLml();
+  restart.final_log_posterior = objective.bestLogPosterior();
   restart.final_log_theta = objective.bestLogTheta();
   return restart;
 }
@@ -354,7 +373,8 @@ GaussianProcess GaussianProcess::fit(const Eigen::MatrixXd& X, const Eigen::Matr
     try {
       for (int r = next_restart++; r < restarts; r = next_restart++) {
         results[r] = optimiseFrom(Xn, Yn, startingPoint(r, static_cast<int>(D), b), lower, upper,
-                                  options.max_iterations);
+                                  options.max_iterations,
+                                  options.short_length_scale_prior * std::sqrt(static_cast<double>(D)));
       }
     } catch (...) {
       failures[thread] = std::current_exception();
@@ -370,7 +390,7 @@ GaussianProcess GaussianProcess::fit(const Eigen::MatrixXd& X, const Eigen::Matr
 
   int best = 0;
   for (int r = 1; r < restarts; ++r) {
-    if (results[r].final_lml > results[best].final_lml) best = r;
+    if (results[r].final_log_posterior > results[best].final_log_posterior) best = r;
   }
   const Eigen::VectorXd theta = results[best].final_log_theta.array().exp();
   GprHyperparameters hyperparameters;

@@ -1,7 +1,11 @@
 #include "stepcal/trainer/pipeline.hpp"
 
+#include <chrono>
 #include <cstdio>
 #include <ctime>
+
+#include "stepcal/common/compliance.hpp"
+#include "stepcal/common/lie.hpp"
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/urdf.hpp"
@@ -18,8 +22,62 @@ PoseModel chainModel(const KinematicChain& chain_Tracker) {
   };
 }
 
-void append(std::vector<AccuracySummary>& out, std::vector<AccuracySummary> more) {
-  out.insert(out.end(), more.begin(), more.end());
+// Evaluates a method on every row: its per-row errors and its summaries.
+void evaluate(CalibrationOutcome& out, const std::string& method, const PoseModel& model,
+              const std::vector<Measurement>& rows) {
+  std::vector<RowError> errors = rowErrors(model, rows);
+  const std::vector<AccuracySummary> summaries = summarize(method, rows, errors);
+  out.accuracy.insert(out.accuracy.end(), summaries.begin(), summaries.end());
+  out.row_errors.emplace_back(method, std::move(errors));
+}
+
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// POE + stiffness: the chain at the deflected link angles (METHOD.md eq. 24).
+PoseModel physicalModel(const KinematicChain& chain_Tracker, int sensor_frame,
+                        const JointVector& compliance) {
+  return [=](const Measurement& row) {
+    ChainWorkspace ws;
+    JointVector q_link;
+    deflectedJointAngles(chain_Tracker, sensor_frame, row.q_rad, row.wrenchOrZero(), compliance,
+                         ws, q_link);
+    return tipPose(ws);
+  };
+}
+
+// The model times the GP's predicted residual twist: T · exp(ξ̂) (METHOD.md eq. 32).
+PoseModel withResidual(PoseModel base, const GaussianProcess& gp) {
+  return [base = std::move(base), &gp](const Measurement& row) {
+    return Pose(base(row) * lie::expSE3(gp.predictMean(gprInput(row))));
+  };
+}
+
+// Residual twists ξ = log(T_model⁻¹ T_measured)^∨ (eq. 25) on the training rows, thinned
+// evenly to at most max_points; rows without orientation cannot give a 6-D twist.
+ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measurement*>& rows,
+                          const std::string& set_name, const CalibrationOptions& options) {
+  std::vector<const Measurement*> usable;
+  for (const Measurement* row : rows) {
+    if (row->has_orientation) usable.push_back(row);
+  }
+  if (usable.size() < 2) {
+    throw InputError("step 3 needs at least 2 " + set_name +
+                     " rows with orientation (qw..qz) to learn the 6-D residual");
+  }
+  const size_t m = std::min(usable.size(), static_cast<size_t>(options.gpr_max_points));
+  const Eigen::Index D = gprInput(*usable[0]).size();
+  Eigen::MatrixXd X(static_cast<Eigen::Index>(m), D), Y(static_cast<Eigen::Index>(m), 6);
+  for (size_t i = 0; i < m; ++i) {
+    const Measurement& row = *usable[i * usable.size() / m];
+    X.row(static_cast<Eigen::Index>(i)) = gprInput(row).transpose();
+    Y.row(static_cast<Eigen::Index>(i)) =
+        lie::logSE3(model(row).inverse() * row.X_TrackerTip()).transpose();
+  }
+  GprFitReport report;
+  GaussianProcess gp = GaussianProcess::fit(X, Y, options.gpr, &report);
+  return ResidualModel{std::move(gp), std::move(report), static_cast<int>(m), set_name};
 }
 
 }  // namespace
@@ -42,8 +100,15 @@ KinematicChain campaignChain(const Campaign& campaign, int* sensor_frame) {
   return chain;
 }
 
+Eigen::VectorXd gprInput(const Measurement& row) {
+  Eigen::VectorXd x(row.q_rad.size() + 6);
+  x << row.q_rad, row.wrenchOrZero();
+  return x;
+}
+
 CalibrationOutcome calibrateCampaign(const Campaign& campaign, const CalibrationOptions& options) {
   CalibrationOutcome out;
+  auto clock = std::chrono::steady_clock::now();
   out.nominal_Base = campaignChain(campaign, &out.sensor_frame);
   const std::vector<const Measurement*> fit = campaign.rowsIn(RowSet::kGeometry);
   if (fit.empty()) {
@@ -57,12 +122,50 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
   GeometricOptions poe_options = options.geometric;
   poe_options.scope = GeometricScope::kFullPoe;
   out.poe = calibrateGeometry(out.nominal_Base, fit, campaign.tracker, poe_options);
+  out.seconds_geometry = secondsSince(clock);
 
-  append(out.accuracy, summarize(kMethodNominal,
-                                 chainModel(out.nominal_Base.rerooted(out.X_TrackerBase_nominal)),
-                                 campaign.rows));
-  append(out.accuracy, summarize(kMethodFrames, chainModel(out.frames.chain_Tracker), campaign.rows));
-  append(out.accuracy, summarize(kMethodPoe, chainModel(out.poe.chain_Tracker), campaign.rows));
+  // Step 2 where the campaign has loaded/unloaded pairs and a sensor.
+  clock = std::chrono::steady_clock::now();
+  const KinematicChain& chain = out.poe.chain_Tracker;
+  const std::vector<DeflectionPair> stiffness_pairs =
+      deflectionPairs(campaign.rowsIn(RowSet::kStiffness));
+  JointVector compliance = JointVector::Zero(chain.dof());
+  if (!stiffness_pairs.empty() && out.sensor_frame >= 0) {
+    out.stiffness = identifyCompliance(chain, out.sensor_frame, stiffness_pairs, campaign.tracker,
+                                       options.stiffness);
+    out.has_stiffness = true;
+    compliance = out.stiffness.compliance_rad_per_nm;
+    out.stiffness_validation = validateCompliance(
+        chain, out.sensor_frame, compliance, deflectionPairs(campaign.rowsIn(RowSet::kValidation)));
+  }
+  out.seconds_stiffness = secondsSince(clock);
+
+  // Step 3 on the residual rows (or, lacking them, on the geometry rows step 1 fitted).
+  clock = std::chrono::steady_clock::now();
+  std::vector<const Measurement*> residual_rows = campaign.rowsIn(RowSet::kResidual);
+  std::string residual_set = "residual";
+  if (residual_rows.empty()) {
+    residual_rows = fit;
+    residual_set = "geometry";
+  }
+  const PoseModel poe_model = chainModel(chain);
+  const PoseModel physical = out.has_stiffness ? physicalModel(chain, out.sensor_frame, compliance)
+                                               : poe_model;
+  out.gpr = fitResidual(physical, residual_rows, residual_set, options);
+  if (out.has_stiffness) out.gpr_baseline = fitResidual(poe_model, residual_rows, residual_set, options);
+  out.seconds_gpr = secondsSince(clock);
+
+  evaluate(out, kMethodNominal, chainModel(out.nominal_Base.rerooted(out.X_TrackerBase_nominal)),
+           campaign.rows);
+  evaluate(out, kMethodFrames, chainModel(out.frames.chain_Tracker), campaign.rows);
+  evaluate(out, kMethodPoe, poe_model, campaign.rows);
+  if (out.has_stiffness) {
+    evaluate(out, kMethodPoeStiffness, physical, campaign.rows);
+    evaluate(out, kMethodPoeGpr, withResidual(poe_model, out.gpr_baseline->gp), campaign.rows);
+    evaluate(out, kMethodPoeStiffnessGpr, withResidual(physical, out.gpr->gp), campaign.rows);
+  } else {
+    evaluate(out, kMethodPoeGpr, withResidual(poe_model, out.gpr->gp), campaign.rows);
+  }
   out.floor_position_m = noiseFloorMean(campaign.tracker.position_sigma_m);
   out.floor_orientation_rad = noiseFloorMean(campaign.tracker.orientation_sigma_rad);
   return out;
@@ -102,6 +205,25 @@ CalibratedModel modelFromOutcome(const Campaign& campaign, const CalibrationOutc
   model.X_TrackerBase = outcome.poe.X_TrackerBase;
   model.sensor_frame = outcome.sensor_frame;
   model.gravity_Base = campaign.gravity_in_base.value_or(Vec3(0.0, 0.0, -9.80665));
+  if (outcome.has_stiffness) {
+    model.compliance_rad_per_nm = outcome.stiffness.compliance_rad_per_nm;
+    model.compliance_sigma_rad_per_nm = outcome.stiffness.compliance_sigma_rad_per_nm;
+  }
+  if (outcome.gpr) {
+    const GaussianProcess& gp = outcome.gpr->gp;
+    GprParameters g;
+    g.inputs_normalised = gp.normalisedInputs();
+    g.input_offset = gp.scaling().input_offset;
+    g.input_scale = gp.scaling().input_scale;
+    g.output_mean = gp.scaling().output_mean;
+    g.output_scale = gp.scaling().output_scale;
+    g.length_scales = gp.hyperparameters().length_scales;
+    g.signal_sigma = gp.hyperparameters().signal_sigma;
+    g.noise_sigma = gp.hyperparameters().noise_sigma;
+    g.targets_standardised = gp.standardisedTargets();
+    g.alpha = gp.alpha();
+    model.gpr = std::move(g);
+  }
   model.provenance.campaign_hash = campaignHash(campaign);
   model.provenance.campaign_path = campaign.directory;
   model.provenance.trainer_version = STEPCAL_VERSION;

@@ -21,7 +21,6 @@
 
 #include <algorithm>
 #include <array>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -32,6 +31,7 @@
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/text_number.hpp"
 #include "stepcal/common/urdf.hpp"
 
 namespace stepcal::importers {
@@ -62,34 +62,9 @@ constexpr const char* kTrafoFile = "Trafo_TM_F_init.txt";
 constexpr double kTrackerPositionSigma_m = 0.015e-3;
 constexpr double kTrackerOrientationSigma_rad = 0.01 * M_PI / 180.0;
 
-std::string inQuotes(std::string_view s) { return "'" + std::string(s) + "'"; }
-
 template <typename Names>
 bool contains(const Names& names, std::string_view name) {
   return std::find(names.begin(), names.end(), name) != names.end();
-}
-
-/// Whole text as a finite double (decimal point), or nullopt.
-std::optional<double> parseFinite(std::string_view s) {
-  double v = 0.0;
-  const char* end = s.data() + s.size();
-  const auto [ptr, ec] = std::from_chars(s.data(), end, v);
-  if (ec != std::errc() || ptr != end || !std::isfinite(v)) return std::nullopt;
-  return v;
-}
-
-/// Decimal text times 10^shift, rounded once (the decimal point is moved, not multiplied).
-std::optional<double> parseShifted(const std::string& s, int shift) {
-  const size_t e = s.find_first_of("eE");
-  long long exponent = 0;
-  if (e != std::string::npos) {
-    std::string_view exp_text = std::string_view(s).substr(e + 1);
-    if (!exp_text.empty() && exp_text.front() == '+') exp_text.remove_prefix(1);
-    const auto [ptr, ec] =
-        std::from_chars(exp_text.data(), exp_text.data() + exp_text.size(), exponent);
-    if (ec != std::errc() || ptr != exp_text.data() + exp_text.size()) return std::nullopt;
-  }
-  return parseFinite(s.substr(0, e) + "e" + std::to_string(exponent + shift));
 }
 
 std::vector<std::string_view> split(std::string_view line, char separator) {
@@ -119,12 +94,6 @@ std::string readExistingFile(const fs::path& path, const std::string& what) {
     throw InputError(what + " not found; expected a readable file", path.string());
   }
   return readTextFile(path.string());
-}
-
-std::string formatShortest(double v) {
-  std::array<char, 32> buf{};
-  const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), v);
-  return std::string(buf.data(), r.ptr);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -368,7 +337,8 @@ Campaign importIpaSeries(const std::string& series_csv, int validation_from_row,
       m.q_rad[static_cast<Eigen::Index>(j)] = *parseFinite(number(layout.joints[j], "radians"));
     }
     for (size_t a = 0; a < 3; ++a) {
-      const std::optional<double> p_m = parseShifted(number(layout.position[a], "millimetres"), -3);
+      const std::optional<double> p_m =
+          parseFiniteShifted(number(layout.position[a], "millimetres"), -3);
       if (!p_m) {
         throw InputError("expected a length in metres' range, got " +
                              inQuotes(fields[static_cast<size_t>(layout.position[a])]) + " mm",

@@ -35,6 +35,14 @@ struct AccuracySummary {
 /// Position and rotation error of a predicted pose against a measured row.
 RowError rowError(const Pose& X_TrackerTip_predicted, const Measurement& row);
 
+/// Errors of a model on every row, in row order.
+std::vector<RowError> rowErrors(const PoseModel& model, const std::vector<Measurement>& rows);
+
+/// Summaries of one method's row errors per (set, load) group, in (set, load) order.
+std::vector<AccuracySummary> summarize(const std::string& method,
+                                       const std::vector<Measurement>& rows,
+                                       const std::vector<RowError>& errors);
+
 /// Summaries of one method per (set, load) group, groups in (set, load) order.
 std::vector<AccuracySummary> summarize(const std::string& method, const PoseModel& model,
                                        const std::vector<Measurement>& rows);

@@ -42,6 +42,12 @@ struct GprOptions {
   int cv_folds = 10;        ///< folds of the cross-validation loss reported by fit (< 2: none)
   int threads = 2;          ///< starts optimised in parallel; the result does not depend on it
   GprBounds bounds;
+  /// Length scales below ℓ₀ = this · √D (normalised input units) cost ½ (log(ℓ/ℓ₀))² nats
+  /// each: on a white-noise residual the likelihood cannot tell "all noise" from "signal with
+  /// length scales so short that the points decorrelate" (both make K diagonal; in D dimensions
+  /// that happens below about √D); this one-sided log-normal prior picks the former, so the
+  /// predictive variance means something. Real short-scale structure outweighs it easily.
+  double short_length_scale_prior = 1.0;
 };
 
 /// Kernel hyperparameters, in normalised input and standardised output units.
@@ -70,7 +76,8 @@ struct GprRestart {
   Eigen::VectorXd start_log_theta;  ///< D + 2: log ℓ_1..log ℓ_D, log σ_f, log σ_n
   Eigen::VectorXd final_log_theta;  ///< best point seen by this start
   double start_lml = 0.0;
-  double final_lml = 0.0;
+  double final_lml = 0.0;            ///< log marginal likelihood at the final point
+  double final_log_posterior = 0.0;  ///< with the length-scale prior: what the starts compete on
   int iterations = 0;                   ///< L-BFGS-B iterations
   int evaluations = 0;                  ///< likelihood + gradient evaluations
   bool stopped_by_line_search = false;  ///< line search gave up (the best point seen is kept)

@@ -1,6 +1,7 @@
 // The whole offline calibration of a campaign, step by step, with its accuracy tables.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -9,11 +10,26 @@
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/trainer/accuracy.hpp"
 #include "stepcal/trainer/geometric.hpp"
+#include "stepcal/trainer/gpr.hpp"
+#include "stepcal/trainer/stiffness.hpp"
 
 namespace stepcal::trainer {
 
 struct CalibrationOptions {
   GeometricOptions geometric;
+  StiffnessOptions stiffness;
+  GprOptions gpr;
+  /// Largest GPR training set; more residual rows are thinned evenly (keeps fit and the
+  /// runtime's prediction time bounded: both grow with it).
+  int gpr_max_points = 400;
+};
+
+/// A fitted residual GP and what it was trained on.
+struct ResidualModel {
+  GaussianProcess gp;
+  GprFitReport report;
+  int training_rows = 0;
+  std::string training_set;  ///< "residual", or "geometry" when the campaign has no residual rows
 };
 
 /// Everything the trainer found, for reports and the model file.
@@ -23,7 +39,15 @@ struct CalibrationOutcome {
   Pose X_TrackerBase_nominal;      ///< tracker registered to the nominal chain (closed form)
   GeometricResult frames;          ///< tracker and tool frames fitted, joints nominal
   GeometricResult poe;             ///< step 1: full local POE (METHOD.md eq. 7–9)
+  bool has_stiffness = false;      ///< step 2 ran (stiffness pairs and a sensor exist)
+  StiffnessResult stiffness;       ///< step 2 (METHOD.md eq. 19–22)
+  std::vector<StiffnessValidation> stiffness_validation;  ///< on validation pairs, per load
+  std::optional<ResidualModel> gpr;           ///< step 3 on the POE + stiffness residual
+  std::optional<ResidualModel> gpr_baseline;  ///< "POE + GPR": step 3 on the POE residual
   std::vector<AccuracySummary> accuracy;  ///< every method on every (set, load) group
+  /// Per-row errors of each method, aligned with the campaign's rows (for plots).
+  std::vector<std::pair<std::string, std::vector<RowError>>> row_errors;
+  double seconds_geometry = 0.0, seconds_stiffness = 0.0, seconds_gpr = 0.0;  ///< wall time
   double floor_position_m = 0.0;   ///< mean error the tracker noise alone gives
   double floor_orientation_rad = 0.0;
 };
@@ -32,6 +56,12 @@ struct CalibrationOutcome {
 inline const char* const kMethodNominal = "nominal";
 inline const char* const kMethodFrames = "frames";
 inline const char* const kMethodPoe = "poe";
+inline const char* const kMethodPoeStiffness = "poe+stiffness";
+inline const char* const kMethodPoeGpr = "poe+gpr";
+inline const char* const kMethodPoeStiffnessGpr = "poe+stiffness+gpr";
+
+/// GPR input of a row: x = (q [rad], wrench in sensor axes [N, N·m]) ∈ R^(n+6) (METHOD.md §3).
+Eigen::VectorXd gprInput(const Measurement& row);
 
 /// Builds the campaign's chain from its URDF (base_link → tip_link, sensor_link attached).
 /// Throws InputError naming the robot file when it does not fit the campaign.

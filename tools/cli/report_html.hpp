@@ -1,0 +1,18 @@
+// A calibration outcome as one self-contained HTML page with SVG figures (mm and degrees).
+#pragma once
+
+#include <string>
+
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/trainer/pipeline.hpp"
+
+namespace stepcal::cli {
+
+/// A self-contained HTML page (inline SVG, no scripts, no external files) with the calibration's figures and tables.
+/// Figures after Tang et al. 2024: step 1 convergence (Fig. 5), per-point errors on the unloaded
+/// (Fig. 6) and on each loaded validation set (Fig. 9, 10), mean error against load, the
+/// stiffness check (Fig. 7); tables of K_θ, GPR hyperparameters and every method's accuracy.
+/// outcome.row_errors must be aligned with campaign.rows (as calibrateCampaign makes them).
+std::string htmlReport(const Campaign& campaign, const trainer::CalibrationOutcome& outcome);
+
+}  // namespace stepcal::cli

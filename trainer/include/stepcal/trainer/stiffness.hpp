@@ -1,0 +1,77 @@
+// Step 2: joint compliance from loaded/unloaded pairs (METHOD.md eq. 13–22).
+//
+// A pair is two rows with the same pose_id, one unloaded and one loaded: the tracker sees the
+// deflection Δp (tip position) and Δω (rotation), the sensor the payload's wrench. With the
+// calibrated chain at q, Δθ = C_θ τ and τ = J_sᵀ W, so the deflection is linear in C_θ:
+//   [Δp; Δω] = J_tip · diag(τ) · C_θ                           (eq. 19–20)
+// solved by weighted least squares (eq. 21–22) over the joints the loads excite.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/common/chain.hpp"
+
+namespace stepcal::trainer {
+
+/// An unloaded row and a loaded row commanded to the same joint angles.
+struct DeflectionPair {
+  const Measurement* unloaded = nullptr;
+  const Measurement* loaded = nullptr;
+};
+
+/// Every (unloaded, loaded) pair among the rows: per pose_id, the unloaded row (load_kg 0)
+/// with each loaded row. Throws InputError when a pose_id has two unloaded rows or the pair's
+/// joint angles differ (they were not commanded to the same pose).
+std::vector<DeflectionPair> deflectionPairs(const std::vector<const Measurement*>& rows);
+
+/// One joint's identified compliance.
+struct JointCompliance {
+  std::string joint;
+  bool excited = false;  ///< false: the loads' torque on it is too small to identify C_θ
+  double max_torque_nm = 0.0;        ///< largest |τ| over the pairs, N·m
+  double compliance_rad_per_nm = 0.0;  ///< C_θ (0 when not excited)
+  double compliance_sigma_rad_per_nm = 0.0;  ///< 1-σ
+  double stiffness_nm_per_rad = 0.0;   ///< K_θ = 1/C_θ (0 when not excited)
+  double stiffness_sigma_nm_per_rad = 0.0;  ///< 1-σ, first order
+};
+
+struct StiffnessOptions {
+  /// A joint whose compliance comes out with a larger relative 1-σ than this is not
+  /// identifiable from these loads: it is reported as such and taken as rigid.
+  double max_relative_sigma = 0.25;
+};
+
+struct StiffnessResult {
+  JointVector compliance_rad_per_nm;        ///< n entries, 0 for joints not excited
+  JointVector compliance_sigma_rad_per_nm;  ///< n entries
+  std::vector<JointCompliance> joints;
+  int pairs = 0;
+  double rms_position_residual_m = 0.0;  ///< of the fitted deflections
+};
+
+/// Deviation of modelled from measured deflection, per load (the paper's check).
+struct StiffnessValidation {
+  double load_kg = 0.0;
+  int pairs = 0;
+  double mean_deviation_pct = 0.0;  ///< mean of |Δp_model − Δp_meas| / |Δp_meas| · 100
+  double max_deviation_pct = 0.0;
+  double mean_deflection_m = 0.0;   ///< mean measured |Δp|
+};
+
+/// Identifies C_θ on the pairs with the calibrated chain (rooted at the tracker) and its
+/// sensor frame. Joints are dropped, least certain first, until every remaining one is
+/// identified to options.max_relative_sigma. Throws InputError when there are no pairs, a
+/// loaded row has no wrench or the loads excite no joint.
+StiffnessResult identifyCompliance(const KinematicChain& chain_Tracker, int sensor_frame,
+                                   const std::vector<DeflectionPair>& pairs,
+                                   const TrackerNoise& noise, const StiffnessOptions& options = {});
+
+/// Modelled vs measured tip deflection on pairs, grouped by load.
+std::vector<StiffnessValidation> validateCompliance(const KinematicChain& chain_Tracker,
+                                                    int sensor_frame,
+                                                    const JointVector& compliance_rad_per_nm,
+                                                    const std::vector<DeflectionPair>& pairs);
+
+}  // namespace stepcal::trainer

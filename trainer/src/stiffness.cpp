@@ -1,0 +1,219 @@
+#include "stepcal/trainer/stiffness.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+
+#include <Eigen/QR>
+#include <Eigen/SVD>
+
+#include "stepcal/common/compliance.hpp"
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/lie.hpp"
+
+namespace stepcal::trainer {
+namespace {
+
+// Wrench the payload adds between the unloaded and the loaded reading, sensor axes.
+Vec6 payloadWrench(const DeflectionPair& p) {
+  return p.loaded->wrenchOrZero() - p.unloaded->wrenchOrZero();
+}
+
+// Joint torques of a pair's payload at the commanded angles, N·m.
+JointVector pairTorques(const KinematicChain& chain, int sensor_frame, const DeflectionPair& p,
+                        ChainWorkspace& ws, Jacobian& J_s) {
+  forwardKinematics(chain, p.loaded->q_rad, ws);
+  spatialJacobian(chain, ws, J_s);
+  return jointTorques(J_s, wrenchInRoot(framePose(chain, ws, sensor_frame), payloadWrench(p)));
+}
+
+}  // namespace
+
+std::vector<DeflectionPair> deflectionPairs(const std::vector<const Measurement*>& rows) {
+  std::map<std::string, std::vector<const Measurement*>> by_pose;
+  for (const Measurement* row : rows) by_pose[row->pose_id].push_back(row);
+  std::vector<DeflectionPair> pairs;
+  for (const auto& [pose_id, group] : by_pose) {
+    const Measurement* unloaded = nullptr;
+    for (const Measurement* row : group) {
+      if (row->load_kg != 0.0) continue;
+      if (unloaded) {
+        throw InputError("pose_id '" + pose_id + "' has two unloaded rows (lines " +
+                             std::to_string(unloaded->source_line) + " and " +
+                             std::to_string(row->source_line) +
+                             "); expected one unloaded row per pose to measure deflections from",
+                         "measurements.csv", row->source_line, "pose_id");
+      }
+      unloaded = row;
+    }
+    if (!unloaded) continue;
+    for (const Measurement* row : group) {
+      if (row == unloaded) continue;
+      if ((row->q_rad - unloaded->q_rad).cwiseAbs().maxCoeff() > 1e-9) {
+        throw InputError("pose_id '" + pose_id + "': joint angles differ from the unloaded row's (line " +
+                             std::to_string(unloaded->source_line) +
+                             "); rows sharing a pose_id must be commanded to the same angles",
+                         "measurements.csv", row->source_line, "pose_id");
+      }
+      pairs.push_back({unloaded, row});
+    }
+  }
+  std::sort(pairs.begin(), pairs.end(), [](const DeflectionPair& a, const DeflectionPair& b) {
+    return a.loaded->seq < b.loaded->seq;
+  });
+  return pairs;
+}
+
+StiffnessResult identifyCompliance(const KinematicChain& chain_Tracker, int sensor_frame,
+                                   const std::vector<DeflectionPair>& pairs,
+                                   const TrackerNoise& noise, const StiffnessOptions& options) {
+  const int n = chain_Tracker.dof();
+  if (pairs.empty()) {
+    throw InputError("no loaded/unloaded pair among the stiffness rows; step 2 needs each "
+                     "stiffness pose measured unloaded and loaded under one pose_id");
+  }
+  if (sensor_frame < 0) {
+    throw InputError("the campaign names no sensor_link; step 2 needs the F/T sensor's wrench");
+  }
+  ChainWorkspace ws;
+  Jacobian J_s, J_tip;
+  std::vector<JointVector> torques;
+  JointVector max_torque = JointVector::Zero(n);
+  for (const DeflectionPair& p : pairs) {
+    if (!p.loaded->has_wrench) {
+      throw InputError("loaded row has no wrench; step 2 needs the F/T sensor reading",
+                       "measurements.csv", p.loaded->source_line, "fx_n");
+    }
+    torques.push_back(pairTorques(chain_Tracker, sensor_frame, p, ws, J_s));
+    max_torque = max_torque.cwiseMax(torques.back().cwiseAbs());
+  }
+  StiffnessResult result;
+  result.pairs = static_cast<int>(pairs.size());
+  std::vector<int> excited;
+  for (int j = 0; j < n; ++j) {
+    JointCompliance jc;
+    jc.joint = chain_Tracker.joints()[static_cast<size_t>(j)].name;
+    jc.max_torque_nm = max_torque(j);
+    if (max_torque(j) > 0.0) excited.push_back(j);
+    result.joints.push_back(jc);
+  }
+
+  // Weighted system: a deflection is the difference of two measurements, hence √2·σ.
+  int equations = 0;
+  for (const DeflectionPair& p : pairs) {
+    equations += p.loaded->has_orientation && p.unloaded->has_orientation ? 6 : 3;
+  }
+  const double w_p = 1.0 / (std::sqrt(2.0) * noise.position_sigma_m);
+  const double w_r = 1.0 / (std::sqrt(2.0) * noise.orientation_sigma_rad);
+  Eigen::MatrixXd B_all = Eigen::MatrixXd::Zero(equations, n);
+  Eigen::VectorXd y = Eigen::VectorXd::Zero(equations);
+  int eq = 0;
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    const DeflectionPair& p = pairs[i];
+    forwardKinematics(chain_Tracker, p.loaded->q_rad, ws);
+    tipPointJacobian(chain_Tracker, ws, J_tip);
+    for (int j = 0; j < n; ++j) {
+      B_all.block(eq, j, 3, 1) = w_p * J_tip.block<3, 1>(0, j) * torques[i](j);
+    }
+    y.segment<3>(eq) = w_p * (p.loaded->p_TipInTracker_m - p.unloaded->p_TipInTracker_m);
+    eq += 3;
+    if (p.loaded->has_orientation && p.unloaded->has_orientation) {
+      for (int j = 0; j < n; ++j) {
+        B_all.block(eq, j, 3, 1) = w_r * J_tip.block<3, 1>(3, j) * torques[i](j);
+      }
+      y.segment<3>(eq) = w_r * lie::logSO3(p.loaded->q_TrackerTip.toRotationMatrix() *
+                                           p.unloaded->q_TrackerTip.toRotationMatrix().transpose());
+      eq += 3;
+    }
+  }
+
+  // Least squares (eq. 22) on the identifiable joints; drop the least certain until all are.
+  Eigen::VectorXd c, residual;
+  Eigen::MatrixXd covariance;
+  while (true) {
+    if (excited.empty()) {
+      throw InputError("the loads put too little torque on every joint to identify a compliance; "
+                       "check the wrench columns and the loads");
+    }
+    const Eigen::Index k = static_cast<Eigen::Index>(excited.size());
+    Eigen::MatrixXd B(equations, k);
+    for (Eigen::Index i = 0; i < k; ++i) B.col(i) = B_all.col(excited[static_cast<size_t>(i)]);
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(B);
+    c = qr.solve(y);
+    residual = y - B * c;
+    // Scale the covariance by the reduced χ² when the fit is worse than the stated noise.
+    const double dof_residual = std::max<double>(1.0, static_cast<double>(equations - k));
+    const double chi2_reduced = std::max(1.0, residual.squaredNorm() / dof_residual);
+    covariance = (B.transpose() * B).completeOrthogonalDecomposition().pseudoInverse() * chi2_reduced;
+    Eigen::Index worst = 0;
+    double worst_relative = 0.0;
+    for (Eigen::Index i = 0; i < k; ++i) {
+      const double relative = qr.rank() < k || c(i) <= 0.0
+                                  ? std::numeric_limits<double>::infinity()
+                                  : std::sqrt(covariance(i, i)) / c(i);
+      if (relative > worst_relative) {
+        worst_relative = relative;
+        worst = i;
+      }
+    }
+    if (worst_relative <= options.max_relative_sigma) break;
+    excited.erase(excited.begin() + worst);
+  }
+
+  result.compliance_rad_per_nm = JointVector::Zero(n);
+  result.compliance_sigma_rad_per_nm = JointVector::Zero(n);
+  for (size_t i = 0; i < excited.size(); ++i) {
+    const int j = excited[i];
+    const Eigen::Index e = static_cast<Eigen::Index>(i);
+    JointCompliance& jc = result.joints[static_cast<size_t>(j)];
+    jc.excited = true;
+    jc.compliance_rad_per_nm = c(e);
+    jc.compliance_sigma_rad_per_nm = std::sqrt(covariance(e, e));
+    jc.stiffness_nm_per_rad = 1.0 / c(e);
+    jc.stiffness_sigma_nm_per_rad = jc.compliance_sigma_rad_per_nm / (c(e) * c(e));
+    result.compliance_rad_per_nm(j) = c(e);
+    result.compliance_sigma_rad_per_nm(j) = jc.compliance_sigma_rad_per_nm;
+  }
+  double sum_p2 = 0.0;
+  eq = 0;
+  for (const DeflectionPair& p : pairs) {
+    sum_p2 += residual.segment<3>(eq).squaredNorm() / (w_p * w_p);
+    eq += p.loaded->has_orientation && p.unloaded->has_orientation ? 6 : 3;
+  }
+  result.rms_position_residual_m = std::sqrt(sum_p2 / static_cast<double>(pairs.size()));
+  return result;
+}
+
+std::vector<StiffnessValidation> validateCompliance(const KinematicChain& chain_Tracker,
+                                                    int sensor_frame,
+                                                    const JointVector& compliance_rad_per_nm,
+                                                    const std::vector<DeflectionPair>& pairs) {
+  std::map<double, StiffnessValidation> by_load;
+  ChainWorkspace ws;
+  JointVector q_link;
+  for (const DeflectionPair& p : pairs) {
+    forwardKinematics(chain_Tracker, p.loaded->q_rad, ws);
+    const Vec3 p_rigid = tipPose(ws).translation();
+    deflectedJointAngles(chain_Tracker, sensor_frame, p.loaded->q_rad, payloadWrench(p),
+                         compliance_rad_per_nm, ws, q_link);
+    const Vec3 modelled = tipPose(ws).translation() - p_rigid;
+    const Vec3 measured = p.loaded->p_TipInTracker_m - p.unloaded->p_TipInTracker_m;
+    const double deviation_pct = 100.0 * (modelled - measured).norm() / measured.norm();
+    StiffnessValidation& v = by_load[p.loaded->load_kg];
+    v.load_kg = p.loaded->load_kg;
+    ++v.pairs;
+    v.mean_deviation_pct += deviation_pct;
+    v.max_deviation_pct = std::max(v.max_deviation_pct, deviation_pct);
+    v.mean_deflection_m += measured.norm();
+  }
+  std::vector<StiffnessValidation> out;
+  for (auto& [load, v] : by_load) {
+    v.mean_deviation_pct /= v.pairs;
+    v.mean_deflection_m /= v.pairs;
+    out.push_back(v);
+  }
+  return out;
+}
+
+}  // namespace stepcal::trainer

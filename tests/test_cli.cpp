@@ -130,6 +130,19 @@ TEST(Cli, SimulatedPaperCampaignReachesTheNoiseFloor) {
   EXPECT_EQ(model.gpr->inputs_normalised.rows(), 300);
   EXPECT_EQ(model.gpr->inputs_normalised.cols(), 12);
   EXPECT_FALSE(model.provenance.validation.empty());
+  // Every layer evaluated from the model file alone reproduces the trainer's figures.
+  const CommandResult validate =
+      run(kStepcal + " validate " + (dir / "model.stepcal").string() + " " + dir.string() + " --json");
+  ASSERT_EQ(validate.status, 0) << validate.out;
+  int compared = 0;
+  for (const auto& row : nlohmann::json::parse(validate.out)) {
+    if (row["set"] != "validation") continue;
+    const auto& trained = validationRow(report, row["method"], row["load_kg"]);
+    EXPECT_NEAR(row["mean_position_mm"].get<double>(), trained["mean_position_mm"].get<double>(), 1e-9)
+        << row["method"] << " at " << row["load_kg"];
+    ++compared;
+  }
+  EXPECT_EQ(compared, 3 * 5);  // poe, poe+stiffness, poe+stiffness+gpr at five loads
   const CommandResult inspect = run(kStepcal + " inspect " + (dir / "model.stepcal").string());
   EXPECT_EQ(inspect.status, 0);
   EXPECT_NE(inspect.out.find("GPR: 300 training points, 12 inputs, 6 outputs"), std::string::npos)

@@ -5,7 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 packages=(
-  build-essential cmake pkg-config git
+  build-essential cmake pkg-config git clang libclang-rt-14-dev
   libeigen3-dev libgtest-dev libbenchmark-dev
   liburdfdom-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev liblbfgspp-dev
   liblcm-dev liblcm-bin

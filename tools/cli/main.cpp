@@ -76,7 +76,7 @@ void runCalibrate(const std::string& dir, const std::string& model_out,
   }
 }
 
-// Accuracy of a model file's calibrated chain on every row of a campaign.
+// Accuracy of every layer of a model file (chain, + compliance, + GPR) on a campaign's rows.
 // With refit_frames, the tracker and tool frames are fitted again on the campaign's rows
 // (12 parameters; the joint frames stay the model's): for a campaign measured with the
 // tracker or the target moved.
@@ -89,21 +89,24 @@ void runValidate(const std::string& model_path, const std::string& dir, bool ref
                          " joints, the model " + std::to_string(model.chain_Tracker.dof()),
                      dir);
   }
-  KinematicChain chain = model.chain_Tracker;
+  CalibratedModel evaluated = model;
   if (refit_frames) {
     trainer::GeometricOptions frames_only;
     frames_only.scope = trainer::GeometricScope::kFramesOnly;
     std::vector<const Measurement*> rows;
     for (const Measurement& m : campaign.rows) rows.push_back(&m);
-    chain = trainer::calibrateGeometry(chain.rerooted(model.X_TrackerBase.inverse()), rows,
-                                       campaign.tracker, frames_only)
-                .chain_Tracker;
+    const trainer::GeometricResult refit = trainer::calibrateGeometry(
+        model.chain_Tracker.rerooted(model.X_TrackerBase.inverse()), rows, campaign.tracker,
+        frames_only);
+    evaluated.chain_Tracker = refit.chain_Tracker;
+    evaluated.X_TrackerBase = refit.X_TrackerBase;
   }
-  const auto summaries = trainer::summarize(refit_frames ? "model, frames refit" : "model", [&chain](const Measurement& row) {
-    ChainWorkspace ws;
-    forwardKinematics(chain, row.q_rad, ws);
-    return tipPose(ws);
-  }, campaign.rows);
+  std::vector<trainer::AccuracySummary> summaries;
+  for (const auto& [layer, predictor] : trainer::modelLayers(evaluated)) {
+    const auto more = trainer::summarize(refit_frames ? layer + " (frames refit)" : layer,
+                                         predictor, campaign.rows);
+    summaries.insert(summaries.end(), more.begin(), more.end());
+  }
   if (json) {
     std::cout << cli::accuracyJson(summaries).dump(2) << "\n";
   } else {

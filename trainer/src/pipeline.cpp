@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <memory>
 
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/lie.hpp"
@@ -169,6 +170,32 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
   out.floor_position_m = noiseFloorMean(campaign.tracker.position_sigma_m);
   out.floor_orientation_rad = noiseFloorMean(campaign.tracker.orientation_sigma_rad);
   return out;
+}
+
+std::vector<std::pair<std::string, PoseModel>> modelLayers(const CalibratedModel& model) {
+  std::vector<std::pair<std::string, PoseModel>> layers;
+  PoseModel physical = chainModel(model.chain_Tracker);
+  layers.emplace_back(kMethodPoe, physical);
+  const bool stiffness = model.compliance_rad_per_nm.size() > 0 && model.sensor_frame >= 0;
+  if (stiffness) {
+    physical = physicalModel(model.chain_Tracker, model.sensor_frame, model.compliance_rad_per_nm);
+    layers.emplace_back(kMethodPoeStiffness, physical);
+  }
+  if (model.gpr) {
+    const GprParameters& g = *model.gpr;
+    GprScaling scaling{g.input_offset, g.input_scale, g.output_mean, g.output_scale};
+    GprHyperparameters h;
+    h.length_scales = g.length_scales;
+    h.signal_sigma = g.signal_sigma;
+    h.noise_sigma = g.noise_sigma;
+    auto gp = std::make_shared<const GaussianProcess>(GaussianProcess::fromParts(
+        g.inputs_normalised, scaling, h, g.alpha, g.targets_standardised));
+    layers.emplace_back(stiffness ? kMethodPoeStiffnessGpr : kMethodPoeGpr,
+                        [physical, gp](const Measurement& row) {
+                          return Pose(physical(row) * lie::expSE3(gp->predictMean(gprInput(row))));
+                        });
+  }
+  return layers;
 }
 
 std::string campaignHash(const Campaign& campaign) {

@@ -74,6 +74,10 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
 /// creation time, trainer version, validation figures of every method).
 CalibratedModel modelFromOutcome(const Campaign& campaign, const CalibrationOutcome& outcome);
 
+/// Pose predictors for a model file's layers, in order: "poe" (the chain), then
+/// "poe+stiffness" and "poe[+stiffness]+gpr" where the model holds those steps.
+std::vector<std::pair<std::string, PoseModel>> modelLayers(const CalibratedModel& model);
+
 /// FNV-1a 64 of the campaign's robot description and rows as read, in hex: two campaigns
 /// with the same hash hold the same data.
 std::string campaignHash(const Campaign& campaign);

@@ -125,6 +125,8 @@ TEST(Cli, SimulatedPaperCampaignReachesTheNoiseFloor) {
   // The model file was written, holds every step and reads back.
   const CalibratedModel model = readModelFile((dir / "model.stepcal").string());
   EXPECT_EQ(model.chain_Tracker.dof(), 6);
+  EXPECT_EQ(model.nominal_Base.dof(), 6);
+  EXPECT_GE(model.nominal_Base.findFrame("ft_sensor"), 0);
   EXPECT_EQ(model.compliance_rad_per_nm.size(), 6);
   ASSERT_TRUE(model.gpr.has_value());
   EXPECT_EQ(model.gpr->inputs_normalised.rows(), 300);
@@ -146,6 +148,9 @@ TEST(Cli, SimulatedPaperCampaignReachesTheNoiseFloor) {
   const CommandResult inspect = run(kStepcal + " inspect " + (dir / "model.stepcal").string());
   EXPECT_EQ(inspect.status, 0);
   EXPECT_NE(inspect.out.find("GPR: 300 training points, 12 inputs, 6 outputs"), std::string::npos)
+      << inspect.out;
+  EXPECT_NE(inspect.out.find("nominal chain: 6 revolute joints, rooted at the robot base, tool"),
+            std::string::npos)
       << inspect.out;
 }
 

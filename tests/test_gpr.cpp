@@ -14,17 +14,12 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/trainer/gpr.hpp"
 #include "support/allocation_counter.hpp"
+#include "support/random_matrix.hpp"
 
 namespace stepcal::trainer {
 namespace {
 
-Eigen::MatrixXd uniformMatrix(Eigen::Index rows, Eigen::Index cols, double low, double high,
-                              std::mt19937_64& rng) {
-  std::uniform_real_distribution<double> u(low, high);
-  Eigen::MatrixXd A(rows, cols);
-  for (Eigen::Index i = 0; i < A.size(); ++i) A.data()[i] = u(rng);
-  return A;
-}
+using test::uniformMatrix;
 
 GprHyperparameters hyperparameters(const Eigen::VectorXd& length_scales, double signal_sigma,
                                    double noise_sigma) {

@@ -86,6 +86,7 @@ CalibratedModel realisticModel(int m = 300) {
   model.X_TrackerBase.linear() = lie::rotationFromRpy(0.01, -0.02, 2.3);
   model.X_TrackerBase.translation() = Vec3(3.812, -1.274, 0.391);
   model.chain_Tracker = chain_Base.corrected(delta).rerooted(model.X_TrackerBase);
+  model.nominal_Base = chain_Base;
   model.sensor_frame = model.chain_Tracker.findFrame("ft_sensor");
   model.gravity_Base = Vec3(0.0, 0.0, -9.80665);
   // Paper's identified joint stiffnesses (N·m/rad), as compliances.
@@ -110,9 +111,7 @@ bool sameMatrix(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
   return a.rows() == b.rows() && a.cols() == b.cols() && (a.array() == b.array()).all();
 }
 
-void expectSameModel(const CalibratedModel& a, const CalibratedModel& b) {
-  const KinematicChain& ca = a.chain_Tracker;
-  const KinematicChain& cb = b.chain_Tracker;
+void expectSameChain(const KinematicChain& ca, const KinematicChain& cb) {
   ASSERT_EQ(ca.dof(), cb.dof());
   for (int i = 0; i < ca.dof(); ++i) {
     const ChainJoint& ja = ca.joints()[size_t(i)];
@@ -132,6 +131,11 @@ void expectSameModel(const CalibratedModel& a, const CalibratedModel& b) {
     EXPECT_TRUE(sameMatrix(ca.frames()[i].X_ParentFrame.matrix(),
                            cb.frames()[i].X_ParentFrame.matrix()));
   }
+}
+
+void expectSameModel(const CalibratedModel& a, const CalibratedModel& b) {
+  expectSameChain(a.chain_Tracker, b.chain_Tracker);
+  expectSameChain(a.nominal_Base, b.nominal_Base);
   EXPECT_TRUE(sameMatrix(a.X_TrackerBase.matrix(), b.X_TrackerBase.matrix()));
   EXPECT_EQ(a.sensor_frame, b.sensor_frame);
   EXPECT_TRUE(sameMatrix(a.gravity_Base, b.gravity_Base));
@@ -328,7 +332,7 @@ TEST_F(ModelFileTest, RoundTripWithoutOptionalSteps) {
   const CalibratedModel parsed = parse(b);
   expectSameModel(bare, parsed);
   EXPECT_EQ(serializeModel(parsed), b);
-  EXPECT_LT(b.size(), 2000u);
+  EXPECT_LT(b.size(), 3500u);
 }
 
 TEST_F(ModelFileTest, IllConditionedButConsistentGprIsAccepted) {
@@ -545,13 +549,50 @@ TEST_F(ModelFileTest, OtherSemanticChecks) {
             std::string::npos);
   // Swapping the order of two sections is a structural error even with a valid checksum.
   EXPECT_NE(edited([&](auto& b) { std::memcpy(&b[chain - 16], "REGI", 4); })
-                .find("expected the sections CHAN, REGI, COMP, GPR, PROV in that order"),
+                .find("expected the sections CHAN, NOMI, REGI, COMP, GPR, PROV in that order"),
             std::string::npos);
   EXPECT_NE(edited([&](auto& b) { putU32(b, chain - 12, 1); }).find("reserved word"),
             std::string::npos);
   EXPECT_NE(edited([&](auto& b) { putU32(b, 12, 4); }).find("flags"), std::string::npos);
   const size_t provenance = payloadOf(bytes(), "PROV");
   EXPECT_NE(edited([&](auto& b) { b[provenance + 4] = 'g'; }).find("hexadecimal"),
+            std::string::npos);
+}
+
+TEST_F(ModelFileTest, NominalChainFollowsTheCalibratedChainAndDescribesTheSameRobot) {
+  // NOMI comes right after CHAN: the CHAN payload, then NOMI's 16-byte section header.
+  const std::vector<uint8_t>& b = bytes();
+  const size_t chain = payloadOf(b, "CHAN");
+  uint64_t chain_length = 0;
+  for (int i = 0; i < 8; ++i) chain_length |= uint64_t(b[chain - 8 + size_t(i)]) << (8 * i);
+  const size_t nominal = payloadOf(b, "NOMI");
+  EXPECT_EQ(nominal, chain + chain_length + 16);
+  EXPECT_EQ(std::memcmp(&b[nominal - 16], "NOMI", 4), 0);
+
+  const auto edited = [&](auto edit) {
+    std::vector<uint8_t> e = bytes();
+    edit(e);
+    refix(e);
+    return refusal(e);
+  };
+  const std::string fewer = edited([&](auto& e) { putU32(e, nominal, 5); });
+  EXPECT_NE(fewer.find("byte " + std::to_string(nominal) +
+                       ", nominal.dof: 5; expected 6, the calibrated chain's"),
+            std::string::npos)
+      << fewer;
+  const std::string name0 = model().nominal_Base.joints()[0].name;
+  ASSERT_EQ(getU32(b, nominal + 4), name0.size());
+  const std::string renamed = edited([&](auto& e) { e[nominal + 8] ^= 0x20; });
+  EXPECT_NE(renamed.find("byte " + std::to_string(nominal + 4) + ", nominal.joints[0].name: '"),
+            std::string::npos)
+      << renamed;
+  EXPECT_NE(renamed.find("expected '" + name0 + "', the calibrated chain's joint 1"),
+            std::string::npos)
+      << renamed;
+  // The nominal chain is checked like the calibrated one.
+  const size_t twist0 = nominal + 4 + 4 + name0.size();
+  EXPECT_NE(edited([&](auto& e) { putF64(e, twist0 + 40, 1.001); })
+                .find("nominal.joints[0].twist_Local: rotation axis has norm"),
             std::string::npos);
 }
 
@@ -567,6 +608,15 @@ TEST_F(ModelFileTest, SerialiseRefusesWhatTheLoaderWouldRefuse) {
   EXPECT_THROW(serializeModel(bad), InputError);
   bad = model();
   bad.gravity_Base.x() = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(serializeModel(bad), InputError);
+  bad = model();
+  bad.nominal_Base = KinematicChain();  // no nominal chain
+  EXPECT_THROW(serializeModel(bad), InputError);
+  bad = model();
+  std::vector<ChainJoint> joints = bad.nominal_Base.joints();
+  joints[3].name = "wrist_1";
+  bad.nominal_Base =
+      KinematicChain(joints, bad.nominal_Base.initialPoses(), bad.nominal_Base.frames());
   EXPECT_THROW(serializeModel(bad), InputError);
   EXPECT_THROW(serializeModel(CalibratedModel{}), InputError);  // no chain
 }

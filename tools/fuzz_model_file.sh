@@ -52,6 +52,7 @@ clang++ -fsanitize=fuzzer-no-link,address,undefined "$out/obj/make_seeds.o" "${o
 cat > "$out/model.dict" <<'DICT'
 "STEPCAL\x00"
 "CHAN"
+"NOMI"
 "REGI"
 "COMP"
 "GPR "

@@ -59,6 +59,7 @@ struct SectionId {
   const char* name;
 };
 constexpr SectionId kChain{fourcc("CHAN"), "chain"};
+constexpr SectionId kNominal{fourcc("NOMI"), "nominal chain"};
 constexpr SectionId kRegistration{fourcc("REGI"), "registration"};
 constexpr SectionId kCompliance{fourcc("COMP"), "compliance"};
 constexpr SectionId kGpr{fourcc("GPR "), "gpr"};
@@ -73,7 +74,7 @@ constexpr uint64_t gprPayloadBytes(uint64_t m, uint64_t D, uint64_t P) {
 constexpr uint64_t kMaxFileBytes = 64ull << 20;
 static_assert(gprPayloadBytes(kMaxGprSamples, kMaxGprDims, kMaxGprDims) +
                       uint64_t(kMaxValidationFigures + 4) * (kMaxStringBytes + 64) +
-                      uint64_t(kMaxFrames + kMaxJoints) * (kMaxStringBytes + 8 * 20) <
+                      2 * uint64_t(kMaxFrames + kMaxJoints) * (kMaxStringBytes + 8 * 20) <
                   kMaxFileBytes,
               "kMaxFileBytes must hold the largest legal model");
 
@@ -154,6 +155,23 @@ class Writer {
       for (int c = 0; c < 4; ++c) f64(X.matrix()(r, c));
     }
   }
+  /// A chain as CHAN stores it.
+  void chainPayload(const KinematicChain& chain) {
+    u32(uint32_t(chain.dof()));
+    for (const ChainJoint& j : chain.joints()) {
+      str(j.name);
+      for (int i = 0; i < 6; ++i) f64(j.twist_Local(i));
+      f64(j.lower_rad);
+      f64(j.upper_rad);
+    }
+    for (const Pose& X : chain.initialPoses()) pose(X);
+    u32(uint32_t(chain.frames().size()));
+    for (const AttachedFrame& f : chain.frames()) {
+      str(f.name);
+      u32(uint32_t(f.parent));
+      pose(f.X_ParentFrame);
+    }
+  }
   template <typename Derived>
   void rowMajor(const Eigen::DenseBase<Derived>& M) {
     for (Eigen::Index r = 0; r < M.rows(); ++r) {
@@ -190,12 +208,15 @@ void checkWritable(const CalibratedModel& model, const std::string& source) {
              std::to_string(kMaxStringBytes));
     }
   };
-  for (const ChainJoint& j : model.chain_Tracker.joints()) checkString(j.name, "joint name");
-  if (model.chain_Tracker.frames().size() > kMaxFrames) {
-    refuse("chain has " + std::to_string(model.chain_Tracker.frames().size()) +
-           " attached frames; expected at most " + std::to_string(kMaxFrames));
+  for (const auto& [chain, field] : {std::pair{&model.chain_Tracker, std::string("chain")},
+                                      std::pair{&model.nominal_Base, std::string("nominal")}}) {
+    for (const ChainJoint& j : chain->joints()) checkString(j.name, field + " joint name");
+    if (chain->frames().size() > kMaxFrames) {
+      refuse(field + " has " + std::to_string(chain->frames().size()) +
+             " attached frames; expected at most " + std::to_string(kMaxFrames));
+    }
+    for (const AttachedFrame& f : chain->frames()) checkString(f.name, field + " frame name");
   }
-  for (const AttachedFrame& f : model.chain_Tracker.frames()) checkString(f.name, "frame name");
   if (model.compliance_sigma_rad_per_nm.size() != model.compliance_rad_per_nm.size()) {
     refuse("compliance_sigma_rad_per_nm has " +
            std::to_string(model.compliance_sigma_rad_per_nm.size()) + " entries; expected " +
@@ -399,7 +420,7 @@ class Reader {
     const uint32_t tag = u32(what + " tag");
     if (tag != id.tag) {
       fail(at, what, "found tag " + tagText(tag) +
-                         "; expected the sections CHAN, REGI, COMP, GPR, PROV in that order");
+                         "; expected the sections CHAN, NOMI, REGI, COMP, GPR, PROV in that order");
     }
     const uint32_t reserved = u32(what + " reserved word");
     if (reserved != 0) {
@@ -453,13 +474,27 @@ class Reader {
   const std::string& source_;
 };
 
-KinematicChain readChain(Reader& in) {
-  const uint32_t n = in.count("chain.dof", 1, kMaxJoints, 4 + 8 * 8);
+/// A chain as CHAN stores it; field names start with prefix ("chain.dof"). When `like` is
+/// given, the chain must have like's dof and joint names.
+KinematicChain readChain(Reader& in, const std::string& prefix, const KinematicChain* like) {
+  const size_t dof_at = in.offset();
+  const uint32_t n = in.count(prefix + ".dof", 1, kMaxJoints, 4 + 8 * 8);
+  if (like != nullptr && n != uint32_t(like->dof())) {
+    in.fail(dof_at, prefix + ".dof",
+            std::to_string(n) + "; expected " + std::to_string(like->dof()) +
+                ", the calibrated chain's (both describe the same robot)");
+  }
   std::vector<ChainJoint> joints(n);
   for (uint32_t i = 0; i < n; ++i) {
-    const std::string field = "chain.joints[" + std::to_string(i) + "]";
+    const std::string field = prefix + ".joints[" + std::to_string(i) + "]";
     ChainJoint& j = joints[i];
+    const size_t name_at = in.offset();
     j.name = in.str(field + ".name");
+    if (like != nullptr && j.name != like->joints()[i].name) {
+      in.fail(name_at, field + ".name",
+              "'" + j.name + "'; expected '" + like->joints()[i].name +
+                  "', the calibrated chain's joint " + std::to_string(i + 1));
+    }
     const size_t twist_at = in.offset();
     in.f64s(j.twist_Local.data(), 6, field + ".twist_Local");
     const double axis_norm = j.twist_Local.tail<3>().norm();
@@ -480,12 +515,12 @@ KinematicChain readChain(Reader& in) {
   std::vector<Pose> initial;
   initial.reserve(n + 1);
   for (uint32_t k = 0; k <= n; ++k) {
-    initial.push_back(in.pose("chain.initial_poses[" + std::to_string(k) + "]"));
+    initial.push_back(in.pose(prefix + ".initial_poses[" + std::to_string(k) + "]"));
   }
-  const uint32_t f = in.count("chain.frame_count", 0, kMaxFrames, 4 + 4 + 8 * kPoseDoubles);
+  const uint32_t f = in.count(prefix + ".frame_count", 0, kMaxFrames, 4 + 4 + 8 * kPoseDoubles);
   std::vector<AttachedFrame> frames(f);
   for (uint32_t i = 0; i < f; ++i) {
-    const std::string field = "chain.frames[" + std::to_string(i) + "]";
+    const std::string field = prefix + ".frames[" + std::to_string(i) + "]";
     frames[i].name = in.str(field + ".name");
     const size_t parent_at = in.offset();
     const uint32_t parent = in.u32(field + ".parent");
@@ -677,7 +712,10 @@ CalibratedModel parseChecked(const uint8_t* data, size_t size, const std::string
 
   CalibratedModel model;
   in.enterSection(kChain, crc_at);
-  model.chain_Tracker = readChain(in);
+  model.chain_Tracker = readChain(in, "chain", nullptr);
+  in.leaveSection();
+  in.enterSection(kNominal, crc_at);
+  model.nominal_Base = readChain(in, "nominal", &model.chain_Tracker);
   in.leaveSection();
   in.enterSection(kRegistration, crc_at);
   readRegistration(in, model);
@@ -755,22 +793,12 @@ std::vector<uint8_t> serializeModel(const CalibratedModel& model) {
   out.u32(0);
   out.u64(0);  // file size, patched below
 
-  const KinematicChain& chain = model.chain_Tracker;
   size_t at = out.beginSection(kChain);
-  out.u32(uint32_t(chain.dof()));
-  for (const ChainJoint& j : chain.joints()) {
-    out.str(j.name);
-    for (int i = 0; i < 6; ++i) out.f64(j.twist_Local(i));
-    out.f64(j.lower_rad);
-    out.f64(j.upper_rad);
-  }
-  for (const Pose& X : chain.initialPoses()) out.pose(X);
-  out.u32(uint32_t(chain.frames().size()));
-  for (const AttachedFrame& f : chain.frames()) {
-    out.str(f.name);
-    out.u32(uint32_t(f.parent));
-    out.pose(f.X_ParentFrame);
-  }
+  out.chainPayload(model.chain_Tracker);
+  out.endSection(at);
+
+  at = out.beginSection(kNominal);
+  out.chainPayload(model.nominal_Base);
   out.endSection(at);
 
   at = out.beginSection(kRegistration);

@@ -131,6 +131,7 @@ int main(int argc, char** argv) {
   const std::string folder = argv[1];
   stepcal::CalibratedModel bare;
   bare.chain_Tracker = seedChain();
+  bare.nominal_Base = seedChain();
   writeSeed(folder + "/bare.model", bare);
 
   stepcal::CalibratedModel full = bare;

@@ -154,6 +154,10 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
     out << printf_string("  twist %-14s (%.3g, %.3g, %.3g, %.3g, %.3g, %.3g), limits [%.2f, %.2f] deg\n", j.name.c_str(),
                          s(0), s(1), s(2), s(3), s(4), s(5), j.lower_rad * kDeg, j.upper_rad * kDeg);
   }
+  const KinematicChain& nominal = model.nominal_Base;
+  out << printf_string("nominal chain: %d revolute joints, rooted at the robot base, tool T_{%d,%d}(0) %s\n",
+                       nominal.dof(), nominal.dof(), nominal.dof() + 1,
+                       pose(nominal.initialPose(nominal.dof())).c_str());
   out << "tracker registration X_TrackerBase: " << pose(model.X_TrackerBase) << "\n";
   for (size_t f = 0; f < chain.frames().size(); ++f) {
     const AttachedFrame& frame = chain.frames()[f];

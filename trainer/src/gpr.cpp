@@ -7,6 +7,7 @@
 #include <limits>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include <Eigen/Cholesky>
 #include <LBFGSB.h>
@@ -312,6 +313,25 @@ Eigen::MatrixXd standardiseOutputs(const Eigen::MatrixXd& Y, const GprScaling& s
          scaling.output_scale.transpose().array();
 }
 
+/// The predictor's parameters from the model's parts; α may be empty (GprPredictor::conditioned
+/// solves it).
+GprParameters parametersOf(Eigen::MatrixXd normalised_inputs, const GprScaling& scaling,
+                           const GprHyperparameters& hyperparameters,
+                           Eigen::MatrixXd standardised_targets, Eigen::MatrixXd alpha) {
+  GprParameters g;
+  g.inputs_normalised = std::move(normalised_inputs);
+  g.input_offset = scaling.input_offset;
+  g.input_scale = scaling.input_scale;
+  g.output_mean = scaling.output_mean;
+  g.output_scale = scaling.output_scale;
+  g.length_scales = hyperparameters.length_scales;
+  g.signal_sigma = hyperparameters.signal_sigma;
+  g.noise_sigma = hyperparameters.noise_sigma;
+  g.targets_standardised = std::move(standardised_targets);
+  g.alpha = std::move(alpha);
+  return g;
+}
+
 }  // namespace
 
 GprScaling GprScaling::fromData(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y) {
@@ -418,39 +438,20 @@ GaussianProcess GaussianProcess::withHyperparameters(const Eigen::MatrixXd& X,
   requireFiniteData(X, Y);
   requireValidScaling(scaling, X.cols(), Y.cols());
   requireValidHyperparameters(hyperparameters, X.cols());
-  GaussianProcess gp;
-  gp.scaling_ = scaling;
-  gp.hyperparameters_ = hyperparameters;
-  gp.normalised_inputs_ = normaliseInputs(X, scaling);
-  gp.standardised_targets_ = standardiseOutputs(Y, scaling);
-  gp.factorise();
-  gp.alpha_ = gp.cholesky_lower_.triangularView<Eigen::Lower>().solve(gp.standardised_targets_);
-  gp.cholesky_lower_.triangularView<Eigen::Lower>().transpose().solveInPlace(gp.alpha_);
-  gp.log_marginal_likelihood_ =
-      logMarginalLikelihoodFromFactor(gp.cholesky_lower_, gp.standardised_targets_, gp.alpha_);
-  return gp;
+  return GaussianProcess(GprPredictor::conditioned(parametersOf(
+                             normaliseInputs(X, scaling), scaling, hyperparameters,
+                             standardiseOutputs(Y, scaling), Eigen::MatrixXd())),
+                         scaling, hyperparameters);
 }
 
 GaussianProcess GaussianProcess::fromParts(Eigen::MatrixXd normalised_inputs, GprScaling scaling,
                                            GprHyperparameters hyperparameters,
                                            Eigen::MatrixXd alpha,
                                            Eigen::MatrixXd standardised_targets) {
-  requireFiniteData(normalised_inputs, standardised_targets);
-  if (alpha.rows() != standardised_targets.rows() || alpha.cols() != standardised_targets.cols() ||
-      !alpha.allFinite()) {
-    throw InputError("GPR α must be finite and " + std::to_string(standardised_targets.rows()) +
-                     " × " + std::to_string(standardised_targets.cols()) + ", got " +
-                     std::to_string(alpha.rows()) + " × " + std::to_string(alpha.cols()));
-  }
-  requireValidScaling(scaling, normalised_inputs.cols(), standardised_targets.cols());
-  requireValidHyperparameters(hyperparameters, normalised_inputs.cols());
-  GaussianProcess gp;
-  gp.normalised_inputs_ = std::move(normalised_inputs);
-  gp.scaling_ = std::move(scaling);
-  gp.hyperparameters_ = std::move(hyperparameters);
-  gp.alpha_ = std::move(alpha);
-  gp.standardised_targets_ = std::move(standardised_targets);
-  gp.factorise();
+  GaussianProcess gp(GprPredictor::fromParameters(parametersOf(
+                         std::move(normalised_inputs), scaling, hyperparameters,
+                         std::move(standardised_targets), std::move(alpha))),
+                     scaling, hyperparameters);
   const double backward_error = gp.alphaBackwardError();
   if (!(backward_error <= kAlphaBackwardErrorLimit)) {
     throw InputError(
@@ -458,35 +459,27 @@ GaussianProcess GaussianProcess::fromParts(Eigen::MatrixXd normalised_inputs, Gp
         "hyperparameters (backward error " +
         std::to_string(backward_error) + ")");
   }
-  gp.log_marginal_likelihood_ =
-      logMarginalLikelihoodFromFactor(gp.cholesky_lower_, gp.standardised_targets_, gp.alpha_);
   return gp;
 }
 
-void GaussianProcess::factorise() {
-  inverse_length_scales_ = hyperparameters_.length_scales.cwiseInverse();
-  scaled_inputs_ = normalised_inputs_ * inverse_length_scales_.asDiagonal();
-  const Eigen::Index m = normalised_inputs_.rows();
-  Eigen::MatrixXd unit_kernel(m, m);
-  fillUnitKernelLower(scaled_inputs_, unit_kernel);
-  cholesky_lower_.setZero(m, m);
-  fillCovarianceLower(unit_kernel, hyperparameters_.signal_sigma * hyperparameters_.signal_sigma,
-                      hyperparameters_.noise_sigma * hyperparameters_.noise_sigma, cholesky_lower_);
-  if (!choleskyInPlace(cholesky_lower_)) {
-    throw InputError("GPR kernel matrix is not positive definite for these hyperparameters");
-  }
-}
+GaussianProcess::GaussianProcess(GprPredictor predictor, GprScaling scaling,
+                                 GprHyperparameters hyperparameters)
+    : predictor_(std::move(predictor)),
+      scaling_(std::move(scaling)),
+      hyperparameters_(std::move(hyperparameters)),
+      log_marginal_likelihood_(logMarginalLikelihoodFromFactor(
+          predictor_.choleskyLower(), standardisedTargets(), alpha())) {}
 
 double GaussianProcess::alphaBackwardError() const {
   const Eigen::Index m = trainingSize();
-  const Eigen::MatrixXd L = cholesky_lower_.triangularView<Eigen::Lower>();
+  const Eigen::MatrixXd& L = predictor_.choleskyLower();
   const Eigen::MatrixXd K = L * L.transpose();
-  const Eigen::MatrixXd residual = K * alpha_ - standardised_targets_;
+  const Eigen::MatrixXd residual = K * alpha() - standardisedTargets();
   const double k_norm = K.cwiseAbs().rowwise().sum().maxCoeff();
   double worst = 0.0;
-  for (Eigen::Index o = 0; o < alpha_.cols(); ++o) {
-    const double denominator = k_norm * alpha_.col(o).cwiseAbs().maxCoeff() +
-                               standardised_targets_.col(o).cwiseAbs().maxCoeff();
+  for (Eigen::Index o = 0; o < outputDim(); ++o) {
+    const double denominator = k_norm * alpha().col(o).cwiseAbs().maxCoeff() +
+                               standardisedTargets().col(o).cwiseAbs().maxCoeff();
     const double numerator = residual.col(o).cwiseAbs().maxCoeff();
     worst = std::max(worst, denominator > 0.0 ? numerator / denominator : numerator);
   }
@@ -501,7 +494,7 @@ Eigen::VectorXd GaussianProcess::crossValidationMse(int folds) const {
   }
   const Eigen::Index k = std::min<Eigen::Index>(folds, m);
   Eigen::MatrixXd inverse_factor(m, m), inverse(m, m);
-  inverseFromCholesky(cholesky_lower_, inverse_factor, inverse);
+  inverseFromCholesky(predictor_.choleskyLower(), inverse_factor, inverse);
   inverse.triangularView<Eigen::StrictlyUpper>() = inverse.transpose();
   // Held-out residual of fold F: y_F − μ_F = ([K⁻¹]_FF)⁻¹ α_F.
   Eigen::VectorXd sum_squares = Eigen::VectorXd::Zero(P);
@@ -509,53 +502,23 @@ Eigen::VectorXd GaussianProcess::crossValidationMse(int folds) const {
     std::vector<Eigen::Index> rows;
     for (Eigen::Index i = fold; i < m; i += k) rows.push_back(i);
     const Eigen::MatrixXd inverse_block = inverse(rows, rows);
-    const Eigen::MatrixXd alpha_block = alpha_(rows, Eigen::all);
+    const Eigen::MatrixXd alpha_block = alpha()(rows, Eigen::all);
     const Eigen::MatrixXd residual = inverse_block.llt().solve(alpha_block);
     sum_squares += residual.colwise().squaredNorm().transpose();
   }
   return sum_squares.cwiseProduct(scaling_.output_scale.cwiseAbs2()) / static_cast<double>(m);
 }
 
-GprWorkspace GaussianProcess::makeWorkspace() const {
-  GprWorkspace workspace;
-  workspace.normalised_input.setZero(inputDim());
-  workspace.kernel_column.setZero(trainingSize());
-  return workspace;
-}
-
-void GaussianProcess::computeKernelColumn(const double* x, GprWorkspace& workspace) const noexcept {
-  Eigen::VectorXd& z = workspace.normalised_input;
-  Eigen::VectorXd& k = workspace.kernel_column;
-  for (Eigen::Index d = 0; d < z.size(); ++d) {
-    z(d) = (x[d] - scaling_.input_offset(d)) / scaling_.input_scale(d) * inverse_length_scales_(d);
-  }
-  k.setZero();
-  for (Eigen::Index d = 0; d < z.size(); ++d) {
-    k.array() += (scaled_inputs_.col(d).array() - z(d)).square();
-  }
-  const double signal_variance = hyperparameters_.signal_sigma * hyperparameters_.signal_sigma;
-  k.array() = signal_variance * (-0.5 * k.array()).exp();
-}
+GprWorkspace GaussianProcess::makeWorkspace() const { return predictor_.makeWorkspace(); }
 
 void GaussianProcess::predictMeanInto(const double* x, double* mean_out,
                                       GprWorkspace& workspace) const noexcept {
-  computeKernelColumn(x, workspace);
-  for (Eigen::Index o = 0; o < alpha_.cols(); ++o) {
-    mean_out[o] = scaling_.output_mean(o) +
-                  scaling_.output_scale(o) * workspace.kernel_column.dot(alpha_.col(o));
-  }
+  predictor_.predictInto(x, mean_out, nullptr, workspace);
 }
 
 void GaussianProcess::predictInto(const double* x, double* mean_out, double* std_out,
                                   GprWorkspace& workspace) const noexcept {
-  predictMeanInto(x, mean_out, workspace);
-  Eigen::VectorXd& v = workspace.kernel_column;
-  cholesky_lower_.triangularView<Eigen::Lower>().solveInPlace(v);
-  const double signal_variance = hyperparameters_.signal_sigma * hyperparameters_.signal_sigma;
-  const double latent_std = std::sqrt(std::max(0.0, signal_variance - v.squaredNorm()));
-  for (Eigen::Index o = 0; o < alpha_.cols(); ++o) {
-    std_out[o] = scaling_.output_scale(o) * latent_std;
-  }
+  predictor_.predictInto(x, mean_out, std_out, workspace);
 }
 
 Eigen::VectorXd GaussianProcess::predictMean(const Eigen::VectorXd& x) const {

@@ -9,6 +9,7 @@
 #include "stepcal/common/lie.hpp"
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/gpr_predictor.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/trainer/registration.hpp"
 
@@ -182,17 +183,21 @@ std::vector<std::pair<std::string, PoseModel>> modelLayers(const CalibratedModel
     layers.emplace_back(kMethodPoeStiffness, physical);
   }
   if (model.gpr) {
-    const GprParameters& g = *model.gpr;
-    GprScaling scaling{g.input_offset, g.input_scale, g.output_mean, g.output_scale};
-    GprHyperparameters h;
-    h.length_scales = g.length_scales;
-    h.signal_sigma = g.signal_sigma;
-    h.noise_sigma = g.noise_sigma;
-    auto gp = std::make_shared<const GaussianProcess>(GaussianProcess::fromParts(
-        g.inputs_normalised, scaling, h, g.alpha, g.targets_standardised));
+    const Eigen::Index inputs = model.gpr->inputs_normalised.cols();
+    const Eigen::Index outputs = model.gpr->alpha.cols();
+    if (inputs != model.chain_Tracker.dof() + 6 || outputs != 6) {
+      throw InputError("the model's GPR maps " + std::to_string(inputs) + " inputs to " +
+                       std::to_string(outputs) + " outputs; expected (q, wrench) to the residual "
+                       "twist, " + std::to_string(model.chain_Tracker.dof() + 6) + " to 6");
+    }
+    auto gpr = std::make_shared<const GprPredictor>(GprPredictor::fromParameters(*model.gpr));
     layers.emplace_back(stiffness ? kMethodPoeStiffnessGpr : kMethodPoeGpr,
-                        [physical, gp](const Measurement& row) {
-                          return Pose(physical(row) * lie::expSE3(gp->predictMean(gprInput(row))));
+                        [physical, gpr](const Measurement& row) {
+                          GprPredictor::Workspace workspace = gpr->makeWorkspace();
+                          Vec6 residual;
+                          gpr->predictInto(gprInput(row).data(), residual.data(), nullptr,
+                                           workspace);
+                          return Pose(physical(row) * lie::expSE3(residual));
                         });
   }
   return layers;
@@ -229,6 +234,7 @@ std::string campaignHash(const Campaign& campaign) {
 CalibratedModel modelFromOutcome(const Campaign& campaign, const CalibrationOutcome& outcome) {
   CalibratedModel model;
   model.chain_Tracker = outcome.poe.chain_Tracker;
+  model.nominal_Base = outcome.nominal_Base;
   model.X_TrackerBase = outcome.poe.X_TrackerBase;
   model.sensor_frame = outcome.sensor_frame;
   model.gravity_Base = campaign.gravity_in_base.value_or(Vec3(0.0, 0.0, -9.80665));
@@ -236,21 +242,7 @@ CalibratedModel modelFromOutcome(const Campaign& campaign, const CalibrationOutc
     model.compliance_rad_per_nm = outcome.stiffness.compliance_rad_per_nm;
     model.compliance_sigma_rad_per_nm = outcome.stiffness.compliance_sigma_rad_per_nm;
   }
-  if (outcome.gpr) {
-    const GaussianProcess& gp = outcome.gpr->gp;
-    GprParameters g;
-    g.inputs_normalised = gp.normalisedInputs();
-    g.input_offset = gp.scaling().input_offset;
-    g.input_scale = gp.scaling().input_scale;
-    g.output_mean = gp.scaling().output_mean;
-    g.output_scale = gp.scaling().output_scale;
-    g.length_scales = gp.hyperparameters().length_scales;
-    g.signal_sigma = gp.hyperparameters().signal_sigma;
-    g.noise_sigma = gp.hyperparameters().noise_sigma;
-    g.targets_standardised = gp.standardisedTargets();
-    g.alpha = gp.alpha();
-    model.gpr = std::move(g);
-  }
+  if (outcome.gpr) model.gpr = outcome.gpr->gp.parameters();
   model.provenance.campaign_hash = campaignHash(campaign);
   model.provenance.campaign_path = campaign.directory;
   model.provenance.trainer_version = STEPCAL_VERSION;

@@ -5,9 +5,10 @@
 //
 //   header   24 B  magic "STEPCAL\0", u32 format version, u32 flags (0), u64 file size in bytes
 //   sections       each u32 tag (FourCC), u32 reserved (0), u64 payload length, payload;
-//                  exactly these five, in this order:
+//                  exactly these six, in this order:
 //     "CHAN"  u32 n; n × {str name, f64 twist (v, ω)[6], f64 lower_rad, f64 upper_rad};
 //             n+1 × pose T_{k,k+1}(0); u32 f; f × {str name, u32 parent, pose X_ParentFrame}
+//     "NOMI"  the nominal chain, encoded as CHAN; same n and joint names as CHAN
 //     "REGI"  pose X_TrackerBase; f64 gravity_Base[3]; i32 sensor_frame
 //     "COMP"  u32 c (0 or n); f64 compliance_rad_per_nm[c]; f64 compliance_sigma_rad_per_nm[c]
 //     "GPR "  u32 m, D, P (all 0 = no residual step); f64 input_offset[D], input_scale[D],
@@ -72,6 +73,10 @@ struct CalibratedModel {
   /// Calibrated initial poses (tracker-rooted), joint twists, limits, names and attached frames
   /// (including the sensor frame).
   KinematicChain chain_Tracker;
+  /// The robot description as the controller knows it: base-rooted, tool = the nominal tool
+  /// frame, sensor frame attached. Its FK at the corrected joint targets is the pre-distorted
+  /// pose the runtime sends. Same dof and joint names as chain_Tracker.
+  KinematicChain nominal_Base;
   Pose X_TrackerBase = Pose::Identity();  ///< tracker registration
   int sensor_frame = -1;                  ///< index into chain_Tracker.frames(), −1 = no sensor
   Vec3 gravity_Base = Vec3::Zero();       ///< m/s²

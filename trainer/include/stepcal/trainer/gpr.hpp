@@ -21,6 +21,8 @@
 
 #include <Eigen/Core>
 
+#include "stepcal/common/gpr_predictor.hpp"
+
 namespace stepcal::trainer {
 
 /// Diagonal jitter ε of the likelihood maximised by fit, as a fraction of σ_f² (numerical safety).
@@ -93,13 +95,12 @@ struct GprFitReport {
 };
 
 /// Scratch for allocation-free single-point prediction (GaussianProcess::makeWorkspace).
-struct GprWorkspace {
-  Eigen::VectorXd normalised_input;  ///< D
-  Eigen::VectorXd kernel_column;     ///< m: k(X, x*), then L⁻¹ k(X, x*)
-};
+using GprWorkspace = GprPredictor::Workspace;
 
 /// Multi-output GP with one shared squared-exponential ARD kernel (METHOD.md eq. 26–31).
 /// Immutable once built: const members may run concurrently, each thread with its own workspace.
+/// Prediction is common's GprPredictor, built from parameters(): exactly what the model file
+/// carries to the runtime.
 class GaussianProcess {
  public:
   /// Fits scaling and hyperparameters to X (m × D, raw inputs) and Y (m × P, raw outputs) by
@@ -128,18 +129,21 @@ class GaussianProcess {
   /// index and 0.01 for odd, clamped into the bounds.
   static Eigen::VectorXd startingPoint(int index, int input_dim, const GprBounds& bounds);
 
-  int inputDim() const { return static_cast<int>(normalised_inputs_.cols()); }
-  int outputDim() const { return static_cast<int>(alpha_.cols()); }
-  int trainingSize() const { return static_cast<int>(normalised_inputs_.rows()); }
+  int inputDim() const { return predictor_.inputDim(); }
+  int outputDim() const { return predictor_.outputDim(); }
+  int trainingSize() const { return predictor_.trainingSize(); }
 
   /// Normalised training inputs, m × D.
-  const Eigen::MatrixXd& normalisedInputs() const { return normalised_inputs_; }
+  const Eigen::MatrixXd& normalisedInputs() const { return parameters().inputs_normalised; }
   /// Standardised training targets, m × P.
-  const Eigen::MatrixXd& standardisedTargets() const { return standardised_targets_; }
+  const Eigen::MatrixXd& standardisedTargets() const { return parameters().targets_standardised; }
   /// α = K⁻¹ Y_s = (σ_f² E + σ_n² I)⁻¹ Y_s, m × P, standardised units (METHOD.md eq. 30).
-  const Eigen::MatrixXd& alpha() const { return alpha_; }
+  const Eigen::MatrixXd& alpha() const { return parameters().alpha; }
   const GprScaling& scaling() const { return scaling_; }
   const GprHyperparameters& hyperparameters() const { return hyperparameters_; }
+  /// Everything prediction needs (training inputs and targets, scaling, hyperparameters, α),
+  /// as the model file stores it.
+  const GprParameters& parameters() const { return predictor_.parameters(); }
 
   /// Log marginal likelihood summed over outputs, standardised units (METHOD.md eq. 26).
   double logMarginalLikelihood() const { return log_marginal_likelihood_; }
@@ -166,16 +170,10 @@ class GaussianProcess {
                    GprWorkspace& workspace) const noexcept;
 
  private:
-  GaussianProcess() = default;
-  void factorise();
-  void computeKernelColumn(const double* x, GprWorkspace& workspace) const noexcept;
+  /// Takes the predictor and the LML from its Cholesky factor.
+  GaussianProcess(GprPredictor predictor, GprScaling scaling, GprHyperparameters hyperparameters);
 
-  Eigen::MatrixXd normalised_inputs_;      // m × D
-  Eigen::MatrixXd scaled_inputs_;          // m × D: normalised inputs / ℓ_d
-  Eigen::MatrixXd standardised_targets_;   // m × P
-  Eigen::MatrixXd alpha_;                  // m × P
-  Eigen::MatrixXd cholesky_lower_;         // m × m: L with L Lᵀ = K (lower triangle)
-  Eigen::VectorXd inverse_length_scales_;  // D
+  GprPredictor predictor_;  // parameters, Cholesky factor L (L Lᵀ = K), prediction
   GprScaling scaling_;
   GprHyperparameters hyperparameters_;
   double log_marginal_likelihood_ = 0.0;

@@ -1,0 +1,241 @@
+// The residual GP's predictive side (METHOD.md eq. 27, 30, 31); interface in gpr_predictor.hpp.
+#include "stepcal/common/gpr_predictor.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <utility>
+
+#include <Eigen/Cholesky>
+
+#include "stepcal/common/error.hpp"
+
+namespace stepcal {
+namespace {
+
+std::string shape(Eigen::Index rows, Eigen::Index cols) {
+  return std::to_string(rows) + " × " + std::to_string(cols);
+}
+
+/// Throws InputError unless `value` is rows × cols with every entry finite.
+template <typename Derived>
+void requireFinite(const Eigen::DenseBase<Derived>& value, Eigen::Index rows, Eigen::Index cols,
+                   const std::string& field) {
+  if (value.rows() != rows || value.cols() != cols) {
+    throw InputError("GPR " + field + " is " + shape(value.rows(), value.cols()) + "; expected " +
+                     shape(rows, cols));
+  }
+  if (!value.allFinite()) throw InputError("GPR " + field + " has a value that is not finite");
+}
+
+/// Throws InputError unless every entry of a (finite) vector of scales is > 0.
+void requirePositive(const Eigen::VectorXd& scales, const std::string& field) {
+  if (!(scales.array() > 0.0).all()) {
+    throw InputError("GPR " + field + " has an entry ≤ 0; expected positive scales");
+  }
+}
+
+/// The kernel between every training input and one point (METHOD.md eq. 27):
+/// k_i = σ_f² exp(−½ ‖z_i − z‖²), z_i the rows of Z; inputs normalised and divided by ℓ.
+template <typename Inputs, typename Point, typename Column>
+void kernelColumnOf(const Inputs& Z, const Point& z, double signal_variance, Column&& k) {
+  k.setZero();
+  for (Eigen::Index d = 0; d < Z.cols(); ++d) k.array() += (Z.col(d).array() - z(d)).square();
+  k.array() = signal_variance * (-0.5 * k.array()).exp();
+}
+
+/// Latent predictive std, standardised units (eq. 31): √max(0, σ_f² − vᵀv) with v = L⁻¹ k*,
+/// solved in place of k.
+double latentStd(const Eigen::MatrixXd& L, double signal_variance, Eigen::VectorXd& k) noexcept {
+  L.triangularView<Eigen::Lower>().solveInPlace(k);
+  return std::sqrt(std::max(0.0, signal_variance - k.squaredNorm()));
+}
+
+/// r rows of Z by farthest-point sampling (Euclidean in Z), from row 0; ties go to the lowest
+/// index. Returned ascending.
+Eigen::VectorXi farthestPointSubset(const Eigen::MatrixXd& Z, Eigen::Index r) {
+  const Eigen::Index m = Z.rows();
+  Eigen::VectorXi chosen(r);
+  Eigen::VectorXd nearest = Eigen::VectorXd::Constant(m, std::numeric_limits<double>::infinity());
+  Eigen::Index next = 0;
+  for (Eigen::Index s = 0; s < r; ++s) {
+    chosen(s) = static_cast<int>(next);
+    nearest = nearest.cwiseMin((Z.rowwise() - Z.row(next)).rowwise().squaredNorm());
+    nearest(next) = -1.0;  // never again
+    nearest.maxCoeff(&next);  // first maximum
+  }
+  std::sort(chosen.data(), chosen.data() + r);
+  return chosen;
+}
+
+}  // namespace
+
+GprPredictor GprPredictor::fromParameters(const GprParameters& parameters) {
+  requireFinite(parameters.alpha, parameters.inputs_normalised.rows(),
+                parameters.output_mean.size(), "alpha");
+  return factorised(parameters);
+}
+
+GprPredictor GprPredictor::conditioned(GprParameters parameters) {
+  GprPredictor predictor = factorised(std::move(parameters));
+  Eigen::MatrixXd& L = predictor.cholesky_lower_;
+  GprParameters& g = predictor.parameters_;
+  g.alpha = L.triangularView<Eigen::Lower>().solve(g.targets_standardised);
+  L.triangularView<Eigen::Lower>().transpose().solveInPlace(g.alpha);
+  return predictor;
+}
+
+GprPredictor GprPredictor::factorised(GprParameters parameters) {
+  const GprParameters& g = parameters;
+  const Eigen::Index m = g.inputs_normalised.rows(), D = g.inputs_normalised.cols(),
+                     P = g.output_mean.size();
+  if (m < 1 || D < 1 || P < 1) {
+    throw InputError("GPR has m = " + std::to_string(m) + " training points, D = " +
+                     std::to_string(D) + " inputs and P = " + std::to_string(P) +
+                     " outputs; expected at least one of each");
+  }
+  requireFinite(g.inputs_normalised, m, D, "inputs_normalised");
+  requireFinite(g.input_offset, D, 1, "input_offset");
+  requireFinite(g.input_scale, D, 1, "input_scale");
+  requireFinite(g.output_mean, P, 1, "output_mean");
+  requireFinite(g.output_scale, P, 1, "output_scale");
+  requireFinite(g.length_scales, D, 1, "length_scales");
+  requireFinite(g.targets_standardised, m, P, "targets_standardised");
+  requirePositive(g.input_scale, "input_scale");
+  requirePositive(g.output_scale, "output_scale");
+  requirePositive(g.length_scales, "length_scales");
+  if (!(std::isfinite(g.signal_sigma) && g.signal_sigma > 0.0 && std::isfinite(g.noise_sigma) &&
+        g.noise_sigma >= 0.0)) {
+    throw InputError("GPR has σ_f = " + std::to_string(g.signal_sigma) + ", σ_n = " +
+                     std::to_string(g.noise_sigma) + "; expected finite σ_f > 0 and σ_n ≥ 0");
+  }
+
+  GprPredictor predictor;
+  predictor.parameters_ = std::move(parameters);
+  const GprParameters& p = predictor.parameters_;
+  predictor.inverse_length_scales_ = p.length_scales.cwiseInverse();
+  predictor.scaled_inputs_ = p.inputs_normalised * predictor.inverse_length_scales_.asDiagonal();
+  // Lower triangle of K + σ_n² I, column by column with the kernel predictions use.
+  const Eigen::MatrixXd& Z = predictor.scaled_inputs_;
+  Eigen::MatrixXd& L = predictor.cholesky_lower_;
+  L.setZero(m, m);
+  for (Eigen::Index j = 0; j < m; ++j) {
+    kernelColumnOf(Z.bottomRows(m - j), Z.row(j), p.signal_sigma * p.signal_sigma,
+                   L.col(j).tail(m - j));
+    L(j, j) += p.noise_sigma * p.noise_sigma;
+  }
+  const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Lower> llt(L);
+  if (llt.info() != Eigen::Success || !L.diagonal().allFinite() ||
+      !(L.diagonal().array() > 0.0).all()) {
+    throw InputError(
+        "GPR kernel matrix K + σ_n² I is not positive definite for these inputs and "
+        "hyperparameters");
+  }
+  predictor.scaled_input_norms_ = Z.rowwise().squaredNorm();
+  // The subset behind the std bound, factorised with the same kernel code as the full matrix
+  // (a principal submatrix of K + σ_n² I: equal to it, bit for bit, when r = m).
+  const Eigen::Index r = std::min<Eigen::Index>(m, kMaxBoundSubset);
+  predictor.subset_indices_ = farthestPointSubset(Z, r);
+  Eigen::MatrixXd Z_subset(r, D);
+  for (Eigen::Index s = 0; s < r; ++s) Z_subset.row(s) = Z.row(predictor.subset_indices_(s));
+  Eigen::MatrixXd& L_S = predictor.subset_cholesky_lower_;
+  L_S.setZero(r, r);
+  for (Eigen::Index j = 0; j < r; ++j) {
+    kernelColumnOf(Z_subset.bottomRows(r - j), Z_subset.row(j), p.signal_sigma * p.signal_sigma,
+                   L_S.col(j).tail(r - j));
+    L_S(j, j) += p.noise_sigma * p.noise_sigma;
+  }
+  const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Lower> subset_llt(L_S);
+  if (subset_llt.info() != Eigen::Success || !L_S.diagonal().allFinite() ||
+      !(L_S.diagonal().array() > 0.0).all()) {
+    throw InputError(
+        "GPR kernel matrix of the std bound's training subset is not positive definite");
+  }
+  return predictor;
+}
+
+int GprPredictor::inputDim() const noexcept {
+  return static_cast<int>(parameters_.inputs_normalised.cols());
+}
+
+int GprPredictor::outputDim() const noexcept { return static_cast<int>(parameters_.alpha.cols()); }
+
+int GprPredictor::trainingSize() const noexcept {
+  return static_cast<int>(parameters_.inputs_normalised.rows());
+}
+
+GprPredictor::Workspace GprPredictor::makeWorkspace() const {
+  Workspace workspace;
+  workspace.normalised_input.setZero(inputDim());
+  workspace.kernel_column.setZero(trainingSize());
+  workspace.subset_column.setZero(boundSubsetSize());
+  return workspace;
+}
+
+void GprPredictor::kernelColumn(const double* x_raw, Workspace& workspace) const noexcept {
+  const GprParameters& g = parameters_;
+  Eigen::VectorXd& z = workspace.normalised_input;
+  for (Eigen::Index d = 0; d < z.size(); ++d) {
+    z(d) = (x_raw[d] - g.input_offset(d)) / g.input_scale(d) * inverse_length_scales_(d);
+  }
+  Eigen::VectorXd& k = workspace.kernel_column;
+  k.noalias() = scaled_inputs_ * z;
+  const double z_norm = z.squaredNorm();
+  k.array() = (g.signal_sigma * g.signal_sigma) *
+              (-0.5 * (scaled_input_norms_.array() + z_norm - 2.0 * k.array()).max(0.0)).exp();
+}
+
+void GprPredictor::meanFromColumn(const Workspace& workspace, double* mean_out) const noexcept {
+  const GprParameters& g = parameters_;
+  Eigen::Map<Eigen::VectorXd> mean(mean_out, g.alpha.cols());
+  mean.noalias() = g.alpha.transpose() * workspace.kernel_column;
+  mean.array() = g.output_mean.array() + g.output_scale.array() * mean.array();
+}
+
+double GprPredictor::subsetLatentStd(Workspace& workspace) const noexcept {
+  Eigen::VectorXd& k_subset = workspace.subset_column;
+  for (Eigen::Index s = 0; s < k_subset.size(); ++s) {
+    k_subset(s) = workspace.kernel_column(subset_indices_(s));
+  }
+  const double signal_variance = parameters_.signal_sigma * parameters_.signal_sigma;
+  return latentStd(subset_cholesky_lower_, signal_variance, k_subset);
+}
+
+void GprPredictor::predictInto(const double* x_raw, double* mean_out, double* std_out,
+                               Workspace& workspace) const noexcept {
+  const GprParameters& g = parameters_;
+  kernelColumn(x_raw, workspace);
+  meanFromColumn(workspace, mean_out);
+  if (std_out == nullptr) return;
+  const double latent_std =
+      latentStd(cholesky_lower_, g.signal_sigma * g.signal_sigma, workspace.kernel_column);
+  for (Eigen::Index o = 0; o < g.alpha.cols(); ++o) std_out[o] = g.output_scale(o) * latent_std;
+}
+
+void GprPredictor::predictMeanAndBoundInto(const double* x_raw, double* mean_out,
+                                           double* std_bound_out,
+                                           Workspace& workspace) const noexcept {
+  const GprParameters& g = parameters_;
+  kernelColumn(x_raw, workspace);
+  meanFromColumn(workspace, mean_out);
+  if (std_bound_out == nullptr) return;
+  const double latent_std = subsetLatentStd(workspace);
+  for (Eigen::Index o = 0; o < g.alpha.cols(); ++o) {
+    std_bound_out[o] = g.output_scale(o) * latent_std;
+  }
+}
+
+double GprPredictor::relativeStd(const double* x_raw, Workspace& workspace) const noexcept {
+  const GprParameters& g = parameters_;
+  kernelColumn(x_raw, workspace);
+  return latentStd(cholesky_lower_, g.signal_sigma * g.signal_sigma, workspace.kernel_column) /
+         g.signal_sigma;
+}
+
+double GprPredictor::relativeStdBound(const double* x_raw, Workspace& workspace) const noexcept {
+  kernelColumn(x_raw, workspace);
+  return subsetLatentStd(workspace) / parameters_.signal_sigma;
+}
+
+}  // namespace stepcal

@@ -1,0 +1,131 @@
+// Real-time pose correction with a calibrated model: forward (what pose will the robot really
+// reach) and inverse (which joint targets make the real robot reach a desired pose).
+//
+// RuntimeModel is immutable after load; Workspace holds every buffer, sized once. The two
+// calls allocate nothing, lock nothing, throw nothing and return a status.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "stepcal/common/chain.hpp"
+#include "stepcal/common/gpr_predictor.hpp"
+#include "stepcal/common/model_file.hpp"
+
+namespace stepcal::runtime {
+
+/// Outcome of a real-time call. Values are stable: they travel over LCM.
+enum class Status : int8_t {
+  kOk = 0,
+  kNotConverged = 1,  ///< time or iteration budget ran out; the best answer so far is returned
+  kStaleWrench = 2,   ///< the live wrench is older than allowed (set by the caller/daemon)
+  kOutOfDomain = 3,   ///< the GPR is extrapolating: predictive std above the model's threshold
+  kUnreachable = 4,   ///< the desired pose is outside the workspace or joint limits
+  kNearSingular = 5,  ///< the Jacobian is (nearly) singular at the answer
+  kBadRequest = 6,    ///< NaN/inf, wrong sizes, a non-rotation, an unknown mode
+};
+/// Upper-case name of a status ("OK", "NOT_CONVERGED", …); "UNKNOWN" for other values.
+const char* toString(Status status) noexcept;
+
+using Clock = std::chrono::steady_clock;
+
+/// Everything the runtime needs, built once from a model file (off the real-time path).
+struct RuntimeModel {
+  CalibratedModel file;         ///< as loaded
+  GprPredictor gpr;             ///< valid when file.gpr is present
+  uint64_t model_id = 0;        ///< FNV-1a 64 of the file's bytes: tells answers of two models apart
+  /// GPR relative predictive std (σ/σ_f) above which a request is OUT_OF_DOMAIN. Set at load
+  /// from the training inputs: √(1 − ¼ (1 − s²)), s the largest relative std at a training
+  /// input, i.e. out of domain where the data explain less than a quarter of the prior variance
+  /// they explain at the least-covered training input. (A fixed value fails: with a residual at
+  /// the noise level, σ/σ_f stays near 1 even at the training inputs.)
+  /// σ here and in every status is the conservative std bound of the real-time calls
+  /// (GprPredictor::relativeStdBound: the GP on a subset of ≤ 48 training points), never below
+  /// the exact predictive std.
+  double out_of_domain_relative_std = 1.0;
+  /// Centre of a sphere holding every tip position the arm can reach: origin of T_{0,1}(0),
+  /// tracker frame, m.
+  Vec3 p_ReachCentreInTracker_m = Vec3::Zero();
+  /// Its radius, m: Σ_k (‖p of T_{k,k+1}(0)‖ + 2 · axis offset of joint k) over joints 1..n,
+  /// plus 5 % for the deflection and the residual twist. A desired tip beyond it is UNREACHABLE.
+  double reach_radius_m = 0.0;
+
+  /// Loads and validates a model file. Throws InputError.
+  static std::unique_ptr<const RuntimeModel> load(const std::string& path);
+  /// Builds from an in-memory model (tests). Throws InputError when the model lacks what the
+  /// real-time calls rely on: a nominal chain of the calibrated chain's size, a valid sensor
+  /// frame when it has compliance, a GPR with n + 6 inputs and 6 outputs.
+  static std::unique_ptr<const RuntimeModel> fromModel(CalibratedModel model, uint64_t model_id);
+};
+
+/// All scratch space of the real-time calls; sized for one model by makeWorkspace.
+struct Workspace {
+  ChainWorkspace chain;
+  Jacobian J;
+  GprPredictor::Workspace gpr;
+  Eigen::VectorXd gpr_input;  ///< n + 6
+  Vec6 gpr_mean = Vec6::Zero(), gpr_std = Vec6::Zero();
+};
+/// A workspace sized for the model (allocates; call off the real-time path).
+Workspace makeWorkspace(const RuntimeModel& model);
+/// Whether ws was sized for a model of this shape (joints, GPR inputs and training size). The
+/// real-time calls answer BAD_REQUEST rather than resize a workspace that does not fit, so a
+/// caller that swaps models must make a new workspace when this turns false.
+bool workspaceFits(const RuntimeModel& model, const Workspace& ws) noexcept;
+
+struct ForwardResult {
+  Status status = Status::kBadRequest;
+  Pose X_TrackerTip = Pose::Identity();  ///< corrected pose, T_C2 (METHOD.md eq. 32), m
+  Vec6 gpr_std = Vec6::Zero();           ///< predictive 1-σ of the residual twist (v [m], ω [rad])
+  ///< (gpr_std is an upper bound on the exact predictive std: GprPredictor::predictMeanAndBoundInto)
+};
+
+/// Pose the robot reaches at commanded joints q [rad] under wrench_Sensor [N, N·m]:
+/// T_C2 = T_C(q + C τ) · exp(ξ̂_GPR(q, F)) (METHOD.md eq. 24, 32). Status OK, OUT_OF_DOMAIN
+/// (pose still returned) or BAD_REQUEST (wrong size, NaN/inf, workspace of another shape).
+/// Allocation-free; never throws.
+ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                             const Vec6& wrench_Sensor) noexcept;
+
+struct InverseOptions {
+  int max_iterations = 8;
+  double position_tolerance_m = 1e-6;
+  double orientation_tolerance_rad = 1e-6;
+  /// Levenberg–Marquardt λ² at an exact singularity; it fades to 0 as σ_min(J) rises to
+  /// singular_value_threshold. Units of σ²: m² (position rows) or 1 (rotation rows).
+  double damping = 1e-6;
+  /// σ_min of the tip point Jacobian below which steps are damped and an answer is NEAR_SINGULAR.
+  double singular_value_threshold = 1e-2;
+  /// Largest change of any joint in one step, rad (longer steps are scaled down).
+  double max_step_rad = 0.2;
+};
+
+struct InverseResult {
+  Status status = Status::kBadRequest;
+  JointVector q_target_rad;                      ///< joint targets (empty on BAD_REQUEST), rad
+  Pose X_BaseTip_commanded = Pose::Identity();   ///< pre-distorted pose: nominal FK at q_target, base frame, m
+  Pose X_TrackerTip_predicted = Pose::Identity();  ///< where the real robot ends up (forward model)
+  Vec6 gpr_std = Vec6::Zero();                   ///< at q_target, as ForwardResult::gpr_std
+  int iterations = 0;                            ///< Newton steps taken
+  double residual_position_m = 0.0;              ///< ‖p_desired − p_predicted‖ at q_target, m
+  double residual_orientation_rad = 0.0;         ///< angle between the two rotations, rad
+};
+
+/// Joint targets that make the real robot (the full corrected model) reach X_TrackerTip_desired
+/// under wrench_Sensor, by damped Newton steps from q_seed_rad (clamped into the joint limits),
+/// staying within the limits. Residual (p_desired − p, log(R_desired Rᵀ)) of the full model,
+/// tracker axes; Jacobian the tip point Jacobian at the deflected link angles times their
+/// derivative by q (the GPR's own derivative, small, is left out: quasi-Newton). Stops at the
+/// tolerances, the iteration cap or the deadline (checked before every step: never more than
+/// one step past it), returning its best answer. Status: BAD_REQUEST (sizes, NaN/inf, not a
+/// rotation, bad options); UNREACHABLE (tip beyond the reach sphere, or not converged with a
+/// joint held at its limit); NOT_CONVERGED; else, converged: NEAR_SINGULAR, OUT_OF_DOMAIN or OK,
+/// in that order. Allocation-free; never throws.
+InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
+                           const Pose& X_TrackerTip_desired, const Vec6& wrench_Sensor,
+                           const JointVector& q_seed_rad, Clock::time_point deadline,
+                           const InverseOptions& options = {}) noexcept;
+
+}  // namespace stepcal::runtime

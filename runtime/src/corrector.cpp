@@ -1,0 +1,417 @@
+#include "stepcal/runtime/corrector.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+
+#include "stepcal/common/compliance.hpp"
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/lie.hpp"
+
+namespace stepcal::runtime {
+namespace {
+
+/// n × n joint-space matrix, heap-free.
+using JointMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxJoints, kMaxJoints>;
+
+/// Largest |RᵀR − I| entry and |det R − 1| accepted for a desired rotation.
+constexpr double kRotationTolerance = 1e-6;
+/// Factor on the rigid reach bound leaving room for the deflection and the residual twist.
+constexpr double kReachMargin = 1.05;
+/// Share of the prior variance explained at the least-covered training input that a query must
+/// keep to be in the GPR's domain.
+constexpr double kDomainVarianceShare = 0.25;
+
+/// FNV-1a 64 of a byte range.
+uint64_t fnv1a64(const std::vector<uint8_t>& bytes) noexcept {
+  uint64_t h = 1469598103934665603ull;
+  for (const uint8_t b : bytes) {
+    h ^= b;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+bool hasCompliance(const RuntimeModel& model) noexcept {
+  return model.file.compliance_rad_per_nm.size() > 0;
+}
+
+/// Whether R is a proper rotation to within kRotationTolerance.
+bool isRotation(const Mat3& R) noexcept {
+  return R.allFinite() &&
+         (R.transpose() * R - Mat3::Identity()).cwiseAbs().maxCoeff() <= kRotationTolerance &&
+         std::abs(R.determinant() - 1.0) <= kRotationTolerance;
+}
+
+bool validOptions(const InverseOptions& o) noexcept {
+  const double values[] = {o.position_tolerance_m, o.orientation_tolerance_rad, o.damping,
+                           o.singular_value_threshold, o.max_step_rad};
+  for (const double v : values) {
+    if (!std::isfinite(v) || v < 0.0) return false;
+  }
+  return o.max_iterations >= 0 && o.max_step_rad > 0.0;
+}
+
+/// Centre and radius of a sphere holding every rigid tip position of the chain, tracker frame, m.
+/// Each initial pose moves the tip's distance from the centre by at most its translation's
+/// length; joint k, a rotation about an axis at ‖ω × v‖ from frame k's origin (|ω| = 1, v ⟂ ω),
+/// by at most twice that.
+std::pair<Vec3, double> reachSphere(const KinematicChain& chain) {
+  double radius_m = 0.0;
+  for (int k = 1; k <= chain.dof(); ++k) {
+    const Vec6& s = chain.joints()[static_cast<size_t>(k - 1)].twist_Local;
+    radius_m += 2.0 * s.tail<3>().cross(s.head<3>()).norm() +
+                chain.initialPose(k).translation().norm();
+  }
+  return {chain.initialPose(0).translation(), kReachMargin * radius_m};
+}
+
+/// The corrected tip T_C2 at q (METHOD.md eq. 24, 32): FK at the deflected link angles, then
+/// exp(ξ̂) of the GPR mean; with_std also writes the GPR's std bound (the subset GP's,
+/// GprPredictor::predictMeanAndBoundInto) to ws.gpr_std. Leaves ws.chain
+/// evaluated at the link angles. Sizes must have been checked.
+Pose correctedTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                  const Vec6& wrench_Sensor, bool with_std) noexcept {
+  const CalibratedModel& file = model.file;
+  if (hasCompliance(model)) {
+    JointVector q_link_rad;
+    deflectedJointAngles(file.chain_Tracker, file.sensor_frame, q_rad, wrench_Sensor,
+                         file.compliance_rad_per_nm, ws.chain, q_link_rad);
+  } else {
+    forwardKinematics(file.chain_Tracker, q_rad, ws.chain);
+  }
+  if (!file.gpr) return tipPose(ws.chain);
+  ws.gpr_input.head(q_rad.size()) = q_rad;
+  ws.gpr_input.tail<6>() = wrench_Sensor;
+  model.gpr.predictMeanAndBoundInto(ws.gpr_input.data(), ws.gpr_mean.data(),
+                                    with_std ? ws.gpr_std.data() : nullptr, ws.gpr);
+  return Pose(tipPose(ws.chain) * lie::expSE3(ws.gpr_mean));
+}
+
+/// σ/σ_f from the per-output std bound (raw units) that predictMeanAndBoundInto wrote: the
+/// kernel is shared, so output 0 serves (its scale and σ_f are > 0, checked by fromParameters).
+/// Equals GprPredictor::relativeStdBound without computing the kernel column a second time.
+double relativeStd(const RuntimeModel& model, const Vec6& gpr_std) noexcept {
+  const GprParameters& g = model.gpr.parameters();
+  return gpr_std(0) / (g.output_scale(0) * g.signal_sigma);
+}
+
+bool outOfDomain(const RuntimeModel& model, const Vec6& gpr_std) noexcept {
+  return model.file.gpr && relativeStd(model, gpr_std) > model.out_of_domain_relative_std;
+}
+
+/// Residual e = (p_desired − p, log(R_desired Rᵀ)^∨), tracker axes: m, rad.
+Vec6 poseResidual(const Pose& X_TrackerTip_desired, const Pose& X_TrackerTip) noexcept {
+  Vec6 e;
+  e << X_TrackerTip_desired.translation() - X_TrackerTip.translation(),
+      lie::logSO3(X_TrackerTip_desired.linear() * X_TrackerTip.linear().transpose());
+  return e;
+}
+
+/// Clamps q into the chain's joint limits; true when a joint was moved.
+bool clampToLimits(const KinematicChain& chain, JointVector& q_rad) noexcept {
+  bool clamped = false;
+  for (int i = 0; i < q_rad.size(); ++i) {
+    const ChainJoint& joint = chain.joints()[static_cast<size_t>(i)];
+    const double inside = std::clamp(q_rad(i), joint.lower_rad, joint.upper_rad);
+    clamped = clamped || inside != q_rad(i);
+    q_rad(i) = inside;
+  }
+  return clamped;
+}
+
+/// Gram matrix of J on its smaller side, min(6, n) square: J Jᵀ when n ≥ 6, else Jᵀ J. Its
+/// eigenvalues are the squared singular values of J (thin SVD).
+using GramMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+
+void gramMatrix(const Jacobian& J, GramMatrix& G) noexcept {
+  if (J.cols() >= 6) {
+    G.noalias() = J * J.transpose();
+  } else {
+    G.noalias() = J.transpose() * J;
+  }
+}
+
+/// Smallest singular value of J from its Gram matrix G, or `floor` when it is above floor (the
+/// common case, decided by a Cholesky factorisation of G − floor² I rather than eigenvalues).
+double smallestSingularValueOrFloor(const GramMatrix& G, double floor) noexcept {
+  GramMatrix shifted = G;
+  shifted.diagonal().array() -= floor * floor;
+  if (Eigen::LLT<GramMatrix>(shifted).info() == Eigen::Success) return floor;
+  const Eigen::SelfAdjointEigenSolver<GramMatrix> eigen(G, Eigen::EigenvaluesOnly);
+  return std::sqrt(std::max(0.0, eigen.eigenvalues()(0)));
+}
+
+/// Damped least-squares step Δq = Σ_i σ_i / (σ_i² + λ²) v_i u_iᵀ e, rad, with λ² rising from 0
+/// at σ_min ≥ singular_value_threshold to options.damping at σ_min = 0 (Levenberg–Marquardt).
+/// Solved as Jᵀ (J Jᵀ + λ² I)⁻¹ e (n ≥ 6) or (Jᵀ J + λ² I)⁻¹ Jᵀ e (n < 6), the same sum, by
+/// Cholesky; by the SVD only when that matrix is singular (σ_i = 0 terms are left out).
+void dampedStep(const Jacobian& J, const Vec6& e, const InverseOptions& options,
+                  JointVector& dq_rad) noexcept {
+  GramMatrix G;
+  gramMatrix(J, G);
+  // Only σ_min < threshold matters (ratio < 1); above it ratio = 1 gives the same λ² = 0.
+  const double sigma_min = smallestSingularValueOrFloor(G, options.singular_value_threshold);
+  const double ratio = sigma_min / options.singular_value_threshold;
+  const double lambda2 = ratio < 1.0 ? options.damping * (1.0 - ratio * ratio) : 0.0;
+  G.diagonal().array() += lambda2;
+  const Eigen::LLT<GramMatrix> llt(G);
+  if (llt.info() == Eigen::Success) {
+    if (J.cols() >= 6) {
+      dq_rad.noalias() = J.transpose() * llt.solve(e);
+    } else {
+      dq_rad = llt.solve(J.transpose() * e);
+    }
+    if (dq_rad.allFinite()) return;
+  }
+  const Eigen::JacobiSVD<Jacobian> svd(J, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const auto& sigma = svd.singularValues();
+  dq_rad.setZero(J.cols());
+  for (Eigen::Index i = 0; i < sigma.size(); ++i) {
+    const double denominator = sigma(i) * sigma(i) + lambda2;
+    if (denominator > 0.0) {
+      dq_rad += (sigma(i) / denominator * svd.matrixU().col(i).dot(e)) * svd.matrixV().col(i);
+    }
+  }
+}
+
+/// Lie bracket [ξ, η] = ad_ξ η of two twists (v, ω).
+Vec6 bracket(const Vec6& xi, const Vec6& eta) noexcept {
+  Vec6 out;
+  out << xi.tail<3>().cross(eta.head<3>()) + xi.head<3>().cross(eta.tail<3>()),
+      xi.tail<3>().cross(eta.tail<3>());
+  return out;
+}
+
+/// Derivative of the link angles by the commanded ones, I + M + M² with M = C_θ ∂τ/∂q_link (the
+/// two fixed-point steps of deflectedJointAngles), at the link angles in ws.chain (METHOD.md
+/// eq. 13, 15). The wrench is fixed in sensor axes, so τ_k = ξ_kᵀ w with ξ_k joint k's twist in
+/// sensor axes, and ∂τ_k/∂q_j = ([j ≤ k] − [j ≤ p]) wᵀ [ξ_j, ξ_k], p the sensor's parent joint.
+void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws,
+                         const Vec6& wrench_Sensor, JointMatrix& dqlink_dq) noexcept {
+  const KinematicChain& chain = model.file.chain_Tracker;
+  const int n = chain.dof();
+  const int p = chain.frames()[static_cast<size_t>(model.file.sensor_frame)].parent;
+  Jacobian twists_Sensor;
+  spatialJacobian(chain, ws.chain, twists_Sensor);
+  const Mat6 Ad_SensorRoot =
+      lie::adjoint(framePose(chain, ws.chain, model.file.sensor_frame).inverse());
+  for (int k = 0; k < n; ++k) twists_Sensor.col(k) = Ad_SensorRoot * twists_Sensor.col(k);
+  JointMatrix M = JointMatrix::Zero(n, n);
+  for (int k = 0; k < n; ++k) {
+    for (int j = 0; j < n; ++j) {
+      const int c = (j <= k) - (j < p);  // 0-based j: joint j+1 ≤ p ⇔ j < p
+      if (c != 0) {
+        M(k, j) = model.file.compliance_rad_per_nm(k) * c *
+                  wrench_Sensor.dot(bracket(twists_Sensor.col(j), twists_Sensor.col(k)));
+      }
+    }
+  }
+  dqlink_dq = JointMatrix::Identity(n, n) + M + M * M;
+}
+
+/// Jacobian of the corrected tip by the commanded joints into ws.J: the tip point Jacobian at
+/// the link angles in ws.chain times d q_link / d q. The GPR's own derivative is left out (it is
+/// small: a quasi-Newton Jacobian; the residual is always the full model's).
+void correctedJacobian(const RuntimeModel& model, Workspace& ws,
+                       const Vec6& wrench_Sensor) noexcept {
+  tipPointJacobian(model.file.chain_Tracker, ws.chain, ws.J);
+  if (!hasCompliance(model)) return;
+  JointMatrix dqlink_dq;
+  linkAngleDerivative(model, ws, wrench_Sensor, dqlink_dq);
+  const Jacobian J_link = ws.J;
+  ws.J.noalias() = J_link * dqlink_dq;
+}
+
+/// The OUT_OF_DOMAIN threshold on σ/σ_f: √(1 − kDomainVarianceShare · (1 − s²)), s the largest
+/// σ/σ_f at a training input, σ the std bound the real-time calls use (relativeStdBound).
+double outOfDomainThreshold(const GprPredictor& gpr) {
+  const GprParameters& g = gpr.parameters();
+  GprPredictor::Workspace ws = gpr.makeWorkspace();
+  double s = 0.0;
+  for (Eigen::Index i = 0; i < g.inputs_normalised.rows(); ++i) {
+    const Eigen::VectorXd x_raw =
+        g.input_offset + g.input_scale.cwiseProduct(g.inputs_normalised.row(i).transpose());
+    s = std::max(s, gpr.relativeStdBound(x_raw.data(), ws));
+  }
+  return std::sqrt(1.0 - kDomainVarianceShare * (1.0 - s * s));
+}
+
+std::unique_ptr<const RuntimeModel> build(CalibratedModel file, uint64_t model_id,
+                                          const std::string& source) {
+  auto model = std::make_unique<RuntimeModel>();
+  const int n = file.chain_Tracker.dof();
+  if (n < 1) throw InputError("the model's chain has no joints", source);
+  if (file.nominal_Base.dof() != n) {
+    throw InputError("the model's nominal chain has " + std::to_string(file.nominal_Base.dof()) +
+                         " joints, its calibrated chain " + std::to_string(n),
+                     source);
+  }
+  const int frames = static_cast<int>(file.chain_Tracker.frames().size());
+  if (file.compliance_rad_per_nm.size() > 0 &&
+      (file.sensor_frame < 0 || file.sensor_frame >= frames)) {
+    throw InputError("the model has joint compliance but its sensor frame " +
+                         std::to_string(file.sensor_frame) + " is not one of its " +
+                         std::to_string(frames) + " attached frames",
+                     source);
+  }
+  if (file.gpr) {
+    model->gpr = GprPredictor::fromParameters(*file.gpr);
+    if (model->gpr.inputDim() != n + 6 || model->gpr.outputDim() != 6) {
+      throw InputError("the model's GPR maps " + std::to_string(model->gpr.inputDim()) +
+                           " inputs to " + std::to_string(model->gpr.outputDim()) +
+                           " outputs; the runtime needs (q, wrench) = " + std::to_string(n + 6) +
+                           " inputs and a 6-D twist",
+                       source);
+    }
+    model->out_of_domain_relative_std = outOfDomainThreshold(model->gpr);
+  }
+  std::tie(model->p_ReachCentreInTracker_m, model->reach_radius_m) =
+      reachSphere(file.chain_Tracker);
+  model->file = std::move(file);
+  model->model_id = model_id;
+  return model;
+}
+
+}  // namespace
+
+const char* toString(Status status) noexcept {
+  switch (status) {
+    case Status::kOk: return "OK";
+    case Status::kNotConverged: return "NOT_CONVERGED";
+    case Status::kStaleWrench: return "STALE_WRENCH";
+    case Status::kOutOfDomain: return "OUT_OF_DOMAIN";
+    case Status::kUnreachable: return "UNREACHABLE";
+    case Status::kNearSingular: return "NEAR_SINGULAR";
+    case Status::kBadRequest: return "BAD_REQUEST";
+  }
+  return "UNKNOWN";
+}
+
+std::unique_ptr<const RuntimeModel> RuntimeModel::load(const std::string& path) {
+  CalibratedModel file = readModelFile(path);
+  // Round trips are bit-exact, so these are the file's bytes.
+  const uint64_t model_id = fnv1a64(serializeModel(file));
+  return build(std::move(file), model_id, path);
+}
+
+std::unique_ptr<const RuntimeModel> RuntimeModel::fromModel(CalibratedModel model,
+                                                            uint64_t model_id) {
+  return build(std::move(model), model_id, "in-memory model");
+}
+
+Workspace makeWorkspace(const RuntimeModel& model) {
+  Workspace ws;
+  const int n = model.file.chain_Tracker.dof();
+  ws.J.setZero(6, n);
+  if (model.file.gpr) {
+    ws.gpr = model.gpr.makeWorkspace();
+    ws.gpr_input.setZero(n + 6);
+  }
+  return ws;
+}
+
+bool workspaceFits(const RuntimeModel& model, const Workspace& ws) noexcept {
+  if (!model.file.gpr) return true;
+  return ws.gpr_input.size() == model.gpr.inputDim() &&
+         ws.gpr.normalised_input.size() == model.gpr.inputDim() &&
+         ws.gpr.kernel_column.size() == model.gpr.trainingSize() &&
+         ws.gpr.subset_column.size() == model.gpr.boundSubsetSize();
+}
+
+ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                             const Vec6& wrench_Sensor) noexcept {
+  ForwardResult result;
+  if (q_rad.size() != model.file.chain_Tracker.dof() || !q_rad.allFinite() ||
+      !wrench_Sensor.allFinite() || !workspaceFits(model, ws)) {
+    return result;
+  }
+  result.X_TrackerTip = correctedTip(model, ws, q_rad, wrench_Sensor, true);
+  if (model.file.gpr) result.gpr_std = ws.gpr_std;
+  result.status = outOfDomain(model, result.gpr_std) ? Status::kOutOfDomain : Status::kOk;
+  return result;
+}
+
+InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
+                           const Pose& X_TrackerTip_desired, const Vec6& wrench_Sensor,
+                           const JointVector& q_seed_rad, Clock::time_point deadline,
+                           const InverseOptions& options) noexcept {
+  InverseResult result;
+  const KinematicChain& chain = model.file.chain_Tracker;
+  if (q_seed_rad.size() != chain.dof() || !q_seed_rad.allFinite() ||
+      !wrench_Sensor.allFinite() || !X_TrackerTip_desired.translation().allFinite() ||
+      !isRotation(X_TrackerTip_desired.linear()) || !validOptions(options) ||
+      !workspaceFits(model, ws)) {
+    return result;
+  }
+
+  JointVector q_rad = q_seed_rad;
+  clampToLimits(chain, q_rad);
+  JointVector q_best_rad = q_rad;
+  const bool beyond_reach =
+      (X_TrackerTip_desired.translation() - model.p_ReachCentreInTracker_m).norm() >
+      model.reach_radius_m;
+  bool converged = false, held_at_limit = false;
+  double best_cost = std::numeric_limits<double>::infinity();
+  JointVector dq_rad;
+  // The corrected tip (and std bound, in ws.gpr_std) of the last evaluation: at convergence it
+  // is the answer's, and ws.chain is still evaluated there.
+  Pose X_TrackerTip_last = Pose::Identity();
+  while (!beyond_reach) {
+    X_TrackerTip_last = correctedTip(model, ws, q_rad, wrench_Sensor, true);
+    const Vec6 e = poseResidual(X_TrackerTip_desired, X_TrackerTip_last);
+    const double cost = e.squaredNorm();
+    if (cost < best_cost) {
+      best_cost = cost;
+      q_best_rad = q_rad;
+    }
+    if (e.head<3>().norm() <= options.position_tolerance_m &&
+        e.tail<3>().norm() <= options.orientation_tolerance_rad) {
+      converged = true;
+      q_best_rad = q_rad;
+      break;
+    }
+    if (result.iterations >= options.max_iterations || Clock::now() >= deadline) break;
+    correctedJacobian(model, ws, wrench_Sensor);
+    dampedStep(ws.J, e, options, dq_rad);
+    const double largest_rad = dq_rad.cwiseAbs().maxCoeff();
+    if (largest_rad > options.max_step_rad) dq_rad *= options.max_step_rad / largest_rad;
+    q_rad += dq_rad;
+    held_at_limit = clampToLimits(chain, q_rad);
+    ++result.iterations;
+  }
+
+  result.q_target_rad = q_best_rad;
+  result.X_TrackerTip_predicted = converged
+                                      ? X_TrackerTip_last
+                                      : correctedTip(model, ws, q_best_rad, wrench_Sensor, true);
+  if (model.file.gpr) result.gpr_std = ws.gpr_std;
+  const Vec6 e = poseResidual(X_TrackerTip_desired, result.X_TrackerTip_predicted);
+  result.residual_position_m = e.head<3>().norm();
+  result.residual_orientation_rad = e.tail<3>().norm();
+  if (!converged) {
+    result.status = beyond_reach || held_at_limit ? Status::kUnreachable : Status::kNotConverged;
+  } else {
+    correctedJacobian(model, ws, wrench_Sensor);
+    GramMatrix G;
+    gramMatrix(ws.J, G);
+    if (smallestSingularValueOrFloor(G, options.singular_value_threshold) <
+        options.singular_value_threshold) {
+      result.status = Status::kNearSingular;
+    } else {
+      result.status = outOfDomain(model, result.gpr_std) ? Status::kOutOfDomain : Status::kOk;
+    }
+  }
+  forwardKinematics(model.file.nominal_Base, q_best_rad, ws.chain);
+  result.X_BaseTip_commanded = tipPose(ws.chain);
+  return result;
+}
+
+}  // namespace stepcal::runtime

@@ -1,0 +1,126 @@
+// libFuzzer target for stepcal::service::decodeRequest (tools/runtime): no input may crash it,
+// read out of bounds, trip a sanitizer or throw; what it accepts must be a well-formed request.
+// Not part of the CMake build (that uses g++); build and run with tools/fuzz_request_decoder.sh.
+//
+// Each input is decoded twice: as given (the type fingerprint refuses nearly every mutation),
+// then with the fingerprint of correction_request_t stamped over its first 8 bytes, so the
+// fuzzer reaches the field checks.
+//
+// Built with -DSTEPCAL_FUZZ_SEED_MAIN (and without -fsanitize=fuzzer) the same file is instead
+// a seed generator: `make_seeds FOLDER` writes valid forward and inverse requests.
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <vector>
+
+#include <stepcal_lcm/correction_request_t.hpp>
+
+#include "stepcal/service/request.hpp"
+
+using stepcal_lcm::correction_request_t;
+
+#ifndef STEPCAL_FUZZ_SEED_MAIN
+
+namespace {
+
+using stepcal::runtime::Status;
+using stepcal::service::Request;
+
+constexpr size_t kFingerprintBytes = 8;
+
+void stampFingerprint(uint8_t* bytes) {
+  const auto hash = static_cast<uint64_t>(correction_request_t::getHash());
+  for (size_t i = 0; i < kFingerprintBytes; ++i) bytes[i] = uint8_t(hash >> (56 - 8 * i));
+}
+
+void check(bool condition) {
+  if (!condition) std::abort();
+}
+
+void decodeAndCheck(const uint8_t* data, size_t size) {
+  Request request;
+  const Status status = stepcal::service::decodeRequest(data, static_cast<int>(size), request);
+  check(status == Status::kOk || status == Status::kBadRequest);
+  if (status == Status::kBadRequest) return;
+  // Accepted: the bytes are exactly one request with known id, mode and finite values.
+  correction_request_t msg{};
+  check(request.request_id_known);
+  check(msg.decode(data, 0, static_cast<int>(size)) == static_cast<int>(size));
+  check(msg.request_id == request.request_id);
+  check(request.mode == stepcal::service::Mode::kForward ||
+        request.mode == stepcal::service::Mode::kInverse);
+  check(request.q_rad.size() == stepcal::service::kMessageJoints && request.q_rad.allFinite());
+  check(request.seed_q_rad.allFinite() && request.wrench_Sensor.allFinite());
+  const stepcal::Pose& X = request.X_TrackerTip_desired;
+  check(X.translation().allFinite());
+  check((X.linear().transpose() * X.linear() - stepcal::Mat3::Identity()).cwiseAbs().maxCoeff() <
+        1e-9);
+  check(std::abs(X.linear().determinant() - 1.0) < 1e-9);
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  decodeAndCheck(data, size);
+  if (size < kFingerprintBytes) return 0;
+  std::vector<uint8_t> stamped(data, data + size);
+  stampFingerprint(stamped.data());
+  decodeAndCheck(stamped.data(), stamped.size());
+  return 0;
+}
+
+#else
+
+#include <cstdio>
+#include <string>
+
+namespace {
+
+void writeSeed(const std::string& path, const correction_request_t& msg) {
+  std::vector<uint8_t> bytes(size_t(msg.getEncodedSize()));
+  msg.encode(bytes.data(), 0, int(bytes.size()));
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (f == nullptr || std::fwrite(bytes.data(), 1, bytes.size(), f) != bytes.size() ||
+      std::fclose(f) != 0) {
+    std::fprintf(stderr, "cannot write %s\n", path.c_str());
+    std::exit(1);
+  }
+  std::printf("%s: %zu bytes\n", path.c_str(), bytes.size());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: %s SEED_FOLDER\n", argv[0]);
+    return 2;
+  }
+  const std::string folder = argv[1];
+  correction_request_t forward{};
+  forward.request_id = 1;
+  forward.utime = 1700000000000000;
+  forward.mode = correction_request_t::MODE_FORWARD;
+  const double q_rad[6] = {0.1, -0.4, 0.3, 1.2, 0.7, -2.0};
+  std::memcpy(forward.q_rad, q_rad, sizeof q_rad);
+  forward.desired_quaternion_wxyz[0] = 1.0;
+  forward.wrench_source = correction_request_t::WRENCH_GIVEN;
+  const double wrench[6] = {3.0, -1.5, -196.0, 0.4, 0.2, -0.01};
+  std::memcpy(forward.wrench, wrench, sizeof wrench);
+  forward.deadline_us = 150;
+  writeSeed(folder + "/forward.request", forward);
+
+  correction_request_t inverse = forward;
+  inverse.request_id = 2;
+  inverse.mode = correction_request_t::MODE_INVERSE;
+  inverse.wrench_source = correction_request_t::WRENCH_LIVE_SENSOR;
+  const double p_m[3] = {2.1, -0.3, 1.4};
+  const double q_wxyz[4] = {0.5, 0.5, -0.5, 0.5};
+  std::memcpy(inverse.desired_position_m, p_m, sizeof p_m);
+  std::memcpy(inverse.desired_quaternion_wxyz, q_wxyz, sizeof q_wxyz);
+  std::memcpy(inverse.seed_q_rad, q_rad, sizeof q_rad);
+  writeSeed(folder + "/inverse.request", inverse);
+  return 0;
+}
+
+#endif

@@ -1,0 +1,606 @@
+// The runtime's LCM service (tools/runtime): requests through an in-process memq:// LCM get the
+// runtime's own answers, bad bytes get BAD_REQUEST or are counted and never crash it, a stale
+// live wrench gives STALE_WRENCH, a reload keeps answering and changes the model id, handling a
+// request allocates nothing, and the daemon refuses what it cannot serve with exit status 2.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <lcm/lcm.h>
+#include <stepcal_lcm/correction_reply_t.hpp>
+#include <stepcal_lcm/correction_request_t.hpp>
+#include <stepcal_lcm/runtime_status_t.hpp>
+#include <stepcal_lcm/wrench_t.hpp>
+
+#include "stepcal/common/error.hpp"
+#include "stepcal/runtime/corrector.hpp"
+#include "stepcal/service/channels.hpp"
+#include "stepcal/service/lcm_server.hpp"
+#include "stepcal/service/request.hpp"
+#include "stepcal/service/service.hpp"
+#include "stepcal/trainer/pipeline.hpp"
+#include "stepcal/twin/twin.hpp"
+#include "support/allocation_counter.hpp"
+#include "support/files.hpp"
+
+namespace stepcal::service {
+namespace {
+
+using runtime::Clock;
+using runtime::Status;
+using stepcal_lcm::correction_reply_t;
+using stepcal_lcm::correction_request_t;
+
+constexpr double kDeg = M_PI / 180.0;
+constexpr uint64_t kFirstModelId = 0x5EED2;
+constexpr uint64_t kSecondModelId = 0x5EED3;
+
+struct Paper {
+  Campaign campaign;
+  CalibratedModel model;
+};
+
+// The paper protocol simulated and calibrated once for the whole binary (about a second).
+const Paper& paper() {
+  static const Paper p = [] {
+    twin::TwinOptions options;
+    options.protocol = "paper";
+    options.seed = 2;
+    Paper result;
+    result.campaign = twin::simulateCampaign(options, nullptr);
+    const trainer::CalibrationOutcome outcome = trainer::calibrateCampaign(result.campaign);
+    result.model = trainer::modelFromOutcome(result.campaign, outcome);
+    return result;
+  }();
+  return p;
+}
+
+std::unique_ptr<const runtime::RuntimeModel> paperModel(uint64_t model_id = kFirstModelId) {
+  return runtime::RuntimeModel::fromModel(paper().model, model_id);
+}
+
+const Measurement& validationRow(size_t i = 0) {
+  const auto rows = paper().campaign.rowsIn(RowSet::kValidation);
+  return *rows[i % rows.size()];
+}
+
+ServiceOptions generousOptions() {
+  ServiceOptions options;
+  options.budget_ns = 1'000'000'000;  // 1 s: answers independent of the machine's load
+  return options;
+}
+
+correction_request_t forwardRequest(const Measurement& row, int64_t id) {
+  correction_request_t msg{};
+  msg.request_id = id;
+  msg.mode = correction_request_t::MODE_FORWARD;
+  msg.wrench_source = correction_request_t::WRENCH_GIVEN;
+  msg.desired_quaternion_wxyz[0] = 1.0;
+  for (int j = 0; j < 6; ++j) msg.q_rad[j] = row.q_rad[j];
+  for (int j = 0; j < 6; ++j) msg.wrench[j] = row.wrenchOrZero()[j];
+  return msg;
+}
+
+// Asks for X (default: the row's measured pose) from 2° off the row's joints.
+correction_request_t inverseRequest(const Measurement& row, int64_t id,
+                                    std::optional<Pose> X_TrackerTip_desired = std::nullopt) {
+  correction_request_t msg = forwardRequest(row, id);
+  msg.mode = correction_request_t::MODE_INVERSE;
+  const Pose X = X_TrackerTip_desired.value_or(row.X_TrackerTip());
+  const Eigen::Quaterniond q(X.linear());
+  const double wxyz[4] = {q.w(), q.x(), q.y(), q.z()};
+  for (int j = 0; j < 3; ++j) msg.desired_position_m[j] = X.translation()[j];
+  for (int j = 0; j < 4; ++j) msg.desired_quaternion_wxyz[j] = wxyz[j];
+  for (int j = 0; j < 6; ++j) msg.seed_q_rad[j] = row.q_rad[j] + (j % 2 ? -2 : 2) * kDeg;
+  return msg;
+}
+
+std::vector<uint8_t> encode(const correction_request_t& msg) {
+  std::vector<uint8_t> bytes(size_t(msg.getEncodedSize()));
+  EXPECT_EQ(msg.encode(bytes.data(), 0, int(bytes.size())), int(bytes.size()));
+  return bytes;
+}
+
+/// Handles bytes directly (no LCM); the decoded reply, or nullopt when none was due.
+std::optional<correction_reply_t> handle(Service& service, const std::vector<uint8_t>& bytes) {
+  std::vector<uint8_t> reply(static_cast<size_t>(Service::replyBytes()));
+  const int size = service.handleRequest(bytes.data(), int(bytes.size()), Clock::now(),
+                                         reply.data(), int(reply.size()));
+  if (size == 0) return std::nullopt;
+  correction_reply_t decoded;
+  EXPECT_EQ(decoded.decode(reply.data(), 0, size), size);
+  return decoded;
+}
+
+Pose poseOf(const double* p, const double* q_wxyz) {
+  Pose X = Pose::Identity();
+  X.translation() = Vec3(p[0], p[1], p[2]);
+  X.linear() = Eigen::Quaterniond(q_wxyz[0], q_wxyz[1], q_wxyz[2], q_wxyz[3]).toRotationMatrix();
+  return X;
+}
+
+double poseDifference(const Pose& a, const Pose& b) {
+  return (a.matrix() - b.matrix()).cwiseAbs().maxCoeff();
+}
+
+/// A service on an in-process LCM, and a client side on the same instance.
+class MemqService {
+ public:
+  explicit MemqService(ServiceOptions options = generousOptions())
+      : lcm_(lcm_create("memq://"), &lcm_destroy),
+        service_(paperModel(), "paper.stepcal", options),
+        server_(lcm_.get(), service_),
+        feed_(lcm_.get(), kWrenchChannel, service_) {
+    lcm_subscribe(lcm_.get(), kReplyChannel, &MemqService::onReply, this);
+    lcm_subscribe(lcm_.get(), kStatusChannel, &MemqService::onStatus, this);
+  }
+
+  Service& service() { return service_; }
+  LcmServer& server() { return server_; }
+  const LcmWrenchFeed& feed() const { return feed_; }
+
+  void publish(const char* channel, const std::vector<uint8_t>& bytes) {
+    ASSERT_EQ(lcm_publish(lcm_.get(), channel, bytes.data(), unsigned(bytes.size())), 0);
+  }
+  /// Dispatches every queued message (requests, then the replies they publish).
+  void pump() {
+    while (lcm_handle_timeout(lcm_.get(), 10) > 0) {
+    }
+  }
+  /// Publishes a request and returns the replies that came back.
+  std::vector<correction_reply_t> exchange(const std::vector<uint8_t>& bytes) {
+    replies_.clear();
+    publish(kRequestChannel, bytes);
+    pump();
+    return replies_;
+  }
+  const std::vector<stepcal_lcm::runtime_status_t>& statuses() const { return statuses_; }
+
+ private:
+  static void onReply(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+    correction_reply_t reply;
+    ASSERT_EQ(reply.decode(rbuf->data, 0, int(rbuf->data_size)), int(rbuf->data_size));
+    static_cast<MemqService*>(user)->replies_.push_back(reply);
+  }
+  static void onStatus(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+    stepcal_lcm::runtime_status_t status;
+    ASSERT_EQ(status.decode(rbuf->data, 0, int(rbuf->data_size)), int(rbuf->data_size));
+    static_cast<MemqService*>(user)->statuses_.push_back(status);
+  }
+
+  std::unique_ptr<lcm_t, void (*)(lcm_t*)> lcm_;  // first: destroyed after the subscribers
+  Service service_;
+  LcmServer server_;
+  LcmWrenchFeed feed_;
+  std::vector<correction_reply_t> replies_;
+  std::vector<stepcal_lcm::runtime_status_t> statuses_;
+};
+
+TEST(LcmService, DecodeRequestKeepsEveryField) {
+  const Measurement& row = validationRow(3);
+  correction_request_t msg = inverseRequest(row, -42);
+  msg.utime = 1234567;
+  msg.deadline_us = 150;
+  Request request;
+  ASSERT_EQ(decodeRequest(encode(msg).data(), msg.getEncodedSize(), request), Status::kOk);
+  EXPECT_TRUE(request.request_id_known);
+  EXPECT_EQ(request.request_id, -42);
+  EXPECT_EQ(request.utime, 1234567);
+  EXPECT_EQ(request.deadline_us, 150);
+  EXPECT_EQ(request.mode, Mode::kInverse);
+  EXPECT_EQ(request.wrench_source, WrenchSource::kGiven);
+  EXPECT_EQ(request.q_rad, row.q_rad);
+  EXPECT_EQ(request.wrench_Sensor, row.wrenchOrZero());
+  EXPECT_LT(poseDifference(request.X_TrackerTip_desired, row.X_TrackerTip()), 1e-15);
+  EXPECT_EQ(request.seed_q_rad.size(), 6);
+  EXPECT_DOUBLE_EQ(request.seed_q_rad[0], row.q_rad[0] + 2 * kDeg);
+}
+
+TEST(LcmService, ForwardReplyEqualsCorrectForward) {
+  MemqService memq;
+  const auto model = paperModel();
+  runtime::Workspace ws = runtime::makeWorkspace(*model);
+  for (size_t i = 0; i < 20; ++i) {
+    const Measurement& row = validationRow(i * 7);
+    const std::vector<correction_reply_t> replies =
+        memq.exchange(encode(forwardRequest(row, int64_t(i))));
+    ASSERT_EQ(replies.size(), 1u);
+    const correction_reply_t& r = replies[0];
+    const runtime::ForwardResult expected =
+        runtime::correctForward(*model, ws, row.q_rad, row.wrenchOrZero());
+    ASSERT_EQ(expected.status, Status::kOk);
+    EXPECT_EQ(r.request_id, int64_t(i));
+    EXPECT_EQ(r.status, int8_t(Status::kOk));
+    EXPECT_EQ(r.model_id, int64_t(kFirstModelId));
+    EXPECT_LT(poseDifference(poseOf(r.predicted_position_m, r.predicted_quaternion_wxyz),
+                             expected.X_TrackerTip),
+              1e-12);
+    for (int k = 0; k < 6; ++k) EXPECT_EQ(r.gpr_std[k], expected.gpr_std[k]);
+    EXPECT_GT(r.compute_ns, 0);
+    // The model's prediction is at the measurement's noise level from what was measured.
+    EXPECT_LT((expected.X_TrackerTip.translation() - row.p_TipInTracker_m).norm(), 0.2e-3);
+  }
+}
+
+TEST(LcmService, InverseReplyEqualsSolveInverse) {
+  MemqService memq;
+  const auto model = paperModel();
+  runtime::Workspace ws = runtime::makeWorkspace(*model);
+  for (size_t i = 0; i < 20; ++i) {
+    const Measurement& row = validationRow(i * 11);
+    // The model's own pose at the row's joints: the targets must come back to them.
+    const Pose X_TrackerTip =
+        runtime::correctForward(*model, ws, row.q_rad, row.wrenchOrZero()).X_TrackerTip;
+    const correction_request_t msg = inverseRequest(row, int64_t(100 + i), X_TrackerTip);
+    const std::vector<correction_reply_t> replies = memq.exchange(encode(msg));
+    ASSERT_EQ(replies.size(), 1u);
+    const correction_reply_t& r = replies[0];
+    Request request;
+    ASSERT_EQ(decodeRequest(encode(msg).data(), msg.getEncodedSize(), request), Status::kOk);
+    const runtime::InverseResult expected =
+        runtime::solveInverse(*model, ws, request.X_TrackerTip_desired, request.wrench_Sensor,
+                              request.seed_q_rad, Clock::now() + std::chrono::seconds(1));
+    EXPECT_EQ(r.status, int8_t(expected.status));
+    EXPECT_EQ(r.status, int8_t(Status::kOk));
+    EXPECT_EQ(r.iterations, expected.iterations);
+    for (int k = 0; k < 6; ++k) EXPECT_EQ(r.q_target_rad[k], expected.q_target_rad[k]);
+    EXPECT_LT(poseDifference(poseOf(r.commanded_position_m, r.commanded_quaternion_wxyz),
+                             expected.X_BaseTip_commanded),
+              1e-12);
+    EXPECT_LT(poseDifference(poseOf(r.predicted_position_m, r.predicted_quaternion_wxyz),
+                             expected.X_TrackerTip_predicted),
+              1e-12);
+    EXPECT_EQ(r.residual_position_m, expected.residual_position_m);
+    EXPECT_LT(r.residual_position_m, 1e-6);
+    for (int k = 0; k < 6; ++k) EXPECT_NEAR(r.q_target_rad[k], row.q_rad[k], 1e-5);
+  }
+}
+
+TEST(LcmService, BadRequestsGetBadRequestOrAreCounted) {
+  MemqService memq;
+  const Measurement& row = validationRow();
+  const auto badReply = [&](const correction_request_t& msg) {
+    const std::vector<correction_reply_t> replies = memq.exchange(encode(msg));
+    EXPECT_EQ(replies.size(), 1u);
+    return !replies.empty() && replies[0].status == int8_t(Status::kBadRequest) &&
+           replies[0].request_id == msg.request_id;
+  };
+  correction_request_t msg = forwardRequest(row, 1);
+  msg.q_rad[2] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(badReply(msg));
+  msg = forwardRequest(row, 2);
+  msg.wrench[4] = std::numeric_limits<double>::infinity();
+  EXPECT_TRUE(badReply(msg));
+  msg = forwardRequest(row, 3);
+  msg.mode = 7;
+  EXPECT_TRUE(badReply(msg));
+  msg = forwardRequest(row, 4);
+  msg.wrench_source = -1;
+  EXPECT_TRUE(badReply(msg));
+  msg = inverseRequest(row, 5);
+  msg.desired_quaternion_wxyz[1] += 1e-3;  // norm off by more than 1e-6
+  EXPECT_TRUE(badReply(msg));
+  msg = inverseRequest(row, 6);
+  msg.desired_position_m[0] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(badReply(msg));
+
+  // Truncated: a reply when the id can be read, none (counted) below 16 bytes.
+  const std::vector<uint8_t> good = encode(forwardRequest(row, 77));
+  for (size_t size = 0; size < good.size(); ++size) {
+    const std::vector<uint8_t> truncated(good.begin(), good.begin() + long(size));
+    const int64_t unaddressable = memq.service().counters().unaddressable;
+    const std::optional<correction_reply_t> reply = handle(memq.service(), truncated);
+    if (size >= 16) {
+      ASSERT_TRUE(reply) << size;
+      EXPECT_EQ(reply->request_id, 77);
+      EXPECT_EQ(reply->status, int8_t(Status::kBadRequest));
+    } else {
+      EXPECT_FALSE(reply) << size;
+      EXPECT_EQ(memq.service().counters().unaddressable, unaddressable + 1);
+    }
+  }
+  std::vector<uint8_t> longer = good;
+  longer.push_back(0);
+  EXPECT_EQ(handle(memq.service(), longer)->status, int8_t(Status::kBadRequest));
+
+  // Garbage of every length never crashes and gets no reply (wrong fingerprint).
+  std::mt19937_64 rng(7);
+  const int64_t unaddressable = memq.service().counters().unaddressable;
+  for (int i = 0; i < 5000; ++i) {
+    std::vector<uint8_t> garbage(size_t(rng() % 400));
+    for (uint8_t& b : garbage) b = uint8_t(rng());
+    EXPECT_FALSE(handle(memq.service(), garbage));
+  }
+  EXPECT_EQ(memq.service().counters().unaddressable, unaddressable + 5000);
+  // The right fingerprint with random contents: always a reply, never a crash.
+  for (int i = 0; i < 5000; ++i) {
+    std::vector<uint8_t> random = good;
+    for (size_t b = 8; b < random.size(); ++b) {
+      if (rng() % 8 == 0) random[b] = uint8_t(rng());
+    }
+    EXPECT_TRUE(handle(memq.service(), random));
+  }
+  memq.publish(kRequestChannel, {1, 2, 3});
+  memq.pump();
+  // Still answering.
+  const std::vector<correction_reply_t> replies = memq.exchange(good);
+  ASSERT_EQ(replies.size(), 1u);
+  EXPECT_EQ(replies[0].status, int8_t(Status::kOk));
+}
+
+TEST(LcmService, StaleLiveWrenchIsStaleWrench) {
+  ServiceOptions options = generousOptions();
+  options.max_wrench_age_ns = 5'000'000;
+  MemqService memq(options);
+  const Measurement& row = validationRow();
+  correction_request_t msg = forwardRequest(row, 9);
+  msg.wrench_source = correction_request_t::WRENCH_LIVE_SENSOR;
+  const auto status = [&] {
+    const std::vector<correction_reply_t> replies = memq.exchange(encode(msg));
+    EXPECT_EQ(replies.size(), 1u);
+    return replies.empty() ? Status::kOk : static_cast<Status>(replies[0].status);
+  };
+  EXPECT_EQ(status(), Status::kStaleWrench);  // nothing published yet
+
+  const auto nowNs = [] {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
+        .count();
+  };
+  runtime::WrenchSample sample;
+  sample.wrench_Sensor = row.wrenchOrZero();
+  sample.stamp_ns = nowNs() - 50'000'000;  // 50 ms old
+  memq.service().publishWrench(sample);
+  EXPECT_EQ(status(), Status::kStaleWrench);
+  sample.stamp_ns = nowNs();
+  sample.sensor_status = 3;  // a sensor fault
+  memq.service().publishWrench(sample);
+  EXPECT_EQ(status(), Status::kStaleWrench);
+
+  // A fresh wrench_t through the LCM feed: the same answer as the wrench given in the request.
+  stepcal_lcm::wrench_t wrench{};
+  for (int k = 0; k < 6; ++k) wrench.wrench[k] = row.wrenchOrZero()[k];
+  wrench.sequence = 1;
+  std::vector<uint8_t> bytes(size_t(wrench.getEncodedSize()));
+  wrench.encode(bytes.data(), 0, int(bytes.size()));
+  memq.publish(kWrenchChannel, bytes);
+  std::vector<correction_reply_t> live = memq.exchange(encode(msg));
+  const std::vector<correction_reply_t> given = memq.exchange(encode(forwardRequest(row, 9)));
+  ASSERT_EQ(live.size(), 1u);
+  ASSERT_EQ(given.size(), 1u);
+  EXPECT_EQ(live[0].status, int8_t(Status::kOk));
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(live[0].predicted_position_m[k], given[0].predicted_position_m[k]);
+
+  memq.publish(kWrenchChannel, {9, 9, 9});
+  memq.pump();
+  EXPECT_EQ(memq.feed().undecodable(), 1);
+}
+
+TEST(LcmService, ReloadKeepsAnsweringAndChangesTheModelId) {
+  MemqService memq;
+  Service& service = memq.service();
+  EXPECT_EQ(service.modelId(), kFirstModelId);
+  std::atomic<bool> reloaded{false};
+  std::thread reloader([&] {
+    service.reload(paperModel(kSecondModelId), "second.stepcal");
+    reloaded = true;
+  });
+  int answers = 0;
+  int64_t last_model = 0;
+  for (int64_t id = 0; !reloaded || answers < 10; ++id) {
+    const std::vector<correction_reply_t> replies =
+        memq.exchange(encode(forwardRequest(validationRow(size_t(id)), id)));
+    ASSERT_EQ(replies.size(), 1u);
+    EXPECT_EQ(replies[0].status, int8_t(Status::kOk));
+    last_model = replies[0].model_id;
+    EXPECT_TRUE(last_model == int64_t(kFirstModelId) || last_model == int64_t(kSecondModelId));
+    ++answers;
+  }
+  reloader.join();
+  EXPECT_EQ(service.modelId(), kSecondModelId);
+  EXPECT_EQ(last_model, int64_t(kSecondModelId));
+
+  // A bad file is refused and the model in service kept.
+  const test::TempDir dir;
+  const std::string bad = (dir.path() / "bad.stepcal").string();
+  test::writeText(bad, "not a model");
+  EXPECT_THROW(service.reloadFile(bad), InputError);
+  EXPECT_THROW(service.reloadFile((dir.path() / "missing.stepcal").string()), InputError);
+  EXPECT_EQ(service.modelId(), kSecondModelId);
+  const std::string good = (dir.path() / "paper.stepcal").string();
+  writeModelFile(paper().model, good);
+  service.reloadFile(good);
+  EXPECT_NE(service.modelId(), kSecondModelId);
+  const std::vector<correction_reply_t> replies =
+      memq.exchange(encode(forwardRequest(validationRow(), 1)));
+  ASSERT_EQ(replies.size(), 1u);
+  EXPECT_EQ(replies[0].model_id, int64_t(service.modelId()));
+
+  // The status message names the file in service.
+  memq.server().publishStatus(false);
+  memq.pump();
+  ASSERT_FALSE(memq.statuses().empty());
+  EXPECT_EQ(memq.statuses().back().model_path, good);
+  EXPECT_EQ(memq.statuses().back().model_id, int64_t(service.modelId()));
+}
+
+/// The paper model cut down to its first five joints (no compliance, no GPR).
+CalibratedModel fiveJointModel() {
+  const CalibratedModel& six = paper().model;
+  const auto cut = [](const KinematicChain& chain) {
+    std::vector<ChainJoint> joints(chain.joints().begin(), chain.joints().begin() + 5);
+    std::vector<Pose> poses(chain.initialPoses().begin(), chain.initialPoses().begin() + 6);
+    return KinematicChain(joints, poses);
+  };
+  CalibratedModel five;
+  five.chain_Tracker = cut(six.chain_Tracker);
+  five.nominal_Base = cut(six.nominal_Base);
+  five.X_TrackerBase = six.X_TrackerBase;
+  return five;
+}
+
+TEST(LcmService, ModelsWithOtherThanSixJointsAreRefused) {
+  MemqService memq;
+  ASSERT_EQ(runtime::RuntimeModel::fromModel(fiveJointModel(), 5)->file.chain_Tracker.dof(), 5);
+  EXPECT_THROW(Service(runtime::RuntimeModel::fromModel(fiveJointModel(), 5), "five", {}),
+               InputError);
+  EXPECT_THROW(
+      memq.service().reload(runtime::RuntimeModel::fromModel(fiveJointModel(), 5), "five"),
+      InputError);
+  EXPECT_EQ(memq.service().modelId(), kFirstModelId);
+}
+
+TEST(LcmService, StatusCountsRepliesAndComputeTimes) {
+  MemqService memq;
+  for (int64_t id = 0; id < 30; ++id) memq.exchange(encode(forwardRequest(validationRow(size_t(id)), id)));
+  correction_request_t bad = forwardRequest(validationRow(), 99);
+  bad.mode = 3;
+  memq.exchange(encode(bad));
+  memq.server().publishStatus(true);
+  memq.pump();
+  ASSERT_EQ(memq.statuses().size(), 1u);
+  const stepcal_lcm::runtime_status_t& s = memq.statuses()[0];
+  EXPECT_EQ(s.requests, 31);
+  EXPECT_EQ(s.replies, 31);
+  EXPECT_EQ(s.status_counts[int(Status::kOk)], 30);
+  EXPECT_EQ(s.status_counts[int(Status::kBadRequest)], 1);
+  EXPECT_GT(s.p50_us, 0.0);
+  EXPECT_LE(s.p50_us, s.p99_us);
+  EXPECT_LE(s.p99_us, s.max_us);
+  EXPECT_EQ(s.realtime, 1);
+  EXPECT_EQ(s.model_path, "paper.stepcal");
+  EXPECT_EQ(s.model_id, int64_t(kFirstModelId));
+  // A new window starts after each status.
+  EXPECT_EQ(memq.service().status(false).max_us, 0.0);
+}
+
+TEST(LcmService, HandlingARequestAllocatesNothing) {
+  Service service(paperModel(), "paper.stepcal", generousOptions());
+  std::vector<std::vector<uint8_t>> requests;
+  for (size_t i = 0; i < 20; ++i) {
+    requests.push_back(encode(forwardRequest(validationRow(i), int64_t(i))));
+    requests.push_back(encode(inverseRequest(validationRow(i), int64_t(i))));
+  }
+  correction_request_t live = forwardRequest(validationRow(), 5);
+  live.wrench_source = correction_request_t::WRENCH_LIVE_SENSOR;
+  requests.push_back(encode(live));
+  requests.push_back({1, 2, 3});
+  requests.push_back(std::vector<uint8_t>(requests[0].begin(), requests[0].end() - 3));
+  std::vector<uint8_t> reply(static_cast<size_t>(Service::replyBytes()));
+  const auto handleAll = [&] {
+    int ok = 0;
+    for (const auto& bytes : requests) {
+      const int size = service.handleRequest(bytes.data(), int(bytes.size()), Clock::now(),
+                                             reply.data(), int(reply.size()));
+      ok += size > 0 && reply[8 + 8 + 8] == uint8_t(Status::kOk);  // status after id and utime
+    }
+    return ok;
+  };
+  handleAll();  // warm-up: first-call statics (fingerprints)
+  long allocations = 0;
+  int ok = 0;
+  {
+    const test::AllocationCounter counter;
+    ok = handleAll();
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(ok, 40);
+}
+
+// ---- the daemon and the client as processes (memq:// or no LCM at all: no network needed) ---
+
+struct CommandResult {
+  int status = -1;
+  std::string out;
+};
+
+CommandResult run(const std::string& command) {
+  CommandResult r;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  char buf[4096];
+  size_t n = 0;
+  while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) r.out.append(buf, n);
+  const int status = pclose(pipe);
+  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+const std::string kDaemon = std::string(STEPCAL_BIN_DIR) + "/stepcal-runtime";
+
+TEST(LcmService, DaemonRefusesWhatItCannotServeWithExitStatus2) {
+  const test::TempDir dir;
+  const std::string missing = (dir.path() / "missing.stepcal").string();
+  CommandResult r = run(kDaemon + " --model " + missing);
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find(missing), std::string::npos) << r.out;
+
+  const std::string five = (dir.path() / "five.stepcal").string();
+  writeModelFile(fiveJointModel(), five);
+  r = run(kDaemon + " --model " + five);
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find("5 joints"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(five), std::string::npos) << r.out;
+
+  r = run(kDaemon + " --model " + five + " --budget-us 0");
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find("--budget-us"), std::string::npos) << r.out;
+
+  const std::string six = (dir.path() / "six.stepcal").string();
+  writeModelFile(paper().model, six);
+  r = run(kDaemon + " --model " + six + " --sensor can:can0 --lcm-url memq://");
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find("CAN force sensor is not implemented"), std::string::npos) << r.out;
+}
+
+TEST(LcmService, DaemonReloadsOnSighupAndStopsOnSigterm) {
+  const test::TempDir dir;
+  const std::string model = (dir.path() / "model.stepcal").string();
+  const std::string log = (dir.path() / "daemon.log").string();
+  writeModelFile(paper().model, model);
+  // Waits (up to 20 s) until the log holds a line with the text.
+  const std::string await = "await() { for i in $(seq 200); do grep -q \"$1\" " + log +
+                            " && return; sleep 0.1; done; echo timeout: $1; }; ";
+  const CommandResult r = run(
+      await + kDaemon + " --model " + model + " --lcm-url memq:// 2>" + log + " & pid=$!; " +
+      "await serving; kill -HUP $pid; await reloaded; " +
+      "echo garbage > " + model + "; kill -HUP $pid; await 'reload refused'; " +
+      "kill -TERM $pid; wait $pid; echo exit=$?; cat " + log);
+  EXPECT_EQ(r.out.find("timeout"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("exit=0"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("reloaded " + model), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("reload refused, keeping model"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("not a stepcal model file"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("stopping"), std::string::npos) << r.out;
+}
+
+const std::string kClient = std::string(STEPCAL_BIN_DIR) + "/stepcal-client";
+
+TEST(LcmService, ClientRefusesBadArgumentsWithExitStatus2) {
+  const test::TempDir dir;
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"", "choose exactly one"},
+      {"--forward 1 2 3 4 5 6 --ping 3", "choose exactly one"},
+      {"--campaign " + (dir.path() / "none").string(), (dir.path() / "none").string()},
+      {"--forward 1 2 3 4 5 6 --seed 1 2 3 4 5 6", "--seed"},
+      {"--forward 1 2 3 4 5 6 --timeout-ms 0", "--timeout-ms"},
+      {"--forward 1 2 3 4 5 6 --lcm-url nowhere://", "--lcm-url"},
+  };
+  for (const auto& [args, expected] : cases) {
+    const CommandResult r = run(kClient + " " + args);
+    EXPECT_EQ(r.status, 2) << args << ": " << r.out;
+    EXPECT_NE(r.out.find(expected), std::string::npos) << args << ": " << r.out;
+  }
+}
+
+}  // namespace
+}  // namespace stepcal::service

@@ -1,0 +1,589 @@
+// The runtime's corrector on a simulated paper campaign calibrated by the trainer: forward equals
+// the trainer's full model, the inverse recovers commanded joints in a few Newton steps, every
+// status is reached by the request that should reach it, and the real-time calls allocate
+// nothing.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <iostream>
+#include <limits>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <Eigen/Cholesky>
+
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/lie.hpp"
+#include "stepcal/runtime/corrector.hpp"
+#include "stepcal/trainer/pipeline.hpp"
+#include "stepcal/twin/twin.hpp"
+#include "support/allocation_counter.hpp"
+#include "support/files.hpp"
+
+namespace stepcal::runtime {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+const Clock::time_point kNoDeadline = Clock::time_point::max();
+
+struct Calibrated {
+  Campaign campaign;
+  trainer::CalibrationOutcome outcome;
+  CalibratedModel model;
+};
+
+// The paper protocol simulated and calibrated once for every test below (the GPR fits take a
+// while).
+const Calibrated& paper() {
+  static const Calibrated calibrated = [] {
+    twin::TwinOptions options;
+    options.protocol = "paper";
+    options.seed = 2;
+    Calibrated c;
+    c.campaign = twin::simulateCampaign(options, nullptr);
+    c.outcome = trainer::calibrateCampaign(c.campaign);
+    c.model = trainer::modelFromOutcome(c.campaign, c.outcome);
+    return c;
+  }();
+  return calibrated;
+}
+
+const RuntimeModel& paperRuntime() {
+  static const std::unique_ptr<const RuntimeModel> model =
+      RuntimeModel::fromModel(paper().model, 0x5EED2);
+  return *model;
+}
+
+std::vector<const Measurement*> validationRows() {
+  return paper().campaign.rowsIn(RowSet::kValidation);
+}
+
+double poseDifference(const Pose& a, const Pose& b) {
+  return (a.matrix() - b.matrix()).cwiseAbs().maxCoeff();
+}
+
+Pose nominalTip(const KinematicChain& chain, const JointVector& q_rad) {
+  ChainWorkspace ws;
+  EXPECT_TRUE(forwardKinematics(chain, q_rad, ws));
+  return tipPose(ws);
+}
+
+// Commanded joints moved by 1.5–2.5° in a random direction per joint.
+JointVector perturbed(const JointVector& q_rad, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> size(1.5 * kDeg, 2.5 * kDeg);
+  std::bernoulli_distribution sign(0.5);
+  JointVector q = q_rad;
+  for (int i = 0; i < q.size(); ++i) q(i) += sign(rng) ? size(rng) : -size(rng);
+  return q;
+}
+
+InverseOptions tightOptions() {
+  InverseOptions options;
+  options.position_tolerance_m = 1e-10;
+  options.orientation_tolerance_rad = 1e-10;
+  return options;
+}
+
+// A consistent GPR with D inputs and P outputs on random data (α solved by Cholesky).
+GprParameters randomGpr(int m, int D, int P) {
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  GprParameters g;
+  g.inputs_normalised = Eigen::MatrixXd::NullaryExpr(m, D, [&] { return normal(rng); });
+  g.input_offset = Eigen::VectorXd::Zero(D);
+  g.input_scale = Eigen::VectorXd::Ones(D);
+  g.length_scales = Eigen::VectorXd::Constant(D, 2.0);
+  g.output_mean = Eigen::VectorXd::Zero(P);
+  g.output_scale = Eigen::VectorXd::Constant(P, 1e-4);
+  g.signal_sigma = 0.9;
+  g.noise_sigma = 0.1;
+  g.targets_standardised = Eigen::MatrixXd::NullaryExpr(m, P, [&] { return normal(rng); });
+  Eigen::MatrixXd K(m, m);
+  for (int i = 0; i < m; ++i) {
+    for (int j = 0; j < m; ++j) {
+      const double d2 = ((g.inputs_normalised.row(i) - g.inputs_normalised.row(j)).array() /
+                         g.length_scales.transpose().array())
+                            .square()
+                            .sum();
+      K(i, j) = g.signal_sigma * g.signal_sigma * std::exp(-0.5 * d2);
+    }
+  }
+  K.diagonal().array() += g.noise_sigma * g.noise_sigma;
+  g.alpha = K.llt().solve(g.targets_standardised);
+  return g;
+}
+
+TEST(Runtime, StatusNames) {
+  EXPECT_STREQ(toString(Status::kOk), "OK");
+  EXPECT_STREQ(toString(Status::kNotConverged), "NOT_CONVERGED");
+  EXPECT_STREQ(toString(Status::kStaleWrench), "STALE_WRENCH");
+  EXPECT_STREQ(toString(Status::kOutOfDomain), "OUT_OF_DOMAIN");
+  EXPECT_STREQ(toString(Status::kUnreachable), "UNREACHABLE");
+  EXPECT_STREQ(toString(Status::kNearSingular), "NEAR_SINGULAR");
+  EXPECT_STREQ(toString(Status::kBadRequest), "BAD_REQUEST");
+  EXPECT_STREQ(toString(static_cast<Status>(42)), "UNKNOWN");
+}
+
+TEST(Runtime, ForwardEqualsTrainersModelOnEveryRowAndLayer) {
+  // The full model, and the model without its GPR, its compliance or both: each against the
+  // trainer's last layer of the same model file.
+  struct Variant {
+    std::string name;
+    CalibratedModel model;
+  };
+  std::vector<Variant> variants(4, Variant{"", paper().model});
+  variants[0].name = "poe+stiffness+gpr";
+  variants[1].name = "poe+stiffness";
+  variants[1].model.gpr.reset();
+  variants[2].name = "poe+gpr";
+  variants[2].model.compliance_rad_per_nm.resize(0);
+  variants[2].model.compliance_sigma_rad_per_nm.resize(0);
+  variants[3].name = "poe";
+  variants[3].model = variants[2].model;
+  variants[3].model.gpr.reset();
+  for (const Variant& variant : variants) {
+    SCOPED_TRACE(variant.name);
+    const auto layers = trainer::modelLayers(variant.model);
+    ASSERT_EQ(layers.back().first, variant.name);
+    const auto model = RuntimeModel::fromModel(variant.model, 1);
+    Workspace ws = makeWorkspace(*model);
+    double worst = 0.0;
+    std::map<Status, int> statuses;
+    for (const Measurement& row : paper().campaign.rows) {
+      const ForwardResult r = correctForward(*model, ws, row.q_rad, row.wrenchOrZero());
+      ++statuses[r.status];
+      worst = std::max(worst, poseDifference(r.X_TrackerTip, layers.back().second(row)));
+    }
+    EXPECT_LT(worst, 1e-12);
+    // Every campaign row lies where the GPR was trained: none is out of its domain.
+    EXPECT_EQ(statuses[Status::kOk], static_cast<int>(paper().campaign.rows.size()));
+  }
+}
+
+TEST(Runtime, LoadedFileGivesTheSameAnswersAndIsIdentifiedByItsBytes) {
+  test::TempDir dir;
+  const std::string path = (dir.path() / "model.stepcal").string();
+  writeModelFile(paper().model, path);
+  const auto loaded = RuntimeModel::load(path);
+  const auto again = RuntimeModel::load(path);
+  EXPECT_EQ(loaded->model_id, again->model_id);
+  // FNV-1a 64 of the file's bytes, computed here independently.
+  const std::string bytes = test::readText(path);
+  uint64_t h = 1469598103934665603ull;
+  for (const char c : bytes) {
+    h ^= static_cast<uint8_t>(c);
+    h *= 1099511628211ull;
+  }
+  EXPECT_EQ(loaded->model_id, h);
+
+  CalibratedModel other = paper().model;
+  other.provenance.trainer_version += "-other";
+  writeModelFile(other, path);
+  EXPECT_NE(RuntimeModel::load(path)->model_id, loaded->model_id);
+
+  Workspace ws_loaded = makeWorkspace(*loaded);
+  Workspace ws_memory = makeWorkspace(paperRuntime());
+  for (const Measurement* row : validationRows()) {
+    const ForwardResult a = correctForward(*loaded, ws_loaded, row->q_rad, row->wrenchOrZero());
+    const ForwardResult b =
+        correctForward(paperRuntime(), ws_memory, row->q_rad, row->wrenchOrZero());
+    EXPECT_EQ(a.X_TrackerTip.matrix(), b.X_TrackerTip.matrix());
+    EXPECT_EQ(a.gpr_std, b.gpr_std);
+  }
+}
+
+TEST(Runtime, RefusesModelsTheRealTimePathCannotUse) {
+  const CalibratedModel& good = paper().model;
+  const int n = good.chain_Tracker.dof();
+
+  CalibratedModel no_sensor = good;
+  no_sensor.sensor_frame = -1;
+  EXPECT_THROW(RuntimeModel::fromModel(no_sensor, 1), InputError);
+
+  CalibratedModel short_nominal = good;
+  std::vector<ChainJoint> joints(good.nominal_Base.joints().begin(),
+                                 good.nominal_Base.joints().end() - 1);
+  std::vector<Pose> poses(good.nominal_Base.initialPoses().begin(),
+                          good.nominal_Base.initialPoses().end() - 1);
+  short_nominal.nominal_Base = KinematicChain(joints, poses);
+  EXPECT_THROW(RuntimeModel::fromModel(short_nominal, 1), InputError);
+
+  for (const auto& [D, P] : {std::pair{n + 5, 6}, std::pair{n + 6, 5}}) {
+    CalibratedModel wrong_gpr = good;
+    wrong_gpr.gpr = randomGpr(30, D, P);
+    try {
+      RuntimeModel::fromModel(wrong_gpr, 1);
+      ADD_FAILURE() << "a GPR of " << D << " inputs and " << P << " outputs was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("the runtime needs"), std::string::npos) << e.what();
+    }
+  }
+  CalibratedModel right_gpr = good;
+  right_gpr.gpr = randomGpr(30, n + 6, 6);
+  EXPECT_NO_THROW(RuntimeModel::fromModel(right_gpr, 1));
+}
+
+TEST(Runtime, RelativeStdAgreesWithThePredictor) {
+  const RuntimeModel& model = paperRuntime();
+  Workspace ws = makeWorkspace(model);
+  GprPredictor::Workspace gpr_ws = model.gpr.makeWorkspace();
+  const Measurement& row = *validationRows().front();
+  for (const double force_n : {0.0, 300.0, 1500.0, 5000.0}) {
+    Vec6 wrench = row.wrenchOrZero();
+    wrench(2) -= force_n;
+    Eigen::VectorXd x(row.q_rad.size() + 6);
+    x << row.q_rad, wrench;
+    // The real-time calls decide on the predictor's std bound (relativeStdBound ≥ relativeStd).
+    const double relative = model.gpr.relativeStdBound(x.data(), gpr_ws);
+    EXPECT_GE(relative, model.gpr.relativeStd(x.data(), gpr_ws) - 1e-12);
+    // The threshold just below and just above the predictor's own value flips the status.
+    RuntimeModel copy = model;
+    copy.out_of_domain_relative_std = relative * (1.0 - 1e-9);
+    EXPECT_EQ(correctForward(copy, ws, row.q_rad, wrench).status, Status::kOutOfDomain);
+    copy.out_of_domain_relative_std = relative * (1.0 + 1e-9);
+    EXPECT_EQ(correctForward(copy, ws, row.q_rad, wrench).status, Status::kOk);
+  }
+}
+
+TEST(Runtime, GprStdIsTheConservativeBoundAndTheThresholdUsesIt) {
+  const RuntimeModel& model = paperRuntime();
+  Workspace ws = makeWorkspace(model);
+  GprPredictor::Workspace gpr_ws = model.gpr.makeWorkspace();
+  const GprParameters& g = *model.file.gpr;
+  const int n = model.file.chain_Tracker.dof();
+  // The threshold: the rule of RuntimeModel::out_of_domain_relative_std on the bound.
+  double s = 0.0;
+  for (Eigen::Index i = 0; i < g.inputs_normalised.rows(); ++i) {
+    const Eigen::VectorXd x =
+        g.input_offset + g.input_scale.cwiseProduct(g.inputs_normalised.row(i).transpose());
+    s = std::max(s, model.gpr.relativeStdBound(x.data(), gpr_ws));
+  }
+  EXPECT_EQ(model.out_of_domain_relative_std, std::sqrt(1.0 - 0.25 * (1.0 - s * s)));
+  std::mt19937_64 rng(12);
+  for (const Measurement* row : validationRows()) {
+    Eigen::VectorXd x(n + 6);
+    x << row->q_rad, row->wrenchOrZero();
+    Vec6 mean, exact, bound;
+    model.gpr.predictInto(x.data(), mean.data(), exact.data(), gpr_ws);
+    model.gpr.predictMeanAndBoundInto(x.data(), mean.data(), bound.data(), gpr_ws);
+    const ForwardResult forward = correctForward(model, ws, row->q_rad, row->wrenchOrZero());
+    EXPECT_EQ(forward.gpr_std, bound);
+    EXPECT_TRUE((bound.array() >= exact.array() - 1e-12 * bound.array()).all());
+    // The inverse's answer carries the forward model's std at its targets.
+    const InverseResult inverse = solveInverse(model, ws, forward.X_TrackerTip,
+                                               row->wrenchOrZero(), perturbed(row->q_rad, rng),
+                                               kNoDeadline);
+    ASSERT_EQ(inverse.status, Status::kOk);
+    const ForwardResult at_target =
+        correctForward(model, ws, inverse.q_target_rad, row->wrenchOrZero());
+    EXPECT_EQ(inverse.gpr_std, at_target.gpr_std);
+    EXPECT_TRUE(inverse.X_TrackerTip_predicted.isApprox(at_target.X_TrackerTip, 0.0));
+  }
+}
+
+TEST(Runtime, EveryTrainingInputIsInDomain) {
+  const RuntimeModel& model = paperRuntime();
+  Workspace ws = makeWorkspace(model);
+  const GprParameters& g = *model.file.gpr;
+  const int n = model.file.chain_Tracker.dof();
+  EXPECT_GT(model.out_of_domain_relative_std, 0.0);
+  EXPECT_LT(model.out_of_domain_relative_std, 1.0);
+  for (Eigen::Index i = 0; i < g.inputs_normalised.rows(); ++i) {
+    const Eigen::VectorXd x =
+        g.input_offset + g.input_scale.cwiseProduct(g.inputs_normalised.row(i).transpose());
+    EXPECT_EQ(correctForward(model, ws, x.head(n), x.tail<6>()).status, Status::kOk) << i;
+  }
+}
+
+TEST(Runtime, FarFromTheTrainingDataIsOutOfDomain) {
+  const RuntimeModel& model = paperRuntime();
+  Workspace ws = makeWorkspace(model);
+  const Measurement& row = *validationRows().front();
+  Vec6 wrench = row.wrenchOrZero();
+  wrench(2) -= 5000.0;
+  const ForwardResult r = correctForward(model, ws, row.q_rad, wrench);
+  EXPECT_EQ(r.status, Status::kOutOfDomain);
+  EXPECT_TRUE(r.X_TrackerTip.matrix().allFinite());
+  EXPECT_GT(r.gpr_std.minCoeff(), 0.0);
+  // The data say nothing there: the std is the prior's, σ_f times the output scale.
+  const GprParameters& g = *model.file.gpr;
+  for (int o = 0; o < 6; ++o) {
+    EXPECT_NEAR(r.gpr_std(o), g.signal_sigma * g.output_scale(o), 1e-6 * r.gpr_std(o));
+  }
+  const ForwardResult in_domain = correctForward(model, ws, row.q_rad, row.wrenchOrZero());
+  EXPECT_EQ(in_domain.status, Status::kOk);
+  EXPECT_LT(in_domain.gpr_std(0), 0.9 * r.gpr_std(0));
+}
+
+TEST(Runtime, InverseRecoversCommandedJointsInFewSteps) {
+  const RuntimeModel& model = paperRuntime();
+  Workspace ws = makeWorkspace(model);
+  std::mt19937_64 rng(5);
+  std::map<int, int> iterations_tight, iterations_default;
+  double worst_q_rad = 0.0;
+  for (const Measurement* row : validationRows()) {
+    const Vec6 wrench = row->wrenchOrZero();
+    const Pose X_desired = correctForward(model, ws, row->q_rad, wrench).X_TrackerTip;
+    const JointVector seed = perturbed(row->q_rad, rng);
+    const InverseResult r = solveInverse(model, ws, X_desired, wrench, seed, kNoDeadline,
+                                         tightOptions());
+    ASSERT_EQ(r.status, Status::kOk) << toString(r.status) << " on row " << row->seq;
+    EXPECT_LE(r.iterations, 4);
+    EXPECT_LE(r.residual_position_m, 1e-10);
+    EXPECT_LE(r.residual_orientation_rad, 1e-10);
+    worst_q_rad = std::max(worst_q_rad, (r.q_target_rad - row->q_rad).cwiseAbs().maxCoeff());
+    ++iterations_tight[r.iterations];
+    // The predicted pose is the forward model's at the answer.
+    const ForwardResult at_answer = correctForward(model, ws, r.q_target_rad, wrench);
+    EXPECT_EQ(r.X_TrackerTip_predicted.matrix(), at_answer.X_TrackerTip.matrix());
+    EXPECT_EQ(r.gpr_std, at_answer.gpr_std);
+
+    const InverseResult d = solveInverse(model, ws, X_desired, wrench, seed, kNoDeadline);
+    EXPECT_EQ(d.status, Status::kOk);
+    ++iterations_default[d.iterations];
+  }
+  EXPECT_LT(worst_q_rad, 1e-9);
+  const auto print = [](const char* what, const std::map<int, int>& histogram) {
+    std::cout << "[ iterations ] " << what << ":";
+    for (const auto& [iterations, count] : histogram) std::cout << " " << iterations << "×" << count;
+    std::cout << "\n";
+  };
+  print("tolerance 1e-10 m/rad", iterations_tight);
+  print("default tolerance 1e-6 m/rad", iterations_default);
+  std::cout << "[ q error    ] worst " << worst_q_rad << " rad\n";
+}
+
+TEST(Runtime, PreDistortedPoseIsNominalForwardKinematicsAtTheTargets) {
+  const RuntimeModel& model = paperRuntime();
+  Workspace ws = makeWorkspace(model);
+  std::mt19937_64 rng(6);
+  double smallest_correction_m = std::numeric_limits<double>::infinity();
+  for (const Measurement* row : validationRows()) {
+    const Vec6 wrench = row->wrenchOrZero();
+    const Pose X_desired = correctForward(model, ws, row->q_rad, wrench).X_TrackerTip;
+    const InverseResult r =
+        solveInverse(model, ws, X_desired, wrench, perturbed(row->q_rad, rng), kNoDeadline);
+    ASSERT_EQ(r.status, Status::kOk);
+    EXPECT_EQ(r.X_BaseTip_commanded.matrix(),
+              nominalTip(paper().outcome.nominal_Base, r.q_target_rad).matrix());
+    // The pre-distortion is real: the nominal robot would put the tip millimetres off.
+    const Pose X_BaseTip_desired = model.file.X_TrackerBase.inverse() * X_desired;
+    smallest_correction_m =
+        std::min(smallest_correction_m,
+                 (r.X_BaseTip_commanded.translation() - X_BaseTip_desired.translation()).norm());
+  }
+  EXPECT_GT(smallest_correction_m, 1e-4);
+}
+
+TEST(Runtime, PoseBeyondReachIsUnreachable) {
+  const RuntimeModel& model = paperRuntime();
+  Workspace ws = makeWorkspace(model);
+  const Measurement& row = *validationRows().front();
+  Pose X_desired = correctForward(model, ws, row.q_rad, row.wrenchOrZero()).X_TrackerTip;
+  const Vec3 outwards =
+      (X_desired.translation() - model.p_ReachCentreInTracker_m).normalized();
+  X_desired.translation() += 5.0 * outwards;
+  const InverseResult r =
+      solveInverse(model, ws, X_desired, row.wrenchOrZero(), row.q_rad, kNoDeadline);
+  EXPECT_EQ(r.status, Status::kUnreachable);
+  EXPECT_EQ(r.iterations, 0);
+  EXPECT_TRUE(r.q_target_rad.allFinite());
+  EXPECT_NEAR(r.residual_position_m, 5.0, 1e-6);
+}
+
+TEST(Runtime, PoseOnlyReachablePastAJointLimitIsUnreachable) {
+  // Joint 1 may not turn past q1 − 0.1 rad, the pose needs q1.
+  const Measurement& row = *validationRows().front();
+  CalibratedModel limited = paper().model;
+  std::vector<ChainJoint> joints = limited.chain_Tracker.joints();
+  joints[0].upper_rad = row.q_rad(0) - 0.1;
+  limited.chain_Tracker = KinematicChain(joints, limited.chain_Tracker.initialPoses(),
+                                         limited.chain_Tracker.frames());
+  const auto model = RuntimeModel::fromModel(limited, 2);
+  Workspace ws = makeWorkspace(*model);
+  const Pose X_desired = correctForward(paperRuntime(), ws, row.q_rad, row.wrenchOrZero()).X_TrackerTip;
+  JointVector seed = row.q_rad;
+  seed(0) -= 0.15;
+  const InverseResult r = solveInverse(*model, ws, X_desired, row.wrenchOrZero(), seed, kNoDeadline);
+  EXPECT_EQ(r.status, Status::kUnreachable);
+  EXPECT_LE(r.q_target_rad(0), joints[0].upper_rad);
+  EXPECT_TRUE(r.q_target_rad.allFinite());
+}
+
+TEST(Runtime, MalformedRequestsAreBadRequests) {
+  const RuntimeModel& model = paperRuntime();
+  Workspace ws = makeWorkspace(model);
+  const Measurement& row = *validationRows().front();
+  const Vec6 wrench = row.wrenchOrZero();
+  const Pose X_good = correctForward(model, ws, row.q_rad, wrench).X_TrackerTip;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+
+  const auto inverse = [&](const Pose& X, const Vec6& w, const JointVector& seed,
+                           const InverseOptions& options = {}) {
+    return solveInverse(model, ws, X, w, seed, kNoDeadline, options).status;
+  };
+  EXPECT_EQ(inverse(X_good, wrench, row.q_rad), Status::kOk);
+  Pose X = X_good;
+  X.translation()(1) = nan;
+  EXPECT_EQ(inverse(X, wrench, row.q_rad), Status::kBadRequest);
+  X = X_good;
+  X.linear()(2, 0) = nan;
+  EXPECT_EQ(inverse(X, wrench, row.q_rad), Status::kBadRequest);
+  X = X_good;
+  X.linear().col(0) *= 1.01;  // not orthonormal
+  EXPECT_EQ(inverse(X, wrench, row.q_rad), Status::kBadRequest);
+  X = X_good;
+  X.linear().col(2) *= -1.0;  // a reflection
+  EXPECT_EQ(inverse(X, wrench, row.q_rad), Status::kBadRequest);
+  EXPECT_EQ(inverse(X_good, wrench, row.q_rad.head(5)), Status::kBadRequest);
+  JointVector q_nan = row.q_rad;
+  q_nan(3) = nan;
+  EXPECT_EQ(inverse(X_good, wrench, q_nan), Status::kBadRequest);
+  Vec6 w_inf = wrench;
+  w_inf(4) = inf;
+  EXPECT_EQ(inverse(X_good, w_inf, row.q_rad), Status::kBadRequest);
+  InverseOptions negative;
+  negative.position_tolerance_m = -1.0;
+  EXPECT_EQ(inverse(X_good, wrench, row.q_rad, negative), Status::kBadRequest);
+  const InverseResult bad = solveInverse(model, ws, X, wrench, row.q_rad, kNoDeadline);
+  EXPECT_EQ(bad.q_target_rad.size(), 0);
+
+  EXPECT_EQ(correctForward(model, ws, row.q_rad, wrench).status, Status::kOk);
+  JointVector q7(7);
+  q7 << row.q_rad, 0.0;
+  EXPECT_EQ(correctForward(model, ws, q7, wrench).status, Status::kBadRequest);
+  EXPECT_EQ(correctForward(model, ws, q_nan, wrench).status, Status::kBadRequest);
+  EXPECT_EQ(correctForward(model, ws, row.q_rad, w_inf).status, Status::kBadRequest);
+
+  // A workspace sized for another model is refused, not resized.
+  CalibratedModel small_gpr = paper().model;
+  small_gpr.gpr = randomGpr(30, static_cast<int>(row.q_rad.size()) + 6, 6);
+  const auto other = RuntimeModel::fromModel(small_gpr, 3);
+  Workspace other_ws = makeWorkspace(*other);
+  EXPECT_FALSE(workspaceFits(model, other_ws));
+  EXPECT_EQ(correctForward(model, other_ws, row.q_rad, wrench).status, Status::kBadRequest);
+  EXPECT_EQ(solveInverse(model, other_ws, X_good, wrench, row.q_rad, kNoDeadline).status,
+            Status::kBadRequest);
+}
+
+TEST(Runtime, DeadlineIsKept) {
+  const RuntimeModel& model = paperRuntime();
+  Workspace ws = makeWorkspace(model);
+  std::mt19937_64 rng(7);
+  const Measurement& row = *validationRows().front();
+  const Vec6 wrench = row.wrenchOrZero();
+  const Pose X_desired = correctForward(model, ws, row.q_rad, wrench).X_TrackerTip;
+  const JointVector seed = perturbed(row.q_rad, rng);
+
+  const InverseResult past = solveInverse(model, ws, X_desired, wrench, seed,
+                                          Clock::now() - std::chrono::seconds(1));
+  EXPECT_EQ(past.status, Status::kNotConverged);
+  EXPECT_LE(past.iterations, 1);
+  EXPECT_TRUE(past.q_target_rad.allFinite());
+  EXPECT_TRUE(past.X_TrackerTip_predicted.matrix().allFinite());
+  EXPECT_EQ(past.q_target_rad.size(), seed.size());
+
+  // Unreachable tolerances: the deadline alone stops the search, at most one step late.
+  InverseOptions endless;
+  endless.position_tolerance_m = 0.0;
+  endless.orientation_tolerance_rad = 0.0;
+  endless.max_iterations = 1000;
+  auto start = Clock::now();
+  const InverseResult hundred = [&] {
+    InverseOptions o = endless;
+    o.max_iterations = 100;
+    return solveInverse(model, ws, X_desired, wrench, seed, kNoDeadline, o);
+  }();
+  const auto step = (Clock::now() - start) / 101;
+  ASSERT_EQ(hundred.iterations, 100);
+  const auto budget = 20 * step;
+  start = Clock::now();
+  const InverseResult cut = solveInverse(model, ws, X_desired, wrench, seed, start + budget, endless);
+  const auto elapsed = Clock::now() - start;
+  EXPECT_EQ(cut.status, Status::kNotConverged);
+  EXPECT_LT(cut.iterations, 1000);
+  // One step late, one evaluation at the answer, and slack for a loaded machine.
+  EXPECT_LT(elapsed, budget + 3 * step + std::chrono::milliseconds(2));
+  std::cout << "[ timing     ] one Newton step "
+            << std::chrono::duration<double, std::micro>(step).count() << " µs; budget of 20 steps: "
+            << cut.iterations << " steps\n";
+}
+
+TEST(Runtime, AnswerAtTheWristSingularityIsFlagged) {
+  const RuntimeModel& model = paperRuntime();
+  Workspace ws = makeWorkspace(model);
+  const Measurement& row = *validationRows().front();
+  JointVector q_rad = row.q_rad;
+  q_rad(4) = 0.0;  // joint 5: wrist axes 4 and 6 aligned
+  const Pose X_desired = correctForward(model, ws, q_rad, row.wrenchOrZero()).X_TrackerTip;
+  JointVector seed = q_rad;
+  seed(0) += 0.5 * kDeg;
+  seed(4) += 0.5 * kDeg;
+  InverseOptions options;
+  options.max_iterations = 50;
+  const InverseResult r =
+      solveInverse(model, ws, X_desired, row.wrenchOrZero(), seed, kNoDeadline, options);
+  EXPECT_EQ(r.status, Status::kNearSingular) << toString(r.status);
+  EXPECT_LT(r.residual_position_m, 1e-6);
+  std::cout << "[ singular   ] " << r.iterations << " steps\n";
+}
+
+TEST(Runtime, RealTimeCallsAllocateNothing) {
+  const RuntimeModel& model = paperRuntime();
+  {
+    // Positive control: the counter sees the workspace's buffers being allocated.
+    test::AllocationCounter counter;
+    const Workspace ws = makeWorkspace(model);
+    EXPECT_GT(counter.count(), 0);
+  }
+  Workspace ws = makeWorkspace(model);
+  std::mt19937_64 rng(8);
+  struct Request {
+    JointVector q_rad, seed_rad;
+    Vec6 wrench;
+    Pose X_desired;
+  };
+  std::vector<Request> requests;
+  for (const Measurement* row : validationRows()) {
+    const Pose X = correctForward(model, ws, row->q_rad, row->wrenchOrZero()).X_TrackerTip;
+    requests.push_back({row->q_rad, perturbed(row->q_rad, rng), row->wrenchOrZero(), X});
+  }
+  Pose X_far = requests[0].X_desired;
+  X_far.translation().x() += 5.0;
+  Vec6 heavy = requests[0].wrench;
+  heavy(2) -= 5000.0;
+  JointVector q_short = requests[0].q_rad.head(5);
+
+  test::AllocationCounter counter;
+  int ok = 0;
+  for (const Request& r : requests) {
+    ok += correctForward(model, ws, r.q_rad, r.wrench).status == Status::kOk;
+    ok += solveInverse(model, ws, r.X_desired, r.wrench, r.seed_rad, kNoDeadline).status ==
+          Status::kOk;
+  }
+  const Request& r = requests[0];
+  const Status statuses[] = {
+      correctForward(model, ws, r.q_rad, heavy).status,
+      correctForward(model, ws, q_short, r.wrench).status,
+      solveInverse(model, ws, X_far, r.wrench, r.seed_rad, kNoDeadline).status,
+      solveInverse(model, ws, r.X_desired, r.wrench, q_short, kNoDeadline).status,
+      solveInverse(model, ws, r.X_desired, r.wrench, r.seed_rad, Clock::now()).status,
+  };
+  EXPECT_EQ(counter.count(), 0);
+  EXPECT_EQ(ok, 2 * static_cast<int>(requests.size()));
+  EXPECT_EQ(statuses[0], Status::kOutOfDomain);
+  EXPECT_EQ(statuses[1], Status::kBadRequest);
+  EXPECT_EQ(statuses[2], Status::kUnreachable);
+  EXPECT_EQ(statuses[3], Status::kBadRequest);
+  EXPECT_EQ(statuses[4], Status::kNotConverged);
+}
+
+}  // namespace
+}  // namespace stepcal::runtime

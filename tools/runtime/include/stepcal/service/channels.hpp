@@ -1,0 +1,16 @@
+// LCM channel names and the default URL shared by stepcal-runtime and stepcal-client.
+#pragma once
+
+namespace stepcal::service {
+
+inline constexpr const char* kRequestChannel = "STEPCAL_REQUEST";  ///< correction_request_t
+inline constexpr const char* kReplyChannel = "STEPCAL_REPLY";      ///< correction_reply_t
+inline constexpr const char* kStatusChannel = "STEPCAL_STATUS";    ///< runtime_status_t, 10 Hz
+inline constexpr const char* kWrenchChannel = "STEPCAL_WRENCH";    ///< wrench_t (default)
+inline constexpr const char* kPingChannel = "STEPCAL_PING";  ///< raw bytes, client --ping
+inline constexpr const char* kPongChannel = "STEPCAL_PONG";  ///< the same bytes, client --echo
+
+/// Multicast on the loopback only (ttl=0): LCM's own default.
+inline constexpr const char* kDefaultLcmUrl = "udpm://239.255.76.67:7667?ttl=0";
+
+}  // namespace stepcal::service

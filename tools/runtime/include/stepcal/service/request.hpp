@@ -1,0 +1,46 @@
+// Decoding and validation of one correction request (lcmtypes/correction_request_t.lcm) from its
+// raw LCM bytes: the pure, allocation-free front of the daemon, fuzzed by
+// tests/fuzz/fuzz_request_decoder.cpp.
+#pragma once
+
+#include <cstdint>
+
+#include "stepcal/common/types.hpp"
+#include "stepcal/runtime/corrector.hpp"
+
+namespace stepcal::service {
+
+/// Joints in every LCM message (fixed-size arrays); the daemon refuses models with another dof.
+inline constexpr int kMessageJoints = 6;
+/// Largest |‖quaternion‖ − 1| accepted in a request.
+inline constexpr double kQuaternionNormTolerance = 1e-6;
+
+/// What a request asks for (correction_request_t.mode).
+enum class Mode : int8_t { kForward = 0, kInverse = 1 };
+/// Where a request's wrench comes from (correction_request_t.wrench_source).
+enum class WrenchSource : int8_t { kLiveSensor = 0, kGiven = 1 };
+
+/// A decoded, validated request in the runtime's types.
+struct Request {
+  bool request_id_known = false;  ///< false: the bytes are not a request (no reply is due)
+  int64_t request_id = 0;
+  int64_t utime = 0;  ///< send time, µs since the Unix epoch
+  Mode mode = Mode::kForward;
+  JointVector q_rad = JointVector::Zero(kMessageJoints);  ///< forward: commanded joints, rad
+  /// Inverse: desired tip pose in the tracker (work) frame, m; quaternion normalised.
+  Pose X_TrackerTip_desired = Pose::Identity();
+  WrenchSource wrench_source = WrenchSource::kLiveSensor;
+  Vec6 wrench_Sensor = Vec6::Zero();  ///< given wrench, sensor axes: (f [N], m [N·m])
+  JointVector seed_q_rad = JointVector::Zero(kMessageJoints);  ///< inverse: start, rad
+  int32_t deadline_us = 0;  ///< ≤ 0: the daemon's budget alone, µs
+};
+
+/// Decodes the LCM bytes of a correction_request_t and validates them: kOk, or kBadRequest when
+/// the bytes are truncated, too long or of another type, the mode or wrench source is unknown,
+/// a double is NaN or infinite, or (inverse) the quaternion's norm is off by more than
+/// kQuaternionNormTolerance. out.request_id_known says whether a reply can be addressed (the
+/// type's fingerprint matches and the id's bytes are present). Never allocates, never throws,
+/// never reads outside [data, data + size).
+runtime::Status decodeRequest(const void* data, int size, Request& out) noexcept;
+
+}  // namespace stepcal::service

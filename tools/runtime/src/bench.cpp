@@ -1,0 +1,180 @@
+// stepcal-bench: time of the runtime's two real-time calls on a model file.
+//
+//   build/bin/stepcal-bench --model MODEL [--calls N] [--json]
+//
+// Poses: the model's GPR training inputs de-normalised (joints q and wrench), so every call lies
+// in the model's workspace. correctForward runs at (q, wrench); solveInverse targets the forward
+// correction of the same (q, wrench) from a seed 2° off on every joint (alternating sign), with a
+// deadline far away so that the solver's own tolerances end it. Each call is timed alone with
+// std::chrono::steady_clock after a warm-up; heap allocations are counted over the timed calls.
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <iostream>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "stepcal/common/error.hpp"
+#include "stepcal/runtime/corrector.hpp"
+#include "stepcal/service/latency.hpp"
+// Last: it defines malloc & co., which must follow every system header's declarations.
+#include "allocation_counter.hpp"  // tests/support; interposes malloc (this TU only)
+
+namespace {
+
+using namespace stepcal;
+
+constexpr double kSeedOffsetRad = 2.0 * M_PI / 180.0;
+constexpr int kWarmupCalls = 1000;
+constexpr int kStatusCount = 7;
+
+/// One point of the model's workspace and the inverse problem built on it.
+struct BenchPose {
+  JointVector q_rad;
+  Vec6 wrench_Sensor;
+  Pose X_TrackerTip_target;  ///< forward correction at (q, wrench), m
+  JointVector seed_q_rad;    ///< q ± 2°, rad
+};
+
+std::vector<BenchPose> workspacePoses(const runtime::RuntimeModel& model,
+                                      runtime::Workspace& ws, const std::string& path) {
+  if (!model.file.gpr) {
+    throw InputError("the model has no GPR step, so no training inputs to draw poses from", path);
+  }
+  const GprParameters& gpr = *model.file.gpr;
+  const int dof = model.file.chain_Tracker.dof();
+  std::vector<BenchPose> poses;
+  for (Eigen::Index r = 0; r < gpr.inputs_normalised.rows(); ++r) {
+    const Eigen::VectorXd x_raw =
+        gpr.input_offset + gpr.input_scale.cwiseProduct(gpr.inputs_normalised.row(r).transpose());
+    BenchPose pose;
+    pose.q_rad = x_raw.head(dof);
+    pose.wrench_Sensor = x_raw.segment<6>(dof);
+    pose.seed_q_rad = pose.q_rad;
+    for (int i = 0; i < dof; ++i) pose.seed_q_rad[i] += (i % 2 ? -kSeedOffsetRad : kSeedOffsetRad);
+    const runtime::ForwardResult forward =
+        runtime::correctForward(model, ws, pose.q_rad, pose.wrench_Sensor);
+    if (forward.status != runtime::Status::kOk) continue;  // only poses answered plainly
+    pose.X_TrackerTip_target = forward.X_TrackerTip;
+    poses.push_back(pose);
+  }
+  if (poses.empty()) throw InputError("no GPR training input gives a forward correction", path);
+  return poses;
+}
+
+struct CallStats {
+  std::vector<double> latency_us;
+  long status_counts[kStatusCount] = {};
+  double iterations_sum = 0;
+};
+
+nlohmann::json toJson(CallStats& stats, bool inverse) {
+  const service::LatencySummary s =
+      service::summarizeLatencies(stats.latency_us.data(), stats.latency_us.size());
+  nlohmann::json j = {{"calls", s.samples}, {"p50_us", s.p50_us}, {"p99_us", s.p99_us},
+                      {"p999_us", s.p999_us}, {"max_us", s.max_us}};
+  nlohmann::json statuses = nlohmann::json::object();
+  for (int k = 0; k < kStatusCount; ++k) {
+    if (stats.status_counts[k]) {
+      statuses[runtime::toString(static_cast<runtime::Status>(k))] = stats.status_counts[k];
+    }
+  }
+  j["statuses"] = statuses;
+  if (inverse) j["mean_iterations"] = stats.iterations_sum / double(s.samples);
+  return j;
+}
+
+double microsecondsBetween(runtime::Clock::time_point a, runtime::Clock::time_point b) {
+  return std::chrono::duration<double, std::micro>(b - a).count();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"stepcal-bench: latency of correctForward and solveInverse on a model file"};
+  std::string model_path;
+  int calls = 10000;
+  bool json = false;
+  app.add_option("--model", model_path, "model file (stepcal calibrate --out)")->required();
+  app.add_option("--calls", calls, "timed calls of each function after the warm-up")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_flag("--json", json, "print JSON");
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    const std::unique_ptr<const runtime::RuntimeModel> model =
+        runtime::RuntimeModel::load(model_path);
+    runtime::Workspace ws = runtime::makeWorkspace(*model);
+    const std::vector<BenchPose> poses = workspacePoses(*model, ws, model_path);
+    const auto pose = [&](int call) -> const BenchPose& {
+      return poses[static_cast<size_t>(call) % poses.size()];
+    };
+
+    CallStats forward, inverse;
+    forward.latency_us.resize(static_cast<size_t>(calls));
+    inverse.latency_us.resize(static_cast<size_t>(calls));
+    const auto runForward = [&](int call) {
+      const BenchPose& p = pose(call);
+      return runtime::correctForward(*model, ws, p.q_rad, p.wrench_Sensor).status;
+    };
+    const auto runInverse = [&](int call, int& iterations) {
+      const BenchPose& p = pose(call);
+      const runtime::InverseResult r =
+          runtime::solveInverse(*model, ws, p.X_TrackerTip_target, p.wrench_Sensor, p.seed_q_rad,
+                                runtime::Clock::now() + std::chrono::seconds(1));
+      iterations = r.iterations;
+      return r.status;
+    };
+    int iterations = 0;
+    for (int call = 0; call < kWarmupCalls; ++call) {
+      runForward(call);
+      runInverse(call, iterations);
+    }
+
+    long allocations = 0;
+    {
+      const test::AllocationCounter counter;
+      for (int call = 0; call < calls; ++call) {
+        const auto start = runtime::Clock::now();
+        const runtime::Status status = runForward(call);
+        forward.latency_us[size_t(call)] = microsecondsBetween(start, runtime::Clock::now());
+        ++forward.status_counts[static_cast<int>(status)];
+      }
+      for (int call = 0; call < calls; ++call) {
+        const auto start = runtime::Clock::now();
+        const runtime::Status status = runInverse(call, iterations);
+        inverse.latency_us[size_t(call)] = microsecondsBetween(start, runtime::Clock::now());
+        ++inverse.status_counts[static_cast<int>(status)];
+        inverse.iterations_sum += iterations;
+      }
+      allocations = counter.count();
+    }
+
+    const nlohmann::json report = {{"model", model_path},
+                                   {"poses", poses.size()},
+                                   {"forward", toJson(forward, false)},
+                                   {"inverse", toJson(inverse, true)},
+                                   {"allocations", allocations}};
+    if (json) {
+      std::cout << report.dump(2) << "\n";
+    } else {
+      for (const char* name : {"forward", "inverse"}) {
+        const nlohmann::json& r = report[name];
+        std::cout << name << ": " << r["calls"] << " calls, p50 " << r["p50_us"].get<double>()
+                  << " us, p99 " << r["p99_us"].get<double>() << " us, max "
+                  << r["max_us"].get<double>() << " us";
+        if (r.contains("mean_iterations")) {
+          std::cout << ", mean iterations " << r["mean_iterations"].get<double>();
+        }
+        std::cout << ", statuses " << r["statuses"].dump() << "\n";
+      }
+      std::cout << "allocations during the timed calls: " << allocations << "\n";
+    }
+  } catch (const InputError& e) {
+    std::cerr << "stepcal-bench: error: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}

@@ -1,0 +1,657 @@
+// stepcal-client: sends correction requests to stepcal-runtime over LCM and measures the answers.
+//
+//   stepcal-client --forward q1 … q6 [--wrench fx fy fz mx my mz]          one request, rad / N, N·m
+//   stepcal-client --inverse x y z qw qx qy qz [--seed q1 … q6] [--wrench …]   m, unit quaternion
+//   stepcal-client --campaign DIR [--set validation] [--mode forward|inverse] [--count N]
+//                  [--rate HZ] [--truth truth.json] [--json]
+//   stepcal-client --ping N [--json]     raw LCM round trips to a `stepcal-client --echo`
+//   stepcal-client --echo                answers STEPCAL_PING on STEPCAL_PONG until SIGINT/SIGTERM
+//
+// Replies are matched to requests by request_id; a reply later than --timeout-ms counts as lost.
+// Without --rate one request is in flight at a time (the next goes when the reply arrives or
+// times out); with --rate requests leave on a fixed schedule. Campaign rows carry their measured
+// wrench (wrench_source = given). Accuracy counts OK replies only. Forward accuracy is against
+// the rows' measured poses; inverse requests ask for the measured pose from a seed 2° off the
+// row's joints (alternating sign), and their accuracy is against the twin's truth (where the true
+// robot goes at q_target) when --truth is given, else the solver's own residual.
+#include <CLI/CLI.hpp>
+#include <poll.h>
+#include <signal.h>
+#include <sys/signalfd.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <limits>
+#include <optional>
+#include <vector>
+
+#include <lcm/lcm.h>
+#include <nlohmann/json.hpp>
+#include <stepcal_lcm/correction_reply_t.hpp>
+#include <stepcal_lcm/correction_request_t.hpp>
+
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/lie.hpp"
+#include "stepcal/runtime/corrector.hpp"
+#include "stepcal/service/channels.hpp"
+#include "stepcal/service/latency.hpp"
+#include "stepcal/service/request.hpp"
+#include "stepcal/twin/twin.hpp"
+
+namespace {
+
+using namespace stepcal;
+using stepcal_lcm::correction_reply_t;
+using stepcal_lcm::correction_request_t;
+using Clock = std::chrono::steady_clock;
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+constexpr double kSeedOffsetRad = 2.0 / kRadToDeg;
+constexpr int kStatusCount = 7;
+
+struct Args {
+  std::string lcm_url = service::kDefaultLcmUrl;
+  std::vector<double> forward_q_rad, inverse_pose, seed_q_rad, wrench;
+  std::string campaign_dir, set = "validation", mode = "forward", truth_path;
+  int count = 0;
+  double rate_hz = 0.0;
+  int ping_count = 0;
+  bool echo = false;
+  int deadline_us = 0;
+  double timeout_ms = 100.0;
+  bool json = false;
+};
+
+/// An LCM instance for the lifetime of the object.
+class Lcm {
+ public:
+  explicit Lcm(const std::string& url) : lcm_(lcm_create(url.c_str())) {
+    if (lcm_ == nullptr) throw InputError("--lcm-url '" + url + "': LCM cannot open it");
+  }
+  ~Lcm() { lcm_destroy(lcm_); }
+  Lcm(const Lcm&) = delete;
+  Lcm& operator=(const Lcm&) = delete;
+  lcm_t* get() const { return lcm_; }
+
+ private:
+  lcm_t* lcm_;
+};
+
+int64_t bigEndian64(const uint8_t* bytes) {
+  uint64_t value = 0;
+  for (int i = 0; i < 8; ++i) value = (value << 8) | bytes[i];
+  return static_cast<int64_t>(value);
+}
+
+int64_t unixMicroseconds() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+/// Round trips of `count` messages numbered 0..count−1: what was sent when, what came back.
+struct Exchange {
+  int64_t first_id = 0;  ///< message i carries id first_id + i
+  double timeout_s = 0.1;
+  std::vector<Clock::time_point> sent;
+  std::vector<double> round_trip_us;  ///< NaN until answered in time
+  int answered = 0;
+  int late = 0;        ///< answers after the timeout (counted as lost)
+  int duplicates = 0;  ///< second answers to one message
+  /// Message id of a received payload, or nullopt when it is not one of ours.
+  std::function<std::optional<int64_t>(const lcm_recv_buf_t*)> id_of;
+  /// Called with the index and payload of every answer in time.
+  std::function<void(size_t, const lcm_recv_buf_t*)> keep;
+
+  void onAnswer(const lcm_recv_buf_t* rbuf) {
+    const Clock::time_point now = Clock::now();
+    const std::optional<int64_t> id = id_of(rbuf);
+    if (!id || *id < first_id || *id - first_id >= int64_t(sent.size())) return;
+    const auto i = static_cast<size_t>(*id - first_id);
+    if (sent[i] == Clock::time_point{}) return;
+    if (!std::isnan(round_trip_us[i])) {
+      ++duplicates;
+      return;
+    }
+    const double us = std::chrono::duration<double, std::micro>(now - sent[i]).count();
+    if (us > timeout_s * 1e6) {
+      ++late;
+      return;
+    }
+    round_trip_us[i] = us;
+    ++answered;
+    keep(i, rbuf);
+  }
+};
+
+void onAnswerMessage(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+  static_cast<Exchange*>(user)->onAnswer(rbuf);
+}
+
+/// Waits up to `until` for LCM traffic and dispatches it.
+void handleUntil(lcm_t* lcm, Clock::time_point until) {
+  const auto wait = std::max(Clock::duration::zero(), until - Clock::now());
+  const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(wait).count();
+  timespec timeout{static_cast<time_t>(ns / 1000000000), static_cast<long>(ns % 1000000000)};
+  pollfd fd{lcm_get_fileno(lcm), POLLIN, 0};
+  if (ppoll(&fd, 1, &timeout, nullptr) > 0) lcm_handle(lcm);
+}
+
+/// Sends count messages through send(i, id) and collects the answers on answer_channel: one in
+/// flight at a time (rate_hz = 0) or on a fixed schedule.
+void runExchange(lcm_t* lcm, const char* answer_channel, int count, double rate_hz,
+                 Exchange& exchange, const std::function<void(size_t, int64_t)>& send) {
+  exchange.first_id = int64_t(getpid()) << 32;
+  exchange.sent.assign(size_t(count), Clock::time_point{});
+  exchange.round_trip_us.assign(size_t(count), std::numeric_limits<double>::quiet_NaN());
+  lcm_subscription_t* subscription =
+      lcm_subscribe(lcm, answer_channel, &onAnswerMessage, &exchange);
+  const auto timeout = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(exchange.timeout_s));
+  const Clock::time_point start = Clock::now();
+  const auto scheduled = [&](int i) {
+    return start + std::chrono::duration_cast<Clock::duration>(
+                       std::chrono::duration<double>(double(i) / rate_hz));
+  };
+  int next = 0;
+  while (next < count) {
+    Clock::time_point due = Clock::now();
+    if (rate_hz > 0.0) {
+      due = scheduled(next);
+    } else if (next > 0 && std::isnan(exchange.round_trip_us[size_t(next - 1)])) {
+      due = exchange.sent[size_t(next - 1)] + timeout;
+    }
+    if (Clock::now() < due) {
+      handleUntil(lcm, due);
+      if (rate_hz > 0.0 || std::isnan(exchange.round_trip_us[size_t(next - 1)])) continue;
+    }
+    exchange.sent[size_t(next)] = Clock::now();
+    send(size_t(next), exchange.first_id + next);
+    ++next;
+  }
+  const Clock::time_point last_deadline = Clock::now() + timeout;
+  while (exchange.answered < count && Clock::now() < last_deadline) handleUntil(lcm, last_deadline);
+  lcm_unsubscribe(lcm, subscription);
+}
+
+nlohmann::json latencyJson(std::vector<double> samples_us) {
+  samples_us.erase(std::remove_if(samples_us.begin(), samples_us.end(),
+                                  [](double v) { return std::isnan(v); }),
+                   samples_us.end());
+  const service::LatencySummary s =
+      service::summarizeLatencies(samples_us.data(), samples_us.size());
+  return {{"samples", s.samples}, {"p50_us", s.p50_us}, {"p99_us", s.p99_us},
+          {"p999_us", s.p999_us}, {"max_us", s.max_us}};
+}
+
+std::string latencyText(const nlohmann::json& j) {
+  char line[200];
+  std::snprintf(line, sizeof line, "p50 %.1f us, p99 %.1f us, p99.9 %.1f us, max %.1f us",
+                j["p50_us"].get<double>(), j["p99_us"].get<double>(),
+                j["p999_us"].get<double>(), j["max_us"].get<double>());
+  return line;
+}
+
+// ---- requests ------------------------------------------------------------------------------
+
+correction_request_t emptyRequest(const Args& args) {
+  correction_request_t msg{};
+  msg.desired_quaternion_wxyz[0] = 1.0;
+  msg.deadline_us = args.deadline_us;
+  return msg;
+}
+
+void setWrench(correction_request_t& msg, const Vec6& wrench_Sensor) {
+  msg.wrench_source = correction_request_t::WRENCH_GIVEN;
+  for (int i = 0; i < 6; ++i) msg.wrench[i] = wrench_Sensor[i];
+}
+
+void setDesiredPose(correction_request_t& msg, const Pose& X_TrackerTip) {
+  const Eigen::Quaterniond q(X_TrackerTip.linear());
+  const double wxyz[4] = {q.w(), q.x(), q.y(), q.z()};
+  for (int i = 0; i < 3; ++i) msg.desired_position_m[i] = X_TrackerTip.translation()[i];
+  std::copy(wxyz, wxyz + 4, msg.desired_quaternion_wxyz);
+}
+
+/// The requests for a campaign's rows (cycled up to count), and the rows they came from.
+std::vector<correction_request_t> campaignRequests(const Args& args,
+                                                   const std::vector<const Measurement*>& rows,
+                                                   std::vector<const Measurement*>& row_of) {
+  const bool inverse = args.mode == "inverse";
+  std::vector<correction_request_t> requests;
+  for (int i = 0; i < args.count; ++i) {
+    const Measurement& row = *rows[size_t(i) % rows.size()];
+    correction_request_t msg = emptyRequest(args);
+    msg.mode = inverse ? correction_request_t::MODE_INVERSE : correction_request_t::MODE_FORWARD;
+    setWrench(msg, row.wrenchOrZero());
+    for (int j = 0; j < service::kMessageJoints; ++j) {
+      msg.q_rad[j] = row.q_rad[j];
+      msg.seed_q_rad[j] = row.q_rad[j] + (j % 2 ? -kSeedOffsetRad : kSeedOffsetRad);
+    }
+    if (inverse) setDesiredPose(msg, row.X_TrackerTip());
+    requests.push_back(msg);
+    row_of.push_back(&row);
+  }
+  return requests;
+}
+
+RowSet parseSet(const std::string& name) {
+  for (RowSet set : {RowSet::kGeometry, RowSet::kStiffness, RowSet::kResidual,
+                     RowSet::kValidation}) {
+    if (name == toString(set)) return set;
+  }
+  throw InputError("--set '" + name + "': expected geometry, stiffness, residual or validation");
+}
+
+// ---- replies -------------------------------------------------------------------------------
+
+Pose poseOf(const double* position_m, const double* quaternion_wxyz) {
+  Pose X = Pose::Identity();
+  X.translation() = Vec3(position_m[0], position_m[1], position_m[2]);
+  X.linear() = Eigen::Quaterniond(quaternion_wxyz[0], quaternion_wxyz[1], quaternion_wxyz[2],
+                                  quaternion_wxyz[3])
+                   .normalized()
+                   .toRotationMatrix();
+  return X;
+}
+
+JointVector jointsOf(const double* q_rad) {
+  JointVector q(service::kMessageJoints);
+  for (int i = 0; i < service::kMessageJoints; ++i) q[i] = q_rad[i];
+  return q;
+}
+
+std::optional<int64_t> replyId(const lcm_recv_buf_t* rbuf) {
+  correction_reply_t reply;
+  if (reply.decode(rbuf->data, 0, int(rbuf->data_size)) < 0) return std::nullopt;
+  return reply.request_id;
+}
+
+/// Requests sent with Exchange, their replies kept.
+std::vector<correction_reply_t> sendRequests(lcm_t* lcm, const Args& args,
+                                             std::vector<correction_request_t> requests,
+                                             Exchange& exchange) {
+  std::vector<correction_reply_t> replies(requests.size());
+  exchange.timeout_s = args.timeout_ms * 1e-3;
+  exchange.id_of = replyId;
+  exchange.keep = [&](size_t i, const lcm_recv_buf_t* rbuf) {
+    replies[i].decode(rbuf->data, 0, int(rbuf->data_size));
+  };
+  std::vector<uint8_t> buffer(size_t(requests.front().getEncodedSize()));
+  runExchange(lcm, service::kReplyChannel, int(requests.size()), args.rate_hz, exchange,
+              [&](size_t i, int64_t id) {
+                correction_request_t& msg = requests[i];
+                msg.request_id = id;
+                msg.utime = unixMicroseconds();
+                const int size = msg.encode(buffer.data(), 0, int(buffer.size()));
+                lcm_publish(lcm, service::kRequestChannel, buffer.data(), unsigned(size));
+              });
+  return replies;
+}
+
+std::string vectorText(const double* v, int n, double scale = 1.0, const char* format = "%.6f") {
+  std::string text = "[";
+  char number[32];
+  for (int i = 0; i < n; ++i) {
+    if (i) text += ", ";
+    std::snprintf(number, sizeof number, format, v[i] * scale);
+    text += number;
+  }
+  return text + "]";
+}
+
+/// A model id as printed by stepcal-runtime: 16 hex digits.
+std::string modelIdText(int64_t model_id) {
+  char text[17];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(model_id));
+  return text;
+}
+
+nlohmann::json replyJson(const correction_reply_t& r, bool inverse) {
+  const auto array = [](const double* v, int n) { return std::vector<double>(v, v + n); };
+  nlohmann::json j = {
+      {"request_id", r.request_id},
+      {"status", runtime::toString(static_cast<runtime::Status>(r.status))},
+      {"model_id", modelIdText(r.model_id)},
+      {"compute_us", double(r.compute_ns) * 1e-3},
+      {"predicted_position_m", array(r.predicted_position_m, 3)},
+      {"predicted_quaternion_wxyz", array(r.predicted_quaternion_wxyz, 4)},
+      {"gpr_std", array(r.gpr_std, 6)}};
+  if (inverse) {
+    j["q_target_rad"] = array(r.q_target_rad, 6);
+    j["commanded_position_m"] = array(r.commanded_position_m, 3);
+    j["commanded_quaternion_wxyz"] = array(r.commanded_quaternion_wxyz, 4);
+    j["iterations"] = r.iterations;
+    j["residual_position_m"] = r.residual_position_m;
+    j["residual_orientation_rad"] = r.residual_orientation_rad;
+  }
+  return j;
+}
+
+void printReply(const correction_reply_t& r, double round_trip_us, bool inverse) {
+  std::printf("request %lld: %s, model %016llx, compute %.1f us, round trip %.1f us\n",
+              static_cast<long long>(r.request_id),
+              runtime::toString(static_cast<runtime::Status>(r.status)),
+              static_cast<unsigned long long>(r.model_id), double(r.compute_ns) * 1e-3,
+              round_trip_us);
+  if (inverse) {
+    std::printf("q_target_rad              %s\n", vectorText(r.q_target_rad, 6).c_str());
+    std::printf("q_target_deg              %s\n",
+                vectorText(r.q_target_rad, 6, kRadToDeg).c_str());
+    std::printf("commanded (base) p_m      %s  q_wxyz %s\n",
+                vectorText(r.commanded_position_m, 3).c_str(),
+                vectorText(r.commanded_quaternion_wxyz, 4).c_str());
+  }
+  std::printf("predicted (tracker) p_m   %s  q_wxyz %s\n",
+              vectorText(r.predicted_position_m, 3).c_str(),
+              vectorText(r.predicted_quaternion_wxyz, 4).c_str());
+  std::printf("gpr_std (v m, w rad)      %s\n", vectorText(r.gpr_std, 6, 1.0, "%.3e").c_str());
+  if (inverse) {
+    std::printf("iterations %d, residual %.4f mm, %.5f deg\n", r.iterations,
+                r.residual_position_m * 1e3, r.residual_orientation_rad * kRadToDeg);
+  }
+}
+
+/// One request from the command line; exit status 1 when no reply came.
+int runSingle(const Args& args) {
+  const bool inverse = !args.inverse_pose.empty();
+  correction_request_t msg = emptyRequest(args);
+  if (!args.wrench.empty()) setWrench(msg, Vec6(args.wrench.data()));
+  if (inverse) {
+    msg.mode = correction_request_t::MODE_INVERSE;
+    std::copy(args.inverse_pose.begin(), args.inverse_pose.begin() + 3, msg.desired_position_m);
+    std::copy(args.inverse_pose.begin() + 3, args.inverse_pose.end(), msg.desired_quaternion_wxyz);
+    if (!args.seed_q_rad.empty()) std::copy(args.seed_q_rad.begin(), args.seed_q_rad.end(), msg.seed_q_rad);
+  } else {
+    msg.mode = correction_request_t::MODE_FORWARD;
+    std::copy(args.forward_q_rad.begin(), args.forward_q_rad.end(), msg.q_rad);
+  }
+  const Lcm lcm(args.lcm_url);
+  Exchange exchange;
+  const std::vector<correction_reply_t> replies = sendRequests(lcm.get(), args, {msg}, exchange);
+  if (exchange.answered == 0) {
+    std::cerr << "stepcal-client: no reply within " << args.timeout_ms
+              << " ms (is stepcal-runtime running on " << args.lcm_url << "?)\n";
+    return 1;
+  }
+  if (args.json) {
+    nlohmann::json j = replyJson(replies[0], inverse);
+    j["round_trip_us"] = exchange.round_trip_us[0];
+    std::cout << j.dump(2) << "\n";
+  } else {
+    printReply(replies[0], exchange.round_trip_us[0], inverse);
+  }
+  return 0;
+}
+
+struct Accuracy {
+  int poses = 0;
+  double sum_position_m = 0, max_position_m = 0, sum_orientation_rad = 0;
+  int orientations = 0;
+
+  void add(double position_m, std::optional<double> orientation_rad) {
+    ++poses;
+    sum_position_m += position_m;
+    max_position_m = std::max(max_position_m, position_m);
+    if (orientation_rad) {
+      sum_orientation_rad += *orientation_rad;
+      ++orientations;
+    }
+  }
+  nlohmann::json toJson(const std::string& against) const {
+    return {{"against", against},
+            {"poses", poses},
+            {"mean_position_mm", poses ? sum_position_m / poses * 1e3 : 0.0},
+            {"max_position_mm", max_position_m * 1e3},
+            {"mean_orientation_deg",
+             orientations ? sum_orientation_rad / orientations * kRadToDeg : 0.0}};
+  }
+};
+
+std::optional<twin::TwinRobot> readTruth(const std::string& path) {
+  if (path.empty()) return std::nullopt;
+  std::ifstream in(path);
+  if (!in) throw InputError("--truth: cannot read the file", path);
+  nlohmann::json truth;
+  try {
+    truth = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(std::string("--truth: not JSON: ") + e.what(), path);
+  }
+  return twin::TwinRobot::fromTruthJson(truth);
+}
+
+/// A campaign's rows as requests: latency, lost replies, statuses, accuracy.
+int runCampaign(Args args) {
+  if (args.mode != "forward" && args.mode != "inverse") {
+    throw InputError("--mode '" + args.mode + "': expected forward or inverse");
+  }
+  const bool inverse = args.mode == "inverse";
+  if (!args.truth_path.empty() && !inverse) {
+    throw InputError("--truth: only inverse requests are checked against the truth");
+  }
+  const Campaign campaign = readCampaign(args.campaign_dir);
+  if (campaign.joint_count != service::kMessageJoints) {
+    throw InputError("the campaign has " + std::to_string(campaign.joint_count) +
+                         " joints; the LCM messages carry " +
+                         std::to_string(service::kMessageJoints),
+                     args.campaign_dir);
+  }
+  const std::vector<const Measurement*> rows = campaign.rowsIn(parseSet(args.set));
+  if (rows.empty()) throw InputError("--set " + args.set + ": the campaign has no such rows", args.campaign_dir);
+  if (inverse) {
+    for (const Measurement* row : rows) {
+      if (!row->has_orientation) {
+        throw InputError("--mode inverse needs measured orientations; this row has none",
+                         campaign.directory + "/" + campaign.measurements_file, row->source_line);
+      }
+    }
+  }
+  if (args.count <= 0) args.count = int(rows.size());
+  const std::optional<twin::TwinRobot> truth = readTruth(args.truth_path);
+
+  std::vector<const Measurement*> row_of;
+  std::vector<correction_request_t> requests = campaignRequests(args, rows, row_of);
+  const Lcm lcm(args.lcm_url);
+  Exchange exchange;
+  const std::vector<correction_reply_t> replies =
+      sendRequests(lcm.get(), args, std::move(requests), exchange);
+
+  long status_counts[kStatusCount] = {};
+  std::vector<double> compute_us;
+  Accuracy accuracy;
+  double iterations = 0;
+  int64_t model_id = 0;
+  for (size_t i = 0; i < replies.size(); ++i) {
+    if (std::isnan(exchange.round_trip_us[i])) continue;
+    const correction_reply_t& r = replies[i];
+    if (r.status >= 0 && r.status < kStatusCount) ++status_counts[r.status];
+    compute_us.push_back(double(r.compute_ns) * 1e-3);
+    model_id = r.model_id;
+    if (r.status != int8_t(runtime::Status::kOk)) continue;  // accuracy of plain answers
+    const Measurement& row = *row_of[i];
+    iterations += r.iterations;
+    if (!inverse) {
+      const Pose X = poseOf(r.predicted_position_m, r.predicted_quaternion_wxyz);
+      accuracy.add((X.translation() - row.p_TipInTracker_m).norm(),
+                   row.has_orientation ? std::optional<double>(lie::angleBetween(
+                                             row.q_TrackerTip.toRotationMatrix(), X.linear()))
+                                       : std::nullopt);
+    } else if (truth) {
+      const Pose X_true = truth->X_TrackerTip(jointsOf(r.q_target_rad), row.load_kg);
+      const Pose X_desired = row.X_TrackerTip();
+      accuracy.add((X_true.translation() - X_desired.translation()).norm(),
+                   lie::angleBetween(X_desired.linear(), X_true.linear()));
+    } else {
+      accuracy.add(r.residual_position_m, r.residual_orientation_rad);
+    }
+  }
+
+  nlohmann::json statuses = nlohmann::json::object();
+  for (int k = 0; k < kStatusCount; ++k) {
+    if (status_counts[k]) statuses[runtime::toString(static_cast<runtime::Status>(k))] = status_counts[k];
+  }
+  nlohmann::json report = {
+      {"mode", args.mode},
+      {"requests", args.count},
+      {"replies", exchange.answered},
+      {"lost", args.count - exchange.answered},
+      {"late", exchange.late},
+      {"duplicates", exchange.duplicates},
+      {"rate_hz", args.rate_hz},
+      {"model_id", modelIdText(model_id)},
+      {"round_trip_us", latencyJson(exchange.round_trip_us)},
+      {"compute_us", latencyJson(compute_us)},
+      {"statuses", statuses},
+      {"accuracy",
+       accuracy.toJson(inverse ? (truth ? "twin truth" : "solver residual") : "measured pose")}};
+  if (inverse) {
+    report["mean_iterations"] = accuracy.poses ? iterations / accuracy.poses : 0.0;
+  }
+  if (args.json) {
+    std::cout << report.dump(2) << "\n";
+  } else {
+    std::cout << args.count << " " << args.mode << " requests (" << args.set << " rows of "
+              << args.campaign_dir << "): " << exchange.answered << " replies, "
+              << report["lost"] << " lost\n"
+              << "round trip: " << latencyText(report["round_trip_us"]) << "\n"
+              << "compute (daemon): " << latencyText(report["compute_us"]) << "\n"
+              << "statuses: " << statuses.dump() << "\n";
+    const nlohmann::json& a = report["accuracy"];
+    std::printf("accuracy (%s, %d answers): mean %.4f mm, max %.4f mm, mean %.4f deg\n",
+                a["against"].get<std::string>().c_str(), accuracy.poses,
+                a["mean_position_mm"].get<double>(), a["max_position_mm"].get<double>(),
+                a["mean_orientation_deg"].get<double>());
+  }
+  return 0;
+}
+
+// ---- raw LCM ping-pong ---------------------------------------------------------------------
+
+/// Ping payloads are as long as an encoded request, so both cross LCM alike.
+int pingBytes() { return correction_request_t{}.getEncodedSize(); }
+
+int runPing(const Args& args) {
+  const Lcm lcm(args.lcm_url);
+  Exchange exchange;
+  exchange.timeout_s = args.timeout_ms * 1e-3;
+  exchange.id_of = [](const lcm_recv_buf_t* rbuf) -> std::optional<int64_t> {
+    if (rbuf->data_size < 8) return std::nullopt;
+    return bigEndian64(static_cast<const uint8_t*>(rbuf->data));
+  };
+  exchange.keep = [](size_t, const lcm_recv_buf_t*) {};
+  std::vector<uint8_t> payload(size_t(pingBytes()), 0);
+  runExchange(lcm.get(), service::kPongChannel, args.ping_count, args.rate_hz, exchange,
+              [&](size_t, int64_t id) {
+                for (int b = 0; b < 8; ++b) payload[size_t(b)] = uint8_t(uint64_t(id) >> (56 - 8 * b));
+                lcm_publish(lcm.get(), service::kPingChannel, payload.data(), unsigned(payload.size()));
+              });
+  const nlohmann::json report = {{"pings", args.ping_count},
+                                 {"pongs", exchange.answered},
+                                 {"lost", args.ping_count - exchange.answered},
+                                 {"late", exchange.late},
+                                 {"payload_bytes", payload.size()},
+                                 {"round_trip_us", latencyJson(exchange.round_trip_us)}};
+  if (args.json) {
+    std::cout << report.dump(2) << "\n";
+  } else {
+    std::cout << args.ping_count << " pings of " << payload.size() << " bytes: "
+              << exchange.answered << " pongs, " << report["lost"] << " lost\n"
+              << "round trip: " << latencyText(report["round_trip_us"]) << "\n";
+  }
+  if (exchange.answered == 0) {
+    std::cerr << "stepcal-client: no pong (is `stepcal-client --echo` running on "
+              << args.lcm_url << "?)\n";
+    return 1;
+  }
+  return 0;
+}
+
+void onPing(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+  lcm_publish(static_cast<lcm_t*>(user), service::kPongChannel, rbuf->data, rbuf->data_size);
+}
+
+/// Echoes pings until SIGINT or SIGTERM.
+int runEcho(const Args& args) {
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGTERM);
+  sigprocmask(SIG_BLOCK, &stop_signals, nullptr);
+  const int signal_fd = signalfd(-1, &stop_signals, SFD_CLOEXEC);
+  const Lcm lcm(args.lcm_url);
+  lcm_subscribe(lcm.get(), service::kPingChannel, &onPing, lcm.get());
+  std::cerr << "stepcal-client: echoing " << service::kPingChannel << " on "
+            << service::kPongChannel << " (" << args.lcm_url << ")\n";
+  pollfd fds[2] = {{lcm_get_fileno(lcm.get()), POLLIN, 0}, {signal_fd, POLLIN, 0}};
+  while (true) {
+    if (poll(fds, 2, -1) < 0) continue;
+    if (fds[1].revents & POLLIN) break;
+    if (fds[0].revents & POLLIN) lcm_handle(lcm.get());
+  }
+  close(signal_fd);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"stepcal-client: requests to stepcal-runtime over LCM; latency and accuracy"};
+  Args args;
+  app.add_option("--lcm-url", args.lcm_url, "LCM URL")->capture_default_str();
+  app.add_option("--forward", args.forward_q_rad, "one forward request: joints q1..q6, rad")
+      ->expected(6);
+  app.add_option("--inverse", args.inverse_pose,
+                 "one inverse request: tip position x y z (m) and quaternion qw qx qy qz in the "
+                 "tracker frame")
+      ->expected(7);
+  app.add_option("--seed", args.seed_q_rad, "inverse: joints to start from, rad (default 0)")
+      ->expected(6);
+  app.add_option("--wrench", args.wrench,
+                 "given wrench on the sensor, fx fy fz (N) mx my mz (N m), sensor axes "
+                 "(default: the daemon's live sensor)")
+      ->expected(6);
+  app.add_option("--campaign", args.campaign_dir, "send a campaign's rows");
+  app.add_option("--set", args.set, "campaign rows: geometry | stiffness | residual | validation")
+      ->capture_default_str();
+  app.add_option("--mode", args.mode, "campaign requests: forward | inverse")->capture_default_str();
+  app.add_option("--count", args.count, "campaign requests to send (rows cycle; default: one per row)");
+  app.add_option("--rate", args.rate_hz, "requests per second (default: one in flight at a time)");
+  app.add_option("--truth", args.truth_path, "inverse: the twin's truth.json to check answers against");
+  app.add_option("--ping", args.ping_count, "raw LCM round trips to `stepcal-client --echo`");
+  app.add_flag("--echo", args.echo, "answer STEPCAL_PING on STEPCAL_PONG until stopped");
+  app.add_option("--deadline-us", args.deadline_us,
+                 "request deadline, us (0: the daemon's budget)")->capture_default_str();
+  app.add_option("--timeout-ms", args.timeout_ms, "a reply later than this is lost, ms")
+      ->capture_default_str();
+  app.add_flag("--json", args.json, "print JSON");
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    const int modes = int(!args.forward_q_rad.empty()) + int(!args.inverse_pose.empty()) +
+                      int(!args.campaign_dir.empty()) + int(args.ping_count > 0) + int(args.echo);
+    if (modes != 1) {
+      throw InputError("choose exactly one of --forward, --inverse, --campaign, --ping N, --echo");
+    }
+    if (!(args.timeout_ms > 0.0)) throw InputError("--timeout-ms must be > 0");
+    if (!(args.rate_hz >= 0.0)) throw InputError("--rate must be ≥ 0");
+    if (!args.seed_q_rad.empty() && args.inverse_pose.empty()) {
+      throw InputError("--seed goes with --inverse");
+    }
+    if (!args.wrench.empty() && args.forward_q_rad.empty() && args.inverse_pose.empty()) {
+      throw InputError("--wrench goes with --forward or --inverse (campaign rows carry their own)");
+    }
+    if (args.echo) return runEcho(args);
+    if (args.ping_count > 0) return runPing(args);
+    if (!args.campaign_dir.empty()) return runCampaign(args);
+    return runSingle(args);
+  } catch (const InputError& e) {
+    std::cerr << "stepcal-client: error: " << e.what() << "\n";
+    return 2;
+  }
+}

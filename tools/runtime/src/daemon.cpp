@@ -1,0 +1,244 @@
+// stepcal-runtime: the real-time daemon beside the robot controller. Answers correction requests
+// over LCM with a calibrated model (docs/runtime.md).
+//
+//   stepcal-runtime --model MODEL [--lcm-url URL] [--budget-us 200] [--max-wrench-age-ms 20]
+//                   [--wrench-channel STEPCAL_WRENCH] [--sensor lcm] [--realtime]
+//
+// One serving thread polls the LCM socket, a signalfd (SIGHUP reload, SIGINT/SIGTERM stop) and a
+// 10 Hz timerfd (status). Reloads load the new file on their own thread and swap it in through
+// the service's ModelHandle, so requests keep being answered meanwhile; a refused file leaves the
+// model in service as it is.
+#include <CLI/CLI.hpp>
+#include <poll.h>
+#include <pthread.h>
+#include <sched.h>
+#include <signal.h>
+#include <sys/eventfd.h>
+#include <sys/mman.h>
+#include <sys/signalfd.h>
+#include <sys/timerfd.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstdarg>
+#include <cstdio>
+#include <cstring>
+#include <thread>
+
+#include "stepcal/common/error.hpp"
+#include "stepcal/service/channels.hpp"
+#include "stepcal/service/lcm_server.hpp"
+
+namespace {
+
+using namespace stepcal;
+
+/// SCHED_FIFO priority of the serving thread with --realtime (and of LCM's receive thread,
+/// which inherits it).
+constexpr int kRealtimePriority = 80;
+/// Stack touched after mlockall, so the serving thread never page-faults on it, bytes.
+constexpr size_t kPrefaultStackBytes = 512 * 1024;
+constexpr long kStatusPeriodNs = 100'000'000;  // 10 Hz
+
+void logLine(const char* format, ...) __attribute__((format(printf, 1, 2)));
+void logLine(const char* format, ...) {
+  char line[1024];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(line, sizeof line, format, args);
+  va_end(args);
+  std::fprintf(stderr, "stepcal-runtime: %s\n", line);
+}
+
+void prefaultStack() {
+  char stack[kPrefaultStackBytes];
+  explicit_bzero(stack, sizeof stack);  // never optimised away
+}
+
+/// mlockall and SCHED_FIFO for the calling thread; false, with one line saying what is missing,
+/// when the process is not permitted.
+bool enterRealtime() {
+  if (mlockall(MCL_CURRENT | MCL_FUTURE) != 0) {
+    logLine("--realtime: mlockall failed (%s): needs CAP_IPC_LOCK or RLIMIT_MEMLOCK large enough "
+            "(systemd: LimitMEMLOCK=infinity); running without real-time settings",
+            std::strerror(errno));
+    return false;
+  }
+  sched_param param{};
+  param.sched_priority = kRealtimePriority;
+  if (const int error = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param)) {
+    munlockall();
+    logLine("--realtime: SCHED_FIFO priority %d refused (%s): needs CAP_SYS_NICE or RLIMIT_RTPRIO "
+            "≥ %d (systemd: LimitRTPRIO=%d); running without real-time settings",
+            kRealtimePriority, std::strerror(error), kRealtimePriority, kRealtimePriority);
+    return false;
+  }
+  prefaultStack();
+  return true;
+}
+
+/// Reloads the model file on its own thread (SCHED_OTHER) when asked.
+class Reloader {
+ public:
+  Reloader(service::Service& service, std::string path)
+      : service_(service), path_(std::move(path)), wake_fd_(eventfd(0, EFD_CLOEXEC)) {
+    if (wake_fd_ < 0) throw InputError(std::string("eventfd: ") + std::strerror(errno));
+    thread_ = std::thread([this] { run(); });
+  }
+  ~Reloader() {
+    stop_.store(true);
+    wake();
+    thread_.join();
+    close(wake_fd_);
+  }
+  Reloader(const Reloader&) = delete;
+  Reloader& operator=(const Reloader&) = delete;
+
+  /// Asks for a reload; returns at once (a write to an eventfd).
+  void wake() {
+    const uint64_t one = 1;
+    if (write(wake_fd_, &one, sizeof one) < 0) logLine("reload request lost: %s", std::strerror(errno));
+  }
+
+ private:
+  void run() {
+    sched_param normal{};
+    pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
+    uint64_t requests = 0;
+    while (read(wake_fd_, &requests, sizeof requests) == sizeof requests && !stop_.load()) {
+      try {
+        service_.reloadFile(path_);
+        logLine("reloaded %s: model %016llx in service", path_.c_str(),
+                static_cast<unsigned long long>(service_.modelId()));
+      } catch (const InputError& e) {
+        logLine("reload refused, keeping model %016llx: %s",
+                static_cast<unsigned long long>(service_.modelId()), e.what());
+      }
+    }
+  }
+
+  service::Service& service_;
+  std::string path_;
+  int wake_fd_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+/// A file descriptor closed on destruction.
+class Fd {
+ public:
+  explicit Fd(int fd, const char* what) : fd_(fd) {
+    if (fd_ < 0) throw InputError(std::string(what) + ": " + std::strerror(errno));
+  }
+  ~Fd() { close(fd_); }
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+  int get() const { return fd_; }
+
+ private:
+  int fd_;
+};
+
+struct DaemonArgs {
+  std::string model_path;
+  std::string lcm_url = service::kDefaultLcmUrl;
+  int budget_us = 200;
+  double max_wrench_age_ms = 20.0;
+  std::string wrench_channel = service::kWrenchChannel;
+  std::string sensor = "lcm";
+  bool realtime = false;
+};
+
+int serve(const DaemonArgs& args) {
+  if (args.budget_us <= 0) throw InputError("--budget-us must be > 0");
+  if (!(args.max_wrench_age_ms > 0.0)) throw InputError("--max-wrench-age-ms must be > 0");
+  service::ServiceOptions options;
+  options.budget_ns = int64_t(args.budget_us) * 1000;
+  options.max_wrench_age_ns = int64_t(args.max_wrench_age_ms * 1e6);
+
+  // Signals go to the signalfd only; blocked before any thread starts, so every thread inherits it.
+  sigset_t signals;
+  sigemptyset(&signals);
+  for (int s : {SIGHUP, SIGINT, SIGTERM}) sigaddset(&signals, s);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  const Fd signal_fd(signalfd(-1, &signals, SFD_CLOEXEC), "signalfd");
+
+  service::Service service(runtime::RuntimeModel::load(args.model_path), args.model_path, options);
+  // Real-time before LCM starts its receive thread, so that it inherits SCHED_FIFO.
+  const bool realtime = args.realtime && enterRealtime();
+  lcm_t* lcm = lcm_create(args.lcm_url.c_str());
+  if (lcm == nullptr) throw InputError("--lcm-url '" + args.lcm_url + "': LCM cannot open it");
+  const std::unique_ptr<lcm_t, void (*)(lcm_t*)> lcm_owner(lcm, &lcm_destroy);
+  service::LcmServer server(lcm, service);
+  const std::unique_ptr<service::WrenchFeed> feed =
+      service::makeWrenchFeed(args.sensor, lcm, args.wrench_channel, service);
+  Reloader reloader(service, args.model_path);
+
+  const Fd timer_fd(timerfd_create(CLOCK_MONOTONIC, TFD_CLOEXEC), "timerfd");
+  const itimerspec period{{0, kStatusPeriodNs}, {0, kStatusPeriodNs}};
+  timerfd_settime(timer_fd.get(), 0, &period, nullptr);
+
+  logLine("serving %s (model %016llx) on %s: budget %d us, live wrench %s (max age %g ms), "
+          "real-time %s",
+          args.model_path.c_str(), static_cast<unsigned long long>(service.modelId()),
+          args.lcm_url.c_str(), args.budget_us, feed->describe().c_str(),
+          args.max_wrench_age_ms, realtime ? "on" : "off");
+
+  pollfd fds[3] = {{lcm_get_fileno(lcm), POLLIN, 0},
+                   {signal_fd.get(), POLLIN, 0},
+                   {timer_fd.get(), POLLIN, 0}};
+  for (;;) {
+    if (poll(fds, 3, -1) < 0) {
+      if (errno == EINTR) continue;
+      throw InputError(std::string("poll: ") + std::strerror(errno));
+    }
+    if (fds[1].revents & POLLIN) {
+      signalfd_siginfo info{};
+      if (read(signal_fd.get(), &info, sizeof info) != sizeof info) continue;
+      if (info.ssi_signo == SIGHUP) {
+        reloader.wake();
+        continue;
+      }
+      logLine("%s: stopping after %lld requests", strsignal(int(info.ssi_signo)),
+              static_cast<long long>(service.counters().requests));
+      return 0;
+    }
+    if (fds[2].revents & POLLIN) {
+      uint64_t expirations = 0;
+      if (read(timer_fd.get(), &expirations, sizeof expirations) == sizeof expirations) {
+        server.publishStatus(realtime);
+      }
+    }
+    if (fds[0].revents & POLLIN) lcm_handle(lcm);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"stepcal-runtime: corrects commanded poses and inverts desired poses over LCM"};
+  DaemonArgs args;
+  app.add_option("--model", args.model_path, "model file (stepcal calibrate --out)")->required();
+  app.add_option("--lcm-url", args.lcm_url, "LCM URL")->capture_default_str();
+  app.add_option("--budget-us", args.budget_us,
+                 "longest time from a request's arrival to its reply, us")
+      ->capture_default_str();
+  app.add_option("--max-wrench-age-ms", args.max_wrench_age_ms,
+                 "a live wrench older than this gives STALE_WRENCH, ms")
+      ->capture_default_str();
+  app.add_option("--wrench-channel", args.wrench_channel, "channel of the live wrench_t samples")
+      ->capture_default_str();
+  app.add_option("--sensor", args.sensor, "source of the live wrench: lcm (can:IFACE is planned)")
+      ->capture_default_str();
+  app.add_flag("--realtime", args.realtime,
+               "mlockall and SCHED_FIFO priority 80 (needs CAP_IPC_LOCK and CAP_SYS_NICE or the "
+               "matching rlimits)");
+  CLI11_PARSE(app, argc, argv);
+  try {
+    return serve(args);
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "stepcal-runtime: error: %s\n", e.what());
+    return 2;
+  }
+}

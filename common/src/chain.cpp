@@ -1,5 +1,6 @@
 #include "stepcal/common/chain.hpp"
 
+#include <cmath>
 #include <utility>
 
 #include "stepcal/common/error.hpp"
@@ -14,6 +15,10 @@ KinematicChain::KinematicChain(std::vector<ChainJoint> joints, std::vector<Pose>
                     "chain has more joints than kMaxJoints");
   STEPCAL_INVARIANT(initial_.size() == joints_.size() + 1,
                     "a chain of n joints needs n+1 initial poses");
+  for (const ChainJoint& j : joints_) {
+    STEPCAL_INVARIANT(std::abs(j.twist_Local.tail<3>().norm() - 1.0) < 1e-9,
+                      "a revolute joint's twist needs a unit rotation axis");
+  }
   for (const AttachedFrame& f : frames_) {
     STEPCAL_INVARIANT(f.parent >= 0 && f.parent <= dof(), "attached frame parent out of range");
   }
@@ -58,11 +63,31 @@ bool forwardKinematics(const KinematicChain& chain, const JointVector& q,
   ws.X_RootFrame[0] = Pose::Identity();
   for (int i = 1; i <= n; ++i) {
     const Vec6& s = chain.joints()[static_cast<size_t>(i - 1)].twist_Local;
-    ws.X_RootFrame[static_cast<size_t>(i)] = ws.X_RootFrame[static_cast<size_t>(i - 1)] *
-                                             chain.initialPose(i - 1) * lie::expSE3(s * q(i - 1));
+    const Pose& X_prev = ws.X_RootFrame[static_cast<size_t>(i - 1)];
+    const Pose& T = chain.initialPose(i - 1);
+    Pose& X = ws.X_RootFrame[static_cast<size_t>(i)];
+    // X_0,i = X_0,i-1 · T · exp(ŝ q), composed as rotation and translation (no 4×4 products).
+    const Mat3 R_prevT = X_prev.linear() * T.linear();
+    const Vec3 p_prevT = X_prev.linear() * T.translation() + X_prev.translation();
+    if (s.head<3>().isZero(0.0)) {
+      // A revolute axis through the frame origin: Rodrigues' formula for the unit axis a.
+      const Vec3 a = s.tail<3>();
+      const double angle = q(i - 1), c = std::cos(angle), sn = std::sin(angle);
+      const Mat3 R_joint =
+          c * Mat3::Identity() + sn * lie::hat(a) + (1.0 - c) * (a * a.transpose());
+      X.linear() = R_prevT * R_joint;
+      X.translation() = p_prevT;
+    } else {
+      const Pose E = lie::expSE3(s * q(i - 1));
+      X.linear() = R_prevT * E.linear();
+      X.translation() = R_prevT * E.translation() + p_prevT;
+    }
   }
-  ws.X_RootFrame[static_cast<size_t>(n + 1)] =
-      ws.X_RootFrame[static_cast<size_t>(n)] * chain.initialPose(n);
+  const Pose& X_n = ws.X_RootFrame[static_cast<size_t>(n)];
+  const Pose& T_tip = chain.initialPose(n);
+  Pose& X_tip = ws.X_RootFrame[static_cast<size_t>(n + 1)];
+  X_tip.linear() = X_n.linear() * T_tip.linear();
+  X_tip.translation() = X_n.linear() * T_tip.translation() + X_n.translation();
   return true;
 }
 

@@ -8,7 +8,8 @@ Vec6 wrenchInRoot(const Pose& X_RootSensor, const Vec6& wrench_Sensor) noexcept 
   const Mat3& R = X_RootSensor.linear();
   const Vec3 f = R * wrench_Sensor.head<3>();
   Vec6 W;
-  W << f, X_RootSensor.translation().cross(f) + R * wrench_Sensor.tail<3>();
+  W.head<3>() = f;
+  W.tail<3>() = X_RootSensor.translation().cross(f) + R * wrench_Sensor.tail<3>();
   return W;
 }
 

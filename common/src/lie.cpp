@@ -107,7 +107,8 @@ Vec6 logSE3(const Pose& T) noexcept {
   const Mat3 W = hat(w);
   const Mat3 V_inv = Mat3::Identity() - 0.5 * W + inverseCoefficient(theta, k) * W * W;
   Vec6 xi;
-  xi << V_inv * T.translation(), w;
+  xi.head<3>() = V_inv * T.translation();
+  xi.tail<3>() = w;
   return xi;
 }
 

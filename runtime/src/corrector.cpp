@@ -185,8 +185,8 @@ void dampedStep(const Jacobian& J, const Vec6& e, const InverseOptions& options,
 /// Lie bracket [ξ, η] = ad_ξ η of two twists (v, ω).
 Vec6 bracket(const Vec6& xi, const Vec6& eta) noexcept {
   Vec6 out;
-  out << xi.tail<3>().cross(eta.head<3>()) + xi.head<3>().cross(eta.tail<3>()),
-      xi.tail<3>().cross(eta.tail<3>());
+  out.head<3>() = xi.tail<3>().cross(eta.head<3>()) + xi.head<3>().cross(eta.tail<3>());
+  out.tail<3>() = xi.tail<3>().cross(eta.tail<3>());
   return out;
 }
 

@@ -72,12 +72,12 @@ TwinRobot::TwinRobot(const TwinOptions& options) {
     for (int k = 0; k <= n; ++k) {
       Vec6& delta = geometric_errors_[static_cast<size_t>(k)];
       if (k < n) {
-        delta << rng.normal3(options.joint_frame_translation_sigma_m),
-            rng.normal3(options.joint_frame_rotation_sigma_rad);
+        delta.head<3>() = rng.normal3(options.joint_frame_translation_sigma_m);
+        delta.tail<3>() = rng.normal3(options.joint_frame_rotation_sigma_rad);
       } else {
         // The tool (T-Mac mount) is where a real robot's nominal model is worst.
-        delta << options.tool_translation_error_m * rng.unitVector(),
-            options.tool_rotation_error_rad * rng.unitVector();
+        delta.head<3>() = options.tool_translation_error_m * rng.unitVector();
+        delta.tail<3>() = options.tool_rotation_error_rad * rng.unitVector();
       }
       chain_.setInitialPose(k, nominal.initialPose(k) * lie::expSE3(delta));
     }
@@ -108,7 +108,8 @@ Vec6 TwinRobot::payloadWrenchAtBase(const ChainWorkspace& ws, double load_kg) co
   const Vec3 p_CoGInBase = framePose(chain_, ws, sensor_frame_) * p_CoGInSensor_m_;
   const Vec3 f = load_kg * gravity_in_base_;
   Vec6 W;
-  W << f, p_CoGInBase.cross(f);
+  W.head<3>() = f;
+  W.tail<3>() = p_CoGInBase.cross(f);
   return W;
 }
 
@@ -148,7 +149,8 @@ Vec6 TwinRobot::sensorWrench(const JointVector& q_cmd_rad, double load_kg) const
   const Mat3 R_BaseSensor = framePose(chain_, ws, sensor_frame_).linear();
   const Vec3 f_Sensor = R_BaseSensor.transpose() * (load_kg * gravity_in_base_);
   Vec6 W;
-  W << f_Sensor, p_CoGInSensor_m_.cross(f_Sensor);
+  W.head<3>() = f_Sensor;
+  W.tail<3>() = p_CoGInSensor_m_.cross(f_Sensor);
   return W;
 }
 

@@ -8,7 +8,7 @@ packages=(
   build-essential cmake pkg-config git clang libclang-rt-14-dev
   libeigen3-dev libgtest-dev libbenchmark-dev
   liburdfdom-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev liblbfgspp-dev
-  liblcm-dev liblcm-bin
+  liblcm-dev liblcm-bin jq
 )
 missing=()
 for p in "${packages[@]}"; do

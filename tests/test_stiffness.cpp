@@ -50,7 +50,8 @@ LoadedCampaign makeCampaign(uint64_t seed, double sigma_p, double sigma_r, bool 
         deflectedJointAngles(s.chain_Tracker, s.sensor, q, wrench, compliance, ws, q_link);
         const Pose X_TrackerSensor = framePose(s.chain_Tracker, ws, s.sensor);
         const Vec3 f_Sensor = X_TrackerSensor.linear().transpose() * (load * g_Tracker);
-        wrench << f_Sensor, p_CoGInSensor.cross(f_Sensor);
+        wrench.head<3>() = f_Sensor;
+        wrench.tail<3>() = p_CoGInSensor.cross(f_Sensor);
       }
       deflectedJointAngles(s.chain_Tracker, s.sensor, q, wrench, compliance, ws, q_link);
       Measurement m;

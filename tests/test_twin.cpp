@@ -182,7 +182,8 @@ Vec6 payloadWrench(const TwinRobot& robot, const JointVector& theta, double load
   const Vec3 p = framePose(robot.trueChain(), ws, robot.sensorFrame()) * robot.p_CoGInSensor_m();
   const Vec3 f = load_kg * robot.gravityInBase();
   Vec6 W;
-  W << f, p.cross(f);
+  W.head<3>() = f;
+  W.tail<3>() = p.cross(f);
   return W;
 }
 

@@ -15,29 +15,15 @@
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/common/urdf.hpp"
+#include "support/command.hpp"
 
 namespace stepcal {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct CommandResult {
-  int status = -1;
-  std::string out;
-};
-
-// Runs a shell command, capturing stdout (and stderr when asked).
-CommandResult run(const std::string& command) {
-  CommandResult r;
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buf{};
-  size_t n = 0;
-  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
-  const int status = pclose(pipe);
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using test::CommandResult;
+using test::run;
 
 const std::string kStepcal = std::string(STEPCAL_BIN_DIR) + "/stepcal";
 

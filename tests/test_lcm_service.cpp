@@ -29,6 +29,7 @@
 #include "stepcal/service/service.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
+#include "support/command.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/files.hpp"
 
@@ -518,22 +519,8 @@ TEST(LcmService, HandlingARequestAllocatesNothing) {
 
 // ---- the daemon and the client as processes (memq:// or no LCM at all: no network needed) ---
 
-struct CommandResult {
-  int status = -1;
-  std::string out;
-};
-
-CommandResult run(const std::string& command) {
-  CommandResult r;
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  size_t n = 0;
-  while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) r.out.append(buf, n);
-  const int status = pclose(pipe);
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using test::CommandResult;
+using test::run;
 
 const std::string kDaemon = std::string(STEPCAL_BIN_DIR) + "/stepcal-runtime";
 

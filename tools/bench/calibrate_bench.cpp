@@ -53,25 +53,27 @@ void BM_GprFitPaperSize(benchmark::State& state) {
 double minimum(const std::vector<double>& v) { return *std::min_element(v.begin(), v.end()); }
 double maximum(const std::vector<double>& v) { return *std::max_element(v.begin(), v.end()); }
 
+// One run per repetition (a calibration takes about a second), 10 repetitions reported as
+// mean, median, stddev, min and max.
+void registerRepeated(const char* name, void (*function)(benchmark::State&)) {
+  benchmark::RegisterBenchmark(name, function)
+      ->Unit(benchmark::kMillisecond)
+      ->UseRealTime()
+      ->Iterations(1)
+      ->Repetitions(10)
+      ->ComputeStatistics("min", minimum)
+      ->ComputeStatistics("max", maximum)
+      ->ReportAggregatesOnly(true);
+}
+
 }  // namespace
 
-// One calibration per repetition (it takes about a second); override with
-// --benchmark_repetitions=N.
-BENCHMARK(BM_CalibratePaperCampaign)
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime()
-    ->Iterations(1)
-    ->Repetitions(10)
-    ->ComputeStatistics("min", minimum)
-    ->ComputeStatistics("max", maximum)
-    ->ReportAggregatesOnly(true);
-BENCHMARK(BM_GprFitPaperSize)
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime()
-    ->Iterations(1)
-    ->Repetitions(10)
-    ->ComputeStatistics("min", minimum)
-    ->ComputeStatistics("max", maximum)
-    ->ReportAggregatesOnly(true);
-
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  registerRepeated("BM_CalibratePaperCampaign", BM_CalibratePaperCampaign);
+  registerRepeated("BM_GprFitPaperSize", BM_GprFitPaperSize);
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

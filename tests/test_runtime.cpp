@@ -25,6 +25,7 @@
 #include "stepcal/twin/twin.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/files.hpp"
+#include "support/random_gpr.hpp"
 
 namespace stepcal::runtime {
 namespace {
@@ -90,34 +91,6 @@ InverseOptions tightOptions() {
   return options;
 }
 
-// A consistent GPR with D inputs and P outputs on random data (α solved by Cholesky).
-GprParameters randomGpr(int m, int D, int P) {
-  std::mt19937_64 rng(11);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  GprParameters g;
-  g.inputs_normalised = Eigen::MatrixXd::NullaryExpr(m, D, [&] { return normal(rng); });
-  g.input_offset = Eigen::VectorXd::Zero(D);
-  g.input_scale = Eigen::VectorXd::Ones(D);
-  g.length_scales = Eigen::VectorXd::Constant(D, 2.0);
-  g.output_mean = Eigen::VectorXd::Zero(P);
-  g.output_scale = Eigen::VectorXd::Constant(P, 1e-4);
-  g.signal_sigma = 0.9;
-  g.noise_sigma = 0.1;
-  g.targets_standardised = Eigen::MatrixXd::NullaryExpr(m, P, [&] { return normal(rng); });
-  Eigen::MatrixXd K(m, m);
-  for (int i = 0; i < m; ++i) {
-    for (int j = 0; j < m; ++j) {
-      const double d2 = ((g.inputs_normalised.row(i) - g.inputs_normalised.row(j)).array() /
-                         g.length_scales.transpose().array())
-                            .square()
-                            .sum();
-      K(i, j) = g.signal_sigma * g.signal_sigma * std::exp(-0.5 * d2);
-    }
-  }
-  K.diagonal().array() += g.noise_sigma * g.noise_sigma;
-  g.alpha = K.llt().solve(g.targets_standardised);
-  return g;
-}
 
 TEST(Runtime, StatusNames) {
   EXPECT_STREQ(toString(Status::kOk), "OK");
@@ -216,7 +189,7 @@ TEST(Runtime, RefusesModelsTheRealTimePathCannotUse) {
 
   for (const auto& [D, P] : {std::pair{n + 5, 6}, std::pair{n + 6, 5}}) {
     CalibratedModel wrong_gpr = good;
-    wrong_gpr.gpr = randomGpr(30, D, P);
+    wrong_gpr.gpr = test::randomConsistentGpr(30, D, P);
     try {
       RuntimeModel::fromModel(wrong_gpr, 1);
       ADD_FAILURE() << "a GPR of " << D << " inputs and " << P << " outputs was accepted";
@@ -225,7 +198,7 @@ TEST(Runtime, RefusesModelsTheRealTimePathCannotUse) {
     }
   }
   CalibratedModel right_gpr = good;
-  right_gpr.gpr = randomGpr(30, n + 6, 6);
+  right_gpr.gpr = test::randomConsistentGpr(30, n + 6, 6);
   EXPECT_NO_THROW(RuntimeModel::fromModel(right_gpr, 1));
 }
 
@@ -464,7 +437,7 @@ TEST(Runtime, MalformedRequestsAreBadRequests) {
 
   // A workspace sized for another model is refused, not resized.
   CalibratedModel small_gpr = paper().model;
-  small_gpr.gpr = randomGpr(30, static_cast<int>(row.q_rad.size()) + 6, 6);
+  small_gpr.gpr = test::randomConsistentGpr(30, static_cast<int>(row.q_rad.size()) + 6, 6);
   const auto other = RuntimeModel::fromModel(small_gpr, 3);
   Workspace other_ws = makeWorkspace(*other);
   EXPECT_FALSE(workspaceFits(model, other_ws));

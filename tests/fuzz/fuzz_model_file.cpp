@@ -53,12 +53,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
 
 #else
 
-#include <Eigen/Cholesky>
-#include <cmath>
 #include <cstdio>
-#include <random>
 #include <string>
 
+#include "../support/random_gpr.hpp"
+#include "seed_file.hpp"
 #include "stepcal/common/lie.hpp"
 
 namespace {
@@ -83,42 +82,8 @@ stepcal::KinematicChain seedChain() {
                                  {{"flange", 6, Pose::Identity()}, {"ft_sensor", 6, X_SixSensor}});
 }
 
-stepcal::GprParameters seedGpr(int m, int D, int P) {
-  std::mt19937_64 rng(1);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  stepcal::GprParameters g;
-  g.inputs_normalised = Eigen::MatrixXd::NullaryExpr(m, D, [&] { return normal(rng); });
-  g.input_offset = Eigen::VectorXd::Zero(D);
-  g.input_scale = Eigen::VectorXd::Ones(D);
-  g.output_mean = Eigen::VectorXd::Zero(P);
-  g.output_scale = Eigen::VectorXd::Constant(P, 1e-4);
-  g.length_scales = Eigen::VectorXd::Constant(D, 2.0);
-  g.signal_sigma = 1.0;
-  g.noise_sigma = 0.1;
-  g.targets_standardised = Eigen::MatrixXd::NullaryExpr(m, P, [&] { return normal(rng); });
-  Eigen::MatrixXd K(m, m);
-  for (int i = 0; i < m; ++i) {
-    for (int j = 0; j < m; ++j) {
-      const double d2 = ((g.inputs_normalised.row(i) - g.inputs_normalised.row(j)).array() /
-                         g.length_scales.transpose().array())
-                            .square()
-                            .sum();
-      K(i, j) = std::exp(-0.5 * d2) + (i == j ? g.noise_sigma * g.noise_sigma : 0.0);
-    }
-  }
-  g.alpha = K.llt().solve(g.targets_standardised);
-  return g;
-}
-
 void writeSeed(const std::string& path, const stepcal::CalibratedModel& model) {
-  const std::vector<uint8_t> bytes = stepcal::serializeModel(model);
-  std::FILE* f = std::fopen(path.c_str(), "wb");
-  if (f == nullptr || std::fwrite(bytes.data(), 1, bytes.size(), f) != bytes.size() ||
-      std::fclose(f) != 0) {
-    std::fprintf(stderr, "cannot write %s\n", path.c_str());
-    std::exit(1);
-  }
-  std::printf("%s: %zu bytes\n", path.c_str(), bytes.size());
+  stepcal::fuzz::writeSeedBytes(path, stepcal::serializeModel(model));
 }
 
 }  // namespace
@@ -142,7 +107,7 @@ int main(int argc, char** argv) {
   full.gravity_Base = stepcal::Vec3(0, 0, -9.80665);
   full.compliance_rad_per_nm = stepcal::JointVector::Constant(6, 2e-6);
   full.compliance_sigma_rad_per_nm = stepcal::JointVector::Constant(6, 1e-7);
-  full.gpr = seedGpr(8, 12, 6);
+  full.gpr = stepcal::test::randomConsistentGpr(8, 12, 6);
   full.provenance = {"0123abcd", "2024-05-01T12:34:56Z", "stepcal 0.1.0", "/data/c1",
                      {{"POE + stiffness + GPR", 20, 30, 1e-4, 3e-4, 2e-4}}};
   writeSeed(folder + "/full.model", full);

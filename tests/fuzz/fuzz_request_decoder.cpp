@@ -75,18 +75,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
 #include <cstdio>
 #include <string>
 
+#include "seed_file.hpp"
+
 namespace {
 
 void writeSeed(const std::string& path, const correction_request_t& msg) {
   std::vector<uint8_t> bytes(size_t(msg.getEncodedSize()));
   msg.encode(bytes.data(), 0, int(bytes.size()));
-  std::FILE* f = std::fopen(path.c_str(), "wb");
-  if (f == nullptr || std::fwrite(bytes.data(), 1, bytes.size(), f) != bytes.size() ||
-      std::fclose(f) != 0) {
-    std::fprintf(stderr, "cannot write %s\n", path.c_str());
-    std::exit(1);
-  }
-  std::printf("%s: %zu bytes\n", path.c_str(), bytes.size());
+  stepcal::fuzz::writeSeedBytes(path, bytes);
 }
 
 }  // namespace

@@ -48,4 +48,10 @@ void expectInputError(Call&& call, const std::string& file, int line, const std:
   }
 }
 
+/// Expects call() to throw an InputError that names no file, with every one of message_parts.
+template <typename Call>
+void expectInputError(Call&& call, const std::vector<std::string>& message_parts) {
+  expectInputError(std::forward<Call>(call), "", 0, "", message_parts);
+}
+
 }  // namespace stepcal::test

@@ -19,10 +19,15 @@
 #include <stepcal_lcm/correction_reply_t.hpp>
 #include <stepcal_lcm/correction_request_t.hpp>
 #include <stepcal_lcm/runtime_status_t.hpp>
+#include <stepcal_lcm/sensor_command_t.hpp>
+#include <stepcal_lcm/sensor_status_t.hpp>
 #include <stepcal_lcm/wrench_t.hpp>
+#include <sys/socket.h>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/ftsim/simulator.hpp"
 #include "stepcal/runtime/corrector.hpp"
+#include "stepcal/service/can_feed.hpp"
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/lcm_server.hpp"
 #include "stepcal/service/request.hpp"
@@ -385,6 +390,111 @@ TEST(LcmService, StaleLiveWrenchIsStaleWrench) {
   EXPECT_EQ(memq.feed().undecodable(), 1);
 }
 
+/// Every message on one channel of an LCM instance, as bytes.
+struct ChannelLog {
+  std::vector<std::vector<uint8_t>> messages;
+  static void on(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+    const auto* data = static_cast<const uint8_t*>(rbuf->data);
+    static_cast<ChannelLog*>(user)->messages.emplace_back(data, data + rbuf->data_size);
+  }
+};
+
+// The CAN feed with the simulated sensor on a socketpair (the same driver runs on vcan in
+// test_ft_sensor): live requests use its wrench, stamped; commands arrive over LCM; its health and
+// the republished samples leave over LCM.
+TEST(LcmService, CanFeedServesTheLiveWrenchAndTakesCommands) {
+  const std::unique_ptr<lcm_t, void (*)(lcm_t*)> lcm(lcm_create("memq://"), &lcm_destroy);
+  Service service(paperModel(), "paper.stepcal", generousOptions());
+  LcmServer server(lcm.get(), service);
+  int ends[2];
+  ASSERT_EQ(socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, ends), 0);
+  runtime::CanSocket sensor_end = runtime::CanSocket::adopt(ends[1], "socketpair");
+  const Measurement& row = validationRow(3);
+  ftsim::SensorSimulator simulator({});
+  simulator.setWrench(row.wrenchOrZero());
+  std::atomic<bool> stop{false};
+  std::thread sensor([&] { simulator.serve(sensor_end, stop); });
+
+  ChannelLog replies, statuses, republished;
+  lcm_subscribe(lcm.get(), kReplyChannel, &ChannelLog::on, &replies);
+  lcm_subscribe(lcm.get(), kSensorStatusChannel, &ChannelLog::on, &statuses);
+  lcm_subscribe(lcm.get(), "CAN_WRENCH", &ChannelLog::on, &republished);
+  {
+    runtime::FtSensorOptions options;
+    options.bias_samples = 2;
+    options.poll_hz = 100.0;  // republished samples 10 ms apart: pump() (5 ms idle) returns
+    CanWrenchFeed feed(lcm.get(), runtime::CanSocket::adopt(ends[0], "socketpair"), options,
+                       "CAN_WRENCH", service);
+    EXPECT_NE(feed.describe().find("serial FT24093"), std::string::npos) << feed.describe();
+    const auto pump = [&] {
+      while (lcm_handle_timeout(lcm.get(), 5) > 0) {
+      }
+    };
+    correction_request_t live = forwardRequest(row, 21);
+    live.wrench_source = correction_request_t::WRENCH_LIVE_SENSOR;
+    const auto ask = [&](const correction_request_t& msg) {
+      replies.messages.clear();
+      const std::vector<uint8_t> bytes = encode(msg);
+      lcm_publish(lcm.get(), kRequestChannel, bytes.data(), unsigned(bytes.size()));
+      pump();
+      correction_reply_t reply{};
+      EXPECT_EQ(replies.messages.size(), 1u);
+      if (!replies.messages.empty()) {
+        reply.decode(replies.messages[0].data(), 0, int(replies.messages[0].size()));
+      }
+      return reply;
+    };
+    while (feed.driver().counters().samples < 3) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    const int64_t before_ns = runtime::steadyNowNs();
+    const correction_reply_t from_sensor = ask(live);
+    const correction_reply_t from_row = ask(forwardRequest(row, 22));
+    ASSERT_EQ(from_sensor.status, int8_t(Status::kOk));
+    EXPECT_GT(from_sensor.wrench_stamp_ns, before_ns - 50'000'000);
+    EXPECT_LE(from_sensor.wrench_stamp_ns, runtime::steadyNowNs());
+    EXPECT_EQ(from_row.wrench_stamp_ns, 0) << "a given wrench has no stamp";
+    // The sensor rounds the wrench to whole gauge counts (≈ 0.05 N): far below a micrometre.
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(from_sensor.predicted_position_m[k], from_row.predicted_position_m[k], 1e-7);
+    }
+
+    stepcal_lcm::sensor_command_t bias{};
+    bias.command = stepcal_lcm::sensor_command_t::COMMAND_BIAS;
+    std::vector<uint8_t> bytes(size_t(bias.getEncodedSize()));
+    bias.encode(bytes.data(), 0, int(bytes.size()));
+    lcm_publish(lcm.get(), kSensorCommandChannel, bytes.data(), unsigned(bytes.size()));
+    pump();
+    while (!feed.driver().biased()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    correction_request_t unloaded = forwardRequest(row, 23);
+    for (double& w : unloaded.wrench) w = 0.0;
+    const correction_reply_t tared = ask(live);
+    const correction_reply_t zero = ask(unloaded);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(tared.predicted_position_m[k], zero.predicted_position_m[k], 1e-12)
+          << "after the tare the sensor reads zero";
+    }
+
+    feed.publishStatus();
+    pump();
+    ASSERT_EQ(statuses.messages.size(), 1u);
+    stepcal_lcm::sensor_status_t status{};
+    status.decode(statuses.messages[0].data(), 0, int(statuses.messages[0].size()));
+    EXPECT_EQ(status.serial, "FT24093");
+    EXPECT_EQ(status.firmware, "3.2.41");
+    EXPECT_EQ(status.state, stepcal_lcm::sensor_status_t::STATE_RUNNING);
+    EXPECT_EQ(status.biased, 1);
+    EXPECT_GT(status.samples, 3);
+    EXPECT_LE(status.polls - status.timeouts - status.samples, 1) << "one poll may be in flight";
+    pump();
+    EXPECT_GE(int64_t(republished.messages.size()), 1);
+    stepcal_lcm::wrench_t sample{};
+    ASSERT_GT(sample.decode(republished.messages.back().data(), 0, int(republished.messages.back().size())), 0);
+    EXPECT_GT(sample.sequence, 0);
+  }
+  stop = true;
+  sensor.join();
+}
+
 TEST(LcmService, ReloadKeepsAnsweringAndChangesTheModelId) {
   MemqService memq;
   Service& service = memq.service();
@@ -544,9 +654,14 @@ TEST(LcmService, DaemonRefusesWhatItCannotServeWithExitStatus2) {
 
   const std::string six = (dir.path() / "six.stepcal").string();
   writeModelFile(paper().model, six);
-  r = run(kDaemon + " --model " + six + " --sensor can:can0 --lcm-url memq://");
+  // No such interface (and on this kernel perhaps no SocketCAN at all): named, with a hint.
+  r = run(kDaemon + " --model " + six + " --sensor can:nocan9 --lcm-url memq://");
   EXPECT_EQ(r.status, 2) << r.out;
-  EXPECT_NE(r.out.find("CAN force sensor is not implemented"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("CAN interface 'nocan9'"), std::string::npos) << r.out;
+  r = run(kDaemon + " --model " + six + " --sensor serial:/dev/ttyS0 --lcm-url memq://");
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find("expected lcm"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("can:IFACE"), std::string::npos) << r.out;
 }
 
 TEST(LcmService, DaemonReloadsOnSighupAndStopsOnSigterm) {

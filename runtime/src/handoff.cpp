@@ -65,7 +65,8 @@ bool WrenchSlot::read(WrenchSample& out) const noexcept {
   return false;
 }
 
-Status wrenchFor(const WrenchSlot& slot, int64_t now_ns, int64_t max_age_ns, Vec6& out) noexcept {
+Status wrenchFor(const WrenchSlot& slot, int64_t now_ns, int64_t max_age_ns, Vec6& out,
+                 int64_t* stamp_ns) noexcept {
   WrenchSample sample;
   if (max_age_ns < 0 || !slot.read(sample) || sample.sensor_status != 0 ||
       !sample.wrench_Sensor.allFinite()) {
@@ -76,6 +77,7 @@ Status wrenchFor(const WrenchSlot& slot, int64_t now_ns, int64_t max_age_ns, Vec
   const uint64_t distance_ns = now_ns >= sample.stamp_ns ? now - stamp : stamp - now;
   if (distance_ns > static_cast<uint64_t>(max_age_ns)) return Status::kStaleWrench;
   out = sample.wrench_Sensor;
+  if (stamp_ns != nullptr) *stamp_ns = sample.stamp_ns;
   return Status::kOk;
 }
 

@@ -3,7 +3,7 @@
 //   stepcal-client --forward q1 … q6 [--wrench fx fy fz mx my mz]          one request, rad / N, N·m
 //   stepcal-client --inverse x y z qw qx qy qz [--seed q1 … q6] [--wrench …]   m, unit quaternion
 //   stepcal-client --campaign DIR [--set validation] [--mode forward|inverse] [--count N]
-//                  [--rate HZ] [--truth truth.json] [--json]
+//                  [--rate HZ] [--truth truth.json] [--live-wrench [--settle-ms 5]] [--json]
 //   stepcal-client --ping N [--json]     raw LCM round trips to a `stepcal-client --echo`
 //   stepcal-client --echo                answers STEPCAL_PING on STEPCAL_PONG until SIGINT/SIGTERM
 //
@@ -13,7 +13,13 @@
 // wrench (wrench_source = given). Accuracy counts OK replies only. Forward accuracy is against
 // the rows' measured poses; inverse requests ask for the measured pose from a seed 2° off the
 // row's joints (alternating sign), and their accuracy is against the twin's truth (where the true
-// robot goes at q_target) when --truth is given, else the solver's own residual.
+// robot goes at q_target) when --truth is given, else the solver's own residual. Forward answers
+// are also checked against the truth (where the true robot goes at q) when --truth is given.
+//
+// --live-wrench: the requests use the daemon's live sensor instead of the rows' wrenches. Before
+// each request the client publishes the row's joints and payload as robot_state_t (for a
+// simulated sensor, stepcal-ftsim --truth) and waits --settle-ms for the sensor to feel it; the
+// report adds the latency from the CAN frame (the reply's wrench_stamp_ns) to the reply.
 #include <CLI/CLI.hpp>
 #include <poll.h>
 #include <signal.h>
@@ -33,6 +39,7 @@
 #include <nlohmann/json.hpp>
 #include <stepcal_lcm/correction_reply_t.hpp>
 #include <stepcal_lcm/correction_request_t.hpp>
+#include <stepcal_lcm/robot_state_t.hpp>
 
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
@@ -65,6 +72,8 @@ struct Args {
   int deadline_us = 0;
   double timeout_ms = 100.0;
   bool json = false;
+  bool live_wrench = false;
+  double settle_ms = 5.0;
 };
 
 /// An LCM instance for the lifetime of the object.
@@ -228,7 +237,7 @@ std::vector<correction_request_t> campaignRequests(const Args& args,
     const Measurement& row = *rows[size_t(i) % rows.size()];
     correction_request_t msg = emptyRequest(args);
     msg.mode = inverse ? correction_request_t::MODE_INVERSE : correction_request_t::MODE_FORWARD;
-    setWrench(msg, row.wrenchOrZero());
+    if (!args.live_wrench) setWrench(msg, row.wrenchOrZero());
     for (int j = 0; j < service::kMessageJoints; ++j) {
       msg.q_rad[j] = row.q_rad[j];
       msg.seed_q_rad[j] = row.q_rad[j] + (j % 2 ? -kSeedOffsetRad : kSeedOffsetRad);
@@ -272,10 +281,11 @@ std::optional<int64_t> replyId(const lcm_recv_buf_t* rbuf) {
   return reply.request_id;
 }
 
-/// Requests sent with Exchange, their replies kept.
-std::vector<correction_reply_t> sendRequests(lcm_t* lcm, const Args& args,
-                                             std::vector<correction_request_t> requests,
-                                             Exchange& exchange) {
+/// Requests sent with Exchange, their replies kept. before_send(i), when given, runs before
+/// request i leaves; its time does not count in the round trip.
+std::vector<correction_reply_t> sendRequests(
+    lcm_t* lcm, const Args& args, std::vector<correction_request_t> requests, Exchange& exchange,
+    const std::function<void(size_t)>& before_send = nullptr) {
   std::vector<correction_reply_t> replies(requests.size());
   exchange.timeout_s = args.timeout_ms * 1e-3;
   exchange.id_of = replyId;
@@ -285,6 +295,10 @@ std::vector<correction_reply_t> sendRequests(lcm_t* lcm, const Args& args,
   std::vector<uint8_t> buffer(size_t(requests.front().getEncodedSize()));
   runExchange(lcm, service::kReplyChannel, int(requests.size()), args.rate_hz, exchange,
               [&](size_t i, int64_t id) {
+                if (before_send) {
+                  before_send(i);
+                  exchange.sent[i] = Clock::now();
+                }
                 correction_request_t& msg = requests[i];
                 msg.request_id = id;
                 msg.utime = unixMicroseconds();
@@ -432,8 +446,9 @@ int runCampaign(Args args) {
     throw InputError("--mode '" + args.mode + "': expected forward or inverse");
   }
   const bool inverse = args.mode == "inverse";
-  if (!args.truth_path.empty() && !inverse) {
-    throw InputError("--truth: only inverse requests are checked against the truth");
+  if (!(args.settle_ms >= 0.0)) throw InputError("--settle-ms must be ≥ 0");
+  if (args.live_wrench && args.rate_hz > 0.0) {
+    throw InputError("--live-wrench sends one request at a time: drop --rate");
   }
   const Campaign campaign = readCampaign(args.campaign_dir);
   if (campaign.joint_count != service::kMessageJoints) {
@@ -459,12 +474,25 @@ int runCampaign(Args args) {
   std::vector<correction_request_t> requests = campaignRequests(args, rows, row_of);
   const Lcm lcm(args.lcm_url);
   Exchange exchange;
+  std::vector<uint8_t> state_buffer(size_t(stepcal_lcm::robot_state_t{}.getEncodedSize()));
+  const auto publishRobotState = [&](size_t i) {
+    // Where the robot now is and what it carries; the sensor needs settle_ms to feel it.
+    stepcal_lcm::robot_state_t state{};
+    state.utime = unixMicroseconds();
+    for (int j = 0; j < service::kMessageJoints; ++j) state.q_rad[j] = row_of[i]->q_rad[j];
+    state.payload_kg = row_of[i]->load_kg;
+    const int size = state.encode(state_buffer.data(), 0, int(state_buffer.size()));
+    lcm_publish(lcm.get(), service::kRobotStateChannel, state_buffer.data(), unsigned(size));
+    handleUntil(lcm.get(), Clock::now() + std::chrono::microseconds(int64_t(args.settle_ms * 1e3)));
+  };
   const std::vector<correction_reply_t> replies =
-      sendRequests(lcm.get(), args, std::move(requests), exchange);
+      sendRequests(lcm.get(), args, std::move(requests), exchange,
+                   args.live_wrench ? std::function<void(size_t)>(publishRobotState) : nullptr);
 
   long status_counts[kStatusCount] = {};
   std::vector<double> compute_us;
-  Accuracy accuracy;
+  Accuracy accuracy, forward_truth;
+  std::vector<double> frame_to_reply_us;
   double iterations = 0;
   int64_t model_id = 0;
   for (size_t i = 0; i < replies.size(); ++i) {
@@ -473,6 +501,14 @@ int runCampaign(Args args) {
     if (r.status >= 0 && r.status < kStatusCount) ++status_counts[r.status];
     compute_us.push_back(double(r.compute_ns) * 1e-3);
     model_id = r.model_id;
+    if (r.wrench_stamp_ns > 0) {
+      // Both stamps are CLOCK_MONOTONIC of this host: the daemon and the client run side by side.
+      const int64_t received_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                      exchange.sent[i].time_since_epoch())
+                                      .count() +
+                                  int64_t(exchange.round_trip_us[i] * 1e3);
+      frame_to_reply_us.push_back(double(received_ns - r.wrench_stamp_ns) * 1e-3);
+    }
     if (r.status != int8_t(runtime::Status::kOk)) continue;  // accuracy of plain answers
     const Measurement& row = *row_of[i];
     iterations += r.iterations;
@@ -482,6 +518,11 @@ int runCampaign(Args args) {
                    row.has_orientation ? std::optional<double>(lie::angleBetween(
                                              row.q_TrackerTip.toRotationMatrix(), X.linear()))
                                        : std::nullopt);
+      if (truth) {
+        const Pose X_true = truth->X_TrackerTip(row.q_rad, row.load_kg);
+        forward_truth.add((X.translation() - X_true.translation()).norm(),
+                          lie::angleBetween(X_true.linear(), X.linear()));
+      }
     } else if (truth) {
       const Pose X_true = truth->X_TrackerTip(jointsOf(r.q_target_rad), row.load_kg);
       const Pose X_desired = row.X_TrackerTip();
@@ -512,7 +553,11 @@ int runCampaign(Args args) {
        accuracy.toJson(inverse ? (truth ? "twin truth" : "solver residual") : "measured pose")}};
   if (inverse) {
     report["mean_iterations"] = accuracy.poses ? iterations / accuracy.poses : 0.0;
+  } else if (truth) {
+    report["accuracy_truth"] = forward_truth.toJson("twin truth");
   }
+  report["wrench"] = args.live_wrench ? "live sensor" : "given (the rows' measured wrench)";
+  if (args.live_wrench) report["sensor_frame_to_reply_us"] = latencyJson(frame_to_reply_us);
   if (args.json) {
     std::cout << report.dump(2) << "\n";
   } else {
@@ -527,6 +572,15 @@ int runCampaign(Args args) {
                 a["against"].get<std::string>().c_str(), accuracy.poses,
                 a["mean_position_mm"].get<double>(), a["max_position_mm"].get<double>(),
                 a["mean_orientation_deg"].get<double>());
+    if (report.contains("accuracy_truth")) {
+      const nlohmann::json& t = report["accuracy_truth"];
+      std::printf("accuracy (twin truth): mean %.4f mm, max %.4f mm, mean %.4f deg\n",
+                  t["mean_position_mm"].get<double>(), t["max_position_mm"].get<double>(),
+                  t["mean_orientation_deg"].get<double>());
+    }
+    if (args.live_wrench) {
+      std::cout << "CAN frame to reply: " << latencyText(report["sensor_frame_to_reply_us"]) << "\n";
+    }
   }
   return 0;
 }
@@ -622,7 +676,12 @@ int main(int argc, char** argv) {
   app.add_option("--mode", args.mode, "campaign requests: forward | inverse")->capture_default_str();
   app.add_option("--count", args.count, "campaign requests to send (rows cycle; default: one per row)");
   app.add_option("--rate", args.rate_hz, "requests per second (default: one in flight at a time)");
-  app.add_option("--truth", args.truth_path, "inverse: the twin's truth.json to check answers against");
+  app.add_option("--truth", args.truth_path, "the twin's truth.json to check answers against");
+  app.add_flag("--live-wrench", args.live_wrench,
+               "campaign: use the daemon's live sensor; publish each row's joints and payload as "
+               "robot_state_t first");
+  app.add_option("--settle-ms", args.settle_ms,
+                 "--live-wrench: wait after publishing the robot state, ms")->capture_default_str();
   app.add_option("--ping", args.ping_count, "raw LCM round trips to `stepcal-client --echo`");
   app.add_flag("--echo", args.echo, "answer STEPCAL_PING on STEPCAL_PONG until stopped");
   app.add_option("--deadline-us", args.deadline_us,

@@ -2,10 +2,13 @@
 // over LCM with a calibrated model (docs/runtime.md).
 //
 //   stepcal-runtime --model MODEL [--lcm-url URL] [--budget-us 200] [--max-wrench-age-ms 20]
-//                   [--wrench-channel STEPCAL_WRENCH] [--sensor lcm] [--realtime]
+//                   [--sensor lcm | can:IFACE] [--wrench-channel STEPCAL_WRENCH]
+//                   [--sensor-base-id 0x20] [--sensor-rate-hz 1000] [--sensor-calibration 0]
+//                   [--sensor-bias-samples 16] [--sensor-republish CHANNEL] [--realtime]
 //
 // One serving thread polls the LCM socket, a signalfd (SIGHUP reload, SIGINT/SIGTERM stop) and a
-// 10 Hz timerfd (status). Reloads load the new file on their own thread and swap it in through
+// 10 Hz timerfd (status). With --sensor can:IFACE the F/T driver polls on its own thread
+// (created after --realtime's settings, so it inherits them). Reloads load the new file on their own thread and swap it in through
 // the service's ModelHandle, so requests keep being answered meanwhile; a refused file leaves the
 // model in service as it is.
 #include <CLI/CLI.hpp>
@@ -145,8 +148,7 @@ struct DaemonArgs {
   std::string lcm_url = service::kDefaultLcmUrl;
   int budget_us = 200;
   double max_wrench_age_ms = 20.0;
-  std::string wrench_channel = service::kWrenchChannel;
-  std::string sensor = "lcm";
+  service::SensorArgs sensor;
   bool realtime = false;
 };
 
@@ -172,7 +174,7 @@ int serve(const DaemonArgs& args) {
   const std::unique_ptr<lcm_t, void (*)(lcm_t*)> lcm_owner(lcm, &lcm_destroy);
   service::LcmServer server(lcm, service);
   const std::unique_ptr<service::WrenchFeed> feed =
-      service::makeWrenchFeed(args.sensor, lcm, args.wrench_channel, service);
+      service::makeWrenchFeed(args.sensor, lcm, service);
   Reloader reloader(service, args.model_path);
 
   const Fd timer_fd(timerfd_create(CLOCK_MONOTONIC, TFD_CLOEXEC), "timerfd");
@@ -208,6 +210,7 @@ int serve(const DaemonArgs& args) {
       uint64_t expirations = 0;
       if (read(timer_fd.get(), &expirations, sizeof expirations) == sizeof expirations) {
         server.publishStatus(realtime);
+        feed->publishStatus();
       }
     }
     if (fds[0].revents & POLLIN) lcm_handle(lcm);
@@ -227,10 +230,27 @@ int main(int argc, char** argv) {
   app.add_option("--max-wrench-age-ms", args.max_wrench_age_ms,
                  "a live wrench older than this gives STALE_WRENCH, ms")
       ->capture_default_str();
-  app.add_option("--wrench-channel", args.wrench_channel, "channel of the live wrench_t samples")
+  app.add_option("--sensor", args.sensor.sensor,
+                 "source of the live wrench: lcm (wrench_t on --wrench-channel) or can:IFACE (ATI "
+                 "Net CAN OEM F/T sensor on SocketCAN interface IFACE)")
       ->capture_default_str();
-  app.add_option("--sensor", args.sensor, "source of the live wrench: lcm (can:IFACE is planned)")
+  app.add_option("--wrench-channel", args.sensor.wrench_channel,
+                 "--sensor lcm: channel of the live wrench_t samples")
       ->capture_default_str();
+  app.add_option("--sensor-base-id", args.sensor.base_id,
+                 "--sensor can: the sensor's base id, 0 … 0x7F (CAN ids base << 4 | opcode)")
+      ->capture_default_str();
+  app.add_option("--sensor-rate-hz", args.sensor.rate_hz, "--sensor can: gauge polls per second")
+      ->capture_default_str();
+  app.add_option("--sensor-calibration", args.sensor.calibration_index,
+                 "--sensor can: calibration index made active at start-up, 0 … 15 (−1 keeps the "
+                 "sensor's)")
+      ->capture_default_str();
+  app.add_option("--sensor-bias-samples", args.sensor.bias_samples,
+                 "--sensor can: readings averaged per bias (sensor_command_t BIAS)")
+      ->capture_default_str();
+  app.add_option("--sensor-republish", args.sensor.republish_channel,
+                 "--sensor can: also publish every sample as wrench_t on this channel");
   app.add_flag("--realtime", args.realtime,
                "mlockall and SCHED_FIFO priority 80 (needs CAP_IPC_LOCK and CAP_SYS_NICE or the "
                "matching rlimits)");

@@ -8,6 +8,7 @@
 #include <stepcal_lcm/wrench_t.hpp>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/service/can_feed.hpp"
 #include "stepcal/service/channels.hpp"
 
 namespace stepcal::service {
@@ -72,15 +73,20 @@ void LcmWrenchFeed::onWrench(const lcm_recv_buf_t* rbuf, const char*, void* user
   self->service_.publishWrench(sample);
 }
 
-std::unique_ptr<WrenchFeed> makeWrenchFeed(const std::string& sensor, lcm_t* lcm,
-                                           const std::string& wrench_channel, Service& service) {
-  if (sensor == "lcm") return std::make_unique<LcmWrenchFeed>(lcm, wrench_channel, service);
-  if (sensor.rfind("can:", 0) == 0) {
-    throw InputError("--sensor '" + sensor +
-                     "': the CAN force sensor is not implemented yet; use --sensor lcm (wrench_t "
-                     "on --wrench-channel)");
+std::unique_ptr<WrenchFeed> makeWrenchFeed(const SensorArgs& args, lcm_t* lcm, Service& service) {
+  if (args.sensor == "lcm") return std::make_unique<LcmWrenchFeed>(lcm, args.wrench_channel, service);
+  if (args.sensor.rfind("can:", 0) == 0 && args.sensor.size() > 4) {
+    runtime::FtSensorOptions options;
+    options.base_id = args.base_id;
+    options.poll_hz = args.rate_hz;
+    options.calibration_index = args.calibration_index;
+    options.bias_samples = args.bias_samples;
+    return std::make_unique<CanWrenchFeed>(lcm, openSensorSocket(args.sensor.substr(4), args.base_id),
+                                           options, args.republish_channel, service);
   }
-  throw InputError("--sensor '" + sensor + "': expected lcm (can:IFACE is planned)");
+  throw InputError("--sensor '" + args.sensor +
+                   "': expected lcm (wrench_t on --wrench-channel) or can:IFACE (an ATI Net CAN "
+                   "OEM sensor on SocketCAN interface IFACE, e.g. can:can0)");
 }
 
 }  // namespace stepcal::service

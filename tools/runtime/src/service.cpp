@@ -117,7 +117,7 @@ Status Service::answer(const Request& request, const runtime::RuntimeModel& mode
   if (request.wrench_source == WrenchSource::kLiveSensor) {
     const Status wrench_status =
         runtime::wrenchFor(wrench_, steadyNanoseconds(Clock::now()),
-                           options_.max_wrench_age_ns, wrench_Sensor);
+                           options_.max_wrench_age_ns, wrench_Sensor, &reply_.wrench_stamp_ns);
     if (wrench_status != Status::kOk) return wrench_status;
   }
   if (request.mode == Mode::kForward) {

@@ -52,8 +52,9 @@ class WrenchSlot {
 /// The live wrench for a request, N and N·m in sensor axes: STALE_WRENCH when nothing was
 /// published, the sample reports a sensor fault or is not finite, or its stamp is more than
 /// max_age_ns from now_ns (either side: a stamp from the future means clocks disagree); else OK
-/// and out is set. Lock-free, allocation-free.
-Status wrenchFor(const WrenchSlot& slot, int64_t now_ns, int64_t max_age_ns, Vec6& out) noexcept;
+/// and out is set (and *stamp_ns, when given, to the sample's stamp). Lock-free, allocation-free.
+Status wrenchFor(const WrenchSlot& slot, int64_t now_ns, int64_t max_age_ns, Vec6& out,
+                 int64_t* stamp_ns = nullptr) noexcept;
 
 /// An immutable model that a non-real-time thread replaces while real-time threads use it.
 /// Each reader thread owns one slot (0 … kReaderSlots − 1) and holds at most one guard on it at a

@@ -7,6 +7,9 @@ inline constexpr const char* kRequestChannel = "STEPCAL_REQUEST";  ///< correcti
 inline constexpr const char* kReplyChannel = "STEPCAL_REPLY";      ///< correction_reply_t
 inline constexpr const char* kStatusChannel = "STEPCAL_STATUS";    ///< runtime_status_t, 10 Hz
 inline constexpr const char* kWrenchChannel = "STEPCAL_WRENCH";    ///< wrench_t (default)
+inline constexpr const char* kSensorCommandChannel = "STEPCAL_SENSOR_COMMAND";  ///< sensor_command_t
+inline constexpr const char* kSensorStatusChannel = "STEPCAL_SENSOR_STATUS";    ///< sensor_status_t
+inline constexpr const char* kRobotStateChannel = "STEPCAL_ROBOT_STATE";  ///< robot_state_t
 inline constexpr const char* kPingChannel = "STEPCAL_PING";  ///< raw bytes, client --ping
 inline constexpr const char* kPongChannel = "STEPCAL_PONG";  ///< the same bytes, client --echo
 

@@ -12,6 +12,7 @@
 
 #include <lcm/lcm.h>
 
+#include "stepcal/service/channels.hpp"
 #include "stepcal/service/service.hpp"
 
 namespace stepcal::service {
@@ -50,6 +51,8 @@ class WrenchFeed {
   virtual ~WrenchFeed() = default;
   /// For the start-up line, e.g. "lcm:STEPCAL_WRENCH".
   virtual std::string describe() const = 0;
+  /// Publishes the source's health, if it has any to tell (serving thread, 10 Hz).
+  virtual void publishStatus() {}
 };
 
 /// wrench_t messages on an LCM channel, received on the serving thread and stamped with their
@@ -72,10 +75,20 @@ class LcmWrenchFeed final : public WrenchFeed {
   int64_t undecodable_ = 0;
 };
 
-/// The feed named by --sensor: "lcm" (wrench_t on wrench_channel). A CAN sensor ("can:IFACE")
-/// will be a feed with its own reader thread; it does not exist yet. Throws InputError naming
-/// --sensor for anything else.
-std::unique_ptr<WrenchFeed> makeWrenchFeed(const std::string& sensor, lcm_t* lcm,
-                                           const std::string& wrench_channel, Service& service);
+/// What --sensor and the --sensor-* options of stepcal-runtime say.
+struct SensorArgs {
+  std::string sensor = "lcm";  ///< "lcm" or "can:IFACE"
+  std::string wrench_channel = kWrenchChannel;  ///< lcm: the channel read
+  uint32_t base_id = 0x20;     ///< can: the sensor's base id
+  double rate_hz = 1000.0;     ///< can: gauge polls per second
+  int calibration_index = 0;   ///< can: calibration made active at start-up (−1: keep)
+  int bias_samples = 16;       ///< can: readings averaged per bias (tare)
+  std::string republish_channel;  ///< can: also publish each sample as wrench_t here ("" none)
+};
+
+/// The feed named by args.sensor: "lcm" (wrench_t on wrench_channel) or "can:IFACE" (the ATI
+/// Net CAN OEM driver, CanWrenchFeed). Throws InputError naming --sensor for anything else, and
+/// the CAN feed's start-up errors.
+std::unique_ptr<WrenchFeed> makeWrenchFeed(const SensorArgs& args, lcm_t* lcm, Service& service);
 
 }  // namespace stepcal::service

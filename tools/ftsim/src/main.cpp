@@ -9,7 +9,7 @@
 //
 // The wrench it feels: --wrench (N, N·m, sensor axes), or with --truth the payload wrench of the
 // twin (stepcal simulate's truth.json) at the pose and payload of each robot_state_t received on
-// STEPCAL_ROBOT_STATE; noise defaults to the twin's F/T noise then. Faults: per-frame drop and
+// STEPCAL_ROBOT_STATE (echoed on STEPCAL_ROBOT_STATE_APPLIED once felt); noise defaults to the twin's F/T noise then. Faults: per-frame drop and
 // corruption probabilities, a status word in every reading, garbage frames, a stall and a bus-off
 // (error frames CAN_ERR_BUSOFF, then CAN_ERR_RESTARTED) at given times. Stops on SIGINT/SIGTERM or
 // after --duration-s, printing its counters.
@@ -67,10 +67,12 @@ nlohmann::json readJson(const std::string& path) {
   }
 }
 
-/// Receives robot_state_t and sets the simulator's wrench to the twin's payload wrench there.
+/// Receives robot_state_t, sets the simulator's wrench to the twin's payload wrench there and
+/// echoes the state on kRobotStateAppliedChannel: from then on every reading is of that state.
 struct StateListener {
   const twin::TwinRobot* truth;
   ftsim::SensorSimulator* simulator;
+  lcm_t* lcm;
   int64_t states = 0, undecodable = 0;
 
   static void onState(const lcm_recv_buf_t* rbuf, const char*, void* user) {
@@ -85,6 +87,7 @@ struct StateListener {
     for (int i = 0; i < 6; ++i) q[i] = state.q_rad[i];
     self->simulator->setWrench(self->truth->sensorWrench(q, state.payload_kg));
     ++self->states;
+    lcm_publish(self->lcm, service::kRobotStateAppliedChannel, rbuf->data, rbuf->data_size);
   }
 };
 
@@ -134,10 +137,12 @@ int run(const Args& args) {
   const int signal_fd = signalfd(-1, &signals, SFD_CLOEXEC);
 
   lcm_t* lcm = nullptr;
-  StateListener listener{truth ? &*truth : nullptr, &simulator};
   if (truth) {
     lcm = lcm_create(args.lcm_url.c_str());
     if (lcm == nullptr) throw InputError("--lcm-url '" + args.lcm_url + "': LCM cannot open it");
+  }
+  StateListener listener{truth ? &*truth : nullptr, &simulator, lcm};
+  if (truth) {
     lcm_subscribe(lcm, service::kRobotStateChannel, &StateListener::onState, &listener);
   }
 

@@ -17,9 +17,10 @@
 // are also checked against the truth (where the true robot goes at q) when --truth is given.
 //
 // --live-wrench: the requests use the daemon's live sensor instead of the rows' wrenches. Before
-// each request the client publishes the row's joints and payload as robot_state_t (for a
-// simulated sensor, stepcal-ftsim --truth) and waits --settle-ms for the sensor to feel it; the
-// report adds the latency from the CAN frame (the reply's wrench_stamp_ns) to the reply.
+// each request the client publishes the row's joints and payload as robot_state_t, waits until a
+// simulated sensor (stepcal-ftsim --truth) echoes it as applied, then --settle-ms for the driver
+// to read it; the report adds the latency from the CAN frame (the reply's wrench_stamp_ns) to the
+// reply.
 #include <CLI/CLI.hpp>
 #include <poll.h>
 #include <signal.h>
@@ -440,6 +441,20 @@ std::optional<twin::TwinRobot> readTruth(const std::string& path) {
   return twin::TwinRobot::fromTruthJson(truth);
 }
 
+/// Waits for a simulated sensor's echo of one robot_state_t (by its utime).
+struct StateEcho {
+  int64_t wanted_utime = 0;
+  bool seen = false;
+  int missing = 0;  ///< states never echoed within 2 s (no simulated sensor listening?)
+  static void on(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+    auto* self = static_cast<StateEcho*>(user);
+    stepcal_lcm::robot_state_t state{};
+    if (state.decode(rbuf->data, 0, int(rbuf->data_size)) > 0 && state.utime == self->wanted_utime) {
+      self->seen = true;
+    }
+  }
+};
+
 /// A campaign's rows as requests: latency, lost replies, statuses, accuracy.
 int runCampaign(Args args) {
   if (args.mode != "forward" && args.mode != "inverse") {
@@ -475,19 +490,28 @@ int runCampaign(Args args) {
   const Lcm lcm(args.lcm_url);
   Exchange exchange;
   std::vector<uint8_t> state_buffer(size_t(stepcal_lcm::robot_state_t{}.getEncodedSize()));
+  StateEcho echo;
+  lcm_subscription_t* applied =
+      lcm_subscribe(lcm.get(), service::kRobotStateAppliedChannel, &StateEcho::on, &echo);
   const auto publishRobotState = [&](size_t i) {
-    // Where the robot now is and what it carries; the sensor needs settle_ms to feel it.
+    // Where the robot now is and what it carries, tagged with a fresh utime.
     stepcal_lcm::robot_state_t state{};
-    state.utime = unixMicroseconds();
+    state.utime = std::max(unixMicroseconds(), echo.wanted_utime + 1);
     for (int j = 0; j < service::kMessageJoints; ++j) state.q_rad[j] = row_of[i]->q_rad[j];
     state.payload_kg = row_of[i]->load_kg;
+    echo.wanted_utime = state.utime;
+    echo.seen = false;
     const int size = state.encode(state_buffer.data(), 0, int(state_buffer.size()));
     lcm_publish(lcm.get(), service::kRobotStateChannel, state_buffer.data(), unsigned(size));
+    const Clock::time_point give_up = Clock::now() + std::chrono::seconds(2);
+    while (!echo.seen && Clock::now() < give_up) handleUntil(lcm.get(), give_up);
+    if (!echo.seen) ++echo.missing;
     handleUntil(lcm.get(), Clock::now() + std::chrono::microseconds(int64_t(args.settle_ms * 1e3)));
   };
   const std::vector<correction_reply_t> replies =
       sendRequests(lcm.get(), args, std::move(requests), exchange,
                    args.live_wrench ? std::function<void(size_t)>(publishRobotState) : nullptr);
+  lcm_unsubscribe(lcm.get(), applied);
 
   long status_counts[kStatusCount] = {};
   std::vector<double> compute_us;
@@ -557,7 +581,10 @@ int runCampaign(Args args) {
     report["accuracy_truth"] = forward_truth.toJson("twin truth");
   }
   report["wrench"] = args.live_wrench ? "live sensor" : "given (the rows' measured wrench)";
-  if (args.live_wrench) report["sensor_frame_to_reply_us"] = latencyJson(frame_to_reply_us);
+  if (args.live_wrench) {
+    report["sensor_frame_to_reply_us"] = latencyJson(frame_to_reply_us);
+    report["robot_states_not_applied"] = echo.missing;
+  }
   if (args.json) {
     std::cout << report.dump(2) << "\n";
   } else {

@@ -10,6 +10,8 @@ inline constexpr const char* kWrenchChannel = "STEPCAL_WRENCH";    ///< wrench_t
 inline constexpr const char* kSensorCommandChannel = "STEPCAL_SENSOR_COMMAND";  ///< sensor_command_t
 inline constexpr const char* kSensorStatusChannel = "STEPCAL_SENSOR_STATUS";    ///< sensor_status_t
 inline constexpr const char* kRobotStateChannel = "STEPCAL_ROBOT_STATE";  ///< robot_state_t
+/// robot_state_t echoed by a simulated sensor once it feels that state (stepcal-ftsim --truth).
+inline constexpr const char* kRobotStateAppliedChannel = "STEPCAL_ROBOT_STATE_APPLIED";
 inline constexpr const char* kPingChannel = "STEPCAL_PING";  ///< raw bytes, client --ping
 inline constexpr const char* kPongChannel = "STEPCAL_PONG";  ///< the same bytes, client --echo
 

@@ -12,12 +12,15 @@
 #   MODEL     its model file (stepcal calibrate --out)
 #   OUT       folder for the JSON results and logs (default: a temporary one)
 # Needs a host with IFACE up (default vcan0; tools/vcan_run.sh provides one) and UDP multicast on
-# the loopback (route 224.0.0.0/4 dev lo). Environment: STEPCAL_BIN_DIR (default build/bin),
-# IFACE, LCM_URL, SETTLE_MS (wait after the sensor felt each robot state), MAX_WRENCH_AGE_MS
-# (the daemon's limit), RATE_HZ (sensor polls, default 1000), MODE (forward | inverse, default
-# forward). Under the emulated VM (STEPCAL_IN_VCAN_VM=1) every program runs about 100 times
-# slower, so the defaults there are SETTLE_MS=50 and MAX_WRENCH_AGE_MS=200 (else 5 and 20) and
-# the absolute latencies are the emulator's, not the machine's.
+# the loopback (route 224.0.0.0/4 dev lo). Environment (STEPCAL_ and LCM_ names cross into the
+# VM): STEPCAL_BIN_DIR (default build/bin), STEPCAL_CAN_IFACE (default vcan0), LCM_URL,
+# STEPCAL_E2E_MODE (forward | inverse, default forward), STEPCAL_E2E_RATE_HZ (sensor polls),
+# STEPCAL_E2E_SETTLE_MS (wait after the sensor felt each robot state),
+# STEPCAL_E2E_MAX_WRENCH_AGE_MS and STEPCAL_E2E_BUDGET_US (the daemon's limits). Under the
+# emulated VM (STEPCAL_IN_VCAN_VM=1) every program runs some 100 to 400 times slower, so the
+# defaults there are 250 Hz polls, a 50 ms settle, a 500 ms age limit and a 100 ms budget (else
+# 1000 Hz, 5 ms, 20 ms and 200 µs), and the absolute latencies are the emulator's, not the
+# machine's.
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -30,17 +33,20 @@ model=$(realpath "$2")
 out=${3:-$(mktemp -d /tmp/can_e2e.XXXXXX)}
 mkdir -p "$out"
 bin=$(realpath "${STEPCAL_BIN_DIR:-$root/build/bin}")
-iface=${IFACE:-vcan0}
+iface=${STEPCAL_CAN_IFACE:-vcan0}
 url=${LCM_URL:-udpm://239.255.76.67:7667?ttl=0}
 if [[ ${STEPCAL_IN_VCAN_VM:-0} == 1 ]]; then
-  settle_ms=${SETTLE_MS:-50}
-  max_age_ms=${MAX_WRENCH_AGE_MS:-200}
+  rate_hz=${STEPCAL_E2E_RATE_HZ:-250}
+  settle_ms=${STEPCAL_E2E_SETTLE_MS:-50}
+  max_age_ms=${STEPCAL_E2E_MAX_WRENCH_AGE_MS:-500}
+  budget_us=${STEPCAL_E2E_BUDGET_US:-100000}
 else
-  settle_ms=${SETTLE_MS:-5}
-  max_age_ms=${MAX_WRENCH_AGE_MS:-20}
+  rate_hz=${STEPCAL_E2E_RATE_HZ:-1000}
+  settle_ms=${STEPCAL_E2E_SETTLE_MS:-5}
+  max_age_ms=${STEPCAL_E2E_MAX_WRENCH_AGE_MS:-20}
+  budget_us=${STEPCAL_E2E_BUDGET_US:-200}
 fi
-rate_hz=${RATE_HZ:-1000}
-mode=${MODE:-forward}
+mode=${STEPCAL_E2E_MODE:-forward}
 command -v jq >/dev/null || { echo "can_e2e: needs jq (apt-get install jq)" >&2; exit 2; }
 [[ -f $campaign/truth.json ]] || { echo "can_e2e: $campaign/truth.json: not a simulated campaign" >&2; exit 2; }
 [[ -f $model ]] || { echo "can_e2e: $model: no such model file" >&2; exit 2; }
@@ -57,7 +63,7 @@ trap cleanup EXIT
 pids+=($!)
 sleep 0.2  # the sensor answers from its first frame on; the daemon reads it at start-up
 "$bin/stepcal-runtime" --model "$model" --lcm-url "$url" --sensor "can:$iface" \
-  --sensor-rate-hz "$rate_hz" --max-wrench-age-ms "$max_age_ms" 2>"$out/daemon.log" &
+  --sensor-rate-hz "$rate_hz" --max-wrench-age-ms "$max_age_ms" --budget-us "$budget_us" 2>"$out/daemon.log" &
 pids+=($!)
 
 # Ready when a forward request with the live wrench is answered OK.
@@ -75,6 +81,7 @@ if [[ -z ${ready:-} ]]; then
   exit 1
 fi
 grep -h "stepcal-runtime:" "$out/daemon.log" | head -1
+echo "settings: $rate_hz Hz sensor polls, settle $settle_ms ms, max wrench age $max_age_ms ms, budget $budget_us us"
 
 common=(--lcm-url "$url" --campaign "$campaign" --set validation --mode "$mode"
         --truth "$campaign/truth.json" --timeout-ms 1000 --json)

@@ -9,6 +9,8 @@ packages=(
   libeigen3-dev libgtest-dev libbenchmark-dev
   liburdfdom-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev liblbfgspp-dev
   liblcm-dev liblcm-bin jq
+  # CAN tests without vcan in the host kernel: tools/vcan_run.sh boots a qemu VM (docs/vcan.md).
+  qemu-system-x86 busybox-static can-utils kmod xz-utils iproute2
 )
 missing=()
 for p in "${packages[@]}"; do
@@ -25,3 +27,6 @@ fi
 
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j"$(nproc)"
+
+# The CAN tests' VM kernel, downloaded and cached once (one line; a host with vcan0 needs none).
+tools/vcan_run.sh --prepare

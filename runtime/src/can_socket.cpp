@@ -31,6 +31,20 @@ int64_t clockNs(clockid_t clock) noexcept {
                    "); " + hint);
 }
 
+/// CLOCK_REALTIME − CLOCK_MONOTONIC now, ns: the realtime reading bracketed by two steady ones,
+/// retried when a preemption widened the bracket, so the offset is good to a few µs.
+int64_t realtimeMinusSteadyNs() noexcept {
+  int64_t offset = 0;
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    const int64_t before = steadyNowNs();
+    const int64_t real = clockNs(CLOCK_REALTIME);
+    const int64_t after = steadyNowNs();
+    offset = real - (before + (after - before) / 2);
+    if (after - before < 20'000) break;
+  }
+  return offset;
+}
+
 void enableTimestamps(int fd) noexcept {
   const int on = 1;
   // Without it receive falls back to the time it reads the frame; nothing else changes.
@@ -154,9 +168,9 @@ CanIo CanSocket::receive(ReceivedFrame& out, Clock::time_point deadline) noexcep
       timespec kernel{};
       std::memcpy(&kernel, CMSG_DATA(c), sizeof kernel);
       const int64_t kernel_real_ns = int64_t(kernel.tv_sec) * 1'000'000'000 + kernel.tv_nsec;
-      // The kernel stamps with CLOCK_REALTIME: carried over to the steady clock by the age.
-      const int64_t age_ns = clockNs(CLOCK_REALTIME) - kernel_real_ns;
-      if (age_ns >= 0 && age_ns < 1'000'000'000) out.stamp_ns = steady_now - age_ns;
+      // The kernel stamps with CLOCK_REALTIME; on the steady clock, never later than now.
+      const int64_t stamp = kernel_real_ns - realtimeMinusSteadyNs();
+      if (stamp <= steady_now && steady_now - stamp < 1'000'000'000) out.stamp_ns = stamp;
     }
     return CanIo::kOk;
   }

@@ -442,6 +442,107 @@ TEST(Twin, BadOptionsAreRefusedWithTheValue) {
   EXPECT_THROW(simulateCampaign(o, nullptr), InputError);
 }
 
+/// One of each hidden mechanism, at a size a tracker sees.
+std::vector<nlohmann::json> everyHiddenEffect() {
+  return {{{"name", "backlash"}, {"joint", 2}, {"lost_motion_rad", 2e-4}},
+          {{"name", "transmission_error"}, {"joint", 3}, {"harmonic", 2}, {"sin_rad", 1e-4},
+           {"cos_rad", -5e-5}},
+          {{"name", "nonlinear_stiffness"}, {"joint", 4}, {"extra_compliance_rad_per_nm", 4e-6},
+           {"saturation_torque_nm", 40.0}},
+          {{"name", "joint_coupling"}, {"joints", {4, 6}}, {"ratio", 2e-3}}};
+}
+
+TEST(Twin, HiddenEffectsFollowTheirClosedForms) {
+  JointVector q(6), tau(6);
+  q << 0.3, -0.7, 1.1, 2.5, -0.4, 0.9;
+  tau << 10.0, -250.0, 80.0, -30.0, 5.0, 0.5;
+  // (q + Δ) − q: exact to the rounding of the sum, 1e-15 rad here.
+  const auto delta = [&](const LinkAngleEffect& effect) {
+    JointVector theta = q;
+    effect.apply(q, tau, theta);
+    return JointVector(theta - q);
+  };
+  const std::vector<nlohmann::json> specs = everyHiddenEffect();
+  JointVector expected = JointVector::Zero(6);
+  expected(1) = 2e-4 * std::tanh(-250.0);  // taken up against the load: −b
+  EXPECT_LT((delta(*linkAngleEffectFromJson(specs[0], 6)) - expected).norm(), 1e-15);
+  EXPECT_NEAR(expected(1), -2e-4, 1e-18);
+  expected.setZero();
+  expected(2) = 1e-4 * std::sin(2 * 1.1) - 5e-5 * std::cos(2 * 1.1);
+  EXPECT_LT((delta(*linkAngleEffectFromJson(specs[1], 6)) - expected).norm(), 1e-15);
+  expected.setZero();
+  expected(3) = 4e-6 * -30.0 * 40.0 / (40.0 + 30.0);
+  EXPECT_LT((delta(*linkAngleEffectFromJson(specs[2], 6)) - expected).norm(), 1e-15);
+  expected.setZero();
+  expected(5) = 2e-3 * 2.5;
+  EXPECT_LT((delta(*linkAngleEffectFromJson(specs[3], 6)) - expected).norm(), 1e-15);
+
+  // Nonlinear stiffness: the slope of Δθ in τ is c at zero torque and falls with |τ| (softer at
+  // small torque), checked by central differences.
+  const auto nonlinear = linkAngleEffectFromJson(specs[2], 6);
+  const auto slope = [&](double torque) {
+    const double h = 1e-3;
+    JointVector plus = q, minus = q, t = tau;
+    t(3) = torque + h;
+    nonlinear->apply(q, t, plus);
+    t(3) = torque - h;
+    nonlinear->apply(q, t, minus);
+    return (plus(3) - minus(3)) / (2 * h);
+  };
+  EXPECT_NEAR(slope(0.5), 4e-6 * 40.0 * 40.0 / (40.5 * 40.5), 1e-12);
+  EXPECT_GT(slope(1.0), 2.0 * slope(60.0));
+}
+
+TEST(Twin, HiddenEffectsMoveTheTipAndRoundTripThroughTruthJson) {
+  TwinOptions o = noiseless(paperOptions(8));
+  const TwinRobot plain(o);
+  o.hidden_effects = everyHiddenEffect();
+  const TwinRobot hidden(o);
+  const nlohmann::json truth = hidden.truthJson();
+  ASSERT_EQ(truth.at("effects").size(), 5u);
+  EXPECT_EQ(truth.at("effects").at(1).at("name"), "backlash");
+  EXPECT_EQ(truth.at("options").at("hidden_effects").size(), 4u);
+  const TwinRobot copy = TwinRobot::fromTruthJson(nlohmann::json::parse(truth.dump()));
+  const Campaign c = simulateCampaign(o, nullptr);
+  double largest_m = 0.0;
+  for (size_t i = 0; i < c.rows.size(); i += 5) {
+    const Measurement& m = c.rows[i];
+    EXPECT_EQ(hidden.X_TrackerTip(m.q_rad, m.load_kg).matrix(),
+              copy.X_TrackerTip(m.q_rad, m.load_kg).matrix());
+    largest_m = std::max(largest_m, (hidden.X_TrackerTip(m.q_rad, m.load_kg).translation() -
+                                     plain.X_TrackerTip(m.q_rad, m.load_kg).translation())
+                                        .norm());
+  }
+  EXPECT_GT(largest_m, 0.2e-3) << "the mechanisms move the tip by far more than the tracker noise";
+  EXPECT_LT(largest_m, 5e-3);
+}
+
+TEST(Twin, BadHiddenEffectsAreRefusedWithTheValue) {
+  const std::vector<std::pair<nlohmann::json, std::string>> cases = {
+      {{{"name", "backlash"}, {"joint", 0}, {"lost_motion_rad", 1e-4}}, "joint = 0"},
+      {{{"name", "backlash"}, {"joint", 7}, {"lost_motion_rad", 1e-4}}, "expected a joint 1 … 6"},
+      {{{"name", "backlash"}, {"joint", 2}, {"lost_motion_rad", -1e-4}}, "lost_motion_rad"},
+      {{{"name", "transmission_error"}, {"joint", 2}, {"harmonic", 0}}, "harmonic = 0"},
+      {{{"name", "transmission_error"}, {"joint", 2}, {"harmonic", 1}, {"sin_rad", 0.5}}, "sin_rad"},
+      {{{"name", "nonlinear_stiffness"}, {"joint", 2}, {"extra_compliance_rad_per_nm", 1e-6},
+        {"saturation_torque_nm", 0.0}}, "saturation_torque_nm"},
+      {{{"name", "joint_coupling"}, {"joints", {5, 5}}, {"ratio", 1e-3}}, "two different joints"},
+      {{{"name", "joint_coupling"}, {"joints", {5}}, {"ratio", 1e-3}}, "[from_joint, to_joint]"},
+      {{{"name", "backlash"}, {"joint", 2}}, "hidden effect"},
+      {{{"name", "gear_wobble"}}, "unknown link-angle effect 'gear_wobble'"},
+  };
+  for (const auto& [spec, message] : cases) {
+    TwinOptions o = paperOptions();
+    o.hidden_effects = {spec};
+    try {
+      TwinRobot robot(o);
+      ADD_FAILURE() << "accepted " << spec.dump();
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(Twin, DefaultUrdfIsTheShippedIrb4400) {
   TwinOptions o;
   o.protocol = "geometry";

@@ -29,6 +29,7 @@ struct SimulateArgs {
   std::string out;
   double position_sigma_mm = 0.010;
   double orientation_sigma_deg = 0.005;
+  std::vector<std::string> effects;  ///< --effect: hidden mechanisms as JSON objects
 };
 
 std::string robotUrdf(const std::string& robot) {
@@ -47,6 +48,15 @@ void runSimulate(const SimulateArgs& a) {
   options.seed = a.seed;
   options.tracker_position_sigma_m = a.position_sigma_mm * 1e-3;
   options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kDegToRad;
+  for (const std::string& spec : a.effects) {
+    try {
+      options.hidden_effects.push_back(nlohmann::json::parse(spec));
+    } catch (const nlohmann::json::exception& e) {
+      throw InputError("--effect '" + spec + "': not a JSON object (" + e.what() +
+                       "); expected e.g. '{\"name\": \"backlash\", \"joint\": 2, "
+                       "\"lost_motion_rad\": 2e-4}'");
+    }
+  }
   twin::writeSimulation(options, a.out);
 }
 
@@ -130,6 +140,11 @@ int main(int argc, char** argv) {
                        "tracker position noise per axis, 1-sigma, mm")->capture_default_str();
   simulate->add_option("--tracker-orientation-sigma-deg", sim.orientation_sigma_deg,
                        "tracker orientation noise per axis, 1-sigma, deg")->capture_default_str();
+  simulate->add_option("--effect", sim.effects,
+                       "a hidden mechanism as JSON, repeatable: backlash {joint, lost_motion_rad}, "
+                       "transmission_error {joint, harmonic, sin_rad, cos_rad}, nonlinear_stiffness "
+                       "{joint, extra_compliance_rad_per_nm, saturation_torque_nm}, joint_coupling "
+                       "{joints: [from, to], ratio}; joints 1 … 6");
   simulate->add_option("--out", sim.out, "campaign folder to write")->required();
 
   CLI::App* import = app.add_subcommand("import", "convert foreign measurements into a campaign");

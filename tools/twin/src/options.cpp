@@ -152,6 +152,7 @@ nlohmann::json toJson(const TwinOptions& o) {
       {"tool_rotation_error_rad", o.tool_rotation_error_rad},
       {"compliance", o.compliance},
       {"stiffness_nm_per_rad", o.stiffness_nm_per_rad},
+      {"hidden_effects", o.hidden_effects},
       {"p_CoGInSensor_m", vec3(o.p_CoGInSensor_m)},
       {"gravity_in_base_m_per_s2", vec3(o.gravity_in_base_m_per_s2)},
       {"pose_ranges", ranges},

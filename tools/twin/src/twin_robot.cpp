@@ -89,6 +89,14 @@ TwinRobot::TwinRobot(const TwinOptions& options) {
   if (options.compliance) {
     effects_.push_back(std::make_shared<JointCompliance>(options.stiffness_nm_per_rad));
   }
+  for (const nlohmann::json& effect : options.hidden_effects) {
+    try {
+      effects_.push_back(linkAngleEffectFromJson(effect, chain_.dof()));
+    } catch (const nlohmann::json::exception& e) {
+      throw InputError("hidden effect " + effect.dump() + ": " + e.what() +
+                       "; expected a name and its parameters (tools/twin/.../effects.hpp)");
+    }
+  }
   base_link_ = options.base_link;
   tip_link_ = options.tip_link;
   sensor_link_ = options.sensor_link;

@@ -89,6 +89,10 @@ struct TwinOptions {
   bool compliance = true;
   /// K_θ per joint, N·m/rad; one per revolute joint of the chain.
   std::vector<double> stiffness_nm_per_rad = kPaperStiffnessNmPerRad;
+  /// Hidden mechanisms after the compliance, in order, each as its truth.json object, e.g.
+  /// {"name": "backlash", "joint": 2, "lost_motion_rad": 2e-4} (effects.hpp,
+  /// linkAngleEffectFromJson). Bad ones throw InputError when the robot is built.
+  std::vector<nlohmann::json> hidden_effects;
 
   /// Payload centre of gravity in sensor_link, m.
   Vec3 p_CoGInSensor_m = Vec3(0.03, -0.02, 0.15);

@@ -208,6 +208,26 @@ TEST(Cli, BadInputEndsWithAClearErrorAndStatusTwo) {
   const CommandResult robot = run(kStepcal + " simulate --robot ur5 --out " + dir.string());
   EXPECT_EQ(robot.status, 2);
   EXPECT_NE(robot.out.find("--robot 'ur5'"), std::string::npos) << robot.out;
+  const CommandResult not_json = run(kStepcal + " simulate --effect '{joint:2}' --out " + dir.string());
+  EXPECT_EQ(not_json.status, 2);
+  EXPECT_NE(not_json.out.find("--effect '{joint:2}': not a JSON object"), std::string::npos) << not_json.out;
+  const CommandResult bad_joint = run(kStepcal + " simulate --effect " +
+                                      "'{\"name\": \"backlash\", \"joint\": 9, \"lost_motion_rad\": 1e-4}' --out " +
+                                      dir.string());
+  EXPECT_EQ(bad_joint.status, 2);
+  EXPECT_NE(bad_joint.out.find("backlash.joint = 9"), std::string::npos) << bad_joint.out;
+}
+
+TEST(Cli, SimulateWritesHiddenEffectsIntoTheTruth) {
+  const fs::path dir = scratch("hidden");
+  const CommandResult r = run(kStepcal + " simulate --protocol geometry --seed 2 --out " + dir.string() +
+                              " --effect '{\"name\": \"joint_coupling\", \"joints\": [4, 6], \"ratio\": 0.002}'");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json truth = nlohmann::json::parse(readTextFile((dir / "truth.json").string()));
+  ASSERT_EQ(truth.at("effects").size(), 2u);
+  EXPECT_EQ(truth.at("effects").at(1).at("name"), "joint_coupling");
+  EXPECT_EQ(truth.at("effects").at(1).at("joints"), nlohmann::json({4, 6}));
+  EXPECT_EQ(truth.at("effects").at(1).at("ratio"), 0.002);
 }
 
 }  // namespace

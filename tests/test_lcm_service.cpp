@@ -464,6 +464,14 @@ TEST(LcmService, CanFeedServesTheLiveWrenchAndTakesCommands) {
     lcm_publish(lcm.get(), kSensorCommandChannel, bytes.data(), unsigned(bytes.size()));
     pump();
     while (!feed.driver().biased()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    // Garbage and unknown commands change nothing and are counted.
+    lcm_publish(lcm.get(), kSensorCommandChannel, bytes.data(), unsigned(bytes.size() - 1));
+    bias.command = 42;
+    bias.encode(bytes.data(), 0, int(bytes.size()));
+    lcm_publish(lcm.get(), kSensorCommandChannel, bytes.data(), unsigned(bytes.size()));
+    pump();
+    EXPECT_EQ(feed.refusedCommands(), 2);
+    EXPECT_TRUE(feed.driver().biased());
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
     correction_request_t unloaded = forwardRequest(row, 23);
     for (double& w : unloaded.wrench) w = 0.0;

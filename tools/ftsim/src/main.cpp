@@ -123,10 +123,8 @@ int run(const Args& args) {
   simulator.setFaults(faults);
 
   // The sensor answers only its own ids; error frames are injected on a socket of their own.
-  can_filter own{};
-  own.can_id = args.base_id << runtime::netcan::kOpcodeBits;
-  own.can_mask = (CAN_SFF_MASK & ~0xFu) | CAN_EFF_FLAG | CAN_RTR_FLAG;
-  runtime::CanSocket socket = runtime::CanSocket::open(args.iface, {own}, 0);
+  runtime::CanSocket socket =
+      runtime::CanSocket::open(args.iface, {runtime::sensorFilter(args.base_id)}, 0);
   runtime::CanSocket injector = runtime::CanSocket::open(args.iface, {}, 0);
 
   sigset_t signals;

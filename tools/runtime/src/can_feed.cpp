@@ -1,6 +1,5 @@
 #include "stepcal/service/can_feed.hpp"
 
-#include <time.h>
 
 #include <cstdio>
 
@@ -11,16 +10,6 @@
 #include "stepcal/service/channels.hpp"
 
 namespace stepcal::service {
-
-namespace {
-
-int64_t unixMicros() noexcept {
-  timespec now{};
-  clock_gettime(CLOCK_REALTIME, &now);
-  return int64_t(now.tv_sec) * 1'000'000 + now.tv_nsec / 1000;
-}
-
-}  // namespace
 
 runtime::CanSocket openSensorSocket(const std::string& iface, uint32_t base_id) {
   if (base_id > runtime::netcan::kMaxBaseId) {
@@ -70,7 +59,7 @@ void CanWrenchFeed::publish(const runtime::WrenchSample& sample) noexcept {
   service_.publishWrench(sample);
   if (republish_channel_.empty()) return;
   stepcal_lcm::wrench_t msg{};
-  msg.utime = unixMicros();
+  msg.utime = unixMicroseconds();
   msg.stamp_ns = sample.stamp_ns;
   for (int i = 0; i < 6; ++i) msg.wrench[i] = sample.wrench_Sensor[i];
   msg.sensor_status = int32_t(sample.sensor_status);
@@ -83,18 +72,21 @@ void CanWrenchFeed::onCommand(const lcm_recv_buf_t* rbuf, const char*, void* use
   auto* self = static_cast<CanWrenchFeed*>(user);
   stepcal_lcm::sensor_command_t command{};
   const int size = int(rbuf->data_size);
-  if (command.decode(rbuf->data, 0, size) != size) return;
+  if (command.decode(rbuf->data, 0, size) != size) {
+    ++self->refused_commands_;
+    return;
+  }
   switch (command.command) {
     case stepcal_lcm::sensor_command_t::COMMAND_BIAS: self->driver_.requestBias(); break;
     case stepcal_lcm::sensor_command_t::COMMAND_CLEAR_BIAS: self->driver_.clearBias(); break;
     case stepcal_lcm::sensor_command_t::COMMAND_RESET: self->driver_.requestReset(); break;
-    default: break;
+    default: ++self->refused_commands_; break;
   }
 }
 
 void CanWrenchFeed::publishStatus() {
   const runtime::FtSensorCounters c = driver_.counters();
-  status_.utime = unixMicros();
+  status_.utime = unixMicroseconds();
   status_.state = int8_t(c.state);
   status_.status_word = c.last_status_word;
   status_.status_text = runtime::netcan::describeStatus(c.last_status_word);

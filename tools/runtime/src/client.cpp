@@ -49,6 +49,7 @@
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/latency.hpp"
 #include "stepcal/service/request.hpp"
+#include "stepcal/service/service.hpp"
 #include "stepcal/twin/twin.hpp"
 
 namespace {
@@ -98,11 +99,7 @@ int64_t bigEndian64(const uint8_t* bytes) {
   return static_cast<int64_t>(value);
 }
 
-int64_t unixMicroseconds() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
+using service::unixMicroseconds;
 
 /// Round trips of `count` messages numbered 0..count−1: what was sent when, what came back.
 struct Exchange {

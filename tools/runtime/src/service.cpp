@@ -14,11 +14,6 @@ namespace {
 using runtime::Clock;
 using runtime::Status;
 
-int64_t unixMicroseconds() noexcept {
-  timespec now{};
-  clock_gettime(CLOCK_REALTIME, &now);
-  return int64_t(now.tv_sec) * 1'000'000 + now.tv_nsec / 1000;
-}
 
 int64_t steadyNanoseconds(Clock::time_point t) noexcept {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
@@ -43,6 +38,12 @@ bool carriesAnswer(Status status) noexcept {
 }
 
 }  // namespace
+
+int64_t unixMicroseconds() noexcept {
+  timespec now{};
+  clock_gettime(CLOCK_REALTIME, &now);
+  return int64_t(now.tv_sec) * 1'000'000 + now.tv_nsec / 1000;
+}
 
 void checkMessageJoints(const runtime::RuntimeModel& model, const std::string& source) {
   const int dof = model.file.chain_Tracker.dof();

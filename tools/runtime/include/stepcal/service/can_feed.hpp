@@ -29,6 +29,8 @@ class CanWrenchFeed final : public WrenchFeed, private runtime::WrenchSink {
   /// Publishes sensor_status_t on kSensorStatusChannel (serving thread).
   void publishStatus() override;
   runtime::FtSensorDriver& driver() noexcept { return driver_; }
+  /// sensor_command_t messages that did not decode or named no known command (serving thread).
+  int64_t refusedCommands() const noexcept { return refused_commands_; }
 
  private:
   /// Driver thread: to the Service, and to LCM when republishing. Allocation-free.
@@ -44,6 +46,7 @@ class CanWrenchFeed final : public WrenchFeed, private runtime::WrenchSink {
   std::vector<uint8_t> wrench_buffer_;  ///< one encoded wrench_t, sized at construction
   stepcal_lcm::sensor_status_t status_{};
   std::vector<uint8_t> status_buffer_;
+  int64_t refused_commands_ = 0;
   std::thread thread_;
 };
 

@@ -118,6 +118,9 @@ class Service {
   stepcal_lcm::runtime_status_t status_{};
 };
 
+/// Now, µs since the Unix epoch (the utime fields of the messages).
+int64_t unixMicroseconds() noexcept;
+
 /// Throws InputError unless the model has kMessageJoints joints; source names it.
 void checkMessageJoints(const runtime::RuntimeModel& model, const std::string& source);
 

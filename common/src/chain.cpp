@@ -55,8 +55,8 @@ KinematicChain KinematicChain::rerooted(const Pose& X_NewRootOldRoot) const {
   return out;
 }
 
-bool forwardKinematics(const KinematicChain& chain, const JointVector& q,
-                       ChainWorkspace& ws) noexcept {
+bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainWorkspace& ws,
+                       double link_length_scale) noexcept {
   const int n = chain.dof();
   if (q.size() != n) return false;
   ws.dof = n;
@@ -65,10 +65,11 @@ bool forwardKinematics(const KinematicChain& chain, const JointVector& q,
     const Vec6& s = chain.joints()[static_cast<size_t>(i - 1)].twist_Local;
     const Pose& X_prev = ws.X_RootFrame[static_cast<size_t>(i - 1)];
     const Pose& T = chain.initialPose(i - 1);
+    const double scale = i == 1 ? 1.0 : link_length_scale;
     Pose& X = ws.X_RootFrame[static_cast<size_t>(i)];
     // X_0,i = X_0,i-1 · T · exp(ŝ q), composed as rotation and translation (no 4×4 products).
     const Mat3 R_prevT = X_prev.linear() * T.linear();
-    const Vec3 p_prevT = X_prev.linear() * T.translation() + X_prev.translation();
+    const Vec3 p_prevT = X_prev.linear() * (scale * T.translation()) + X_prev.translation();
     if (s.head<3>().isZero(0.0)) {
       // A revolute axis through the frame origin: Rodrigues' formula for the unit axis a.
       const Vec3 a = s.tail<3>();
@@ -87,7 +88,8 @@ bool forwardKinematics(const KinematicChain& chain, const JointVector& q,
   const Pose& T_tip = chain.initialPose(n);
   Pose& X_tip = ws.X_RootFrame[static_cast<size_t>(n + 1)];
   X_tip.linear() = X_n.linear() * T_tip.linear();
-  X_tip.translation() = X_n.linear() * T_tip.translation() + X_n.translation();
+  X_tip.translation() =
+      X_n.linear() * (link_length_scale * T_tip.translation()) + X_n.translation();
   return true;
 }
 

@@ -940,3 +940,20 @@ CalibratedModel readModelFile(const std::string& path) {
 }
 
 }  // namespace stepcal
+
+namespace stepcal {
+
+PhysicalModel physicalModelOf(const CalibratedModel& model) {
+  PhysicalModel physical;
+  physical.chain_Tracker = model.chain_Tracker;
+  physical.sensor_frame = model.sensor_frame;
+  const int n = model.chain_Tracker.dof();
+  physical.compliance_rad_per_nm = model.compliance_rad_per_nm.size() == n
+                                       ? model.compliance_rad_per_nm
+                                       : JointVector(JointVector::Zero(n));
+  physical.gravity_Tracker = model.X_TrackerBase.linear() * model.gravity_Base;
+  physical.mechanisms = model.mechanisms;
+  return physical;
+}
+
+}  // namespace stepcal

@@ -70,8 +70,10 @@ struct ChainWorkspace {
 };
 
 /// Evaluates every chain frame at q (rad). Allocation-free. Returns false on a size mismatch.
-bool forwardKinematics(const KinematicChain& chain, const JointVector& q,
-                       ChainWorkspace& ws) noexcept;
+/// link_length_scale multiplies the translations of T_{1,2}(0) … T_{n,n+1}(0), the robot's own
+/// links (thermal expansion, mechanisms.hpp); T_{0,1}(0), the root's offset, is never scaled.
+bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainWorkspace& ws,
+                       double link_length_scale = 1.0) noexcept;
 /// Tip pose X_0,n+1 from a workspace filled by forwardKinematics.
 inline const Pose& tipPose(const ChainWorkspace& ws) noexcept {
   return ws.X_RootFrame[static_cast<size_t>(ws.dof + 1)];

@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "stepcal/common/chain.hpp"
+#include "stepcal/common/mechanisms.hpp"
 #include "stepcal/common/types.hpp"
 
 namespace stepcal {
@@ -83,9 +84,15 @@ struct CalibratedModel {
   /// Empty = no compliance step; else n entries, C_θ = K_θ⁻¹ (eq. 19–22), rad/(N·m).
   JointVector compliance_rad_per_nm;
   JointVector compliance_sigma_rad_per_nm;  ///< 1-σ, same size, rad/(N·m)
+  /// Mechanisms found by `stepcal diagnose` (empty: geometry and compliance only).
+  std::vector<Mechanism> mechanisms;
   std::optional<GprParameters> gpr;         ///< absent = no residual step
   ModelProvenance provenance;
 };
+
+/// The model's physical part (no GPR): calibrated chain, compliance (zeros when the model has
+/// none), gravity in tracker axes, mechanisms.
+PhysicalModel physicalModelOf(const CalibratedModel& model);
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320) of a byte range.
 uint32_t crc32Ieee(const uint8_t* data, size_t size) noexcept;

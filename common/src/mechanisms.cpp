@@ -47,7 +47,7 @@ std::optional<MechanismKind> mechanismKindFromString(const std::string& name) {
 
 std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof) {
   switch (kind) {
-    case MechanismKind::kBacklash: return {"lost_motion_rad"};
+    case MechanismKind::kBacklash: return {"lost_motion_rad", "smoothing_torque_nm"};
     case MechanismKind::kSelfWeight: {
       std::vector<std::string> names;
       for (int k = 1; k <= dof; ++k) {
@@ -105,8 +105,10 @@ std::string mechanismProblem(const Mechanism& m, int dof) {
     return what + " harmonic " + std::to_string(m.harmonic) +
            "; expected 1 to 64 for transmission_error, else 0";
   }
-  if (m.kind == MechanismKind::kNonlinearStiffness && !(m.parameters[1] > 0.0)) {
-    return what + " saturation torque " + std::to_string(m.parameters[1]) + " N·m; expected > 0";
+  if ((m.kind == MechanismKind::kNonlinearStiffness || m.kind == MechanismKind::kBacklash) &&
+      !(m.parameters[1] > 0.0)) {
+    return what + " " + mechanismParameterNames(m.kind, dof)[1] + " = " +
+           std::to_string(m.parameters[1]) + "; expected > 0";
   }
   return {};
 }
@@ -211,7 +213,7 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
     for (const Mechanism& m : model.mechanisms) {
       const double t = m.joint >= 0 ? tau_nm(m.joint) : 0.0;
       if (m.kind == MechanismKind::kBacklash) {
-        theta_rad(m.joint) += m.parameters[0] * std::tanh(t / kBacklashSmoothingTorque_nm);
+        theta_rad(m.joint) += m.parameters[0] * std::tanh(t / m.parameters[1]);
       } else if (m.kind == MechanismKind::kNonlinearStiffness) {
         const double c = m.parameters[0], t0 = m.parameters[1];
         theta_rad(m.joint) += c * t * t0 / (t0 + std::abs(t));

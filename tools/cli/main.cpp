@@ -6,6 +6,9 @@
 #include <fstream>
 #include <iostream>
 
+#include <chrono>
+
+#include "diagnosis_report.hpp"
 #include "report.hpp"
 #include "report_html.hpp"
 #include "stepcal/common/campaign.hpp"
@@ -13,6 +16,7 @@
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/importers/ipa.hpp"
+#include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
 
@@ -125,6 +129,32 @@ void runValidate(const std::string& model_path, const std::string& dir, bool ref
   }
 }
 
+// Diagnosis of a campaign against its calibrated physical model (calibrated here, or the given
+// model file): the named causes, the extended model (written with --out) and its gain.
+void runDiagnose(const std::string& dir, const std::string& model_path,
+                 const std::string& model_out, bool json) {
+  const Campaign campaign = readCampaign(dir);
+  const auto start = std::chrono::steady_clock::now();
+  CalibratedModel model;
+  if (model_path.empty()) {
+    model = trainer::modelFromOutcome(campaign, trainer::calibrateCampaign(campaign));
+  } else {
+    model = readModelFile(model_path);
+  }
+  const double seconds_calibrate =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const trainer::Diagnosis diagnosis = trainer::diagnose(campaign, model);
+  if (!model_out.empty()) {
+    writeModelFile(diagnosis.extended_model, model_out);
+    std::cerr << "wrote model " << model_out << "\n";
+  }
+  if (json) {
+    std::cout << cli::diagnosisJson(diagnosis, seconds_calibrate).dump(2) << "\n";
+  } else {
+    std::cout << cli::formatDiagnosis(diagnosis, seconds_calibrate);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -184,6 +214,17 @@ int main(int argc, char** argv) {
 
   std::string demo_out = "out/demo-campaign";
   uint64_t demo_seed = 1;
+  CLI::App* diagnose_cmd = app.add_subcommand(
+      "diagnose", "name what the physical model gets wrong, extend it and measure the gain");
+  std::string diagnose_dir, diagnose_model, diagnose_out;
+  bool diagnose_json = false;
+  diagnose_cmd->add_option("campaign", diagnose_dir, "campaign folder (or its campaign.yaml)")
+      ->required();
+  diagnose_cmd->add_option("--model", diagnose_model,
+                           "model file to diagnose (default: calibrate the campaign first)");
+  diagnose_cmd->add_flag("--json", diagnose_json, "print the diagnosis as JSON");
+  diagnose_cmd->add_option("--out", diagnose_out, "extended model file to write");
+
   CLI::App* demo = app.add_subcommand(
       "demo", "the main job: simulate the paper's IRB4400 campaign, calibrate it, print the tables");
   demo->add_option("--out", demo_out, "where the simulated campaign goes")->capture_default_str();
@@ -204,6 +245,8 @@ int main(int argc, char** argv) {
       std::cout << cli::formatModel(
           parseModel(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), inspect_model),
           bytes.size());
+    } else if (*diagnose_cmd) {
+      runDiagnose(diagnose_dir, diagnose_model, diagnose_out, diagnose_json);
     } else if (*validate) {
       runValidate(validate_model, validate_dir, refit_frames, validate_json);
     } else if (*demo) {

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <limits>
 #include <memory>
 
 #include "stepcal/common/compliance.hpp"
@@ -37,27 +38,28 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// POE + stiffness: the chain at the deflected link angles (METHOD.md eq. 24).
-PoseModel physicalModel(const KinematicChain& chain_Tracker, int sensor_frame,
-                        const JointVector& compliance) {
-  return [=](const Measurement& row) {
+}  // namespace
+
+double rowTemperature(const Measurement& row) {
+  return row.temp_c ? *row.temp_c : std::numeric_limits<double>::quiet_NaN();
+}
+
+PoseModel physicalPoseModel(PhysicalModel physical) {
+  return [physical = std::move(physical)](const Measurement& row) {
     ChainWorkspace ws;
-    JointVector q_link;
-    deflectedJointAngles(chain_Tracker, sensor_frame, row.q_rad, row.wrenchOrZero(), compliance,
-                         ws, q_link);
+    JointVector theta, tau;
+    physicalLinkAngles(physical, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta,
+                       tau);
     return tipPose(ws);
   };
 }
 
-// The model times the GP's predicted residual twist: T · exp(ξ̂) (METHOD.md eq. 32).
 PoseModel withResidual(PoseModel base, const GaussianProcess& gp) {
   return [base = std::move(base), &gp](const Measurement& row) {
     return Pose(base(row) * lie::expSE3(gp.predictMean(gprInput(row))));
   };
 }
 
-// Residual twists ξ = log(T_model⁻¹ T_measured)^∨ (eq. 25) on the training rows, thinned
-// evenly to at most max_points; rows without orientation cannot give a 6-D twist.
 ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measurement*>& rows,
                           const std::string& set_name, const CalibrationOptions& options) {
   std::vector<const Measurement*> usable;
@@ -81,8 +83,6 @@ ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measur
   GaussianProcess gp = GaussianProcess::fit(X, Y, options.gpr, &report);
   return ResidualModel{std::move(gp), std::move(report), static_cast<int>(m), set_name};
 }
-
-}  // namespace
 
 KinematicChain campaignChain(const Campaign& campaign, int* sensor_frame) {
   const std::string source =
@@ -151,8 +151,11 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
     residual_set = "geometry";
   }
   const PoseModel poe_model = chainModel(chain);
-  const PoseModel physical = out.has_stiffness ? physicalModel(chain, out.sensor_frame, compliance)
-                                               : poe_model;
+  PhysicalModel physical_parts;
+  physical_parts.chain_Tracker = chain;
+  physical_parts.sensor_frame = out.sensor_frame;
+  physical_parts.compliance_rad_per_nm = compliance;
+  const PoseModel physical = out.has_stiffness ? physicalPoseModel(physical_parts) : poe_model;
   out.gpr = fitResidual(physical, residual_rows, residual_set, options);
   if (out.has_stiffness) out.gpr_baseline = fitResidual(poe_model, residual_rows, residual_set, options);
   out.seconds_gpr = secondsSince(clock);
@@ -178,9 +181,10 @@ std::vector<std::pair<std::string, PoseModel>> modelLayers(const CalibratedModel
   PoseModel physical = chainModel(model.chain_Tracker);
   layers.emplace_back(kMethodPoe, physical);
   const bool stiffness = model.compliance_rad_per_nm.size() > 0 && model.sensor_frame >= 0;
-  if (stiffness) {
-    physical = physicalModel(model.chain_Tracker, model.sensor_frame, model.compliance_rad_per_nm);
-    layers.emplace_back(kMethodPoeStiffness, physical);
+  const bool extended = !model.mechanisms.empty();
+  if (stiffness || extended) {
+    physical = physicalPoseModel(physicalModelOf(model));
+    layers.emplace_back(extended ? kMethodExtended : kMethodPoeStiffness, physical);
   }
   if (model.gpr) {
     const Eigen::Index inputs = model.gpr->inputs_normalised.cols();
@@ -191,7 +195,9 @@ std::vector<std::pair<std::string, PoseModel>> modelLayers(const CalibratedModel
                        "twist, " + std::to_string(model.chain_Tracker.dof() + 6) + " to 6");
     }
     auto gpr = std::make_shared<const GprPredictor>(GprPredictor::fromParameters(*model.gpr));
-    layers.emplace_back(stiffness ? kMethodPoeStiffnessGpr : kMethodPoeGpr,
+    layers.emplace_back(extended    ? kMethodExtendedGpr
+                        : stiffness ? kMethodPoeStiffnessGpr
+                                    : kMethodPoeGpr,
                         [physical, gpr](const Measurement& row) {
                           GprPredictor::Workspace workspace = gpr->makeWorkspace();
                           Vec6 residual;

@@ -7,7 +7,7 @@
 //   θ₀ = q + Σ_coupling c q_i e_j + Σ_transmission (a sin k q_j + b cos k q_j) e_j
 //   W  = W_meas − b_sensor                                   (sensor_bias)
 //   τ  = J_s(θ)ᵀ W_root(θ) + τ_self(θ)                       (self_weight: link gravity torques)
-//   θ  = θ₀ + C τ + Σ_backlash b tanh(τ_j / τ_s) e_j
+//   θ  = θ₀ + C τ + Σ_backlash b tanh(τ_j / τ_b) e_j
 //               + Σ_nonlinear c τ_j τ₀ / (τ₀ + |τ_j|) e_j     (the fixed point, three passes)
 //   X_TrackerTip = FK(θ) with the links' lengths × (1 + α (T − T_ref))   (thermal_expansion)
 // Joints are 0-based here and 1-based in names, reports and JSON.
@@ -38,10 +38,6 @@ const char* toString(MechanismKind kind) noexcept;
 /// Kind of a snake-case name; nullopt when it names none.
 std::optional<MechanismKind> mechanismKindFromString(const std::string& name);
 
-/// Backlash is a sign function smoothed over the sensor's noise band: with no load the joint
-/// sits mid-play, under a few N·m it is taken up. N·m.
-inline constexpr double kBacklashSmoothingTorque_nm = 5.0;
-
 /// One identified mechanism with its parameters (SI) and their 1-σ.
 struct Mechanism {
   MechanismKind kind = MechanismKind::kBacklash;
@@ -49,7 +45,8 @@ struct Mechanism {
   int source_joint = -1;  ///< joint_coupling: the joint whose commanded angle drives it
   int harmonic = 0;       ///< transmission_error: k ≥ 1
   /// Layout per kind (mechanismParameterNames):
-  ///   backlash            [b rad]
+  ///   backlash            [b rad, τ_b N·m]: b tanh(τ_j/τ_b), a sign smoothed over ±τ_b (with
+  ///                       no load the joint sits mid-play; τ_b is set from the loads, not fitted)
   ///   self_weight         per link k = 1..n: [m_k kg, h_k kg·m (3)], h_k = m_k · centre of mass
   ///                       in frame k (the frame after joint k's motion)
   ///   transmission_error  [a rad, b rad]

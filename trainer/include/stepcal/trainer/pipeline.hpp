@@ -7,6 +7,7 @@
 
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/chain.hpp"
+#include "stepcal/common/mechanisms.hpp"
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/trainer/accuracy.hpp"
 #include "stepcal/trainer/geometric.hpp"
@@ -59,9 +60,29 @@ inline const char* const kMethodPoe = "poe";
 inline const char* const kMethodPoeStiffness = "poe+stiffness";
 inline const char* const kMethodPoeGpr = "poe+gpr";
 inline const char* const kMethodPoeStiffnessGpr = "poe+stiffness+gpr";
+/// The physical model extended by `stepcal diagnose` (diagnose.hpp), and with its GPR.
+inline const char* const kMethodExtended = "extended";
+inline const char* const kMethodExtendedGpr = "extended+gpr";
 
 /// GPR input of a row: x = (q [rad], wrench in sensor axes [N, N·m]) ∈ R^(n+6) (METHOD.md §3).
 Eigen::VectorXd gprInput(const Measurement& row);
+
+/// A row's temp_c, °C; NaN when it has none.
+double rowTemperature(const Measurement& row);
+
+/// Pose predictor of a physical model: the chain at the link angles of its compliance and
+/// mechanisms (mechanisms.hpp; METHOD.md eq. 24).
+PoseModel physicalPoseModel(PhysicalModel physical);
+
+/// The model times the GP's predicted residual twist: T · exp(ξ̂) (METHOD.md eq. 32). gp must
+/// outlive the predictor.
+PoseModel withResidual(PoseModel base, const GaussianProcess& gp);
+
+/// Step 3: residual twists ξ = log(T_model⁻¹ T_measured)^∨ (eq. 25) on the training rows,
+/// thinned evenly to options.gpr_max_points; rows without orientation cannot give a 6-D twist.
+/// Throws InputError when fewer than 2 rows have orientation.
+ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measurement*>& rows,
+                          const std::string& set_name, const CalibrationOptions& options);
 
 /// Builds the campaign's chain from its URDF (base_link → tip_link, sensor_link attached).
 /// Throws InputError naming the robot file when it does not fit the campaign.

@@ -37,7 +37,7 @@ struct DiagnoseOptions {
   int refit_iterations = 12;    ///< Gauss–Newton iterations of a joint refit
   /// A residual this many times the stated tracker noise (RMS of noise-weighted entries) counts
   /// as unexplained even when it follows no tested variable.
-  double noise_ratio_limit = 2.0;
+  double noise_ratio_limit = 1.3;
   CalibrationOptions calibration;  ///< GPR options of the extended model's step 3
 };
 

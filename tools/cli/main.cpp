@@ -132,7 +132,7 @@ void runValidate(const std::string& model_path, const std::string& dir, bool ref
 // Diagnosis of a campaign against its calibrated physical model (calibrated here, or the given
 // model file): the named causes, the extended model (written with --out) and its gain.
 void runDiagnose(const std::string& dir, const std::string& model_path,
-                 const std::string& model_out, bool json) {
+                 const std::string& model_out, const std::string& report_out, bool json) {
   const Campaign campaign = readCampaign(dir);
   const auto start = std::chrono::steady_clock::now();
   CalibratedModel model;
@@ -144,6 +144,10 @@ void runDiagnose(const std::string& dir, const std::string& model_path,
   const double seconds_calibrate =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const trainer::Diagnosis diagnosis = trainer::diagnose(campaign, model);
+  if (!report_out.empty()) {
+    writeTextFile(report_out, cli::diagnosisHtml(campaign, diagnosis));
+    std::cerr << "wrote report " << report_out << "\n";
+  }
   if (!model_out.empty()) {
     writeModelFile(diagnosis.extended_model, model_out);
     std::cerr << "wrote model " << model_out << "\n";
@@ -216,7 +220,7 @@ int main(int argc, char** argv) {
   uint64_t demo_seed = 1;
   CLI::App* diagnose_cmd = app.add_subcommand(
       "diagnose", "name what the physical model gets wrong, extend it and measure the gain");
-  std::string diagnose_dir, diagnose_model, diagnose_out;
+  std::string diagnose_dir, diagnose_model, diagnose_out, diagnose_report;
   bool diagnose_json = false;
   diagnose_cmd->add_option("campaign", diagnose_dir, "campaign folder (or its campaign.yaml)")
       ->required();
@@ -224,6 +228,7 @@ int main(int argc, char** argv) {
                            "model file to diagnose (default: calibrate the campaign first)");
   diagnose_cmd->add_flag("--json", diagnose_json, "print the diagnosis as JSON");
   diagnose_cmd->add_option("--out", diagnose_out, "extended model file to write");
+  diagnose_cmd->add_option("--report", diagnose_report, "HTML report with the plots to write");
 
   CLI::App* demo = app.add_subcommand(
       "demo", "the main job: simulate the paper's IRB4400 campaign, calibrate it, print the tables");
@@ -246,7 +251,7 @@ int main(int argc, char** argv) {
           parseModel(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), inspect_model),
           bytes.size());
     } else if (*diagnose_cmd) {
-      runDiagnose(diagnose_dir, diagnose_model, diagnose_out, diagnose_json);
+      runDiagnose(diagnose_dir, diagnose_model, diagnose_out, diagnose_report, diagnose_json);
     } else if (*validate) {
       runValidate(validate_model, validate_dir, refit_frames, validate_json);
     } else if (*demo) {

@@ -82,6 +82,7 @@ struct Series {
   std::string label;
   SeriesStyle style;
   std::vector<double> x, y;
+  bool connected = true;  ///< false: markers only (a scatter plot)
 };
 
 /// A dashed horizontal line across the panel, e.g. the noise floor.
@@ -338,6 +339,37 @@ class SvgFrame {
   double top_ = 0.0, bottom_ = 0.0, height_ = 0.0;
 };
 
+/// The page's head and the opening of its body, with the report's style sheet.
+std::string pageHead(const std::string& title) {
+  std::ostringstream out;
+  out << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>"
+      << escape(title) << "</title>\n<style>\n"
+      << "body{font:14px/1.45 system-ui,-apple-system,'Segoe UI',sans-serif;color:#222;max-width:1360px;"
+            "margin:20px auto;padding:0 16px}\n"
+            "h1{font-size:22px;margin:0 0 8px}h2{font-size:18px;margin:30px 0 8px;padding-bottom:3px;"
+            "border-bottom:1px solid #ddd}\n"
+            "nav a{margin-right:12px}p{max-width:1000px}\n"
+            "table{border-collapse:collapse;font-variant-numeric:tabular-nums;margin:6px 0}\n"
+            "th,td{padding:3px 9px;border-bottom:1px solid #eee;text-align:right}"
+            "th{background:#f5f5f5;font-weight:600}.l{text-align:left}\n"
+            "table.dense{font-size:12.5px}.dense th,.dense td{padding:2px 5px}.dense td{white-space:nowrap}"
+            ".dense .g{border-left:1px solid #ddd}"
+            ".dense tr.validation td{background:#f4f8fc}\n"
+            ".muted{color:#999}.item{white-space:nowrap}.sw{display:inline-block;width:10px;height:10px;border-radius:2px;"
+            "margin-right:4px}\n"
+            "figure{margin:10px 0 18px}figcaption{color:#555;font-size:13px;max-width:1320px}\n"
+            ".panels{display:flex;flex-wrap:wrap;gap:10px;align-items:flex-start}.bars{margin:0;max-width:660px}\n"
+            "svg{font:11px sans-serif;background:#fff}svg .title{font-size:13px;font-weight:600}\n"
+            "svg .grid{stroke:#e2e2e2;fill:none}svg .minor{stroke:#f3f3f3;fill:none}"
+            "svg .frame{fill:none;stroke:#444}\n"
+            "svg .ty text{text-anchor:end}svg .tx,svg .tx text,svg .axis,svg .note{text-anchor:middle}"
+            "svg .axis{font-size:12px}svg .note{fill:#999}\n"
+            "svg .ref{stroke:#333;stroke-width:1.2;stroke-dasharray:5 4;fill:none}"
+            "svg .series{fill:none;stroke-width:1.1;stroke-opacity:.85}\n"
+      << "</style>\n</head>\n<body>\n";
+  return out.str();
+}
+
 /// Renders a line/marker panel. Its markers get ids marker_id + series index: marker_id must
 /// be a prefix unique in the page.
 std::string renderPanel(const Panel& panel, const std::string& marker_id) {
@@ -408,7 +440,8 @@ std::string renderPanel(const Panel& panel, const std::string& marker_id) {
       }
       out << (open ? " " : "<polyline points=\"")
           << format("%.1f,%.1f", x.toPixel(s.x[i]), y.toPixel(s.y[i]));
-      open = true;
+      open = s.connected;
+      if (!open) out << "\"/>";
     }
     if (open) out << "\"/>";
     out << "</g>\n";
@@ -603,31 +636,7 @@ class PageWriter {
 
   void writeHead() {
     const std::string name = campaign_.directory.empty() ? "(campaign built in memory)" : campaign_.directory;
-    out_ << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>stepcal report: "
-         << escape(name) << "</title>\n<style>\n"
-         << "body{font:14px/1.45 system-ui,-apple-system,'Segoe UI',sans-serif;color:#222;max-width:1360px;"
-            "margin:20px auto;padding:0 16px}\n"
-            "h1{font-size:22px;margin:0 0 8px}h2{font-size:18px;margin:30px 0 8px;padding-bottom:3px;"
-            "border-bottom:1px solid #ddd}\n"
-            "nav a{margin-right:12px}p{max-width:1000px}\n"
-            "table{border-collapse:collapse;font-variant-numeric:tabular-nums;margin:6px 0}\n"
-            "th,td{padding:3px 9px;border-bottom:1px solid #eee;text-align:right}"
-            "th{background:#f5f5f5;font-weight:600}.l{text-align:left}\n"
-            "table.dense{font-size:12.5px}.dense th,.dense td{padding:2px 5px}.dense td{white-space:nowrap}"
-            ".dense .g{border-left:1px solid #ddd}"
-            ".dense tr.validation td{background:#f4f8fc}\n"
-            ".muted{color:#999}.item{white-space:nowrap}.sw{display:inline-block;width:10px;height:10px;border-radius:2px;"
-            "margin-right:4px}\n"
-            "figure{margin:10px 0 18px}figcaption{color:#555;font-size:13px;max-width:1320px}\n"
-            ".panels{display:flex;flex-wrap:wrap;gap:10px;align-items:flex-start}.bars{margin:0;max-width:660px}\n"
-            "svg{font:11px sans-serif;background:#fff}svg .title{font-size:13px;font-weight:600}\n"
-            "svg .grid{stroke:#e2e2e2;fill:none}svg .minor{stroke:#f3f3f3;fill:none}"
-            "svg .frame{fill:none;stroke:#444}\n"
-            "svg .ty text{text-anchor:end}svg .tx,svg .tx text,svg .axis,svg .note{text-anchor:middle}"
-            "svg .axis{font-size:12px}svg .note{fill:#999}\n"
-            "svg .ref{stroke:#333;stroke-width:1.2;stroke-dasharray:5 4;fill:none}"
-            "svg .series{fill:none;stroke-width:1.1;stroke-opacity:.85}\n"
-         << "</style>\n</head>\n<body>\n";
+    out_ << pageHead("stepcal report: " + name);
     out_ << "<h1>stepcal calibration report</h1>\n<nav><a href=\"#overview\">overview</a>"
             "<a href=\"#convergence\">step 1 convergence</a><a href=\"#geometry\">geometric errors</a>"
             "<a href=\"#loads\">errors per load</a><a href=\"#against-load\">error vs load</a>"
@@ -968,6 +977,97 @@ class PageWriter {
 
 std::string htmlReport(const Campaign& campaign, const trainer::CalibrationOutcome& outcome) {
   return PageWriter(campaign, outcome).write();
+}
+
+std::string diagnosisHtml(const Campaign& campaign, const trainer::Diagnosis& d) {
+  const std::string name =
+      campaign.directory.empty() ? "(campaign built in memory)" : campaign.directory;
+  std::ostringstream out;
+  out << pageHead("stepcal diagnosis: " + name);
+  out << "<h1>stepcal diagnosis</h1>\n<p>" << escape(name) << ": " << d.fit_rows
+      << " fit rows, " << d.validation_rows << " validation rows. Verdict: <b>"
+      << toString(d.verdict) << "</b>";
+  for (const trainer::FoundEffect& e : d.effects) out << "; " << escape(describe(e.mechanism));
+  out << ".</p>\n";
+  if (!d.unexplained_trend.empty()) {
+    out << "<p>Structure no catalogued mechanism explains: " << escape(d.unexplained_trend)
+        << "</p>\n";
+  }
+
+  // The telling variables: significant trends before the extension, else the strongest three.
+  std::vector<std::string> telling;
+  for (const trainer::TrendScore& t : d.before.trends) {
+    if (t.significant || telling.size() < 3) telling.push_back(t.variable);
+    if (telling.size() == 4) break;
+  }
+  out << "<h2>Residual of the physical model against the telling variables</h2>\n"
+         "<p>Position error of every fit row (mm) before and after the extension; the trends are "
+         "ranked by their cross-validated t statistic.</p>\n<div class=\"panels\">";
+  const SeriesStyle before{"#d62728", MarkerShape::kCircle}, after{"#1f77b4", MarkerShape::kSquare};
+  for (const std::string& variable : telling) {
+    const auto it = std::find(d.variable_names.begin(), d.variable_names.end(), variable);
+    if (it == d.variable_names.end()) continue;
+    const std::vector<double>& x = d.variable_values[static_cast<size_t>(it - d.variable_names.begin())];
+    Panel panel;
+    panel.title = "position error against " + variable;
+    panel.x_label = variable;
+    panel.y_label = "mm";
+    auto mm = [](const std::vector<double>& v) {
+      std::vector<double> out;
+      for (double e : v) out.push_back(e * kMm);
+      return out;
+    };
+    panel.series.push_back({"physical model", before, x, mm(d.before.position_error_m), false});
+    if (!d.effects.empty()) {
+      panel.series.push_back({"extended", after, x, mm(d.after.position_error_m), false});
+    }
+    panel.references.push_back({"noise floor", d.floor_position_m * kMm});
+    out << "<figure>" << renderPanel(panel, "m" + std::to_string(&variable - telling.data()))
+        << "</figure>";
+  }
+  out << "</div>\n";
+
+  out << "<h2>Candidates</h2>\n<div class=\"panels\">";
+  int rounds = 0;
+  for (const trainer::CandidateScore& c : d.candidates) rounds = std::max(rounds, c.round);
+  for (int round = 1; round <= rounds; ++round) {
+    std::vector<const trainer::CandidateScore*> in_round;
+    for (const trainer::CandidateScore& c : d.candidates) {
+      if (c.round == round) in_round.push_back(&c);
+    }
+    std::sort(in_round.begin(), in_round.end(),
+              [](const auto* a, const auto* b) { return a->t_statistic > b->t_statistic; });
+    BarChart chart;
+    chart.title = format("round %d: the ten best of %zu candidates", round, in_round.size());
+    chart.x_label = "candidate";
+    chart.y_label = "held-out t statistic";
+    BarSeries bars{"t (chosen one first among equals)", "#1f77b4", {}};
+    for (size_t i = 0; i < in_round.size() && i < 10; ++i) {
+      chart.categories.push_back(describe(in_round[i]->mechanism) +
+                                 (in_round[i]->chosen ? " *" : ""));
+      bars.values.push_back(in_round[i]->t_statistic);
+    }
+    chart.bars.push_back(bars);
+    out << "<figure class=\"bars\">" << renderBars(chart) << "</figure>";
+  }
+  out << "</div>\n<p class=\"muted\">* chosen in that round.</p>\n";
+
+  if (!d.gain.empty()) {
+    out << "<h2>Gain on validation rows</h2>\n<table><tr><th>load</th><th>rows</th>"
+           "<th>before mean mm</th><th>after mean mm</th><th>"
+        << escape(d.gpr_method.empty() ? "(no GPR)" : d.gpr_method)
+        << " mean mm</th><th>extended+gpr mean mm</th></tr>\n";
+    for (const trainer::GainRow& g : d.gain) {
+      out << "<tr><td>" << loadLabel(g.load_kg) << "</td><td>" << g.rows << "</td><td>"
+          << cell("%.4f", g.before.mean_position_m * kMm) << "</td><td>"
+          << cell("%.4f", g.after.mean_position_m * kMm) << "</td><td>"
+          << (g.gpr.rows > 0 ? cell("%.4f", g.gpr.mean_position_m * kMm) : "&#8211;")
+          << "</td><td>" << cell("%.4f", g.after_gpr.mean_position_m * kMm) << "</td></tr>\n";
+    }
+    out << "</table>\n";
+  }
+  out << "</body>\n</html>\n";
+  return out.str();
 }
 
 }  // namespace stepcal::cli

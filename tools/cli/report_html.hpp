@@ -4,6 +4,7 @@
 #include <string>
 
 #include "stepcal/common/campaign.hpp"
+#include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 
 namespace stepcal::cli {
@@ -14,5 +15,10 @@ namespace stepcal::cli {
 /// stiffness check (Fig. 7); tables of K_θ, GPR hyperparameters and every method's accuracy.
 /// outcome.row_errors must be aligned with campaign.rows (as calibrateCampaign makes them).
 std::string htmlReport(const Campaign& campaign, const trainer::CalibrationOutcome& outcome);
+
+/// A diagnosis as one self-contained HTML page: the fit rows' position error against the
+/// telling variables (scatter, before and after the extension), each round's best candidates,
+/// the gain table.
+std::string diagnosisHtml(const Campaign& campaign, const trainer::Diagnosis& diagnosis);
 
 }  // namespace stepcal::cli

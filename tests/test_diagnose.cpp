@@ -7,6 +7,8 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <random>
 #include <string>
 
@@ -16,6 +18,7 @@
 #include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
+#include "support/command.hpp"
 
 namespace stepcal::trainer {
 namespace {
@@ -235,6 +238,70 @@ TEST(Diagnose, RefusesTooFewPosesNamingTheFile) {
     EXPECT_NE(std::string(e.what()).find("measurements.csv"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("fit poses"), std::string::npos) << e.what();
   }
+}
+
+// Through the command: simulate with a hidden backlash, diagnose --json --out --report; the JSON
+// carries the documented keys, the extended model holds the mechanism, bad input exits 2.
+TEST(DiagnoseCommand, JsonModelAndReport) {
+  namespace fs = std::filesystem;
+  const std::string stepcal = std::string(STEPCAL_BIN_DIR) + "/stepcal";
+  const fs::path dir = fs::temp_directory_path() / "stepcal_test_diagnose_cli";
+  fs::remove_all(dir);
+  const std::string campaign = (dir / "campaign").string();
+  ASSERT_EQ(test::run(stepcal + " simulate --seed 3 --out " + campaign +
+                      " --effect '{\"name\": \"backlash\", \"joint\": 2, \"lost_motion_rad\": 2e-4}'")
+                .status,
+            0);
+  const std::string json_path = (dir / "diagnosis.json").string();
+  const std::string model_path = (dir / "extended.stepcal").string();
+  const std::string report_path = (dir / "diagnosis.html").string();
+  const test::CommandResult r = test::run("(" + stepcal + " diagnose " + campaign +
+                                          " --json --out " + model_path + " --report " +
+                                          report_path + " > " + json_path + ")");
+  ASSERT_EQ(r.status, 0) << r.out;
+  std::ifstream in(json_path);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j.at("verdict"), "found");
+  ASSERT_EQ(j.at("effects").size(), 1u);
+  const nlohmann::json& e = j.at("effects")[0];
+  EXPECT_EQ(e.at("name"), "backlash");
+  EXPECT_EQ(e.at("joint"), 2);
+  EXPECT_TRUE(e.at("joints").is_null());
+  EXPECT_TRUE(e.at("harmonic").is_null());
+  EXPECT_NEAR(e.at("parameters").at("lost_motion_rad").get<double>(), 2e-4, 0.2 * 2e-4);
+  EXPECT_GT(e.at("uncertainty").at("lost_motion_rad").get<double>(), 0.0);
+  EXPECT_GT(e.at("cv_gain_mm").get<double>(), 0.0);
+  EXPECT_GT(j.at("candidates").size(), 100u);
+  EXPECT_TRUE(j.at("unexplained_trend").is_null());
+  bool saw_55 = false;
+  for (const nlohmann::json& g : j.at("gain")) {
+    for (const char* key : {"load_kg", "before_mean_position_mm", "after_mean_position_mm",
+                            "gpr_mean_position_mm"}) {
+      EXPECT_TRUE(g.contains(key)) << key;
+    }
+    if (g.at("load_kg") == 55.0) {
+      saw_55 = true;
+      EXPECT_LT(g.at("after_mean_position_mm").get<double>(),
+                g.at("gpr_mean_position_mm").get<double>());
+    }
+  }
+  EXPECT_TRUE(saw_55);
+
+  const CalibratedModel extended = readModelFile(model_path);
+  ASSERT_EQ(extended.mechanisms.size(), 1u);
+  EXPECT_EQ(extended.mechanisms[0].kind, MechanismKind::kBacklash);
+  EXPECT_EQ(extended.mechanisms[0].joint, 1);
+  const test::CommandResult inspect = test::run(stepcal + " inspect " + model_path);
+  EXPECT_NE(inspect.out.find("mechanism backlash (joint 2)"), std::string::npos) << inspect.out;
+
+  std::ifstream report(report_path);
+  const std::string html((std::istreambuf_iterator<char>(report)), std::istreambuf_iterator<char>());
+  EXPECT_NE(html.find("<svg"), std::string::npos);
+  EXPECT_NE(html.find("backlash (joint 2)"), std::string::npos);
+
+  const test::CommandResult bad = test::run(stepcal + " diagnose " + (dir / "nowhere").string());
+  EXPECT_EQ(bad.status, 2) << bad.out;
+  EXPECT_NE(bad.out.find("nowhere"), std::string::npos) << bad.out;
 }
 
 }  // namespace

@@ -177,6 +177,19 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
     }
     out << "\n";
   }
+  if (model.mechanisms.empty()) {
+    out << "mechanisms: none (stepcal diagnose adds them)\n";
+  }
+  for (const Mechanism& m : model.mechanisms) {
+    const std::vector<std::string> names =
+        mechanismParameterNames(m.kind, model.chain_Tracker.dof());
+    out << "mechanism " << describe(m) << ":";
+    for (size_t i = 0; i < names.size(); ++i) {
+      if (m.kind == MechanismKind::kSelfWeight && m.parameters[i] == 0.0) continue;
+      out << printf_string(" %s %.5g+-%.2g", names[i].c_str(), m.parameters[i], m.sigma[i]);
+    }
+    out << "\n";
+  }
   if (!model.gpr) {
     out << "GPR: none (no step 3)\n";
   } else {

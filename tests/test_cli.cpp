@@ -216,6 +216,18 @@ TEST(Cli, BadInputEndsWithAClearErrorAndStatusTwo) {
                                       dir.string());
   EXPECT_EQ(bad_joint.status, 2);
   EXPECT_NE(bad_joint.out.find("backlash.joint = 9"), std::string::npos) << bad_joint.out;
+  const CommandResult bad_bias =
+      run(kStepcal + " simulate --effect " +
+          "'{\"name\": \"sensor_bias\", \"force_n\": [900, 0, 0], \"moment_nm\": [0, 0, 0]}' --out " +
+          dir.string());
+  EXPECT_EQ(bad_bias.status, 2);
+  EXPECT_NE(bad_bias.out.find("sensor_bias.force_n = [900, 0, 0] N; expected finite values with norm < 500 N"),
+            std::string::npos)
+      << bad_bias.out;
+  const CommandResult unknown = run(kStepcal + " simulate --effect '{\"name\": \"gear_wobble\"}' --out " +
+                                    dir.string());
+  EXPECT_EQ(unknown.status, 2);
+  EXPECT_NE(unknown.out.find("unknown effect 'gear_wobble'; expected one of"), std::string::npos) << unknown.out;
 }
 
 TEST(Cli, SimulateWritesHiddenEffectsIntoTheTruth) {
@@ -228,6 +240,37 @@ TEST(Cli, SimulateWritesHiddenEffectsIntoTheTruth) {
   EXPECT_EQ(truth.at("effects").at(1).at("name"), "joint_coupling");
   EXPECT_EQ(truth.at("effects").at(1).at("joints"), nlohmann::json({4, 6}));
   EXPECT_EQ(truth.at("effects").at(1).at("ratio"), 0.002);
+}
+
+TEST(Cli, SimulateWithASensorBiasOffsetsEveryReading) {
+  const fs::path clean = scratch("clean");
+  const fs::path biased = scratch("biased");
+  const std::string common = " simulate --protocol geometry --seed 5 --out ";
+  ASSERT_EQ(run(kStepcal + common + clean.string()).status, 0);
+  const CommandResult r = run(kStepcal + common + biased.string() +
+                              " --effect '{\"name\": \"sensor_bias\", \"force_n\": [1.5, -2, 0.8], "
+                              "\"moment_nm\": [0.12, -0.05, 0.03]}'");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json truth = nlohmann::json::parse(readTextFile((biased / "truth.json").string()));
+  ASSERT_EQ(truth.at("effects").size(), 2u);
+  EXPECT_EQ(truth.at("effects").at(1),
+            nlohmann::json::parse(R"({"name": "sensor_bias", "force_n": [1.5, -2.0, 0.8],
+                                      "moment_nm": [0.12, -0.05, 0.03]})"));
+  // Through the campaign files (shortest round-trip numbers): the same rows, every reading
+  // offset by the bias, unloaded rows included.
+  const Campaign a = readCampaign(biased.string());
+  const Campaign b = readCampaign(clean.string());
+  ASSERT_EQ(a.rows.size(), 130u);
+  ASSERT_EQ(b.rows.size(), a.rows.size());
+  Vec6 bias;
+  bias << 1.5, -2.0, 0.8, 0.12, -0.05, 0.03;
+  for (size_t i = 0; i < a.rows.size(); ++i) {
+    EXPECT_EQ(a.rows[i].load_kg, 0.0);
+    EXPECT_EQ(a.rows[i].p_TipInTracker_m, b.rows[i].p_TipInTracker_m);
+    EXPECT_EQ(a.rows[i].temp_c, b.rows[i].temp_c);
+    EXPECT_LT((a.rows[i].wrench_Sensor - b.rows[i].wrench_Sensor - bias).cwiseAbs().maxCoeff(), 1e-14)
+        << "row " << i + 1;
+  }
 }
 
 }  // namespace

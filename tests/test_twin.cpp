@@ -1,11 +1,14 @@
 // The simulated robot: reproducibility, the paper's protocol, the noiseless nominal case, the
 // compliance fixed point against its linearisation, the F/T reading, truth.json round trips,
-// noise statistics, and the size of the errors an uncalibrated model would make.
+// noise statistics, the size of the errors an uncalibrated model would make, the temperature
+// profile, and every hidden mechanism against its closed form.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <set>
 #include <string>
@@ -15,6 +18,7 @@
 #include "stepcal/common/chain.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/mechanisms.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/twin/twin.hpp"
 #include "support/campaign_rows.hpp"
@@ -49,6 +53,11 @@ Pose fk(const KinematicChain& chain, const JointVector& q) {
   ChainWorkspace ws;
   EXPECT_TRUE(forwardKinematics(chain, q, ws));
   return tipPose(ws);
+}
+
+// The true temperature of row seq under the default profile: 20 °C ± 3 °C, period 400 rows.
+double defaultProfile_c(int64_t seq) {
+  return 20.0 + 3.0 * std::sin(2.0 * kPi * static_cast<double>(seq) / 400.0);
 }
 
 using test::expectSameRows;
@@ -103,7 +112,7 @@ TEST(Twin, PaperProtocolRows) {
     EXPECT_TRUE(m.has_orientation);
     EXPECT_TRUE(m.has_wrench);
     ASSERT_TRUE(m.temp_c.has_value());
-    EXPECT_NEAR(*m.temp_c, 20.0, 0.5);
+    EXPECT_NEAR(*m.temp_c, defaultProfile_c(m.seq), 0.5);
     ++count[{m.set, m.load_kg}];
     by_pose[m.pose_id].push_back(&m);
   }
@@ -165,7 +174,7 @@ TEST(Twin, NoiselessNominalRobotIsTrackerTimesNominalFk) {
     if (m.load_kg == 0.0) {
       EXPECT_EQ(m.wrench_Sensor, Vec6::Zero());
     }
-    EXPECT_EQ(*m.temp_c, 20.0);
+    EXPECT_NEAR(*m.temp_c, defaultProfile_c(m.seq), 1e-12);
   }
   EXPECT_FALSE(c.tracker.stated);
 }
@@ -442,7 +451,22 @@ TEST(Twin, BadOptionsAreRefusedWithTheValue) {
   EXPECT_THROW(simulateCampaign(o, nullptr), InputError);
 }
 
-/// One of each hidden mechanism, at a size a tracker sees.
+/// A self_weight object with these link entries.
+nlohmann::json selfWeight(const nlohmann::json& links) {
+  return {{"name", "self_weight"}, {"links", links}};
+}
+
+/// self_weight, thermal_expansion and sensor_bias at sizes a tracker and an F/T sensor see.
+std::vector<nlohmann::json> selfWeightThermalAndBias() {
+  return {selfWeight({{{"link", 2}, {"mass_kg", 40.0}, {"com_m", {0.3, 0.0, 0.1}}},
+                      {{"link", 3}, {"mass_kg", 25.0}, {"com_m", {0.2, -0.02, 0.05}}}}),
+          {{"name", "thermal_expansion"}, {"expansion_per_k", 1.2e-5}, {"reference_temp_c", 20.0}},
+          {{"name", "sensor_bias"},
+           {"force_n", {1.5, -2.0, 0.8}},
+           {"moment_nm", {0.12, -0.05, 0.03}}}};
+}
+
+/// One of each link-angle mechanism, at a size a tracker sees.
 std::vector<nlohmann::json> everyHiddenEffect() {
   return {{{"name", "backlash"}, {"joint", 2}, {"lost_motion_rad", 2e-4}},
           {{"name", "transmission_error"}, {"joint", 3}, {"harmonic", 2}, {"sin_rad", 1e-4},
@@ -450,6 +474,14 @@ std::vector<nlohmann::json> everyHiddenEffect() {
           {{"name", "nonlinear_stiffness"}, {"joint", 4}, {"extra_compliance_rad_per_nm", 4e-6},
            {"saturation_torque_nm", 40.0}},
           {{"name", "joint_coupling"}, {"joints", {4, 6}}, {"ratio", 2e-3}}};
+}
+
+/// The link-angle effect a truth.json object describes.
+std::shared_ptr<const LinkAngleEffect> linkAngleEffect(const nlohmann::json& spec) {
+  EffectSet set;
+  set.add(spec, 6);
+  EXPECT_EQ(set.link_angle.size(), 1u);
+  return set.link_angle.at(0);
 }
 
 TEST(Twin, HiddenEffectsFollowTheirClosedForms) {
@@ -465,21 +497,21 @@ TEST(Twin, HiddenEffectsFollowTheirClosedForms) {
   const std::vector<nlohmann::json> specs = everyHiddenEffect();
   JointVector expected = JointVector::Zero(6);
   expected(1) = 2e-4 * std::tanh(-250.0);  // taken up against the load: −b
-  EXPECT_LT((delta(*linkAngleEffectFromJson(specs[0], 6)) - expected).norm(), 1e-15);
+  EXPECT_LT((delta(*linkAngleEffect(specs[0])) - expected).norm(), 1e-15);
   EXPECT_NEAR(expected(1), -2e-4, 1e-18);
   expected.setZero();
   expected(2) = 1e-4 * std::sin(2 * 1.1) - 5e-5 * std::cos(2 * 1.1);
-  EXPECT_LT((delta(*linkAngleEffectFromJson(specs[1], 6)) - expected).norm(), 1e-15);
+  EXPECT_LT((delta(*linkAngleEffect(specs[1])) - expected).norm(), 1e-15);
   expected.setZero();
   expected(3) = 4e-6 * -30.0 * 40.0 / (40.0 + 30.0);
-  EXPECT_LT((delta(*linkAngleEffectFromJson(specs[2], 6)) - expected).norm(), 1e-15);
+  EXPECT_LT((delta(*linkAngleEffect(specs[2])) - expected).norm(), 1e-15);
   expected.setZero();
   expected(5) = 2e-3 * 2.5;
-  EXPECT_LT((delta(*linkAngleEffectFromJson(specs[3], 6)) - expected).norm(), 1e-15);
+  EXPECT_LT((delta(*linkAngleEffect(specs[3])) - expected).norm(), 1e-15);
 
   // Nonlinear stiffness: the slope of Δθ in τ is c at zero torque and falls with |τ| (softer at
   // small torque), checked by central differences.
-  const auto nonlinear = linkAngleEffectFromJson(specs[2], 6);
+  const auto nonlinear = linkAngleEffect(specs[2]);
   const auto slope = [&](double torque) {
     const double h = 1e-3;
     JointVector plus = q, minus = q, t = tau;
@@ -529,7 +561,42 @@ TEST(Twin, BadHiddenEffectsAreRefusedWithTheValue) {
       {{{"name", "joint_coupling"}, {"joints", {5, 5}}, {"ratio", 1e-3}}, "two different joints"},
       {{{"name", "joint_coupling"}, {"joints", {5}}, {"ratio", 1e-3}}, "[from_joint, to_joint]"},
       {{{"name", "backlash"}, {"joint", 2}}, "hidden effect"},
-      {{{"name", "gear_wobble"}}, "unknown link-angle effect 'gear_wobble'"},
+      {{{"name", "gear_wobble"}},
+       "unknown effect 'gear_wobble'; expected one of joint_compliance, backlash, "
+       "transmission_error, nonlinear_stiffness, joint_coupling, self_weight, "
+       "thermal_expansion, sensor_bias"},
+      {selfWeight({{{"link", 0}, {"mass_kg", 40.0}, {"com_m", {0.3, 0.0, 0.1}}}}),
+       "self_weight.links[0].link = 0; expected a link 1 … 6"},
+      {selfWeight({{{"link", 2}, {"mass_kg", 40.0}, {"com_m", {0.3, 0.0, 0.1}}},
+                   {{"link", 7}, {"mass_kg", 40.0}, {"com_m", {0.3, 0.0, 0.1}}}}),
+       "self_weight.links[1].link = 7"},
+      {selfWeight({{{"link", 2}, {"mass_kg", -4.0}, {"com_m", {0.3, 0.0, 0.1}}}}),
+       "self_weight.links[0].mass_kg = -4 kg; expected a finite value in (0, 2000) kg"},
+      {selfWeight({{{"link", 2}, {"mass_kg", 2500.0}, {"com_m", {0.3, 0.0, 0.1}}}}),
+       "mass_kg = 2500 kg"},
+      {selfWeight({{{"link", 2}, {"mass_kg", 40.0}, {"com_m", {6.0, 0.0, 0.0}}}}),
+       "self_weight.links[0].com_m = [6, 0, 0] m; expected finite values with norm < 5 m"},
+      {selfWeight({{{"link", 2}, {"mass_kg", 40.0}, {"com_m", {0.3, 0.1}}}}),
+       "self_weight.links[0].com_m = [0.3,0.1]; expected three numbers"},
+      {selfWeight({{{"link", 2}, {"mass_kg", 40.0}, {"com_m", {0.3, 0.0, 0.1}}},
+                   {{"link", 2}, {"mass_kg", 10.0}, {"com_m", {0.1, 0.0, 0.0}}}}),
+       "self_weight.links[1].link = 2 appears twice"},
+      {selfWeight(nlohmann::json::array()), "self_weight.links is empty"},
+      {{{"name", "self_weight"}, {"links", {{"link", 2}}}},
+       "self_weight.links = {\"link\":2}; expected an array"},
+      {selfWeight({{{"link", 2}, {"mass_kg", 40.0}}}), "hidden effect"},
+      {{{"name", "thermal_expansion"}, {"expansion_per_k", 2e-4}, {"reference_temp_c", 20.0}},
+       "thermal_expansion.expansion_per_k = 0.0002 1/K; expected a finite value with |value| < "
+       "0.0001 1/K"},
+      {{{"name", "thermal_expansion"}, {"expansion_per_k", 1e-5},
+        {"reference_temp_c", std::nan("")}},
+       "thermal_expansion.reference_temp_c = nan"},
+      {{{"name", "thermal_expansion"}, {"expansion_per_k", 1e-5}}, "reference_temp_c"},
+      {{{"name", "sensor_bias"}, {"force_n", {600.0, 0.0, 0.0}}, {"moment_nm", {0.0, 0.0, 0.0}}},
+       "sensor_bias.force_n = [600, 0, 0] N; expected finite values with norm < 500 N"},
+      {{{"name", "sensor_bias"}, {"force_n", {1.0, 0.0, 0.0}}, {"moment_nm", {0.0, 0.0, -150.0}}},
+       "sensor_bias.moment_nm = [0, 0, -150] N·m"},
+      {{{"name", "sensor_bias"}, {"force_n", {1.0, 0.0, 0.0}}}, "moment_nm"},
   };
   for (const auto& [spec, message] : cases) {
     TwinOptions o = paperOptions();
@@ -548,6 +615,335 @@ TEST(Twin, DefaultUrdfIsTheShippedIrb4400) {
   o.protocol = "geometry";
   const Campaign c = simulateCampaign(o, nullptr);
   EXPECT_EQ(c.urdf_xml, readTextFile(kIrb));
+}
+
+TEST(Twin, SecondSelfWeightThermalOrBiasIsRefused) {
+  for (const nlohmann::json& spec : selfWeightThermalAndBias()) {
+    TwinOptions o = paperOptions();
+    o.hidden_effects = {spec, spec};
+    const std::string name = spec.at("name");
+    try {
+      TwinRobot robot(o);
+      ADD_FAILURE() << "accepted two " << name;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(name + " is given twice; expected at most one"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+}
+
+TEST(Twin, BadTemperatureProfileIsRefusedWithTheKey) {
+  const std::vector<std::pair<double, double>> cases = {
+      {-1.0, 400.0}, {30.0, 400.0}, {std::nan(""), 400.0}, {3.0, 0.0}, {3.0, -5.0},
+      {3.0, std::numeric_limits<double>::infinity()}};
+  for (const auto& [swing_c, period_rows] : cases) {
+    TwinOptions o = paperOptions();
+    o.temperature_swing_c = swing_c;
+    o.temperature_period_rows = period_rows;
+    const std::string key =
+        period_rows > 0.0 && std::isfinite(period_rows) ? "TwinOptions.temperature_swing_c = "
+                                                        : "TwinOptions.temperature_period_rows = ";
+    try {
+      TwinRobot robot(o);
+      ADD_FAILURE() << "accepted swing " << swing_c << " °C, period " << period_rows;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(Twin, TemperatureFollowsTheSinusoidAndShiftsNoOtherDraw) {
+  const TwinOptions swinging = paperOptions(16);
+  TwinOptions constant = swinging;
+  constant.temperature_swing_c = 0.0;
+  const Campaign a = simulateCampaign(swinging, nullptr);
+  const Campaign b = simulateCampaign(constant, nullptr);
+  ASSERT_EQ(a.rows.size(), b.rows.size());
+  double sum = 0.0, sum_sq = 0.0, worst = 0.0;
+  struct Span {
+    double min_c, max_c;
+    int rows;
+  };
+  std::map<std::pair<std::string, double>, Span> spans;  // by pose_id prefix and load
+  for (size_t i = 0; i < a.rows.size(); ++i) {
+    const Measurement& x = a.rows[i];
+    const Measurement& y = b.rows[i];
+    // Without a thermal mechanism only temp_c changes, and the noise stream is the same.
+    EXPECT_EQ(x.q_rad, y.q_rad);
+    EXPECT_EQ(x.p_TipInTracker_m, y.p_TipInTracker_m);
+    EXPECT_EQ(x.q_TrackerTip.coeffs(), y.q_TrackerTip.coeffs());
+    EXPECT_EQ(x.wrench_Sensor, y.wrench_Sensor);
+    const double T = defaultProfile_c(x.seq);
+    EXPECT_NEAR(*x.temp_c - *y.temp_c, T - 20.0, 1e-12) << x.seq;
+    const double r = *x.temp_c - T;
+    sum += r;
+    sum_sq += r * r;
+    worst = std::max(worst, std::abs(r));
+    Span& span = spans.try_emplace({x.pose_id.substr(0, x.pose_id.find('-')), x.load_kg},
+                                   Span{T, T, 0})
+                     .first->second;
+    span.min_c = std::min(span.min_c, T);
+    span.max_c = std::max(span.max_c, T);
+    ++span.rows;
+  }
+  const double n = static_cast<double>(a.rows.size());
+  const double sigma = swinging.temperature_sigma_c;
+  const double mean = sum / n;
+  const double std = std::sqrt((sum_sq - n * mean * mean) / (n - 1.0));
+  EXPECT_NEAR(std, sigma, 0.1 * sigma);
+  EXPECT_LT(std::abs(mean), 4.0 * sigma / std::sqrt(n));
+  EXPECT_LT(worst, 6.0 * sigma);
+  // Not one temperature per block: within every fitted group of 80 rows or more (geometry,
+  // stiffness and residual at each load) the true temperature spans more than 1.5 °C.
+  for (const auto& [group, span] : spans) {
+    if (span.rows < 80) continue;
+    EXPECT_GT(span.max_c - span.min_c, 1.5) << group.first << " at " << group.second << " kg";
+  }
+}
+
+TEST(Twin, SelfWeightDeflectsEachJointByItsComplianceTimesTheGravityTorque) {
+  TwinOptions o = noiseless(paperOptions(6));
+  const double mass_kg = 60.0;
+  const Vec3 p_ComInLink6_m(0.05, -0.04, 0.12);
+  o.hidden_effects = {selfWeight(
+      {{{"link", 6}, {"mass_kg", mass_kg}, {"com_m", {0.05, -0.04, 0.12}}}})};
+  const TwinRobot robot(o);
+  const KinematicChain& chain = robot.trueChain();
+  const Vec3 g = robot.gravityInBase();
+  // The point mass's potential V(θ) = −m g·p(θ); its torque on joint j is τ_j = −∂V/∂θ_j
+  // (the generalised force, the direction the joint is pushed), here by central differences
+  // with h = 1e-5 rad: error ~1e-8 N·m, ~1e-13 rad after the compliance.
+  const auto potential = [&](const JointVector& theta) {
+    ChainWorkspace ws;
+    forwardKinematics(chain, theta, ws);
+    return -mass_kg * g.dot(ws.X_RootFrame[6] * p_ComInLink6_m);
+  };
+  // The physical model's self_weight (common/mechanisms.hpp): first moment h = m · com.
+  std::vector<double> model_parameters(24, 0.0);
+  model_parameters[20] = mass_kg;
+  for (int a = 0; a < 3; ++a) {
+    model_parameters[static_cast<size_t>(21 + a)] = mass_kg * p_ComInLink6_m(a);
+  }
+  const Campaign c = simulateCampaign(o, nullptr);
+  double largest_rad = 0.0;
+  for (const Measurement* m : c.rowsIn(RowSet::kGeometry)) {
+    const JointVector theta = robot.linkAngles(m->q_rad, 0.0);
+    JointVector tau(6);
+    for (int j = 0; j < 6; ++j) {
+      const double h = 1e-5;
+      JointVector plus = theta, minus = theta;
+      plus(j) += h;
+      minus(j) -= h;
+      tau(j) = -(potential(plus) - potential(minus)) / (2.0 * h);
+      const double compliance = 1.0 / o.stiffness_nm_per_rad[static_cast<size_t>(j)];
+      EXPECT_NEAR(theta(j) - m->q_rad(j), compliance * tau(j), 1e-11)
+          << m->pose_id << " joint " << j + 1;
+      largest_rad = std::max(largest_rad, std::abs(theta(j) - m->q_rad(j)));
+    }
+    ChainWorkspace ws;
+    forwardKinematics(chain, theta, ws);
+    JointVector tau_model;
+    selfWeightTorques(chain, ws, g, model_parameters, tau_model);
+    EXPECT_LT((tau_model - tau).cwiseAbs().maxCoeff(), 1e-6) << m->pose_id;
+    // The sensor sees only the payload: unloaded it reads nothing.
+    EXPECT_EQ(robot.sensorReading(m->q_rad, 0.0), Vec6::Zero());
+  }
+  // Unloaded rows deflect: 60 kg half a metre or more out on the wrist.
+  EXPECT_GT(largest_rad, 1e-4);
+}
+
+TEST(Twin, SelfWeightAtThePayloadsCoGActsLikeThePayload) {
+  TwinOptions o = noiseless(paperOptions(19));
+  const TwinRobot loaded(o);
+  const AttachedFrame& sensor =
+      loaded.trueChain().frames()[static_cast<size_t>(loaded.sensorFrame())];
+  ASSERT_EQ(sensor.parent, 6);
+  const Vec3 p_CoGInLink6_m = sensor.X_ParentFrame * o.p_CoGInSensor_m;
+  o.hidden_effects = {selfWeight(
+      {{{"link", 6}, {"mass_kg", 40.0},
+        {"com_m", {p_CoGInLink6_m.x(), p_CoGInLink6_m.y(), p_CoGInLink6_m.z()}}}})};
+  const TwinRobot weighted(o);
+  const Campaign c = simulateCampaign(o, nullptr);
+  for (const Measurement* m : c.rowsIn(RowSet::kResidual)) {
+    // Both are fixed points of the same equation, each to 1e-12 rad.
+    EXPECT_LT((weighted.linkAngles(m->q_rad, 0.0) - loaded.linkAngles(m->q_rad, 40.0))
+                  .cwiseAbs()
+                  .maxCoeff(),
+              2e-12)
+        << m->pose_id;
+    // Payload and link weight add up.
+    EXPECT_LT((weighted.linkAngles(m->q_rad, 20.0) - loaded.linkAngles(m->q_rad, 60.0))
+                  .cwiseAbs()
+                  .maxCoeff(),
+              2e-12)
+        << m->pose_id;
+  }
+}
+
+TEST(Twin, ThermalExpansionScalesTheArmBeyondJointOne) {
+  TwinOptions o = noiseless(paperOptions(14));
+  o.protocol = "geometry";
+  o.hidden_effects = {selfWeightThermalAndBias()[1]};  // α = 1.2e-5 /K, T_ref = 20 °C
+  const TwinRobot robot(o);
+  const KinematicChain& chain = robot.trueChain();
+  // Joint 1 turns about an axis through its frame's origin, which T_{0,1}(0) (never scaled)
+  // places; everything beyond it is the links, scaled by s = 1 + α (T − T_ref).
+  ASSERT_TRUE(chain.joints()[0].twist_Local.head<3>().isZero(0.0));
+  const Vec3 p_Joint1InBase = chain.initialPose(0).translation();
+  const Campaign c = simulateCampaign(o, nullptr);
+  for (const Measurement& m : c.rows) {
+    const Pose X_ref = robot.X_BaseTip(m.q_rad, 0.0, 20.0);
+    EXPECT_EQ(X_ref.matrix(), robot.X_BaseTip(m.q_rad, 0.0).matrix());  // NaN: reference length
+    EXPECT_EQ(X_ref.matrix(), fk(chain, m.q_rad).matrix());
+    const Vec3 arm_ref = X_ref.translation() - p_Joint1InBase;
+    for (double temp_c : {35.0, -5.0, 23.7}) {
+      const double scale = 1.0 + 1.2e-5 * (temp_c - 20.0);
+      const Pose X = robot.X_BaseTip(m.q_rad, 0.0, temp_c);
+      const Vec3 arm = X.translation() - p_Joint1InBase;
+      EXPECT_LT((arm - scale * arm_ref).norm(), 1e-13) << m.pose_id << " at " << temp_c << " °C";
+      EXPECT_NEAR(arm.norm() / arm_ref.norm(), scale, 1e-14);
+      EXPECT_LT((X.linear() - X_ref.linear()).norm(), 1e-15);
+    }
+  }
+}
+
+TEST(Twin, ThermalCampaignMeasuresEachRowAtItsTrueTemperature) {
+  TwinOptions swinging = noiseless(paperOptions(15));
+  const double alpha_per_k = 1.2e-5;
+  swinging.hidden_effects = {selfWeightThermalAndBias()[1]};
+  TwinOptions constant = swinging;
+  constant.temperature_swing_c = 0.0;  // always at T_ref = 20 °C: scale 1
+  const TwinRobot robot(swinging);
+  const KinematicChain& chain = robot.trueChain();
+  const Vec3 p_Joint1InBase = chain.initialPose(0).translation();
+  const Campaign a = simulateCampaign(swinging, nullptr);
+  const Campaign b = simulateCampaign(constant, nullptr);
+  ASSERT_EQ(a.rows.size(), b.rows.size());
+  double largest_m = 0.0;
+  for (size_t i = 0; i < a.rows.size(); ++i) {
+    const Measurement& x = a.rows[i];
+    const double temp_c = defaultProfile_c(x.seq);
+    const double scale = 1.0 + alpha_per_k * (temp_c - 20.0);
+    ASSERT_EQ(x.q_rad, b.rows[i].q_rad);
+    EXPECT_NEAR(*x.temp_c, temp_c, 1e-12);
+    EXPECT_LT((x.p_TipInTracker_m - robot.X_TrackerTip(x.q_rad, x.load_kg, temp_c).translation())
+                  .norm(),
+              1e-12);
+    if (x.load_kg == 0.0) {
+      // Unloaded, the link angles are the commanded ones: the arm beyond joint 1 scales.
+      const Vec3 p_ref = robot.X_TrackerBase().inverse() * b.rows[i].p_TipInTracker_m;
+      const Vec3 expected =
+          robot.X_TrackerBase() * (p_Joint1InBase + scale * (p_ref - p_Joint1InBase));
+      EXPECT_LT((x.p_TipInTracker_m - expected).norm(), 1e-12) << x.pose_id;
+      largest_m = std::max(largest_m, (x.p_TipInTracker_m - b.rows[i].p_TipInTracker_m).norm());
+      continue;
+    }
+    // Loaded, the compliance's fixed point uses the scaled lever arms.
+    const JointVector theta = robot.linkAngles(x.q_rad, x.load_kg, temp_c);
+    ChainWorkspace ws;
+    forwardKinematics(chain, theta, ws, scale);
+    Jacobian J;
+    spatialJacobian(chain, ws, J);
+    const Vec3 p_CoGInBase = framePose(chain, ws, robot.sensorFrame()) * robot.p_CoGInSensor_m();
+    Vec6 W;
+    W.head<3>() = x.load_kg * robot.gravityInBase();
+    W.tail<3>() = p_CoGInBase.cross(W.head<3>());
+    const JointVector tau = J.transpose() * W;
+    for (int j = 0; j < 6; ++j) {
+      const double stiffness = swinging.stiffness_nm_per_rad[static_cast<size_t>(j)];
+      EXPECT_NEAR(theta(j), x.q_rad(j) + tau(j) / stiffness, 1e-12)
+          << x.pose_id << " joint " << j + 1;
+    }
+  }
+  // ±3 °C on a ~2 m arm: tens of µm, several times the tracker's noise.
+  std::printf("[twin] thermal expansion 1.2e-5/K, 20 +- 3 degC: largest unloaded tip change "
+              "%.1f um\n",
+              1e6 * largest_m);
+  EXPECT_GT(largest_m, 30e-6);
+  EXPECT_LT(largest_m, 120e-6);
+}
+
+TEST(Twin, SensorBiasOffsetsEveryReadingAndNothingElse) {
+  const TwinOptions clean = paperOptions(17);  // with noise: the same draws in both
+  TwinOptions biased = clean;
+  biased.hidden_effects = {selfWeightThermalAndBias()[2]};
+  Vec6 bias;
+  bias << 1.5, -2.0, 0.8, 0.12, -0.05, 0.03;
+  const TwinRobot robot(biased);
+  const TwinRobot clean_robot(clean);
+  EXPECT_EQ(robot.effects().sensorBias_Sensor(), bias);
+  const Campaign a = simulateCampaign(biased, nullptr);
+  const Campaign b = simulateCampaign(clean, nullptr);
+  ASSERT_EQ(a.rows.size(), b.rows.size());
+  Vec6 unloaded_sum = Vec6::Zero();
+  int unloaded = 0;
+  for (size_t i = 0; i < a.rows.size(); ++i) {
+    const Measurement& x = a.rows[i];
+    const Measurement& y = b.rows[i];
+    EXPECT_EQ(x.p_TipInTracker_m, y.p_TipInTracker_m);  // the robot's physics is unaffected
+    EXPECT_EQ(x.q_TrackerTip.coeffs(), y.q_TrackerTip.coeffs());
+    // Readings reach 540 N at 55 kg: their sum rounds at 1e-13.
+    EXPECT_LT((x.wrench_Sensor - y.wrench_Sensor - bias).cwiseAbs().maxCoeff(), 1e-12) << x.seq;
+    if (x.load_kg == 0.0) {
+      unloaded_sum += x.wrench_Sensor;
+      ++unloaded;
+    }
+  }
+  // Unloaded rows read the bias plus noise.
+  const Vec6 mean = unloaded_sum / unloaded;
+  for (int k = 0; k < 6; ++k) {
+    const double sigma = k < 3 ? clean.ft_force_sigma_n : clean.ft_moment_sigma_nm;
+    EXPECT_NEAR(mean(k), bias(k), 4.0 * sigma / std::sqrt(static_cast<double>(unloaded))) << k;
+  }
+  const JointVector& q = a.rows[500].q_rad;
+  EXPECT_EQ(robot.sensorWrench(q, 30.0), clean_robot.sensorWrench(q, 30.0));
+  EXPECT_LT((robot.sensorReading(q, 30.0) - robot.sensorWrench(q, 30.0) - bias).norm(), 1e-12);
+}
+
+TEST(Twin, EveryMechanismRoundTripsThroughTruthJson) {
+  TwinOptions o = noiseless(paperOptions(18));
+  // Given first, listed after the link-angle effects: truth.json follows the pipeline.
+  o.hidden_effects = selfWeightThermalAndBias();
+  for (const nlohmann::json& e : everyHiddenEffect()) o.hidden_effects.push_back(e);
+  const TwinRobot robot(o);
+  const nlohmann::json truth = robot.truthJson();
+  const nlohmann::json& effects = truth.at("effects");
+  ASSERT_EQ(effects.size(), 8u);
+  EXPECT_EQ(effects.at(0).at("name"), "joint_compliance");
+  for (size_t k = 0; k < 4; ++k) EXPECT_EQ(effects.at(1 + k), everyHiddenEffect()[k]);
+  for (size_t k = 0; k < 3; ++k) EXPECT_EQ(effects.at(5 + k), selfWeightThermalAndBias()[k]);
+  EXPECT_EQ(truth.at("options").at("temperature_swing_c"), 3.0);
+  EXPECT_EQ(truth.at("options").at("temperature_period_rows"), 400.0);
+
+  const TwinRobot copy = TwinRobot::fromTruthJson(nlohmann::json::parse(truth.dump()));
+  EXPECT_EQ(copy.truthJson(), truth);
+  const Campaign c = simulateCampaign(o, nullptr);
+  for (size_t i = 0; i < c.rows.size(); i += 9) {
+    const Measurement& m = c.rows[i];
+    for (double temp_c : {kNoThermalExpansion, 14.0, 26.5}) {
+      EXPECT_EQ(robot.X_TrackerTip(m.q_rad, m.load_kg, temp_c).matrix(),
+                copy.X_TrackerTip(m.q_rad, m.load_kg, temp_c).matrix());
+      EXPECT_EQ(robot.sensorReading(m.q_rad, m.load_kg, temp_c),
+                copy.sensorReading(m.q_rad, m.load_kg, temp_c));
+    }
+    // The noiseless campaign is the robot at each row's true temperature, bias included.
+    const double temp_c = defaultProfile_c(m.seq);
+    EXPECT_LT((m.p_TipInTracker_m - copy.X_TrackerTip(m.q_rad, m.load_kg, temp_c).translation())
+                  .norm(),
+              1e-12);
+    EXPECT_LT((m.wrench_Sensor - copy.sensorReading(m.q_rad, m.load_kg, temp_c)).norm(), 1e-12);
+  }
+
+  nlohmann::json twice = truth;
+  twice["effects"].push_back(selfWeightThermalAndBias()[1]);
+  try {
+    TwinRobot::fromTruthJson(twice);
+    ADD_FAILURE() << "accepted two thermal_expansion";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("thermal_expansion is given twice"), std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

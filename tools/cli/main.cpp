@@ -178,7 +178,9 @@ int main(int argc, char** argv) {
                        "a hidden mechanism as JSON, repeatable: backlash {joint, lost_motion_rad}, "
                        "transmission_error {joint, harmonic, sin_rad, cos_rad}, nonlinear_stiffness "
                        "{joint, extra_compliance_rad_per_nm, saturation_torque_nm}, joint_coupling "
-                       "{joints: [from, to], ratio}; joints 1 … 6");
+                       "{joints: [from, to], ratio}, self_weight {links: [{link, mass_kg, com_m}]}, "
+                       "thermal_expansion {expansion_per_k, reference_temp_c}, sensor_bias "
+                       "{force_n, moment_nm}; joints and links 1 … 6");
   simulate->add_option("--out", sim.out, "campaign folder to write")->required();
 
   CLI::App* import = app.add_subcommand("import", "convert foreign measurements into a campaign");

@@ -1,6 +1,8 @@
 #include "stepcal/twin/effects.hpp"
 
 #include <cmath>
+#include <set>
+#include <sstream>
 #include <utility>
 
 #include "stepcal/common/error.hpp"
@@ -36,6 +38,22 @@ nlohmann::json JointCompliance::toJson() const {
 
 namespace {
 
+/// Names EffectSet::add knows, in the order of its error message.
+constexpr const char* kKnownEffects[] = {
+    "joint_compliance", "backlash",    "transmission_error", "nonlinear_stiffness",
+    "joint_coupling",   "self_weight", "thermal_expansion",  "sensor_bias"};
+
+std::string show(double v) {
+  std::ostringstream s;
+  s.precision(10);
+  s << v;
+  return s.str();
+}
+
+std::string show(const Vec3& v) {
+  return "[" + show(v.x()) + ", " + show(v.y()) + ", " + show(v.z()) + "]";
+}
+
 /// Throws unless joint is 1 … dof.
 void requireJoint(const std::string& effect, const char* key, int joint, int dof) {
   if (joint < 1 || joint > dof) {
@@ -49,11 +67,30 @@ void requireMagnitude(const std::string& effect, const char* key, double value, 
                       bool allow_zero, const char* unit) {
   const bool ok = std::isfinite(value) && std::abs(value) < upper && (allow_zero || value > 0.0);
   if (!ok) {
-    throw InputError(effect + "." + key + " = " + std::to_string(value) + " " + unit +
+    throw InputError(effect + "." + key + " = " + show(value) + " " + unit +
                      "; expected a finite value " + (allow_zero ? "with |value| < " : "in (0, ") +
-                     std::to_string(upper) + (allow_zero ? "" : ")") + " " + unit);
+                     show(upper) + (allow_zero ? "" : ")") + " " + unit);
   }
 }
+
+/// Throws unless v is finite with |v| < upper.
+void requireVectorBelow(const std::string& key, const Vec3& v, double upper, const char* unit) {
+  if (!(v.allFinite() && v.norm() < upper)) {
+    throw InputError(key + " = " + show(v) + " " + unit + "; expected finite values with norm < " +
+                     show(upper) + " " + unit);
+  }
+}
+
+/// Three numbers [x, y, z] from j[key].
+Vec3 vec3FromJson(const nlohmann::json& j, const std::string& effect, const char* key) {
+  const nlohmann::json& a = j.at(key);
+  if (!a.is_array() || a.size() != 3) {
+    throw InputError(effect + "." + key + " = " + a.dump() + "; expected three numbers [x, y, z]");
+  }
+  return Vec3(a[0].get<double>(), a[1].get<double>(), a[2].get<double>());
+}
+
+nlohmann::json vec3ToJson(const Vec3& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); }
 
 }  // namespace
 
@@ -141,39 +178,162 @@ nlohmann::json JointCoupling::toJson() const {
   return {{"name", name()}, {"joints", {from_joint_, to_joint_}}, {"ratio", ratio_}};
 }
 
-std::shared_ptr<const LinkAngleEffect> linkAngleEffectFromJson(const nlohmann::json& j, int dof) {
+SelfWeight::SelfWeight(std::vector<LinkMass> links, int dof) : links_(std::move(links)) {
+  if (links_.empty()) {
+    throw InputError(name() + ".links is empty; expected at least one {\"link\", \"mass_kg\", "
+                     "\"com_m\"}");
+  }
+  std::set<int> seen;
+  for (size_t i = 0; i < links_.size(); ++i) {
+    const LinkMass& l = links_[i];
+    const std::string key = name() + ".links[" + std::to_string(i) + "].";
+    if (l.link < 1 || l.link > dof) {
+      throw InputError(key + "link = " + std::to_string(l.link) + "; expected a link 1 … " +
+                       std::to_string(dof) + " (the body joint k moves)");
+    }
+    if (!seen.insert(l.link).second) {
+      throw InputError(key + "link = " + std::to_string(l.link) +
+                       " appears twice; expected each link at most once");
+    }
+    if (!(std::isfinite(l.mass_kg) && l.mass_kg > 0.0 && l.mass_kg < 2000.0)) {
+      throw InputError(key + "mass_kg = " + show(l.mass_kg) +
+                       " kg; expected a finite value in (0, 2000) kg");
+    }
+    requireVectorBelow(key + "com_m", l.p_ComInLink_m, 5.0, "m");
+  }
+}
+
+void SelfWeight::addTorques(const ChainWorkspace& ws, const Jacobian& J_s,
+                            const Vec3& gravity_in_base, JointVector& tau_nm) const {
+  STEPCAL_INVARIANT(J_s.cols() == tau_nm.size() && ws.dof == tau_nm.size(),
+                    "self weight: one torque per joint");
+  for (const LinkMass& l : links_) {
+    const Vec3 p_ComInBase = ws.X_RootFrame[static_cast<size_t>(l.link)] * l.p_ComInLink_m;
+    Vec6 W;
+    W.head<3>() = l.mass_kg * gravity_in_base;
+    W.tail<3>() = p_ComInBase.cross(W.head<3>());
+    // Joints 1 … k carry link k.
+    tau_nm.head(l.link) += J_s.leftCols(l.link).transpose() * W;
+  }
+}
+
+nlohmann::json SelfWeight::toJson() const {
+  nlohmann::json links = nlohmann::json::array();
+  for (const LinkMass& l : links_) {
+    links.push_back(
+        {{"link", l.link}, {"mass_kg", l.mass_kg}, {"com_m", vec3ToJson(l.p_ComInLink_m)}});
+  }
+  return {{"name", name()}, {"links", links}};
+}
+
+ThermalExpansion::ThermalExpansion(double expansion_per_k, double reference_temp_c)
+    : expansion_per_k_(expansion_per_k), reference_temp_c_(reference_temp_c) {
+  requireMagnitude(name(), "expansion_per_k", expansion_per_k, 1e-4, true, "1/K");
+  if (!std::isfinite(reference_temp_c)) {
+    throw InputError(name() + ".reference_temp_c = " + show(reference_temp_c) +
+                     " °C; expected a finite temperature, e.g. 20");
+  }
+}
+
+double ThermalExpansion::linkLengthScale(double temp_c) const noexcept {
+  return std::isnan(temp_c) ? 1.0 : 1.0 + expansion_per_k_ * (temp_c - reference_temp_c_);
+}
+
+nlohmann::json ThermalExpansion::toJson() const {
+  return {{"name", name()},
+          {"expansion_per_k", expansion_per_k_},
+          {"reference_temp_c", reference_temp_c_}};
+}
+
+SensorBias::SensorBias(const Vec3& force_n, const Vec3& moment_nm) {
+  requireVectorBelow(name() + ".force_n", force_n, 500.0, "N");
+  requireVectorBelow(name() + ".moment_nm", moment_nm, 100.0, "N·m");
+  wrench_Sensor_ << force_n, moment_nm;
+}
+
+nlohmann::json SensorBias::toJson() const {
+  return {{"name", name()},
+          {"force_n", vec3ToJson(wrench_Sensor_.head<3>())},
+          {"moment_nm", vec3ToJson(wrench_Sensor_.tail<3>())}};
+}
+
+void EffectSet::add(const nlohmann::json& j, int dof) {
   const std::string name = j.at("name").get<std::string>();
+  const auto once = [&name](bool already) {
+    if (already) {
+      throw InputError(name + " is given twice; expected at most one" +
+                       (name == SelfWeight::name() ? " (list every link in its links)" : ""));
+    }
+  };
   if (name == "backlash") {
-    return std::make_shared<Backlash>(j.at("joint").get<int>(), j.at("lost_motion_rad").get<double>(), dof);
-  }
-  if (name == "transmission_error") {
-    return std::make_shared<TransmissionError>(j.at("joint").get<int>(), j.at("harmonic").get<int>(),
-                                               j.value("sin_rad", 0.0), j.value("cos_rad", 0.0), dof);
-  }
-  if (name == "nonlinear_stiffness") {
-    return std::make_shared<NonlinearStiffness>(j.at("joint").get<int>(),
-                                                j.at("extra_compliance_rad_per_nm").get<double>(),
-                                                j.at("saturation_torque_nm").get<double>(), dof);
-  }
-  if (name == "joint_coupling") {
+    link_angle.push_back(std::make_shared<Backlash>(j.at("joint").get<int>(),
+                                                    j.at("lost_motion_rad").get<double>(), dof));
+  } else if (name == "transmission_error") {
+    link_angle.push_back(std::make_shared<TransmissionError>(
+        j.at("joint").get<int>(), j.at("harmonic").get<int>(), j.value("sin_rad", 0.0),
+        j.value("cos_rad", 0.0), dof));
+  } else if (name == "nonlinear_stiffness") {
+    link_angle.push_back(std::make_shared<NonlinearStiffness>(
+        j.at("joint").get<int>(), j.at("extra_compliance_rad_per_nm").get<double>(),
+        j.at("saturation_torque_nm").get<double>(), dof));
+  } else if (name == "joint_coupling") {
     const auto joints = j.at("joints").get<std::vector<int>>();
     if (joints.size() != 2) {
       throw InputError("joint_coupling.joints has " + std::to_string(joints.size()) +
                        " entries; expected [from_joint, to_joint]");
     }
-    return std::make_shared<JointCoupling>(joints[0], joints[1], j.at("ratio").get<double>(), dof);
-  }
-  if (name == "joint_compliance") {
+    link_angle.push_back(
+        std::make_shared<JointCoupling>(joints[0], joints[1], j.at("ratio").get<double>(), dof));
+  } else if (name == "joint_compliance") {
     auto stiffness = j.at("stiffness_nm_per_rad").get<std::vector<double>>();
     if (stiffness.size() != static_cast<size_t>(dof)) {
       throw InputError("joint_compliance has " + std::to_string(stiffness.size()) +
                        " stiffness values; expected one per joint, " + std::to_string(dof));
     }
-    return std::make_shared<JointCompliance>(std::move(stiffness));
+    link_angle.push_back(std::make_shared<JointCompliance>(std::move(stiffness)));
+  } else if (name == SelfWeight::name()) {
+    once(self_weight.has_value());
+    const nlohmann::json& entries = j.at("links");
+    if (!entries.is_array()) {
+      throw InputError(name + ".links = " + entries.dump() +
+                       "; expected an array of {\"link\", \"mass_kg\", \"com_m\"}");
+    }
+    std::vector<SelfWeight::LinkMass> links;
+    for (size_t i = 0; i < entries.size(); ++i) {
+      const nlohmann::json& e = entries[i];
+      links.push_back({e.at("link").get<int>(), e.at("mass_kg").get<double>(),
+                       vec3FromJson(e, name + ".links[" + std::to_string(i) + "]", "com_m")});
+    }
+    self_weight.emplace(std::move(links), dof);
+  } else if (name == ThermalExpansion::name()) {
+    once(thermal_expansion.has_value());
+    thermal_expansion.emplace(j.at("expansion_per_k").get<double>(),
+                              j.at("reference_temp_c").get<double>());
+  } else if (name == SensorBias::name()) {
+    once(sensor_bias.has_value());
+    sensor_bias.emplace(vec3FromJson(j, name, "force_n"), vec3FromJson(j, name, "moment_nm"));
+  } else {
+    std::string known;
+    for (const char* k : kKnownEffects) known += std::string(known.empty() ? "" : ", ") + k;
+    throw InputError("unknown effect '" + name + "'; expected one of " + known);
   }
-  throw InputError("unknown link-angle effect '" + name +
-                   "'; expected joint_compliance, backlash, transmission_error, "
-                   "nonlinear_stiffness or joint_coupling");
+}
+
+nlohmann::json EffectSet::toJson() const {
+  nlohmann::json all = nlohmann::json::array();
+  for (const auto& e : link_angle) all.push_back(e->toJson());
+  if (self_weight) all.push_back(self_weight->toJson());
+  if (thermal_expansion) all.push_back(thermal_expansion->toJson());
+  if (sensor_bias) all.push_back(sensor_bias->toJson());
+  return all;
+}
+
+double EffectSet::linkLengthScale(double temp_c) const noexcept {
+  return thermal_expansion ? thermal_expansion->linkLengthScale(temp_c) : 1.0;
+}
+
+Vec6 EffectSet::sensorBias_Sensor() const noexcept {
+  return sensor_bias ? sensor_bias->wrench_Sensor() : Vec6::Zero();
 }
 
 }  // namespace stepcal::twin

@@ -68,6 +68,19 @@ void validateOptions(const TwinOptions& options, const KinematicChain& nominal) 
   requireNonNegative(options.ft_moment_sigma_nm, "ft_moment_sigma_nm", noise_hint);
   requireNonNegative(options.temperature_sigma_c, "temperature_sigma_c", noise_hint);
   requireFinite(options.temperature_c, "temperature_c", "degrees Celsius, e.g. 20");
+  if (!(std::isfinite(options.temperature_swing_c) && options.temperature_swing_c >= 0.0 &&
+        options.temperature_swing_c < 30.0)) {
+    throw InputError("TwinOptions.temperature_swing_c = " + show(options.temperature_swing_c) +
+                     "; expected a finite value in [0, 30) degrees Celsius (hint: 0 keeps the "
+                     "temperature constant; a workshop swings a few degrees)");
+  }
+  if (!(std::isfinite(options.temperature_period_rows) &&
+        options.temperature_period_rows > 0.0)) {
+    throw InputError("TwinOptions.temperature_period_rows = " +
+                     show(options.temperature_period_rows) +
+                     "; expected a finite number of rows > 0 (hint: 400 gives 2.7 periods over "
+                     "the paper protocol)");
+  }
   requireNonNegative(options.joint_frame_translation_sigma_m, "joint_frame_translation_sigma_m",
                      "metres, e.g. 0.3e-3");
   requireNonNegative(options.joint_frame_rotation_sigma_rad, "joint_frame_rotation_sigma_rad",
@@ -142,6 +155,8 @@ nlohmann::json toJson(const TwinOptions& o) {
       {"ft_force_sigma_n", o.ft_force_sigma_n},
       {"ft_moment_sigma_nm", o.ft_moment_sigma_nm},
       {"temperature_c", o.temperature_c},
+      {"temperature_swing_c", o.temperature_swing_c},
+      {"temperature_period_rows", o.temperature_period_rows},
       {"temperature_sigma_c", o.temperature_sigma_c},
       {"tracker_distance_min_m", o.tracker_distance_min_m},
       {"tracker_distance_max_m", o.tracker_distance_max_m},

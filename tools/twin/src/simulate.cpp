@@ -71,6 +71,13 @@ JointVector drawPose(Rng& rng, const KinematicChain& nominal, const TwinOptions&
                    "pose_ranges or lower min_tip_forward_m / min_tip_height_m)");
 }
 
+// True temperature of row seq: TwinOptions::temperature_c's sinusoid, °C.
+double trueTemperature_c(const TwinOptions& o, int64_t seq) {
+  return o.temperature_c + o.temperature_swing_c *
+                               std::sin(2.0 * kPi * static_cast<double>(seq) /
+                                        o.temperature_period_rows);
+}
+
 std::string poseId(const char* prefix, int index) {
   char id[32];
   std::snprintf(id, sizeof id, "%s-%03d", prefix, index);
@@ -107,7 +114,8 @@ Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out)
     for (double load_kg : block.loads_kg) {
       for (int i = 0; i < block.poses; ++i) {
         const JointVector& q = poses[static_cast<size_t>(i)];
-        const Pose X_TrackerTip = robot.X_TrackerTip(q, load_kg);
+        const double temp_c = trueTemperature_c(options, seq);
+        const Pose X_TrackerTip = robot.X_TrackerTip(q, load_kg, temp_c);
         // Every noise draw happens whatever its sigma, so sigmas do not shift the stream.
         const Vec3 dp = noise_rng.normal3(options.tracker_position_sigma_m);
         const Vec3 dr = noise_rng.normal3(options.tracker_orientation_sigma_rad);
@@ -127,12 +135,13 @@ Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out)
         if (quat.w() < 0.0) quat.coeffs() = -quat.coeffs();
         m.has_orientation = true;
         m.q_TrackerTip = quat;
-        // The sensor is always mounted and tared unloaded: unloaded rows read pure noise.
+        // The sensor is always mounted and tared unloaded: unloaded rows read noise (around
+        // the bias, if the tare went wrong).
         m.has_wrench = true;
-        m.wrench_Sensor = robot.sensorWrench(q, load_kg);
+        m.wrench_Sensor = robot.sensorReading(q, load_kg, temp_c);
         m.wrench_Sensor.head<3>() += df;
         m.wrench_Sensor.tail<3>() += dm;
-        m.temp_c = options.temperature_c + dtemp;
+        m.temp_c = temp_c + dtemp;
         campaign.rows.push_back(std::move(m));
       }
     }

@@ -87,11 +87,11 @@ TwinRobot::TwinRobot(const TwinOptions& options) {
   p_CoGInSensor_m_ = options.p_CoGInSensor_m;
   gravity_in_base_ = options.gravity_in_base_m_per_s2;
   if (options.compliance) {
-    effects_.push_back(std::make_shared<JointCompliance>(options.stiffness_nm_per_rad));
+    effects_.link_angle.push_back(std::make_shared<JointCompliance>(options.stiffness_nm_per_rad));
   }
   for (const nlohmann::json& effect : options.hidden_effects) {
     try {
-      effects_.push_back(linkAngleEffectFromJson(effect, chain_.dof()));
+      effects_.add(effect, chain_.dof());
     } catch (const nlohmann::json::exception& e) {
       throw InputError("hidden effect " + effect.dump() + ": " + e.what() +
                        "; expected a name and its parameters (tools/twin/.../effects.hpp)");
@@ -121,45 +121,59 @@ Vec6 TwinRobot::payloadWrenchAtBase(const ChainWorkspace& ws, double load_kg) co
   return W;
 }
 
-JointVector TwinRobot::linkAngles(const JointVector& q_cmd_rad, double load_kg) const {
+JointVector TwinRobot::linkAngles(const JointVector& q_cmd_rad, double load_kg,
+                                  double temp_c) const {
   STEPCAL_INVARIANT(q_cmd_rad.size() == chain_.dof(), "one commanded angle per joint");
+  const double scale = effects_.linkLengthScale(temp_c);
   ChainWorkspace ws;
   Jacobian J;
   JointVector theta = q_cmd_rad;
   for (int iteration = 0; iteration < kMaxFixedPointIterations; ++iteration) {
-    forwardKinematics(chain_, theta, ws);
+    forwardKinematics(chain_, theta, ws, scale);
     spatialJacobian(chain_, ws, J);
-    const JointVector tau = J.transpose() * payloadWrenchAtBase(ws, load_kg);
+    JointVector tau = J.transpose() * payloadWrenchAtBase(ws, load_kg);
+    if (effects_.self_weight) effects_.self_weight->addTorques(ws, J, gravity_in_base_, tau);
     JointVector next = q_cmd_rad;
-    for (const auto& effect : effects_) effect->apply(q_cmd_rad, tau, next);
+    for (const auto& effect : effects_.link_angle) effect->apply(q_cmd_rad, tau, next);
     const double step = (next - theta).cwiseAbs().maxCoeff();
     theta = next;
     if (step <= kFixedPointTolerance_rad) return theta;
   }
   throw InputError("the link angles under a " + std::to_string(load_kg) +
                    " kg payload did not converge; expected a structure stiff enough to carry it "
-                   "(hint: check stiffness_nm_per_rad and the payload)");
+                   "(hint: check stiffness_nm_per_rad, the payload and self_weight's masses)");
 }
 
-Pose TwinRobot::X_BaseTip(const JointVector& q_cmd_rad, double load_kg) const {
+void TwinRobot::deflectedFrames(const JointVector& q_cmd_rad, double load_kg, double temp_c,
+                                ChainWorkspace& ws) const {
+  forwardKinematics(chain_, linkAngles(q_cmd_rad, load_kg, temp_c), ws,
+                    effects_.linkLengthScale(temp_c));
+}
+
+Pose TwinRobot::X_BaseTip(const JointVector& q_cmd_rad, double load_kg, double temp_c) const {
   ChainWorkspace ws;
-  forwardKinematics(chain_, linkAngles(q_cmd_rad, load_kg), ws);
+  deflectedFrames(q_cmd_rad, load_kg, temp_c, ws);
   return tipPose(ws);
 }
 
-Pose TwinRobot::X_TrackerTip(const JointVector& q_cmd_rad, double load_kg) const {
-  return X_TrackerBase_ * X_BaseTip(q_cmd_rad, load_kg);
+Pose TwinRobot::X_TrackerTip(const JointVector& q_cmd_rad, double load_kg,
+                             double temp_c) const {
+  return X_TrackerBase_ * X_BaseTip(q_cmd_rad, load_kg, temp_c);
 }
 
-Vec6 TwinRobot::sensorWrench(const JointVector& q_cmd_rad, double load_kg) const {
+Vec6 TwinRobot::sensorWrench(const JointVector& q_cmd_rad, double load_kg, double temp_c) const {
   ChainWorkspace ws;
-  forwardKinematics(chain_, linkAngles(q_cmd_rad, load_kg), ws);
+  deflectedFrames(q_cmd_rad, load_kg, temp_c, ws);
   const Mat3 R_BaseSensor = framePose(chain_, ws, sensor_frame_).linear();
   const Vec3 f_Sensor = R_BaseSensor.transpose() * (load_kg * gravity_in_base_);
   Vec6 W;
   W.head<3>() = f_Sensor;
   W.tail<3>() = p_CoGInSensor_m_.cross(f_Sensor);
   return W;
+}
+
+Vec6 TwinRobot::sensorReading(const JointVector& q_cmd_rad, double load_kg, double temp_c) const {
+  return sensorWrench(q_cmd_rad, load_kg, temp_c) + effects_.sensorBias_Sensor();
 }
 
 nlohmann::json TwinRobot::truthJson() const {
@@ -174,8 +188,6 @@ nlohmann::json TwinRobot::truthJson() const {
   for (const Pose& X : chain_.initialPoses()) initial.push_back(poseToJson(X));
   nlohmann::json errors = nlohmann::json::array();
   for (const Vec6& d : geometric_errors_) errors.push_back(vecToJson(d));
-  nlohmann::json effects = nlohmann::json::array();
-  for (const auto& e : effects_) effects.push_back(e->toJson());
   const AttachedFrame& sensor = chain_.frames()[static_cast<size_t>(sensor_frame_)];
 
   nlohmann::json truth = provenance_;
@@ -189,7 +201,7 @@ nlohmann::json TwinRobot::truthJson() const {
   truth["initial_pose_errors_m_rad"] = errors;
   truth["sensor_frame"] = {{"parent_joint", sensor.parent},
                            {"X_ParentSensor_m", poseToJson(sensor.X_ParentFrame)}};
-  truth["effects"] = effects;
+  truth["effects"] = effects_.toJson();
   truth["p_CoGInSensor_m"] = vecToJson(p_CoGInSensor_m_);
   truth["gravity_in_base_m_per_s2"] = vecToJson(gravity_in_base_);
   return truth;
@@ -238,9 +250,7 @@ TwinRobot TwinRobot::fromTruthJson(const nlohmann::json& truth) {
     const size_t n = joints.size();
     robot.chain_ = KinematicChain(std::move(joints), std::move(initial), {frame});
     robot.sensor_frame_ = 0;
-    for (const nlohmann::json& e : truth.at("effects")) {
-      robot.effects_.push_back(linkAngleEffectFromJson(e, static_cast<int>(n)));
-    }
+    for (const nlohmann::json& e : truth.at("effects")) robot.effects_.add(e, static_cast<int>(n));
     robot.X_TrackerBase_ = poseFromJson(truth.at("X_TrackerBase_m"), "X_TrackerBase_m");
     robot.p_CoGInSensor_m_ = vecFromJson<3>(truth.at("p_CoGInSensor_m"), "p_CoGInSensor_m");
     robot.gravity_in_base_ =

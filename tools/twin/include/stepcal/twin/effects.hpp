@@ -1,23 +1,32 @@
 // Hidden physical mechanisms of the twin, each a small stage of the measurement pipeline.
 //
-// One measurement of the true robot at commanded joint angles q_cmd under a payload:
+// One measurement of the true robot at commanded joint angles q_cmd under a payload, at the true
+// temperature T of the row:
+//   0. link-length scale s = 1 + α (T − T_ref)                       (thermal_expansion, else 1)
 //   1. link angles θ, the fixed point of
-//        τ = J_s(θ)ᵀ W_payload(θ)                  joint load torques, N·m
+//        τ = J_s(θ)ᵀ W_payload(θ) + τ_self(θ)        joint load torques, N·m (self_weight)
 //        θ = e_k(q_cmd, τ, … e_1(q_cmd, τ, q_cmd))  the link-angle effects in order
-//   2. tip pose  X_TrackerTip = X_TrackerBase · FK_true(θ)
-//   3. F/T sensor wrench at the same θ
+//      with every frame from FK_true(θ; s), the links' translations scaled by s
+//   2. tip pose  X_TrackerTip = X_TrackerBase · FK_true(θ; s)
+//   3. F/T reading: the payload's wrench at the same θ, plus b_sensor (sensor_bias)
 // A mechanism that moves the link side away from the controller's angles is a LinkAngleEffect:
 // joint compliance (always, unless switched off) and the hidden mechanisms a campaign may carry
 // (backlash, transmission error, nonlinear stiffness, joint coupling), each on given joints with
-// given parameters. Joints are numbered 1 … n in names, parameters and truth.json.
+// given parameters. Three more act on the other stages: SelfWeight (the links' own gravity
+// torques join τ, so every effect that uses τ sees them, and unloaded rows deflect too),
+// ThermalExpansion (s) and SensorBias (the reading only; the robot's physics is unaffected).
+// EffectSet holds one twin's mechanisms and builds them from their truth.json objects.
+// Joints and links are numbered 1 … n in names, parameters and truth.json.
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "stepcal/common/chain.hpp"
 #include "stepcal/common/types.hpp"
 
 namespace stepcal::twin {
@@ -123,8 +132,92 @@ class JointCoupling final : public LinkAngleEffect {
   double ratio_;
 };
 
-/// Rebuilds an effect of a dof-joint chain from its truth.json object ("name" and its
-/// parameters, joints numbered from 1). Throws InputError on an unknown name or bad parameters.
-std::shared_ptr<const LinkAngleEffect> linkAngleEffectFromJson(const nlohmann::json& j, int dof);
+/// Gravity of the links themselves (an imperfectly balanced arm), as point masses: link k
+/// (1 … n) is the body joint k moves, its frame the chain frame after joint k's motion. The
+/// torque on joint j is τ_j = Σ_{k ≥ j} J_s,jᵀ (m_k g, p_k × m_k g), with p_k the mass's position
+/// and g gravity, both in base axes (the wrench about the base origin, like the payload's).
+class SelfWeight final {
+ public:
+  /// One point mass.
+  struct LinkMass {
+    int link = 0;                       ///< 1 … n
+    double mass_kg = 0.0;               ///< kg
+    Vec3 p_ComInLink_m = Vec3::Zero();  ///< centre of mass in the link's frame, m
+  };
+  /// links: at least one, each link 1 … dof at most once, mass finite in (0, 2000) kg, centre
+  /// of mass finite with |p| < 5 m. Throws InputError naming the key and the value.
+  SelfWeight(std::vector<LinkMass> links, int dof);
+  /// Name of the mechanism; the "name" key of its truth.json object.
+  static std::string name() { return "self_weight"; }
+  /// Adds the links' gravity torques [N·m] to tau_nm, at the frames in ws (filled by
+  /// forwardKinematics) with J_s the spatial Jacobian there; gravity_in_base m/s².
+  void addTorques(const ChainWorkspace& ws, const Jacobian& J_s, const Vec3& gravity_in_base,
+                  JointVector& tau_nm) const;
+  /// {"name", "links": [{"link", "mass_kg", "com_m"}, …]}.
+  nlohmann::json toJson() const;
+
+ private:
+  std::vector<LinkMass> links_;
+};
+
+/// Thermal expansion of the arm: the translations of the links' initial poses T_{1,2}(0) …
+/// T_{n,n+1}(0) scale by s = 1 + α (T − T_ref) at the true temperature T (forwardKinematics'
+/// link_length_scale). α 1/K, T_ref °C.
+class ThermalExpansion final {
+ public:
+  /// expansion_per_k α finite with |α| < 1e-4 1/K; reference_temp_c finite, °C. Throws
+  /// InputError naming the key and the value.
+  ThermalExpansion(double expansion_per_k, double reference_temp_c);
+  /// Name of the mechanism; the "name" key of its truth.json object.
+  static std::string name() { return "thermal_expansion"; }
+  /// s = 1 + α (temp_c − T_ref) at the true temperature temp_c [°C]; 1 when temp_c is NaN.
+  double linkLengthScale(double temp_c) const noexcept;
+  /// {"name", "expansion_per_k", "reference_temp_c"}.
+  nlohmann::json toJson() const;
+
+ private:
+  double expansion_per_k_, reference_temp_c_;
+};
+
+/// A constant offset of the F/T reading (a tare gone wrong), added to every row's reading,
+/// unloaded rows included; the robot's physics is unaffected. sensor_link axes.
+class SensorBias final {
+ public:
+  /// force_n finite with |f| < 500 N; moment_nm finite with |m| < 100 N·m. Throws InputError
+  /// naming the key and the value.
+  SensorBias(const Vec3& force_n, const Vec3& moment_nm);
+  /// Name of the mechanism; the "name" key of its truth.json object.
+  static std::string name() { return "sensor_bias"; }
+  /// The offset (f [N], m [N·m]) in sensor_link axes.
+  const Vec6& wrench_Sensor() const noexcept { return wrench_Sensor_; }
+  /// {"name", "force_n", "moment_nm"}.
+  nlohmann::json toJson() const;
+
+ private:
+  Vec6 wrench_Sensor_;
+};
+
+/// The mechanisms of one twin, by the stage they act on (the pipeline at the top of this file).
+struct EffectSet {
+  /// Link-angle effects in pipeline order (joint compliance first when on).
+  std::vector<std::shared_ptr<const LinkAngleEffect>> link_angle;
+  std::optional<SelfWeight> self_weight;
+  std::optional<ThermalExpansion> thermal_expansion;
+  std::optional<SensorBias> sensor_bias;
+
+  /// Adds the mechanism of a dof-joint chain described by its truth.json object ("name" and
+  /// its parameters, joints and links numbered from 1). Throws InputError on an unknown name
+  /// (listing the known ones), bad parameters, or a second self_weight, thermal_expansion or
+  /// sensor_bias; nlohmann::json::exception on a missing key or a wrong type.
+  void add(const nlohmann::json& j, int dof);
+  /// Every mechanism as its truth.json object: the link-angle effects in pipeline order, then
+  /// self_weight, thermal_expansion, sensor_bias.
+  nlohmann::json toJson() const;
+  /// Link-length scale at the true temperature temp_c [°C]: 1 without thermal_expansion or
+  /// when temp_c is NaN.
+  double linkLengthScale(double temp_c) const noexcept;
+  /// The sensor_bias offset (f [N], m [N·m]) in sensor_link axes; zero without.
+  Vec6 sensorBias_Sensor() const noexcept;
+};
 
 }  // namespace stepcal::twin

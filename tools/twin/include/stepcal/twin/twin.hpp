@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -27,6 +28,9 @@ namespace stepcal::twin {
 
 inline constexpr double kPi = 3.14159265358979323846;
 inline constexpr double kDegToRad = kPi / 180.0;
+/// Temperature argument of TwinRobot's pose functions meaning "no thermal expansion": the links
+/// at their reference length (scale 1), whatever thermal_expansion the robot has.
+inline constexpr double kNoThermalExpansion = std::numeric_limits<double>::quiet_NaN();
 
 /// Joint stiffness identified in the reference paper for the IRB4400, joints 1–6, N·m/rad.
 inline const std::vector<double> kPaperStiffnessNmPerRad = {501130.0, 633590.0, 508209.0,
@@ -63,8 +67,16 @@ struct TwinOptions {
   double ft_force_sigma_n = 0.2;
   /// F/T moment noise per axis, 1-σ, N·m.
   double ft_moment_sigma_nm = 0.01;
-  /// Ambient temperature written to temp_c, °C (no thermal effect yet).
+  /// Mean ambient temperature, °C. The true temperature of row seq (1, 2, …) is
+  ///   T(seq) = temperature_c + temperature_swing_c · sin(2π seq / temperature_period_rows),
+  /// which drives thermal_expansion; temp_c reads it with noise. By default 2.7 periods over
+  /// the paper protocol's 1070 rows: the temperature varies within the blocks (geometry,
+  /// stiffness loads, residual loads, 55 kg) instead of being one value per block.
   double temperature_c = 20.0;
+  /// Amplitude of the temperature's sinusoid, °C, finite, ≥ 0 and < 30 (0: constant).
+  double temperature_swing_c = 3.0;
+  /// Period of the temperature's sinusoid in rows, > 0.
+  double temperature_period_rows = 400.0;
   /// Noise of the temperature reading, 1-σ, °C.
   double temperature_sigma_c = 0.05;
 
@@ -89,9 +101,10 @@ struct TwinOptions {
   bool compliance = true;
   /// K_θ per joint, N·m/rad; one per revolute joint of the chain.
   std::vector<double> stiffness_nm_per_rad = kPaperStiffnessNmPerRad;
-  /// Hidden mechanisms after the compliance, in order, each as its truth.json object, e.g.
-  /// {"name": "backlash", "joint": 2, "lost_motion_rad": 2e-4} (effects.hpp,
-  /// linkAngleEffectFromJson). Bad ones throw InputError when the robot is built.
+  /// Hidden mechanisms, each as its truth.json object (effects.hpp, EffectSet::add), e.g.
+  /// {"name": "backlash", "joint": 2, "lost_motion_rad": 2e-4}; the link-angle effects act after
+  /// the compliance, in the order given; self_weight, thermal_expansion and sensor_bias at most
+  /// once each. Bad ones throw InputError when the robot is built.
   std::vector<nlohmann::json> hidden_effects;
 
   /// Payload centre of gravity in sensor_link, m.
@@ -114,7 +127,12 @@ nlohmann::json toJson(const TwinOptions& options);
 /// noise is added by simulateCampaign. Every initial pose is the nominal one times exp(δ)
 /// (TwinOptions geometric error sizes); the F/T sensor keeps its nominal offset from joint n, so
 /// the tool error lies between the sensor and the tip. The payload is a point mass at
-/// p_CoGInSensor_m; joint torques τ = J_sᵀ W with W its wrench at the base origin (effects.hpp).
+/// p_CoGInSensor_m; joint torques τ = J_sᵀ W + τ_self with W its wrench at the base origin and
+/// τ_self the links' own (self_weight) (effects.hpp).
+///
+/// The pose functions take the true temperature temp_c [°C] of the measurement (thermal
+/// expansion); the default kNoThermalExpansion (NaN) keeps the links at their reference length,
+/// which is exact for a robot without thermal_expansion.
 class TwinRobot {
  public:
   /// Reads the nominal URDF and draws the truth from the seed. Throws InputError.
@@ -125,15 +143,25 @@ class TwinRobot {
   nlohmann::json truthJson() const;
 
   /// Link angles the robot reaches at commanded angles q_cmd_rad [rad] under a payload of
-  /// load_kg [kg] at the CoG: the pipeline's fixed point, to 1e-12 rad. rad.
-  JointVector linkAngles(const JointVector& q_cmd_rad, double load_kg) const;
-  /// True tip pose in base_link, deflected, m.
-  Pose X_BaseTip(const JointVector& q_cmd_rad, double load_kg) const;
-  /// True tip pose in the tracker frame, deflected, noiseless, m.
-  Pose X_TrackerTip(const JointVector& q_cmd_rad, double load_kg) const;
-  /// Noiseless wrench the payload exerts on the sensor, tared: (f [N], m [N·m]) in sensor_link
-  /// axes, moment about the sensor_link origin, at the true deflected pose.
-  Vec6 sensorWrench(const JointVector& q_cmd_rad, double load_kg) const;
+  /// load_kg [kg] at the CoG and its own weight, at temp_c [°C]: the pipeline's fixed point,
+  /// to 1e-12 rad. rad.
+  JointVector linkAngles(const JointVector& q_cmd_rad, double load_kg,
+                         double temp_c = kNoThermalExpansion) const;
+  /// True tip pose in base_link, deflected, at temp_c [°C], m.
+  Pose X_BaseTip(const JointVector& q_cmd_rad, double load_kg,
+                 double temp_c = kNoThermalExpansion) const;
+  /// True tip pose in the tracker frame, deflected, at temp_c [°C], noiseless, m.
+  Pose X_TrackerTip(const JointVector& q_cmd_rad, double load_kg,
+                    double temp_c = kNoThermalExpansion) const;
+  /// Noiseless wrench the payload exerts on the sensor: (f [N], m [N·m]) in sensor_link axes,
+  /// moment about the sensor_link origin, at the true deflected pose at temp_c [°C]. The
+  /// physics only: without sensor_bias (see sensorReading).
+  Vec6 sensorWrench(const JointVector& q_cmd_rad, double load_kg,
+                    double temp_c = kNoThermalExpansion) const;
+  /// Noiseless F/T reading, tared unloaded: sensorWrench plus the sensor_bias (if any),
+  /// (f [N], m [N·m]) in sensor_link axes.
+  Vec6 sensorReading(const JointVector& q_cmd_rad, double load_kg,
+                     double temp_c = kNoThermalExpansion) const;
 
   /// True chain, root base_link, tip tip_link; the sensor is attached frame sensorFrame().
   const KinematicChain& trueChain() const noexcept { return chain_; }
@@ -144,22 +172,24 @@ class TwinRobot {
   const Vec3& p_CoGInSensor_m() const noexcept { return p_CoGInSensor_m_; }
   /// Gravity in base_link axes, m/s².
   const Vec3& gravityInBase() const noexcept { return gravity_in_base_; }
-  /// Link-angle effects in pipeline order.
-  const std::vector<std::shared_ptr<const LinkAngleEffect>>& effects() const noexcept {
-    return effects_;
-  }
+  /// Its mechanisms: link-angle effects in pipeline order, self weight, thermal expansion,
+  /// sensor bias.
+  const EffectSet& effects() const noexcept { return effects_; }
 
  private:
   TwinRobot() = default;
   // Payload wrench at the base origin, base axes, (f [N], m [N·m]), from frames in ws.
   Vec6 payloadWrenchAtBase(const ChainWorkspace& ws, double load_kg) const;
+  // Evaluates ws at the link angles of linkAngles (same arguments), lengths scaled at temp_c.
+  void deflectedFrames(const JointVector& q_cmd_rad, double load_kg, double temp_c,
+                       ChainWorkspace& ws) const;
 
   KinematicChain chain_;
   int sensor_frame_ = -1;
   Pose X_TrackerBase_ = Pose::Identity();
   Vec3 p_CoGInSensor_m_ = Vec3::Zero();
   Vec3 gravity_in_base_ = Vec3::Zero();
-  std::vector<std::shared_ptr<const LinkAngleEffect>> effects_;
+  EffectSet effects_;
   std::vector<Vec6> geometric_errors_;  // δ_k: true T_k = nominal T_k · exp(δ_k), for truth.json
   std::string base_link_, tip_link_, sensor_link_;
   nlohmann::json provenance_;  // seed and options the truth was drawn from
@@ -177,7 +207,9 @@ class TwinRobot {
 ///   ext  validation 50 × 55 (load extrapolation)
 /// Within a block every pose is measured at one load before the payload changes. "geometry" is
 /// the first two blocks. Every row has a wrench: the sensor stays mounted and tared unloaded, so
-/// unloaded rows read its noise around zero.
+/// unloaded rows read its noise around zero (around the bias with sensor_bias). Each row is
+/// measured at its true temperature T(seq) (TwinOptions::temperature_c); temp_c is T(seq) plus
+/// the reading's noise.
 Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out);
 
 /// Writes the simulated campaign into out_dir (writeCampaign) and truth.json beside it.

@@ -55,9 +55,9 @@ Pose fk(const KinematicChain& chain, const JointVector& q) {
   return tipPose(ws);
 }
 
-// The true temperature of row seq under the default profile: 20 °C ± 3 °C, period 400 rows.
+// The true temperature of row seq under the default profile: 20 °C ± 3 °C, period 300 rows.
 double defaultProfile_c(int64_t seq) {
-  return 20.0 + 3.0 * std::sin(2.0 * kPi * static_cast<double>(seq) / 400.0);
+  return 20.0 + 3.0 * std::sin(2.0 * kPi * static_cast<double>(seq) / 300.0);
 }
 
 using test::expectSameRows;

@@ -26,6 +26,10 @@ constexpr double kGramRankTolerance = 1e-15;
 // A candidate whose largest column moves the weighted residual by less than this, for a
 // parameter step of typical size, has no effect on these rows and is not tried.
 constexpr double kNegligibleEffect = 1e-3;
+// Lumped link masses are identifiable only in combinations (the gravity torques on the compliant
+// joints); a weak prior keeps the rest near zero instead of drifting along near-null directions:
+// 1-σ of 50 kg and 50 kg·m per parameter, far wider than any link's imbalance.
+constexpr double kSelfWeightPriorSigma = 50.0;
 // Fold assignment is a fixed shuffle of the poses: the same campaign, the same folds.
 constexpr uint64_t kFoldSeed = 20240521;
 
@@ -213,6 +217,35 @@ bool apply(const PhysicalModel& model, const std::vector<Parameter>& params,
   return true;
 }
 
+double priorCost(const PhysicalModel& model) {
+  double cost = 0.0;
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind != MechanismKind::kSelfWeight) continue;
+    for (double v : m.parameters) cost += (v / kSelfWeightPriorSigma) * (v / kSelfWeightPriorSigma);
+  }
+  return cost;
+}
+
+// Prior rows (value − 0)/σ for the self_weight parameters, appended to a linearised system.
+void addPriors(const PhysicalModel& model, const std::vector<Parameter>& params, Eigen::MatrixXd& A,
+               Eigen::VectorXd& r) {
+  const Eigen::Index geometry = A.cols() - static_cast<Eigen::Index>(params.size());
+  for (size_t c = 0; c < params.size(); ++c) {
+    const Parameter& p = params[c];
+    if (p.mechanism < 0 ||
+        model.mechanisms[static_cast<size_t>(p.mechanism)].kind != MechanismKind::kSelfWeight) {
+      continue;
+    }
+    const double value =
+        model.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)];
+    A.conservativeResize(A.rows() + 1, Eigen::NoChange);
+    A.row(A.rows() - 1).setZero();
+    A(A.rows() - 1, geometry + static_cast<Eigen::Index>(c)) = 1.0 / kSelfWeightPriorSigma;
+    r.conservativeResize(r.size() + 1);
+    r(r.size() - 1) = -value / kSelfWeightPriorSigma;
+  }
+}
+
 struct RefitResult {
   PhysicalModel model;
   Eigen::VectorXd r;
@@ -225,17 +258,19 @@ RefitResult refit(PhysicalModel model, const Equations& eq, int iterations,
                   JointVector* compliance_sigma) {
   RefitResult out;
   out.r = residuals(model, eq);
-  out.cost = out.r.squaredNorm();
+  out.cost = out.r.squaredNorm() + priorCost(model);
   for (int it = 0; it < iterations; ++it) {
     const std::vector<Parameter> params = modelParameters(model);
-    const Eigen::MatrixXd A = jacobian(model, eq, out.r, params);
-    const SvdSolution s = solveTruncated(A, out.r, kRankTolerance);
+    Eigen::MatrixXd A = jacobian(model, eq, out.r, params);
+    Eigen::VectorXd rhs = out.r;
+    addPriors(model, params, A, rhs);
+    const SvdSolution s = solveTruncated(A, rhs, kRankTolerance);
     bool improved = false;
     for (double fraction = 1.0; fraction > 1e-3; fraction *= 0.5) {
       PhysicalModel candidate;
       if (!apply(model, params, s.x, fraction, candidate)) continue;
       const Eigen::VectorXd r = residuals(candidate, eq);
-      const double cost = r.squaredNorm();
+      const double cost = r.squaredNorm() + priorCost(candidate);
       if (cost < out.cost) {
         improved = out.cost - cost > 1e-10 * out.cost;
         model = std::move(candidate);
@@ -248,8 +283,10 @@ RefitResult refit(PhysicalModel model, const Equations& eq, int iterations,
   }
   // Covariance of the final linearisation: s² (AᵀA)⁺ in column-normalised coordinates.
   const std::vector<Parameter> params = modelParameters(model);
-  const Eigen::MatrixXd A = jacobian(model, eq, out.r, params);
-  const SvdSolution s = solveTruncated(A, out.r, kRankTolerance);
+  Eigen::MatrixXd A = jacobian(model, eq, out.r, params);
+  Eigen::VectorXd rhs = out.r;
+  addPriors(model, params, A, rhs);
+  const SvdSolution s = solveTruncated(A, rhs, kRankTolerance);
   const double variance = out.cost / std::max(1, eq.count - s.rank);
   const int geometry = 6 * (model.chain_Tracker.dof() + 1);
   for (auto& m : model.mechanisms) m.sigma.assign(m.parameters.size(), 0.0);

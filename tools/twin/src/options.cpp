@@ -78,7 +78,7 @@ void validateOptions(const TwinOptions& options, const KinematicChain& nominal) 
         options.temperature_period_rows > 0.0)) {
     throw InputError("TwinOptions.temperature_period_rows = " +
                      show(options.temperature_period_rows) +
-                     "; expected a finite number of rows > 0 (hint: 400 gives 2.7 periods over "
+                     "; expected a finite number of rows > 0 (hint: the default 300 gives 3.6 periods over "
                      "the paper protocol)");
   }
   requireNonNegative(options.joint_frame_translation_sigma_m, "joint_frame_translation_sigma_m",

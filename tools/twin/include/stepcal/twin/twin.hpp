@@ -76,7 +76,7 @@ struct TwinOptions {
   /// Amplitude of the temperature's sinusoid, °C, finite, ≥ 0 and < 30 (0: constant).
   double temperature_swing_c = 3.0;
   /// Period of the temperature's sinusoid in rows, > 0.
-  double temperature_period_rows = 400.0;
+  double temperature_period_rows = 300.0;
   /// Noise of the temperature reading, 1-σ, °C.
   double temperature_sigma_c = 0.05;
 

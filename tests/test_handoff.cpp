@@ -255,7 +255,8 @@ TEST(ModelHandle, RuntimeModelsSwappedUnderLoadAnswerConsistently) {
       const JointVector q_rad = JointVector::Zero(2);
       while (!stop.load(std::memory_order_relaxed)) {
         const auto guard = handle.acquire(slot);
-        const ForwardResult r = correctForward(*guard, ws, q_rad, Vec6::Zero());
+        const ForwardResult r =
+            correctForward(*guard, ws, q_rad, Vec6::Zero(), kUnknownTemperature_c);
         const double x_expected = static_cast<double>(guard->model_id) + 0.75;
         if (r.status != Status::kOk || r.X_TrackerTip.translation().x() != x_expected) {
           ++wrong[static_cast<size_t>(slot)];

@@ -1,5 +1,6 @@
 // The runtime's LCM service (tools/runtime): requests through an in-process memq:// LCM get the
-// runtime's own answers, bad bytes get BAD_REQUEST or are counted and never crash it, a stale
+// runtime's own answers (at the temperature they carry, for a model with mechanisms too), bad
+// bytes get BAD_REQUEST or are counted and never crash it, a stale
 // live wrench gives STALE_WRENCH, a reload keeps answering and changes the model id, handling a
 // request allocates nothing, and the daemon refuses what it cannot serve with exit status 2.
 #include <gtest/gtest.h>
@@ -37,6 +38,7 @@
 #include "support/command.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/files.hpp"
+#include "support/mechanisms.hpp"
 
 namespace stepcal::service {
 namespace {
@@ -74,6 +76,13 @@ std::unique_ptr<const runtime::RuntimeModel> paperModel(uint64_t model_id = kFir
   return runtime::RuntimeModel::fromModel(paper().model, model_id);
 }
 
+/// The paper model with a mechanism of every kind (thermal expansion about 20 °C among them).
+std::unique_ptr<const runtime::RuntimeModel> mechanismModel(uint64_t model_id = kFirstModelId) {
+  CalibratedModel model = paper().model;
+  model.mechanisms = test::mechanismOfEveryKind();
+  return runtime::RuntimeModel::fromModel(model, model_id);
+}
+
 const Measurement& validationRow(size_t i = 0) {
   const auto rows = paper().campaign.rowsIn(RowSet::kValidation);
   return *rows[i % rows.size()];
@@ -91,6 +100,7 @@ correction_request_t forwardRequest(const Measurement& row, int64_t id) {
   msg.mode = correction_request_t::MODE_FORWARD;
   msg.wrench_source = correction_request_t::WRENCH_GIVEN;
   msg.desired_quaternion_wxyz[0] = 1.0;
+  msg.temp_c = runtime::kUnknownTemperature_c;
   for (int j = 0; j < 6; ++j) msg.q_rad[j] = row.q_rad[j];
   for (int j = 0; j < 6; ++j) msg.wrench[j] = row.wrenchOrZero()[j];
   return msg;
@@ -141,9 +151,10 @@ double poseDifference(const Pose& a, const Pose& b) {
 /// A service on an in-process LCM, and a client side on the same instance.
 class MemqService {
  public:
-  explicit MemqService(ServiceOptions options = generousOptions())
+  explicit MemqService(ServiceOptions options = generousOptions(),
+                       std::unique_ptr<const runtime::RuntimeModel> model = paperModel())
       : lcm_(lcm_create("memq://"), &lcm_destroy),
-        service_(paperModel(), "paper.stepcal", options),
+        service_(std::move(model), "paper.stepcal", options),
         server_(lcm_.get(), service_),
         feed_(lcm_.get(), kWrenchChannel, service_) {
     lcm_subscribe(lcm_.get(), kReplyChannel, &MemqService::onReply, this);
@@ -196,8 +207,10 @@ TEST(LcmService, DecodeRequestKeepsEveryField) {
   correction_request_t msg = inverseRequest(row, -42);
   msg.utime = 1234567;
   msg.deadline_us = 150;
+  msg.temp_c = 23.5;
   Request request;
   ASSERT_EQ(decodeRequest(encode(msg).data(), msg.getEncodedSize(), request), Status::kOk);
+  EXPECT_EQ(request.temp_c, 23.5);
   EXPECT_TRUE(request.request_id_known);
   EXPECT_EQ(request.request_id, -42);
   EXPECT_EQ(request.utime, 1234567);
@@ -209,6 +222,55 @@ TEST(LcmService, DecodeRequestKeepsEveryField) {
   EXPECT_LT(poseDifference(request.X_TrackerTip_desired, row.X_TrackerTip()), 1e-15);
   EXPECT_EQ(request.seed_q_rad.size(), 6);
   EXPECT_DOUBLE_EQ(request.seed_q_rad[0], row.q_rad[0] + 2 * kDeg);
+
+  // Not measured (NaN) is a valid temperature; so are both ends of the range.
+  for (const double temp_c : {std::nan(""), -50.0, 150.0}) {
+    msg.temp_c = temp_c;
+    ASSERT_EQ(decodeRequest(encode(msg).data(), msg.getEncodedSize(), request), Status::kOk)
+        << temp_c;
+    EXPECT_TRUE(std::isnan(temp_c) ? std::isnan(request.temp_c) : request.temp_c == temp_c);
+  }
+}
+
+TEST(LcmService, RequestsCarryTheTemperatureToTheModel) {
+  // A model with thermal expansion (and every other mechanism): forward and inverse replies are
+  // the runtime's own answers at the request's temperature, and 15 K move the tip.
+  MemqService memq(generousOptions(), mechanismModel());
+  const auto model = mechanismModel();
+  runtime::Workspace ws = runtime::makeWorkspace(*model);
+  for (size_t i = 0; i < 10; ++i) {
+    const Measurement& row = validationRow(i * 13);
+    for (const double temp_c : {runtime::kUnknownTemperature_c, 35.0}) {
+      correction_request_t msg = forwardRequest(row, int64_t(i));
+      msg.temp_c = temp_c;
+      std::vector<correction_reply_t> replies = memq.exchange(encode(msg));
+      ASSERT_EQ(replies.size(), 1u);
+      const runtime::ForwardResult expected =
+          runtime::correctForward(*model, ws, row.q_rad, row.wrenchOrZero(), temp_c);
+      ASSERT_EQ(replies[0].status, int8_t(Status::kOk));
+      EXPECT_LT(poseDifference(
+                    poseOf(replies[0].predicted_position_m, replies[0].predicted_quaternion_wxyz),
+                    expected.X_TrackerTip),
+                1e-12);
+      const runtime::ForwardResult at_reference =
+          runtime::correctForward(*model, ws, row.q_rad, row.wrenchOrZero(), 20.0);
+      const double shift_m =
+          (expected.X_TrackerTip.translation() - at_reference.X_TrackerTip.translation()).norm();
+      if (std::isnan(temp_c)) {
+        EXPECT_EQ(shift_m, 0.0) << "not measured is the reference temperature";
+      } else {
+        EXPECT_GT(shift_m, 1e-5);
+      }
+
+      correction_request_t inverse = inverseRequest(row, int64_t(100 + i), expected.X_TrackerTip);
+      inverse.temp_c = temp_c;
+      replies = memq.exchange(encode(inverse));
+      ASSERT_EQ(replies.size(), 1u);
+      EXPECT_EQ(replies[0].status, int8_t(Status::kOk));
+      EXPECT_LT(replies[0].residual_position_m, 1e-6);
+      for (int k = 0; k < 6; ++k) EXPECT_NEAR(replies[0].q_target_rad[k], row.q_rad[k], 1e-5);
+    }
+  }
 }
 
 TEST(LcmService, ForwardReplyEqualsCorrectForward) {
@@ -221,8 +283,8 @@ TEST(LcmService, ForwardReplyEqualsCorrectForward) {
         memq.exchange(encode(forwardRequest(row, int64_t(i))));
     ASSERT_EQ(replies.size(), 1u);
     const correction_reply_t& r = replies[0];
-    const runtime::ForwardResult expected =
-        runtime::correctForward(*model, ws, row.q_rad, row.wrenchOrZero());
+    const runtime::ForwardResult expected = runtime::correctForward(
+        *model, ws, row.q_rad, row.wrenchOrZero(), runtime::kUnknownTemperature_c);
     ASSERT_EQ(expected.status, Status::kOk);
     EXPECT_EQ(r.request_id, int64_t(i));
     EXPECT_EQ(r.status, int8_t(Status::kOk));
@@ -244,17 +306,18 @@ TEST(LcmService, InverseReplyEqualsSolveInverse) {
   for (size_t i = 0; i < 20; ++i) {
     const Measurement& row = validationRow(i * 11);
     // The model's own pose at the row's joints: the targets must come back to them.
-    const Pose X_TrackerTip =
-        runtime::correctForward(*model, ws, row.q_rad, row.wrenchOrZero()).X_TrackerTip;
+    const Pose X_TrackerTip = runtime::correctForward(*model, ws, row.q_rad, row.wrenchOrZero(),
+                                                      runtime::kUnknownTemperature_c)
+                                  .X_TrackerTip;
     const correction_request_t msg = inverseRequest(row, int64_t(100 + i), X_TrackerTip);
     const std::vector<correction_reply_t> replies = memq.exchange(encode(msg));
     ASSERT_EQ(replies.size(), 1u);
     const correction_reply_t& r = replies[0];
     Request request;
     ASSERT_EQ(decodeRequest(encode(msg).data(), msg.getEncodedSize(), request), Status::kOk);
-    const runtime::InverseResult expected =
-        runtime::solveInverse(*model, ws, request.X_TrackerTip_desired, request.wrench_Sensor,
-                              request.seed_q_rad, Clock::now() + std::chrono::seconds(1));
+    const runtime::InverseResult expected = runtime::solveInverse(
+        *model, ws, request.X_TrackerTip_desired, request.wrench_Sensor,
+        runtime::kUnknownTemperature_c, request.seed_q_rad, Clock::now() + std::chrono::seconds(1));
     EXPECT_EQ(r.status, int8_t(expected.status));
     EXPECT_EQ(r.status, int8_t(Status::kOk));
     EXPECT_EQ(r.iterations, expected.iterations);
@@ -298,6 +361,16 @@ TEST(LcmService, BadRequestsGetBadRequestOrAreCounted) {
   msg = inverseRequest(row, 6);
   msg.desired_position_m[0] = std::numeric_limits<double>::quiet_NaN();
   EXPECT_TRUE(badReply(msg));
+  // A temperature is NaN (not measured) or within −50 … 150 °C.
+  for (const double temp_c : {std::numeric_limits<double>::infinity(),
+                              -std::numeric_limits<double>::infinity(), 150.5, -50.5, 1e9}) {
+    msg = forwardRequest(row, 7);
+    msg.temp_c = temp_c;
+    EXPECT_TRUE(badReply(msg)) << temp_c;
+    msg = inverseRequest(row, 8);
+    msg.temp_c = temp_c;
+    EXPECT_TRUE(badReply(msg)) << temp_c;
+  }
 
   // Truncated: a reply when the id can be read, none (counted) below 16 bytes.
   const std::vector<uint8_t> good = encode(forwardRequest(row, 77));
@@ -603,10 +676,24 @@ TEST(LcmService, StatusCountsRepliesAndComputeTimes) {
 
 TEST(LcmService, HandlingARequestAllocatesNothing) {
   Service service(paperModel(), "paper.stepcal", generousOptions());
-  std::vector<std::vector<uint8_t>> requests;
+  Service with_mechanisms(mechanismModel(), "mechanisms.stepcal", generousOptions());
+  const auto model = mechanismModel();
+  runtime::Workspace ws = runtime::makeWorkspace(*model);
+  std::vector<std::vector<uint8_t>> requests, mechanism_requests;
   for (size_t i = 0; i < 20; ++i) {
     requests.push_back(encode(forwardRequest(validationRow(i), int64_t(i))));
     requests.push_back(encode(inverseRequest(validationRow(i), int64_t(i))));
+    // With mechanisms: at 18 … 37 °C, the inverse asking for the model's own pose.
+    const Measurement& row = validationRow(i);
+    const double temp_c = 18.0 + double(i);
+    correction_request_t forward = forwardRequest(row, int64_t(i));
+    forward.temp_c = temp_c;
+    correction_request_t inverse = inverseRequest(
+        row, int64_t(i),
+        runtime::correctForward(*model, ws, row.q_rad, row.wrenchOrZero(), temp_c).X_TrackerTip);
+    inverse.temp_c = temp_c;
+    mechanism_requests.push_back(encode(forward));
+    mechanism_requests.push_back(encode(inverse));
   }
   correction_request_t live = forwardRequest(validationRow(), 5);
   live.wrench_source = correction_request_t::WRENCH_LIVE_SENSOR;
@@ -614,25 +701,27 @@ TEST(LcmService, HandlingARequestAllocatesNothing) {
   requests.push_back({1, 2, 3});
   requests.push_back(std::vector<uint8_t>(requests[0].begin(), requests[0].end() - 3));
   std::vector<uint8_t> reply(static_cast<size_t>(Service::replyBytes()));
-  const auto handleAll = [&] {
+  const auto handleAll = [&](Service& server, const std::vector<std::vector<uint8_t>>& all) {
     int ok = 0;
-    for (const auto& bytes : requests) {
-      const int size = service.handleRequest(bytes.data(), int(bytes.size()), Clock::now(),
-                                             reply.data(), int(reply.size()));
+    for (const auto& bytes : all) {
+      const int size = server.handleRequest(bytes.data(), int(bytes.size()), Clock::now(),
+                                            reply.data(), int(reply.size()));
       ok += size > 0 && reply[8 + 8 + 8] == uint8_t(Status::kOk);  // status after id and utime
     }
     return ok;
   };
-  handleAll();  // warm-up: first-call statics (fingerprints)
+  handleAll(service, requests);  // warm-up: first-call statics (fingerprints)
   long allocations = 0;
-  int ok = 0;
+  int ok = 0, ok_mechanisms = 0;
   {
     const test::AllocationCounter counter;
-    ok = handleAll();
+    ok = handleAll(service, requests);
+    ok_mechanisms = handleAll(with_mechanisms, mechanism_requests);
     allocations = counter.count();
   }
   EXPECT_EQ(allocations, 0);
   EXPECT_EQ(ok, 40);
+  EXPECT_EQ(ok_mechanisms, 40);
 }
 
 // ---- the daemon and the client as processes (memq:// or no LCM at all: no network needed) ---
@@ -704,6 +793,9 @@ TEST(LcmService, ClientRefusesBadArgumentsWithExitStatus2) {
       {"--forward 1 2 3 4 5 6 --seed 1 2 3 4 5 6", "--seed"},
       {"--forward 1 2 3 4 5 6 --timeout-ms 0", "--timeout-ms"},
       {"--forward 1 2 3 4 5 6 --lcm-url nowhere://", "--lcm-url"},
+      {"--forward 1 2 3 4 5 6 --temp-c 150.5", "--temp-c"},
+      {"--forward 1 2 3 4 5 6 --temp-c inf", "--temp-c"},
+      {"--campaign " + (dir.path() / "none").string() + " --temp-c 20", "--temp-c"},
   };
   for (const auto& [args, expected] : cases) {
     const CommandResult r = run(kClient + " " + args);

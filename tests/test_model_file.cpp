@@ -1,5 +1,6 @@
-// Model file: bit-exact round trips, every corrupted byte and every truncation refused, each
-// semantic check proven by editing the bytes and re-fixing the checksum, atomic writes.
+// Model file: bit-exact round trips (a mechanism of every kind included), every corrupted byte
+// and every truncation refused, each semantic check proven by editing the bytes and re-fixing the
+// checksum, atomic writes.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
@@ -8,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <limits>
 #include <random>
@@ -18,6 +20,7 @@
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/common/urdf.hpp"
+#include "support/mechanisms.hpp"
 
 namespace stepcal {
 namespace {
@@ -72,7 +75,8 @@ GprParameters randomGpr(std::mt19937_64& rng, int m, int D, int P, double length
   return g;
 }
 
-/// An IRB 4400 model as the trainer would write it: calibrated, registered, all three steps.
+/// An IRB 4400 model as the trainer and the diagnosis would write it: calibrated, registered,
+/// all three steps, a mechanism of every kind.
 CalibratedModel realisticModel(int m = 300) {
   std::mt19937_64 rng(42);
   std::normal_distribution<double> normal(0.0, 1.0);
@@ -93,6 +97,7 @@ CalibratedModel realisticModel(int m = 300) {
   const Eigen::Matrix<double, 6, 1> stiffness(501130, 633590, 508209, 124391, 75782, 74226);
   model.compliance_rad_per_nm = stiffness.cwiseInverse();
   model.compliance_sigma_rad_per_nm = 0.05 * model.compliance_rad_per_nm;
+  model.mechanisms = test::mechanismOfEveryKind();
   model.gpr = randomGpr(rng, m, 12, 6);
   ModelProvenance& p = model.provenance;
   p.campaign_hash = "9f86d081884c7d659a2feaa0c55ad015a3bf4f1b2b0b822cd15d6c15b0f00a08";
@@ -141,6 +146,17 @@ void expectSameModel(const CalibratedModel& a, const CalibratedModel& b) {
   EXPECT_TRUE(sameMatrix(a.gravity_Base, b.gravity_Base));
   EXPECT_TRUE(sameMatrix(a.compliance_rad_per_nm, b.compliance_rad_per_nm));
   EXPECT_TRUE(sameMatrix(a.compliance_sigma_rad_per_nm, b.compliance_sigma_rad_per_nm));
+  ASSERT_EQ(a.mechanisms.size(), b.mechanisms.size());
+  for (size_t i = 0; i < a.mechanisms.size(); ++i) {
+    const Mechanism& ma = a.mechanisms[i];
+    const Mechanism& mb = b.mechanisms[i];
+    EXPECT_EQ(ma.kind, mb.kind) << i;
+    EXPECT_EQ(ma.joint, mb.joint) << i;
+    EXPECT_EQ(ma.source_joint, mb.source_joint) << i;
+    EXPECT_EQ(ma.harmonic, mb.harmonic) << i;
+    EXPECT_EQ(ma.parameters, mb.parameters) << i;
+    EXPECT_EQ(ma.sigma, mb.sigma) << i;
+  }
   ASSERT_EQ(a.gpr.has_value(), b.gpr.has_value());
   if (a.gpr) {
     const GprParameters& ga = *a.gpr;
@@ -227,6 +243,14 @@ size_t payloadOf(const std::vector<uint8_t>& b, const char (&tag)[5]) {
   }
   ADD_FAILURE() << "no section " << tag;
   return 0;
+}
+
+/// Byte offset of mechanism record i in MECH (kind, joint, source_joint, harmonic, p, then p
+/// parameters and p sigmas).
+size_t mechanismAt(const std::vector<uint8_t>& b, size_t i) {
+  size_t at = payloadOf(b, "MECH") + 4;
+  for (size_t j = 0; j < i; ++j) at += 20 + 16 * size_t(getU32(b, at + 16));
+  return at;
 }
 
 /// Byte offset of the GPR's first normalised input, for D inputs and P outputs.
@@ -320,6 +344,7 @@ TEST_F(ModelFileTest, RoundTripWithoutOptionalSteps) {
   bare.compliance_sigma_rad_per_nm.resize(0);
   bare.sensor_frame = -1;
   bare.provenance = {};
+  bare.mechanisms.clear();
   // A continuous joint has infinite limits.
   ChainJoint continuous = bare.chain_Tracker.joints()[5];
   continuous.lower_rad = -std::numeric_limits<double>::infinity();
@@ -417,15 +442,35 @@ TEST_F(ModelFileTest, ChecksumMismatchSaysCorrupted) {
   EXPECT_EQ(message.rfind("test.model: byte ", 0), 0u) << message;
 }
 
-TEST_F(ModelFileTest, VersionMismatchNamesBothVersions) {
+TEST_F(ModelFileTest, VersionMismatchNamesBothVersionsAndTheCommandToRerun) {
+  EXPECT_EQ(getU32(bytes(), 8), 2u);
+  for (const uint32_t version : {1u, 3u}) {
+    std::vector<uint8_t> b = bytes();
+    putU32(b, 8, version);
+    refix(b);
+    const std::string message = refusal(b);
+    EXPECT_EQ(message.rfind("test.model: byte 8, version: model format version " +
+                                std::to_string(version) + ", this build reads 2",
+                            0),
+              0u)
+        << message;
+    EXPECT_NE(message.find("hint: re-run `stepcal calibrate`"), std::string::npos) << message;
+  }
+}
+
+TEST_F(ModelFileTest, VersionOneFileWithoutMechanismsIsRefusedNotRead) {
+  // What the previous build wrote: the same sections without MECH, version 1.
   std::vector<uint8_t> b = bytes();
-  putU32(b, 8, 2);
+  const size_t mech = payloadOf(b, "MECH") - 16;
+  const size_t gpr = payloadOf(b, "GPR ") - 16;
+  b.erase(b.begin() + long(mech), b.begin() + long(gpr));
+  putU32(b, 8, 1);
   refix(b);
   const std::string message = refusal(b);
-  EXPECT_NE(message.find("model format version 2, this build reads 1; hint: retrain or use a "
-                         "matching runtime"),
+  EXPECT_NE(message.find("byte 8, version: model format version 1, this build reads 2"),
             std::string::npos)
       << message;
+  EXPECT_NE(message.find("re-run `stepcal calibrate`"), std::string::npos) << message;
 }
 
 TEST_F(ModelFileTest, BadMagicIsNotAModelFile) {
@@ -549,7 +594,8 @@ TEST_F(ModelFileTest, OtherSemanticChecks) {
             std::string::npos);
   // Swapping the order of two sections is a structural error even with a valid checksum.
   EXPECT_NE(edited([&](auto& b) { std::memcpy(&b[chain - 16], "REGI", 4); })
-                .find("expected the sections CHAN, NOMI, REGI, COMP, GPR, PROV in that order"),
+                .find("expected the sections CHAN, NOMI, REGI, COMP, MECH, GPR, PROV in that "
+                      "order"),
             std::string::npos);
   EXPECT_NE(edited([&](auto& b) { putU32(b, chain - 12, 1); }).find("reserved word"),
             std::string::npos);
@@ -596,6 +642,149 @@ TEST_F(ModelFileTest, NominalChainFollowsTheCalibratedChainAndDescribesTheSameRo
             std::string::npos);
 }
 
+TEST_F(ModelFileTest, MechanismsOfEveryKindRoundTripBetweenCompliancesAndGpr) {
+  const CalibratedModel parsed = parse(bytes());
+  ASSERT_EQ(parsed.mechanisms.size(), 7u);
+  for (size_t i = 0; i < parsed.mechanisms.size(); ++i) {
+    EXPECT_EQ(static_cast<uint32_t>(parsed.mechanisms[i].kind), uint32_t(i + 1)) << i;
+  }
+  // MECH follows COMP and precedes GPR, each with its 16-byte section header.
+  const std::vector<uint8_t>& b = bytes();
+  const size_t compliance = payloadOf(b, "COMP");
+  const size_t mech = payloadOf(b, "MECH");
+  EXPECT_EQ(mech, compliance + 4 + 2 * 8 * 6 + 16);
+  EXPECT_EQ(getU32(b, mech), 7u);
+  // Record by record: header, parameters, sigmas; 4 + Σ (20 + 16 p) bytes in all.
+  size_t length = 4;
+  for (size_t i = 0; i < 7; ++i) {
+    const Mechanism& m = model().mechanisms[i];
+    const size_t at = mechanismAt(b, i);
+    EXPECT_EQ(getU32(b, at), static_cast<uint32_t>(m.kind));
+    EXPECT_EQ(int32_t(getU32(b, at + 4)), m.joint);
+    EXPECT_EQ(int32_t(getU32(b, at + 8)), m.source_joint);
+    EXPECT_EQ(int32_t(getU32(b, at + 12)), m.harmonic);
+    ASSERT_EQ(getU32(b, at + 16), m.parameters.size());
+    for (size_t k = 0; k < m.parameters.size(); ++k) {
+      EXPECT_EQ(getF64(b, at + 20 + 8 * k), m.parameters[k]);
+      EXPECT_EQ(getF64(b, at + 20 + 8 * (m.parameters.size() + k)), m.sigma[k]);
+    }
+    length += 20 + 16 * m.parameters.size();
+  }
+  EXPECT_EQ(payloadOf(b, "GPR "), mech + length + 16);
+  // No mechanisms: an empty MECH (its count alone).
+  CalibratedModel none = model();
+  none.mechanisms.clear();
+  const std::vector<uint8_t> without = serializeModel(none);
+  EXPECT_EQ(getU32(without, payloadOf(without, "MECH")), 0u);
+  EXPECT_EQ(payloadOf(without, "GPR "), payloadOf(without, "MECH") + 4 + 16);
+  expectSameModel(none, parse(without));
+}
+
+TEST_F(ModelFileTest, EachMalformedMechanismIsRefusedWithItsOffsetIndexAndProblem) {
+  const auto edited = [&](auto edit) {
+    std::vector<uint8_t> b = bytes();
+    edit(b);
+    refix(b);
+    return refusal(b);
+  };
+  // Each edit, the byte offset and field the message must name, and the problem it must state.
+  struct Case {
+    std::function<void(std::vector<uint8_t>&)> edit;
+    size_t at;
+    std::string field, problem;
+  };
+  const std::vector<uint8_t>& b = bytes();
+  const size_t backlash = mechanismAt(b, 0), transmission = mechanismAt(b, 2),
+               nonlinear = mechanismAt(b, 3), coupling = mechanismAt(b, 6);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<Case> cases = {
+      {[&](auto& e) { putU32(e, backlash, 9); }, backlash, "mechanisms[0]",
+       "mechanism kind 9; expected 1 to 7"},
+      {[&](auto& e) { putU32(e, backlash + 4, 6); }, backlash, "mechanisms[0]",
+       "backlash joint index 6; expected 0 to 5"},
+      {[&](auto& e) { putU32(e, backlash + 4, uint32_t(-1)); }, backlash, "mechanisms[0]",
+       "backlash joint index -1; expected 0 to 5"},
+      {[&](auto& e) { putU32(e, transmission + 12, 0); }, transmission, "mechanisms[2]",
+       "transmission_error harmonic 0; expected 1 to 64"},
+      {[&](auto& e) { putU32(e, transmission, uint32_t(MechanismKind::kBacklash)); }, transmission,
+       "mechanisms[2]", "backlash has 2 parameters and 2 sigmas; expected 1"},
+      {[&](auto& e) { putF64(e, nonlinear + 20 + 8, 0.0); }, nonlinear, "mechanisms[3]",
+       "nonlinear_stiffness saturation torque"},
+      {[&](auto& e) { putU32(e, coupling + 8, 5); }, coupling, "mechanisms[6]",
+       "joint_coupling source joint index 5; expected a joint other than the moved one"},
+      {[&](auto& e) { putF64(e, backlash + 20 + 8, -1e-5); }, backlash, "mechanisms[0]",
+       "expected finite values, σ ≥ 0"},
+      {[&](auto& e) { putF64(e, backlash + 20, nan); }, backlash + 20, "mechanisms[0].parameters",
+       "nan; expected a finite number"},
+      {[&](auto& e) { putU32(e, backlash + 16, 1000); }, backlash + 16,
+       "mechanisms[0].parameter_count", "1000; expected 0 … 32"},
+      {[&](auto& e) { putU32(e, payloadOf(e, "MECH"), 65); }, payloadOf(b, "MECH"),
+       "mechanisms.count", "65; expected 0 … 64"},
+  };
+  for (const Case& c : cases) {
+    const std::string message = edited(c.edit);
+    EXPECT_NE(message.find("test.model: byte " + std::to_string(c.at) + ", " + c.field + ": "),
+              std::string::npos)
+        << message;
+    EXPECT_NE(message.find(c.problem), std::string::npos) << message;
+  }
+}
+
+/// The bytes with a copy of mechanism record i appended to MECH (count and length updated,
+/// checksum re-fixed), and where the copy starts.
+std::pair<std::vector<uint8_t>, size_t> withRecordRepeated(const std::vector<uint8_t>& bytes,
+                                                           size_t i) {
+  std::vector<uint8_t> b = bytes;
+  const size_t mech = payloadOf(b, "MECH");
+  const uint32_t count = getU32(b, mech);
+  const size_t from = mechanismAt(b, i), to = mechanismAt(b, i + 1), end = mechanismAt(b, count);
+  const std::vector<uint8_t> record(b.begin() + long(from), b.begin() + long(to));
+  b.insert(b.begin() + long(end), record.begin(), record.end());
+  putU32(b, mech, count + 1);
+  uint64_t length = 0;
+  for (int k = 0; k < 8; ++k) length |= uint64_t(b[mech - 8 + size_t(k)]) << (8 * k);
+  length += record.size();
+  for (int k = 0; k < 8; ++k) b[mech - 8 + size_t(k)] = uint8_t(length >> (8 * k));
+  refix(b);
+  return {b, end};
+}
+
+TEST_F(ModelFileTest, MechanismsThatCannotBeTogetherOrLackTheirInputsAreRefused) {
+  // A second self_weight, sensor_bias or thermal_expansion.
+  for (const auto& [index, kind] : {std::pair{size_t(1), std::string("self_weight")},
+                                    std::pair{size_t(4), std::string("thermal_expansion")},
+                                    std::pair{size_t(5), std::string("sensor_bias")}}) {
+    const auto [b, at] = withRecordRepeated(bytes(), index);
+    const std::string message = refusal(b);
+    EXPECT_NE(message.find("byte " + std::to_string(at) + ", mechanisms[7]: a second " + kind +
+                           " (the first is mechanisms[" + std::to_string(index) +
+                           "]); expected at most one"),
+              std::string::npos)
+        << message;
+  }
+  // A second backlash is another joint's or adds to the first: allowed.
+  EXPECT_EQ(refusal(withRecordRepeated(bytes(), 0).first), "");
+
+  // sensor_bias without a sensor frame, self_weight without gravity.
+  std::vector<uint8_t> b = bytes();
+  const size_t registration = payloadOf(b, "REGI");
+  putU32(b, registration + 8 * 15, uint32_t(-1));
+  refix(b);
+  std::string message = refusal(b);
+  EXPECT_NE(message.find("byte " + std::to_string(mechanismAt(b, 5)) +
+                         ", mechanisms[5]: sensor_bias in a model without a sensor frame"),
+            std::string::npos)
+      << message;
+  b = bytes();
+  for (size_t k = 0; k < 3; ++k) putF64(b, registration + 8 * (12 + k), 0.0);
+  refix(b);
+  message = refusal(b);
+  EXPECT_NE(message.find("byte " + std::to_string(mechanismAt(b, 1)) +
+                         ", mechanisms[1]: self_weight in a model whose gravity is zero"),
+            std::string::npos)
+      << message;
+}
+
 TEST_F(ModelFileTest, SerialiseRefusesWhatTheLoaderWouldRefuse) {
   CalibratedModel bad = model();
   bad.compliance_rad_per_nm(2) = -1;
@@ -617,6 +806,18 @@ TEST_F(ModelFileTest, SerialiseRefusesWhatTheLoaderWouldRefuse) {
   joints[3].name = "wrist_1";
   bad.nominal_Base =
       KinematicChain(joints, bad.nominal_Base.initialPoses(), bad.nominal_Base.frames());
+  EXPECT_THROW(serializeModel(bad), InputError);
+  bad = model();
+  bad.mechanisms[0].sigma.push_back(0.0);  // the layout has one count for both
+  EXPECT_THROW(serializeModel(bad), InputError);
+  bad = model();
+  bad.mechanisms[2].harmonic = 0;
+  EXPECT_THROW(serializeModel(bad), InputError);
+  bad = model();
+  bad.mechanisms.push_back(bad.mechanisms[4]);  // a second thermal_expansion
+  EXPECT_THROW(serializeModel(bad), InputError);
+  bad = model();
+  bad.mechanisms.assign(kMaxMechanisms + 1, model().mechanisms[0]);
   EXPECT_THROW(serializeModel(bad), InputError);
   EXPECT_THROW(serializeModel(CalibratedModel{}), InputError);  // no chain
 }

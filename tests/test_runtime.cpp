@@ -1,5 +1,6 @@
 // The runtime's corrector on a simulated paper campaign calibrated by the trainer: forward equals
-// the trainer's full model, the inverse recovers commanded joints in a few Newton steps, every
+// the trainer's full model, every mechanism of the physical model is applied as its closed form
+// says, the inverse recovers commanded joints in a few Newton steps (with mechanisms too), every
 // status is reached by the request that should reach it, and the real-time calls allocate
 // nothing.
 #include <gtest/gtest.h>
@@ -25,6 +26,7 @@
 #include "stepcal/twin/twin.hpp"
 #include "support/allocation_counter.hpp"
 #include "support/files.hpp"
+#include "support/mechanisms.hpp"
 #include "support/random_gpr.hpp"
 
 namespace stepcal::runtime {
@@ -91,6 +93,23 @@ InverseOptions tightOptions() {
   return options;
 }
 
+using test::mechanism;
+using test::mechanismOfEveryKind;
+using test::selfWeightParameters;
+
+/// The paper model with these mechanisms; without its GPR unless with_gpr.
+CalibratedModel withMechanisms(std::vector<Mechanism> mechanisms, bool with_gpr) {
+  CalibratedModel model = paper().model;
+  model.mechanisms = std::move(mechanisms);
+  if (!with_gpr) model.gpr.reset();
+  return model;
+}
+
+/// Largest difference of the positions (m) and of the rotation matrices of two poses.
+std::pair<double, double> positionAndRotationDifference(const Pose& a, const Pose& b) {
+  return {(a.translation() - b.translation()).norm(),
+          (a.linear() - b.linear()).cwiseAbs().maxCoeff()};
+}
 
 TEST(Runtime, StatusNames) {
   EXPECT_STREQ(toString(Status::kOk), "OK");
@@ -105,7 +124,10 @@ TEST(Runtime, StatusNames) {
 
 TEST(Runtime, ForwardEqualsTrainersModelOnEveryRowAndLayer) {
   // The full model, and the model without its GPR, its compliance or both: each against the
-  // trainer's last layer of the same model file.
+  // trainer's last layer of the same model file. Rigid layers agree to rounding. With compliance
+  // the runtime's physical model takes three fixed-point passes (mechanisms.hpp), the trainer's
+  // stiffness layer two (deflectedJointAngles): they differ by the third pass's change, M² C τ
+  // with M = C ∂τ/∂θ ~ 1e-3, about 1e-9 m here, four orders below the tracker's noise.
   struct Variant {
     std::string name;
     CalibratedModel model;
@@ -126,16 +148,326 @@ TEST(Runtime, ForwardEqualsTrainersModelOnEveryRowAndLayer) {
     ASSERT_EQ(layers.back().first, variant.name);
     const auto model = RuntimeModel::fromModel(variant.model, 1);
     Workspace ws = makeWorkspace(*model);
+    const double tolerance = variant.model.compliance_rad_per_nm.size() > 0 ? 1e-8 : 1e-12;
     double worst = 0.0;
     std::map<Status, int> statuses;
     for (const Measurement& row : paper().campaign.rows) {
-      const ForwardResult r = correctForward(*model, ws, row.q_rad, row.wrenchOrZero());
+      const ForwardResult r =
+          correctForward(*model, ws, row.q_rad, row.wrenchOrZero(), kUnknownTemperature_c);
       ++statuses[r.status];
       worst = std::max(worst, poseDifference(r.X_TrackerTip, layers.back().second(row)));
     }
-    EXPECT_LT(worst, 1e-12);
+    EXPECT_LT(worst, tolerance);
+    std::cout << "[ layers     ] " << variant.name << ": runtime vs trainer " << worst << "\n";
     // Every campaign row lies where the GPR was trained: none is out of its domain.
     EXPECT_EQ(statuses[Status::kOk], static_cast<int>(paper().campaign.rows.size()));
+  }
+}
+
+TEST(Runtime, ForwardAppliesBacklashTransmissionCouplingAndNonlinearStiffnessAtAKnownTorque) {
+  // Only joint 6 is compliant, and the wrench is a pure moment τ about joint 6's axis: joint 6
+  // then carries exactly τ whatever the link angles (the sensor turns with link 6), so the link
+  // angles have a closed form: θ = q, plus on joint 3 a sin 2q₃ + b cos 2q₃, on joint 5 c q₂,
+  // on joint 6 C₆ τ + b_l tanh(τ / τ_s) + c_n τ τ₀ / (τ₀ + |τ|) (mechanisms.hpp).
+  const double a = 3e-5, b = -1.5e-5, c = -1.2e-3, lost_rad = 2e-4, c_n = 4e-6, t0 = 60.0;
+  CalibratedModel file =
+      withMechanisms({mechanism(MechanismKind::kTransmissionError, 2, -1, 2, {a, b}),
+                      mechanism(MechanismKind::kJointCoupling, 4, 1, 0, {c}),
+                      mechanism(MechanismKind::kBacklash, 5, -1, 0, {lost_rad}),
+                      mechanism(MechanismKind::kNonlinearStiffness, 5, -1, 0, {c_n, t0})},
+                     false);
+  const double c6 = file.compliance_rad_per_nm(5);
+  file.compliance_rad_per_nm.head(5).setZero();
+  const auto model = RuntimeModel::fromModel(file, 7);
+  Workspace ws = makeWorkspace(*model);
+
+  const KinematicChain& chain = file.chain_Tracker;
+  const AttachedFrame& sensor = chain.frames()[static_cast<size_t>(file.sensor_frame)];
+  ASSERT_EQ(sensor.parent, 6);
+  const Vec3 axis_Sensor =
+      sensor.X_ParentFrame.linear().transpose() * chain.joints()[5].twist_Local.tail<3>();
+  double worst_position_m = 0.0, worst_rotation = 0.0, smallest_effect_m = 1.0;
+  for (const Measurement* row : validationRows()) {
+    for (const double tau_nm : {-40.0, -2.0, 0.0, 3.0, 60.0}) {
+      Vec6 wrench_Sensor = Vec6::Zero();
+      wrench_Sensor.tail<3>() = tau_nm * axis_Sensor;
+      const JointVector& q = row->q_rad;
+      JointVector theta = q;
+      theta(2) += a * std::sin(2 * q(2)) + b * std::cos(2 * q(2));
+      theta(4) += c * q(1);
+      theta(5) += c6 * tau_nm + lost_rad * std::tanh(tau_nm / kBacklashSmoothingTorque_nm) +
+                  c_n * tau_nm * t0 / (t0 + std::abs(tau_nm));
+      const ForwardResult r = correctForward(*model, ws, q, wrench_Sensor, kUnknownTemperature_c);
+      ASSERT_EQ(r.status, Status::kOk);
+      const auto [position_m, rotation] =
+          positionAndRotationDifference(r.X_TrackerTip, nominalTip(chain, theta));
+      worst_position_m = std::max(worst_position_m, position_m);
+      worst_rotation = std::max(worst_rotation, rotation);
+      smallest_effect_m =
+          std::min(smallest_effect_m,
+                   (r.X_TrackerTip.translation() - nominalTip(chain, q).translation()).norm());
+    }
+  }
+  EXPECT_LT(worst_position_m, 1e-9);
+  EXPECT_LT(worst_rotation, 1e-9);
+  EXPECT_GT(smallest_effect_m, 1e-6) << "the mechanisms must move the tip";
+  std::cout << "[ mechanisms ] closed form vs correctForward: " << worst_position_m
+            << " m; smallest effect on the tip " << smallest_effect_m << " m\n";
+}
+
+/// Gravity torques of point masses (mass m_k at c_k = h_k / m_k in frame k) at link angles θ,
+/// written from the definition: τ_j = Σ_{k ≥ j} ω_j · ((p_k − o_j) × m_k g), ω_j joint j's axis and
+/// o_j a point on it (ω × v of its local twist), root frame, N·m.
+JointVector gravityTorquesByHand(const KinematicChain& chain, const JointVector& theta_rad,
+                                 const Vec3& gravity_Root, const std::vector<double>& p) {
+  ChainWorkspace ws;
+  forwardKinematics(chain, theta_rad, ws);
+  const int n = chain.dof();
+  JointVector tau = JointVector::Zero(n);
+  for (int j = 1; j <= n; ++j) {
+    const Pose& X_j = ws.X_RootFrame[static_cast<size_t>(j)];
+    const Vec6& s = chain.joints()[static_cast<size_t>(j - 1)].twist_Local;
+    const Vec3 axis = X_j.linear() * s.tail<3>();
+    const Vec3 o = X_j * Vec3(s.tail<3>().cross(s.head<3>()));
+    for (int k = j; k <= n; ++k) {
+      const double m = p[static_cast<size_t>(4 * (k - 1))];
+      const Vec3 c_k(p[static_cast<size_t>(4 * (k - 1) + 1)] / m,
+                     p[static_cast<size_t>(4 * (k - 1) + 2)] / m,
+                     p[static_cast<size_t>(4 * (k - 1) + 3)] / m);
+      const Vec3 p_k = ws.X_RootFrame[static_cast<size_t>(k)] * c_k;
+      tau(j - 1) += axis.dot((p_k - o).cross(m * gravity_Root));
+    }
+  }
+  return tau;
+}
+
+TEST(Runtime, ForwardAppliesSelfWeightThroughTheCompliance) {
+  // Unloaded, the links' own weight alone deflects the joints: θ = q + C τ_g(θ), three passes
+  // from θ = q (mechanisms.hpp), with τ_g the gravity torques computed here by hand.
+  const CalibratedModel file = withMechanisms(
+      {mechanism(MechanismKind::kSelfWeight, -1, -1, 0, selfWeightParameters())}, false);
+  const auto model = RuntimeModel::fromModel(file, 8);
+  Workspace ws = makeWorkspace(*model);
+  const KinematicChain& chain = file.chain_Tracker;
+  const Vec3 gravity_Tracker = file.X_TrackerBase.linear() * file.gravity_Base;
+  const JointVector& C = file.compliance_rad_per_nm;
+  double worst_position_m = 0.0, worst_rotation = 0.0, worst_fixed_point_m = 0.0;
+  double smallest_effect_m = 1.0;
+  for (const Measurement* row : validationRows()) {
+    const JointVector& q = row->q_rad;
+    const auto pass = [&](const JointVector& theta) {
+      return JointVector(q + C.cwiseProduct(gravityTorquesByHand(chain, theta, gravity_Tracker,
+                                                                 selfWeightParameters())));
+    };
+    const JointVector theta3 = pass(pass(pass(q)));
+    JointVector fixed_point = theta3;
+    for (int i = 0; i < 50; ++i) fixed_point = pass(fixed_point);
+    const ForwardResult r = correctForward(*model, ws, q, Vec6::Zero(), kUnknownTemperature_c);
+    ASSERT_EQ(r.status, Status::kOk);
+    const auto [position_m, rotation] =
+        positionAndRotationDifference(r.X_TrackerTip, nominalTip(chain, theta3));
+    worst_position_m = std::max(worst_position_m, position_m);
+    worst_rotation = std::max(worst_rotation, rotation);
+    worst_fixed_point_m = std::max(
+        worst_fixed_point_m,
+        (r.X_TrackerTip.translation() - nominalTip(chain, fixed_point).translation()).norm());
+    smallest_effect_m =
+        std::min(smallest_effect_m,
+                 (r.X_TrackerTip.translation() - nominalTip(chain, q).translation()).norm());
+  }
+  EXPECT_LT(worst_position_m, 1e-9);
+  EXPECT_LT(worst_rotation, 1e-9);
+  // Three passes are the fixed point to well below the tracker's noise (10 µm).
+  EXPECT_LT(worst_fixed_point_m, 1e-7);
+  EXPECT_GT(smallest_effect_m, 1e-5) << "the links' weight must deflect the tip";
+  std::cout << "[ self weight] by hand vs correctForward " << worst_position_m
+            << " m; three passes vs the fixed point " << worst_fixed_point_m
+            << " m; smallest deflection " << smallest_effect_m << " m\n";
+}
+
+TEST(Runtime, ThermalExpansionScalesTheArmAboutJointOneAndUnknownIsTheReference) {
+  // Rigid model, links × (1 + α (T − T_ref)). Every joint axis passes through its frame's origin
+  // (v = 0), so the tip's offset from frame 1's origin o₁ (T_{0,1}(0), never scaled) scales as a
+  // whole: p(T) − p(T_ref) = α (T − T_ref) (p(T_ref) − o₁), rotation unchanged.
+  const double alpha_per_k = 1.15e-5, reference_c = 20.0;
+  CalibratedModel file = withMechanisms(
+      {mechanism(MechanismKind::kThermalExpansion, -1, -1, 0, {alpha_per_k, reference_c})}, false);
+  file.compliance_rad_per_nm.resize(0);
+  file.compliance_sigma_rad_per_nm.resize(0);
+  const KinematicChain& chain = file.chain_Tracker;
+  for (const ChainJoint& joint : chain.joints()) ASSERT_TRUE(joint.twist_Local.head<3>().isZero());
+  const Vec3 o1 = chain.initialPose(0).translation();
+  const auto model = RuntimeModel::fromModel(file, 9);
+  Workspace ws = makeWorkspace(*model);
+  double worst_m = 0.0, worst_rotation = 0.0, smallest_shift_m = 1.0;
+  for (const Measurement* row : validationRows()) {
+    const Vec6 wrench = row->wrenchOrZero();
+    const ForwardResult at_reference = correctForward(*model, ws, row->q_rad, wrench, reference_c);
+    const ForwardResult warm = correctForward(*model, ws, row->q_rad, wrench, reference_c + 10.0);
+    const ForwardResult unknown =
+        correctForward(*model, ws, row->q_rad, wrench, kUnknownTemperature_c);
+    ASSERT_EQ(warm.status, Status::kOk);
+    EXPECT_EQ(unknown.X_TrackerTip.matrix(), at_reference.X_TrackerTip.matrix());
+    EXPECT_EQ(at_reference.X_TrackerTip.matrix(), nominalTip(chain, row->q_rad).matrix());
+    const Vec3 p_ref = at_reference.X_TrackerTip.translation();
+    const Vec3 predicted_shift_m = alpha_per_k * 10.0 * (p_ref - o1);
+    worst_m =
+        std::max(worst_m, (warm.X_TrackerTip.translation() - p_ref - predicted_shift_m).norm());
+    worst_rotation = std::max(
+        worst_rotation,
+        (warm.X_TrackerTip.linear() - at_reference.X_TrackerTip.linear()).cwiseAbs().maxCoeff());
+    smallest_shift_m = std::min(smallest_shift_m, predicted_shift_m.norm());
+  }
+  EXPECT_LT(worst_m, 1e-12);
+  EXPECT_LT(worst_rotation, 1e-15);
+  EXPECT_GT(smallest_shift_m, 1e-5);
+  std::cout << "[ thermal    ] +10 K moves the tip ≥ " << smallest_shift_m
+            << " m; closed form vs correctForward " << worst_m << " m\n";
+
+  // With compliance and the GPR too, an unknown temperature is the reference temperature.
+  const auto full = RuntimeModel::fromModel(
+      withMechanisms(
+          {mechanism(MechanismKind::kThermalExpansion, -1, -1, 0, {alpha_per_k, reference_c})},
+          true),
+      10);
+  Workspace ws_full = makeWorkspace(*full);
+  for (const Measurement* row : validationRows()) {
+    const ForwardResult a =
+        correctForward(*full, ws_full, row->q_rad, row->wrenchOrZero(), kUnknownTemperature_c);
+    const ForwardResult b =
+        correctForward(*full, ws_full, row->q_rad, row->wrenchOrZero(), reference_c);
+    EXPECT_EQ(a.X_TrackerTip.matrix(), b.X_TrackerTip.matrix());
+    EXPECT_EQ(a.gpr_std, b.gpr_std);
+  }
+}
+
+TEST(Runtime, SensorBiasIsTakenOffTheMeasuredWrenchButNotOffTheGprInput) {
+  const Vec6 bias = (Vec6() << 1.5, -0.8, 2.1, 0.03, -0.02, 0.01).finished();
+  const Mechanism sensor_bias = mechanism(MechanismKind::kSensorBias, -1, -1, 0,
+                                          std::vector<double>(bias.data(), bias.data() + 6));
+  const auto biased = RuntimeModel::fromModel(withMechanisms({sensor_bias}, false), 11);
+  const auto plain = RuntimeModel::fromModel(withMechanisms({}, false), 12);
+  const auto biased_gpr = RuntimeModel::fromModel(withMechanisms({sensor_bias}, true), 13);
+  Workspace ws = makeWorkspace(*biased), ws_gpr = makeWorkspace(*biased_gpr);
+  GprPredictor::Workspace gpr_ws = biased_gpr->gpr.makeWorkspace();
+  double worst_m = 0.0, worst_gpr_m = 0.0, smallest_effect_m = 1.0;
+  for (const Measurement* row : validationRows()) {
+    const Vec6 W = row->wrenchOrZero();
+    const Pose with_bias =
+        correctForward(*biased, ws, row->q_rad, W, kUnknownTemperature_c).X_TrackerTip;
+    const Pose unbiased =
+        correctForward(*plain, ws, row->q_rad, W - bias, kUnknownTemperature_c).X_TrackerTip;
+    worst_m = std::max(worst_m, poseDifference(with_bias, unbiased));
+    smallest_effect_m = std::min(
+        smallest_effect_m,
+        (unbiased.translation() - correctForward(*plain, ws, row->q_rad, W, kUnknownTemperature_c)
+                                      .X_TrackerTip.translation())
+            .norm());
+    // The GPR learned on (q, measured wrench): its input keeps the bias.
+    Eigen::VectorXd x(row->q_rad.size() + 6);
+    x << row->q_rad, W;
+    Vec6 xi;
+    biased_gpr->gpr.predictMeanAndBoundInto(x.data(), xi.data(), nullptr, gpr_ws);
+    const Pose expected = unbiased * lie::expSE3(xi);
+    worst_gpr_m = std::max(
+        worst_gpr_m,
+        poseDifference(
+            correctForward(*biased_gpr, ws_gpr, row->q_rad, W, kUnknownTemperature_c).X_TrackerTip,
+            expected));
+  }
+  EXPECT_LT(worst_m, 1e-12);
+  EXPECT_LT(worst_gpr_m, 1e-12);
+  EXPECT_GT(smallest_effect_m, 1e-8) << "the bias must change the deflection";
+}
+
+TEST(Runtime, InverseRoundTripsThroughForwardWithMechanismsOfEveryKind) {
+  const auto model = RuntimeModel::fromModel(withMechanisms(mechanismOfEveryKind(), true), 14);
+  Workspace ws = makeWorkspace(*model);
+  std::mt19937_64 rng(15);
+  std::map<int, int> iterations, iterations_tight;
+  double worst_m = 0.0, worst_q_rad = 0.0;
+  for (const Measurement* row : validationRows()) {
+    const Vec6 wrench = row->wrenchOrZero();
+    const double temp_c = 31.5;
+    const ForwardResult forward = correctForward(*model, ws, row->q_rad, wrench, temp_c);
+    ASSERT_EQ(forward.status, Status::kOk);
+    const InverseResult r = solveInverse(*model, ws, forward.X_TrackerTip, wrench, temp_c,
+                                         perturbed(row->q_rad, rng), kNoDeadline);
+    ASSERT_EQ(r.status, Status::kOk) << toString(r.status) << " on row " << row->seq;
+    ++iterations[r.iterations];
+    // To 1e-10 m/rad within the default 8 steps, though the self weight's derivative is left
+    // out of the Jacobian (one step more than with the other mechanisms alone).
+    const InverseResult tight =
+        solveInverse(*model, ws, forward.X_TrackerTip, wrench, temp_c, perturbed(row->q_rad, rng),
+                     kNoDeadline, tightOptions());
+    ASSERT_EQ(tight.status, Status::kOk) << toString(tight.status) << " on row " << row->seq;
+    EXPECT_LE(tight.iterations, 6);
+    ++iterations_tight[tight.iterations];
+    const ForwardResult at_target = correctForward(*model, ws, r.q_target_rad, wrench, temp_c);
+    EXPECT_EQ(r.X_TrackerTip_predicted.matrix(), at_target.X_TrackerTip.matrix());
+    worst_m = std::max(
+        worst_m,
+        (at_target.X_TrackerTip.translation() - forward.X_TrackerTip.translation()).norm());
+    worst_q_rad = std::max(worst_q_rad, (r.q_target_rad - row->q_rad).cwiseAbs().maxCoeff());
+  }
+  EXPECT_LT(worst_m, 1e-6);
+  EXPECT_LT(worst_q_rad, 1e-5);
+  std::cout << "[ iterations ] every mechanism, default tolerance:";
+  for (const auto& [n, count] : iterations) std::cout << " " << n << "×" << count;
+  std::cout << "; worst residual " << worst_m << " m, worst q error " << worst_q_rad << " rad\n";
+  std::cout << "[ iterations ] every mechanism, tolerance 1e-10:";
+  for (const auto& [n, count] : iterations_tight) std::cout << " " << n << "×" << count;
+  std::cout << "\n";
+}
+
+TEST(Runtime, InverseJacobianCarriesCouplingTransmissionAndBacklash) {
+  // Strong coupling and transmission error and a wide backlash change dθ/dq by several per cent:
+  // with their derivatives in the Jacobian Newton still converges quadratically, to 1e-10 in as
+  // few steps as the plain model (InverseRecoversCommandedJointsInFewSteps).
+  const auto model = RuntimeModel::fromModel(
+      withMechanisms({mechanism(MechanismKind::kJointCoupling, 2, 1, 0, {0.05}),
+                      mechanism(MechanismKind::kTransmissionError, 3, -1, 3, {0.01, 0.01}),
+                      mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-3}),
+                      mechanism(MechanismKind::kNonlinearStiffness, 2, -1, 0, {2e-5, 20.0})},
+                     true),
+      16);
+  Workspace ws = makeWorkspace(*model);
+  std::mt19937_64 rng(17);
+  std::map<int, int> iterations;
+  for (const Measurement* row : validationRows()) {
+    const Vec6 wrench = row->wrenchOrZero();
+    const Pose X_desired =
+        correctForward(*model, ws, row->q_rad, wrench, kUnknownTemperature_c).X_TrackerTip;
+    const InverseResult r = solveInverse(*model, ws, X_desired, wrench, kUnknownTemperature_c,
+                                         perturbed(row->q_rad, rng), kNoDeadline, tightOptions());
+    ASSERT_EQ(r.status, Status::kOk) << toString(r.status) << " on row " << row->seq;
+    EXPECT_LE(r.iterations, 4);
+    ++iterations[r.iterations];
+  }
+  std::cout << "[ iterations ] strong coupling/transmission/backlash, tolerance 1e-10:";
+  for (const auto& [n, count] : iterations) std::cout << " " << n << "×" << count;
+  std::cout << "\n";
+}
+
+TEST(Runtime, TemperatureMustBeUnknownOrWithinItsRange) {
+  const auto model = RuntimeModel::fromModel(withMechanisms(mechanismOfEveryKind(), true), 18);
+  Workspace ws = makeWorkspace(*model);
+  const Measurement& row = *validationRows().front();
+  const Vec6 wrench = row.wrenchOrZero();
+  const Pose X = correctForward(*model, ws, row.q_rad, wrench, 20.0).X_TrackerTip;
+  const double inf = std::numeric_limits<double>::infinity();
+  for (const double temp_c : {kUnknownTemperature_c, -50.0, 20.0, 150.0}) {
+    EXPECT_EQ(correctForward(*model, ws, row.q_rad, wrench, temp_c).status, Status::kOk) << temp_c;
+    EXPECT_EQ(solveInverse(*model, ws, X, wrench, temp_c, row.q_rad, kNoDeadline).status,
+              Status::kOk)
+        << temp_c;
+  }
+  for (const double temp_c : {inf, -inf, 150.5, -50.5, 1e6}) {
+    EXPECT_EQ(correctForward(*model, ws, row.q_rad, wrench, temp_c).status, Status::kBadRequest)
+        << temp_c;
+    EXPECT_EQ(solveInverse(*model, ws, X, wrench, temp_c, row.q_rad, kNoDeadline).status,
+              Status::kBadRequest)
+        << temp_c;
   }
 }
 
@@ -163,9 +495,10 @@ TEST(Runtime, LoadedFileGivesTheSameAnswersAndIsIdentifiedByItsBytes) {
   Workspace ws_loaded = makeWorkspace(*loaded);
   Workspace ws_memory = makeWorkspace(paperRuntime());
   for (const Measurement* row : validationRows()) {
-    const ForwardResult a = correctForward(*loaded, ws_loaded, row->q_rad, row->wrenchOrZero());
-    const ForwardResult b =
-        correctForward(paperRuntime(), ws_memory, row->q_rad, row->wrenchOrZero());
+    const ForwardResult a =
+        correctForward(*loaded, ws_loaded, row->q_rad, row->wrenchOrZero(), kUnknownTemperature_c);
+    const ForwardResult b = correctForward(paperRuntime(), ws_memory, row->q_rad,
+                                           row->wrenchOrZero(), kUnknownTemperature_c);
     EXPECT_EQ(a.X_TrackerTip.matrix(), b.X_TrackerTip.matrix());
     EXPECT_EQ(a.gpr_std, b.gpr_std);
   }
@@ -200,6 +533,40 @@ TEST(Runtime, RefusesModelsTheRealTimePathCannotUse) {
   CalibratedModel right_gpr = good;
   right_gpr.gpr = test::randomConsistentGpr(30, n + 6, 6);
   EXPECT_NO_THROW(RuntimeModel::fromModel(right_gpr, 1));
+
+  // Mechanisms the model file would refuse are refused in memory too, by index.
+  const auto refusal = [](const CalibratedModel& model) -> std::string {
+    try {
+      RuntimeModel::fromModel(model, 1);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  CalibratedModel bad_joint = withMechanisms(mechanismOfEveryKind(), true);
+  bad_joint.mechanisms[0].joint = n;
+  EXPECT_NE(refusal(bad_joint).find("mechanisms[0]: backlash joint index 6"), std::string::npos)
+      << refusal(bad_joint);
+  CalibratedModel two_biases = withMechanisms(mechanismOfEveryKind(), true);
+  two_biases.mechanisms.push_back(two_biases.mechanisms[5]);
+  EXPECT_NE(refusal(two_biases).find("mechanisms[7]: a second sensor_bias"), std::string::npos)
+      << refusal(two_biases);
+  CalibratedModel weightless = withMechanisms(mechanismOfEveryKind(), true);
+  weightless.gravity_Base.setZero();
+  EXPECT_NE(refusal(weightless).find("mechanisms[1]: self_weight in a model whose gravity is zero"),
+            std::string::npos)
+      << refusal(weightless);
+  EXPECT_EQ(refusal(withMechanisms(mechanismOfEveryKind(), true)), "");
+
+  // Compliances of another count, a sensor frame the chain does not have.
+  CalibratedModel short_compliance = good;
+  short_compliance.compliance_rad_per_nm.conservativeResize(n - 1);
+  EXPECT_NE(refusal(short_compliance).find("5 joint compliances for 6 joints"), std::string::npos)
+      << refusal(short_compliance);
+  CalibratedModel far_sensor = good;
+  far_sensor.compliance_rad_per_nm.resize(0);
+  far_sensor.sensor_frame = static_cast<int>(good.chain_Tracker.frames().size());
+  EXPECT_NE(refusal(far_sensor).find("sensor frame"), std::string::npos) << refusal(far_sensor);
 }
 
 TEST(Runtime, RelativeStdAgreesWithThePredictor) {
@@ -218,9 +585,11 @@ TEST(Runtime, RelativeStdAgreesWithThePredictor) {
     // The threshold just below and just above the predictor's own value flips the status.
     RuntimeModel copy = model;
     copy.out_of_domain_relative_std = relative * (1.0 - 1e-9);
-    EXPECT_EQ(correctForward(copy, ws, row.q_rad, wrench).status, Status::kOutOfDomain);
+    EXPECT_EQ(correctForward(copy, ws, row.q_rad, wrench, kUnknownTemperature_c).status,
+              Status::kOutOfDomain);
     copy.out_of_domain_relative_std = relative * (1.0 + 1e-9);
-    EXPECT_EQ(correctForward(copy, ws, row.q_rad, wrench).status, Status::kOk);
+    EXPECT_EQ(correctForward(copy, ws, row.q_rad, wrench, kUnknownTemperature_c).status,
+              Status::kOk);
   }
 }
 
@@ -245,16 +614,17 @@ TEST(Runtime, GprStdIsTheConservativeBoundAndTheThresholdUsesIt) {
     Vec6 mean, exact, bound;
     model.gpr.predictInto(x.data(), mean.data(), exact.data(), gpr_ws);
     model.gpr.predictMeanAndBoundInto(x.data(), mean.data(), bound.data(), gpr_ws);
-    const ForwardResult forward = correctForward(model, ws, row->q_rad, row->wrenchOrZero());
+    const ForwardResult forward =
+        correctForward(model, ws, row->q_rad, row->wrenchOrZero(), kUnknownTemperature_c);
     EXPECT_EQ(forward.gpr_std, bound);
     EXPECT_TRUE((bound.array() >= exact.array() - 1e-12 * bound.array()).all());
     // The inverse's answer carries the forward model's std at its targets.
-    const InverseResult inverse = solveInverse(model, ws, forward.X_TrackerTip,
-                                               row->wrenchOrZero(), perturbed(row->q_rad, rng),
-                                               kNoDeadline);
+    const InverseResult inverse =
+        solveInverse(model, ws, forward.X_TrackerTip, row->wrenchOrZero(), kUnknownTemperature_c,
+                     perturbed(row->q_rad, rng), kNoDeadline);
     ASSERT_EQ(inverse.status, Status::kOk);
     const ForwardResult at_target =
-        correctForward(model, ws, inverse.q_target_rad, row->wrenchOrZero());
+        correctForward(model, ws, inverse.q_target_rad, row->wrenchOrZero(), kUnknownTemperature_c);
     EXPECT_EQ(inverse.gpr_std, at_target.gpr_std);
     EXPECT_TRUE(inverse.X_TrackerTip_predicted.isApprox(at_target.X_TrackerTip, 0.0));
   }
@@ -270,7 +640,9 @@ TEST(Runtime, EveryTrainingInputIsInDomain) {
   for (Eigen::Index i = 0; i < g.inputs_normalised.rows(); ++i) {
     const Eigen::VectorXd x =
         g.input_offset + g.input_scale.cwiseProduct(g.inputs_normalised.row(i).transpose());
-    EXPECT_EQ(correctForward(model, ws, x.head(n), x.tail<6>()).status, Status::kOk) << i;
+    EXPECT_EQ(correctForward(model, ws, x.head(n), x.tail<6>(), kUnknownTemperature_c).status,
+              Status::kOk)
+        << i;
   }
 }
 
@@ -280,7 +652,7 @@ TEST(Runtime, FarFromTheTrainingDataIsOutOfDomain) {
   const Measurement& row = *validationRows().front();
   Vec6 wrench = row.wrenchOrZero();
   wrench(2) -= 5000.0;
-  const ForwardResult r = correctForward(model, ws, row.q_rad, wrench);
+  const ForwardResult r = correctForward(model, ws, row.q_rad, wrench, kUnknownTemperature_c);
   EXPECT_EQ(r.status, Status::kOutOfDomain);
   EXPECT_TRUE(r.X_TrackerTip.matrix().allFinite());
   EXPECT_GT(r.gpr_std.minCoeff(), 0.0);
@@ -289,7 +661,8 @@ TEST(Runtime, FarFromTheTrainingDataIsOutOfDomain) {
   for (int o = 0; o < 6; ++o) {
     EXPECT_NEAR(r.gpr_std(o), g.signal_sigma * g.output_scale(o), 1e-6 * r.gpr_std(o));
   }
-  const ForwardResult in_domain = correctForward(model, ws, row.q_rad, row.wrenchOrZero());
+  const ForwardResult in_domain =
+      correctForward(model, ws, row.q_rad, row.wrenchOrZero(), kUnknownTemperature_c);
   EXPECT_EQ(in_domain.status, Status::kOk);
   EXPECT_LT(in_domain.gpr_std(0), 0.9 * r.gpr_std(0));
 }
@@ -302,10 +675,11 @@ TEST(Runtime, InverseRecoversCommandedJointsInFewSteps) {
   double worst_q_rad = 0.0;
   for (const Measurement* row : validationRows()) {
     const Vec6 wrench = row->wrenchOrZero();
-    const Pose X_desired = correctForward(model, ws, row->q_rad, wrench).X_TrackerTip;
+    const Pose X_desired =
+        correctForward(model, ws, row->q_rad, wrench, kUnknownTemperature_c).X_TrackerTip;
     const JointVector seed = perturbed(row->q_rad, rng);
-    const InverseResult r = solveInverse(model, ws, X_desired, wrench, seed, kNoDeadline,
-                                         tightOptions());
+    const InverseResult r = solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c, seed,
+                                         kNoDeadline, tightOptions());
     ASSERT_EQ(r.status, Status::kOk) << toString(r.status) << " on row " << row->seq;
     EXPECT_LE(r.iterations, 4);
     EXPECT_LE(r.residual_position_m, 1e-10);
@@ -313,11 +687,13 @@ TEST(Runtime, InverseRecoversCommandedJointsInFewSteps) {
     worst_q_rad = std::max(worst_q_rad, (r.q_target_rad - row->q_rad).cwiseAbs().maxCoeff());
     ++iterations_tight[r.iterations];
     // The predicted pose is the forward model's at the answer.
-    const ForwardResult at_answer = correctForward(model, ws, r.q_target_rad, wrench);
+    const ForwardResult at_answer =
+        correctForward(model, ws, r.q_target_rad, wrench, kUnknownTemperature_c);
     EXPECT_EQ(r.X_TrackerTip_predicted.matrix(), at_answer.X_TrackerTip.matrix());
     EXPECT_EQ(r.gpr_std, at_answer.gpr_std);
 
-    const InverseResult d = solveInverse(model, ws, X_desired, wrench, seed, kNoDeadline);
+    const InverseResult d =
+        solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c, seed, kNoDeadline);
     EXPECT_EQ(d.status, Status::kOk);
     ++iterations_default[d.iterations];
   }
@@ -339,9 +715,10 @@ TEST(Runtime, PreDistortedPoseIsNominalForwardKinematicsAtTheTargets) {
   double smallest_correction_m = std::numeric_limits<double>::infinity();
   for (const Measurement* row : validationRows()) {
     const Vec6 wrench = row->wrenchOrZero();
-    const Pose X_desired = correctForward(model, ws, row->q_rad, wrench).X_TrackerTip;
-    const InverseResult r =
-        solveInverse(model, ws, X_desired, wrench, perturbed(row->q_rad, rng), kNoDeadline);
+    const Pose X_desired =
+        correctForward(model, ws, row->q_rad, wrench, kUnknownTemperature_c).X_TrackerTip;
+    const InverseResult r = solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c,
+                                         perturbed(row->q_rad, rng), kNoDeadline);
     ASSERT_EQ(r.status, Status::kOk);
     EXPECT_EQ(r.X_BaseTip_commanded.matrix(),
               nominalTip(paper().outcome.nominal_Base, r.q_target_rad).matrix());
@@ -358,12 +735,13 @@ TEST(Runtime, PoseBeyondReachIsUnreachable) {
   const RuntimeModel& model = paperRuntime();
   Workspace ws = makeWorkspace(model);
   const Measurement& row = *validationRows().front();
-  Pose X_desired = correctForward(model, ws, row.q_rad, row.wrenchOrZero()).X_TrackerTip;
+  Pose X_desired =
+      correctForward(model, ws, row.q_rad, row.wrenchOrZero(), kUnknownTemperature_c).X_TrackerTip;
   const Vec3 outwards =
       (X_desired.translation() - model.p_ReachCentreInTracker_m).normalized();
   X_desired.translation() += 5.0 * outwards;
-  const InverseResult r =
-      solveInverse(model, ws, X_desired, row.wrenchOrZero(), row.q_rad, kNoDeadline);
+  const InverseResult r = solveInverse(model, ws, X_desired, row.wrenchOrZero(),
+                                       kUnknownTemperature_c, row.q_rad, kNoDeadline);
   EXPECT_EQ(r.status, Status::kUnreachable);
   EXPECT_EQ(r.iterations, 0);
   EXPECT_TRUE(r.q_target_rad.allFinite());
@@ -380,10 +758,13 @@ TEST(Runtime, PoseOnlyReachablePastAJointLimitIsUnreachable) {
                                          limited.chain_Tracker.frames());
   const auto model = RuntimeModel::fromModel(limited, 2);
   Workspace ws = makeWorkspace(*model);
-  const Pose X_desired = correctForward(paperRuntime(), ws, row.q_rad, row.wrenchOrZero()).X_TrackerTip;
+  const Pose X_desired =
+      correctForward(paperRuntime(), ws, row.q_rad, row.wrenchOrZero(), kUnknownTemperature_c)
+          .X_TrackerTip;
   JointVector seed = row.q_rad;
   seed(0) -= 0.15;
-  const InverseResult r = solveInverse(*model, ws, X_desired, row.wrenchOrZero(), seed, kNoDeadline);
+  const InverseResult r = solveInverse(*model, ws, X_desired, row.wrenchOrZero(),
+                                       kUnknownTemperature_c, seed, kNoDeadline);
   EXPECT_EQ(r.status, Status::kUnreachable);
   EXPECT_LE(r.q_target_rad(0), joints[0].upper_rad);
   EXPECT_TRUE(r.q_target_rad.allFinite());
@@ -394,13 +775,14 @@ TEST(Runtime, MalformedRequestsAreBadRequests) {
   Workspace ws = makeWorkspace(model);
   const Measurement& row = *validationRows().front();
   const Vec6 wrench = row.wrenchOrZero();
-  const Pose X_good = correctForward(model, ws, row.q_rad, wrench).X_TrackerTip;
+  const Pose X_good =
+      correctForward(model, ws, row.q_rad, wrench, kUnknownTemperature_c).X_TrackerTip;
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
 
   const auto inverse = [&](const Pose& X, const Vec6& w, const JointVector& seed,
                            const InverseOptions& options = {}) {
-    return solveInverse(model, ws, X, w, seed, kNoDeadline, options).status;
+    return solveInverse(model, ws, X, w, kUnknownTemperature_c, seed, kNoDeadline, options).status;
   };
   EXPECT_EQ(inverse(X_good, wrench, row.q_rad), Status::kOk);
   Pose X = X_good;
@@ -425,15 +807,20 @@ TEST(Runtime, MalformedRequestsAreBadRequests) {
   InverseOptions negative;
   negative.position_tolerance_m = -1.0;
   EXPECT_EQ(inverse(X_good, wrench, row.q_rad, negative), Status::kBadRequest);
-  const InverseResult bad = solveInverse(model, ws, X, wrench, row.q_rad, kNoDeadline);
+  const InverseResult bad =
+      solveInverse(model, ws, X, wrench, kUnknownTemperature_c, row.q_rad, kNoDeadline);
   EXPECT_EQ(bad.q_target_rad.size(), 0);
 
-  EXPECT_EQ(correctForward(model, ws, row.q_rad, wrench).status, Status::kOk);
+  EXPECT_EQ(correctForward(model, ws, row.q_rad, wrench, kUnknownTemperature_c).status,
+            Status::kOk);
   JointVector q7(7);
   q7 << row.q_rad, 0.0;
-  EXPECT_EQ(correctForward(model, ws, q7, wrench).status, Status::kBadRequest);
-  EXPECT_EQ(correctForward(model, ws, q_nan, wrench).status, Status::kBadRequest);
-  EXPECT_EQ(correctForward(model, ws, row.q_rad, w_inf).status, Status::kBadRequest);
+  EXPECT_EQ(correctForward(model, ws, q7, wrench, kUnknownTemperature_c).status,
+            Status::kBadRequest);
+  EXPECT_EQ(correctForward(model, ws, q_nan, wrench, kUnknownTemperature_c).status,
+            Status::kBadRequest);
+  EXPECT_EQ(correctForward(model, ws, row.q_rad, w_inf, kUnknownTemperature_c).status,
+            Status::kBadRequest);
 
   // A workspace sized for another model is refused, not resized.
   CalibratedModel small_gpr = paper().model;
@@ -441,9 +828,12 @@ TEST(Runtime, MalformedRequestsAreBadRequests) {
   const auto other = RuntimeModel::fromModel(small_gpr, 3);
   Workspace other_ws = makeWorkspace(*other);
   EXPECT_FALSE(workspaceFits(model, other_ws));
-  EXPECT_EQ(correctForward(model, other_ws, row.q_rad, wrench).status, Status::kBadRequest);
-  EXPECT_EQ(solveInverse(model, other_ws, X_good, wrench, row.q_rad, kNoDeadline).status,
+  EXPECT_EQ(correctForward(model, other_ws, row.q_rad, wrench, kUnknownTemperature_c).status,
             Status::kBadRequest);
+  EXPECT_EQ(
+      solveInverse(model, other_ws, X_good, wrench, kUnknownTemperature_c, row.q_rad, kNoDeadline)
+          .status,
+      Status::kBadRequest);
 }
 
 TEST(Runtime, DeadlineIsKept) {
@@ -452,10 +842,11 @@ TEST(Runtime, DeadlineIsKept) {
   std::mt19937_64 rng(7);
   const Measurement& row = *validationRows().front();
   const Vec6 wrench = row.wrenchOrZero();
-  const Pose X_desired = correctForward(model, ws, row.q_rad, wrench).X_TrackerTip;
+  const Pose X_desired =
+      correctForward(model, ws, row.q_rad, wrench, kUnknownTemperature_c).X_TrackerTip;
   const JointVector seed = perturbed(row.q_rad, rng);
 
-  const InverseResult past = solveInverse(model, ws, X_desired, wrench, seed,
+  const InverseResult past = solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c, seed,
                                           Clock::now() - std::chrono::seconds(1));
   EXPECT_EQ(past.status, Status::kNotConverged);
   EXPECT_LE(past.iterations, 1);
@@ -472,13 +863,14 @@ TEST(Runtime, DeadlineIsKept) {
   const InverseResult hundred = [&] {
     InverseOptions o = endless;
     o.max_iterations = 100;
-    return solveInverse(model, ws, X_desired, wrench, seed, kNoDeadline, o);
+    return solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c, seed, kNoDeadline, o);
   }();
   const auto step = (Clock::now() - start) / 101;
   ASSERT_EQ(hundred.iterations, 100);
   const auto budget = 20 * step;
   start = Clock::now();
-  const InverseResult cut = solveInverse(model, ws, X_desired, wrench, seed, start + budget, endless);
+  const InverseResult cut = solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c, seed,
+                                         start + budget, endless);
   const auto elapsed = Clock::now() - start;
   EXPECT_EQ(cut.status, Status::kNotConverged);
   EXPECT_LT(cut.iterations, 1000);
@@ -495,14 +887,15 @@ TEST(Runtime, AnswerAtTheWristSingularityIsFlagged) {
   const Measurement& row = *validationRows().front();
   JointVector q_rad = row.q_rad;
   q_rad(4) = 0.0;  // joint 5: wrist axes 4 and 6 aligned
-  const Pose X_desired = correctForward(model, ws, q_rad, row.wrenchOrZero()).X_TrackerTip;
+  const Pose X_desired =
+      correctForward(model, ws, q_rad, row.wrenchOrZero(), kUnknownTemperature_c).X_TrackerTip;
   JointVector seed = q_rad;
   seed(0) += 0.5 * kDeg;
   seed(4) += 0.5 * kDeg;
   InverseOptions options;
   options.max_iterations = 50;
-  const InverseResult r =
-      solveInverse(model, ws, X_desired, row.wrenchOrZero(), seed, kNoDeadline, options);
+  const InverseResult r = solveInverse(model, ws, X_desired, row.wrenchOrZero(),
+                                       kUnknownTemperature_c, seed, kNoDeadline, options);
   EXPECT_EQ(r.status, Status::kNearSingular) << toString(r.status);
   EXPECT_LT(r.residual_position_m, 1e-6);
   std::cout << "[ singular   ] " << r.iterations << " steps\n";
@@ -510,6 +903,8 @@ TEST(Runtime, AnswerAtTheWristSingularityIsFlagged) {
 
 TEST(Runtime, RealTimeCallsAllocateNothing) {
   const RuntimeModel& model = paperRuntime();
+  const auto with_every_mechanism =
+      RuntimeModel::fromModel(withMechanisms(mechanismOfEveryKind(), true), 19);
   {
     // Positive control: the counter sees the workspace's buffers being allocated.
     test::AllocationCounter counter;
@@ -523,10 +918,18 @@ TEST(Runtime, RealTimeCallsAllocateNothing) {
     Vec6 wrench;
     Pose X_desired;
   };
-  std::vector<Request> requests;
+  std::vector<Request> requests, mechanism_requests;
+  Workspace ws_mechanisms = makeWorkspace(*with_every_mechanism);
+  const double temp_c = 28.0;
   for (const Measurement* row : validationRows()) {
-    const Pose X = correctForward(model, ws, row->q_rad, row->wrenchOrZero()).X_TrackerTip;
+    const Pose X = correctForward(model, ws, row->q_rad, row->wrenchOrZero(), kUnknownTemperature_c)
+                       .X_TrackerTip;
     requests.push_back({row->q_rad, perturbed(row->q_rad, rng), row->wrenchOrZero(), X});
+    const Pose X_mechanisms = correctForward(*with_every_mechanism, ws_mechanisms, row->q_rad,
+                                             row->wrenchOrZero(), temp_c)
+                                  .X_TrackerTip;
+    mechanism_requests.push_back(
+        {row->q_rad, perturbed(row->q_rad, rng), row->wrenchOrZero(), X_mechanisms});
   }
   Pose X_far = requests[0].X_desired;
   X_far.translation().x() += 5.0;
@@ -537,25 +940,44 @@ TEST(Runtime, RealTimeCallsAllocateNothing) {
   test::AllocationCounter counter;
   int ok = 0;
   for (const Request& r : requests) {
-    ok += correctForward(model, ws, r.q_rad, r.wrench).status == Status::kOk;
-    ok += solveInverse(model, ws, r.X_desired, r.wrench, r.seed_rad, kNoDeadline).status ==
-          Status::kOk;
+    ok += correctForward(model, ws, r.q_rad, r.wrench, kUnknownTemperature_c).status == Status::kOk;
+    ok += solveInverse(model, ws, r.X_desired, r.wrench, kUnknownTemperature_c, r.seed_rad,
+                       kNoDeadline)
+              .status == Status::kOk;
+  }
+  int ok_mechanisms = 0;
+  for (const Request& r : mechanism_requests) {
+    ok_mechanisms +=
+        correctForward(*with_every_mechanism, ws_mechanisms, r.q_rad, r.wrench, temp_c).status ==
+        Status::kOk;
+    ok_mechanisms += solveInverse(*with_every_mechanism, ws_mechanisms, r.X_desired, r.wrench,
+                                  temp_c, r.seed_rad, kNoDeadline)
+                         .status == Status::kOk;
   }
   const Request& r = requests[0];
   const Status statuses[] = {
-      correctForward(model, ws, r.q_rad, heavy).status,
-      correctForward(model, ws, q_short, r.wrench).status,
-      solveInverse(model, ws, X_far, r.wrench, r.seed_rad, kNoDeadline).status,
-      solveInverse(model, ws, r.X_desired, r.wrench, q_short, kNoDeadline).status,
-      solveInverse(model, ws, r.X_desired, r.wrench, r.seed_rad, Clock::now()).status,
+      correctForward(model, ws, r.q_rad, heavy, kUnknownTemperature_c).status,
+      correctForward(model, ws, q_short, r.wrench, kUnknownTemperature_c).status,
+      solveInverse(model, ws, X_far, r.wrench, kUnknownTemperature_c, r.seed_rad, kNoDeadline)
+          .status,
+      solveInverse(model, ws, r.X_desired, r.wrench, kUnknownTemperature_c, q_short, kNoDeadline)
+          .status,
+      solveInverse(model, ws, r.X_desired, r.wrench, kUnknownTemperature_c, r.seed_rad,
+                   Clock::now())
+          .status,
+      correctForward(*with_every_mechanism, ws_mechanisms, r.q_rad, r.wrench,
+                     std::numeric_limits<double>::infinity())
+          .status,
   };
   EXPECT_EQ(counter.count(), 0);
   EXPECT_EQ(ok, 2 * static_cast<int>(requests.size()));
+  EXPECT_EQ(ok_mechanisms, 2 * static_cast<int>(mechanism_requests.size()));
   EXPECT_EQ(statuses[0], Status::kOutOfDomain);
   EXPECT_EQ(statuses[1], Status::kBadRequest);
   EXPECT_EQ(statuses[2], Status::kUnreachable);
   EXPECT_EQ(statuses[3], Status::kBadRequest);
   EXPECT_EQ(statuses[4], Status::kNotConverged);
+  EXPECT_EQ(statuses[5], Status::kBadRequest);
 }
 
 }  // namespace

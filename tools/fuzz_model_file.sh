@@ -30,7 +30,7 @@ compile() {
 }
 pids=()
 objects=()
-for name in error lie chain model_file; do
+for name in error lie chain compliance mechanisms model_file; do
   compile "$root/common/src/$name.cpp" "$out/obj/$name.o"
   objects+=("$out/obj/$name.o")
 done
@@ -56,8 +56,11 @@ cat > "$out/model.dict" <<'DICT'
 "REGI"
 "COMP"
 "GPR "
+"MECH"
 "PROV"
 "\x01\x00\x00\x00"
+"\x02\x00\x00\x00"
+"\xff\xff\xff\xff"
 "\x00\x00\x00\x00\x00\x00\xf0\x3f"
 DICT
 

@@ -51,13 +51,17 @@ clang++ -fsanitize=fuzzer-no-link,address,undefined "$out/obj/make_seeds.o" \
   -o "$out/make_seeds"
 "$out/make_seeds" "$out/seeds"
 
-# Mode and wrench-source values, and doubles the checks care about (1, NaN, ∞).
+# Mode and wrench-source values, and doubles the checks care about (1, NaN, ±∞, 20 and 150.5:
+# a temperature inside and just outside its range).
 cat > "$out/request.dict" <<'DICT'
 "\x00"
 "\x01"
 "\x3f\xf0\x00\x00\x00\x00\x00\x00"
 "\x7f\xf8\x00\x00\x00\x00\x00\x00"
 "\x7f\xf0\x00\x00\x00\x00\x00\x00"
+"\xff\xf0\x00\x00\x00\x00\x00\x00"
+"\x40\x34\x00\x00\x00\x00\x00\x00"
+"\x40\x62\xd0\x00\x00\x00\x00\x00"
 DICT
 
 "$out/fuzz_request_decoder" -max_total_time="$seconds" -print_final_stats=1 \

@@ -41,6 +41,10 @@ constexpr uint32_t kMaxValidationFigures = 1024;
 /// The runtime factors an m × m kernel at load (3.2 GB at this bound); more is not usable.
 constexpr uint32_t kMaxGprSamples = 20000;
 constexpr uint32_t kMaxGprDims = 64;
+/// The longest parameter layout of a mechanism: self_weight's 4 per link.
+constexpr uint32_t kMaxMechanismParameters = 4 * kMaxJoints;
+/// Bytes of a mechanism record before its parameters: kind, joint, source_joint, harmonic, p.
+constexpr size_t kMechanismHeaderBytes = 5 * 4;
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 constexpr double kUnitTolerance = 1e-9;         ///< on |ω| − 1 and on RᵀR − I
@@ -62,6 +66,7 @@ constexpr SectionId kChain{fourcc("CHAN"), "chain"};
 constexpr SectionId kNominal{fourcc("NOMI"), "nominal chain"};
 constexpr SectionId kRegistration{fourcc("REGI"), "registration"};
 constexpr SectionId kCompliance{fourcc("COMP"), "compliance"};
+constexpr SectionId kMechanisms{fourcc("MECH"), "mechanisms"};
 constexpr SectionId kGpr{fourcc("GPR "), "gpr"};
 constexpr SectionId kProvenance{fourcc("PROV"), "provenance"};
 
@@ -74,6 +79,8 @@ constexpr uint64_t gprPayloadBytes(uint64_t m, uint64_t D, uint64_t P) {
 constexpr uint64_t kMaxFileBytes = 64ull << 20;
 static_assert(gprPayloadBytes(kMaxGprSamples, kMaxGprDims, kMaxGprDims) +
                       uint64_t(kMaxValidationFigures + 4) * (kMaxStringBytes + 64) +
+                      uint64_t(kMaxMechanisms) *
+                          (kMechanismHeaderBytes + 16 * kMaxMechanismParameters) +
                       2 * uint64_t(kMaxFrames + kMaxJoints) * (kMaxStringBytes + 8 * 20) <
                   kMaxFileBytes,
               "kMaxFileBytes must hold the largest legal model");
@@ -249,6 +256,19 @@ void checkWritable(const CalibratedModel& model, const std::string& source) {
               "targets_standardised");
     checkSize(g.alpha.rows(), g.alpha.cols(), m, P, "alpha");
   }
+  if (model.mechanisms.size() > kMaxMechanisms) {
+    refuse("the model has " + std::to_string(model.mechanisms.size()) +
+           " mechanisms; expected at most " + std::to_string(kMaxMechanisms));
+  }
+  for (size_t i = 0; i < model.mechanisms.size(); ++i) {
+    const Mechanism& m = model.mechanisms[i];
+    if (m.parameters.size() != m.sigma.size() || m.parameters.size() > kMaxMechanismParameters) {
+      refuse("mechanisms[" + std::to_string(i) + "] (" + describe(m) + ") has " +
+             std::to_string(m.parameters.size()) + " parameters and " +
+             std::to_string(m.sigma.size()) + " sigmas; expected as many of each, at most " +
+             std::to_string(kMaxMechanismParameters));
+    }
+  }
   const ModelProvenance& p = model.provenance;
   checkString(p.campaign_hash, "provenance.campaign_hash");
   checkString(p.created_utc, "provenance.created_utc");
@@ -420,7 +440,8 @@ class Reader {
     const uint32_t tag = u32(what + " tag");
     if (tag != id.tag) {
       fail(at, what, "found tag " + tagText(tag) +
-                         "; expected the sections CHAN, NOMI, REGI, COMP, GPR, PROV in that order");
+                         "; expected the sections CHAN, NOMI, REGI, COMP, MECH, GPR, PROV in "
+                         "that order");
     }
     const uint32_t reserved = u32(what + " reserved word");
     if (reserved != 0) {
@@ -570,6 +591,30 @@ void readCompliance(Reader& in, CalibratedModel& model) {
   }
 }
 
+/// The MECH section: each record checked as it is read, so an error names its offset.
+void readMechanisms(Reader& in, CalibratedModel& model) {
+  const uint32_t k = in.count("mechanisms.count", 0, kMaxMechanisms, kMechanismHeaderBytes);
+  model.mechanisms.reserve(k);
+  for (uint32_t i = 0; i < k; ++i) {
+    const std::string field = "mechanisms[" + std::to_string(i) + "]";
+    const size_t at = in.offset();
+    Mechanism m;
+    m.kind = static_cast<MechanismKind>(in.u32(field + ".kind"));
+    m.joint = in.i32(field + ".joint");
+    m.source_joint = in.i32(field + ".source_joint");
+    m.harmonic = in.i32(field + ".harmonic");
+    const uint32_t p =
+        in.count(field + ".parameter_count", 0, kMaxMechanismParameters, 2 * sizeof(double));
+    m.parameters.resize(p);
+    m.sigma.resize(p);
+    in.f64s(m.parameters.data(), p, field + ".parameters");
+    in.f64s(m.sigma.data(), p, field + ".sigma");
+    model.mechanisms.push_back(std::move(m));
+    const std::string problem = mechanismInModelProblem(model, i);
+    if (!problem.empty()) in.fail(at, field, problem);
+  }
+}
+
 /// Normwise backward error of α as a solution of (K + σ_n² I) α = Y, Frobenius norms, with
 /// K_ij = σ_f² exp(−½ Σ_d ((x_id − x_jd) / ℓ_d)²) (eq. 27, 30). Row by row, so memory stays
 /// O(m) however large m is. NaN when the hyperparameters overflow.
@@ -688,7 +733,8 @@ CalibratedModel parseChecked(const uint8_t* data, size_t size, const std::string
     in.fail(8, "version",
             "model format version " + std::to_string(version) + ", this build reads " +
                 std::to_string(kModelFormatVersion) +
-                "; hint: retrain or use a matching runtime");
+                " (no reader of other versions); hint: re-run `stepcal calibrate` on the "
+                "campaign to write the model in this format");
   }
   const uint32_t flags = in.u32("flags");
   if (flags != 0) {
@@ -722,6 +768,9 @@ CalibratedModel parseChecked(const uint8_t* data, size_t size, const std::string
   in.leaveSection();
   in.enterSection(kCompliance, crc_at);
   readCompliance(in, model);
+  in.leaveSection();
+  in.enterSection(kMechanisms, crc_at);
+  readMechanisms(in, model);
   in.leaveSection();
   in.enterSection(kGpr, crc_at);
   readGpr(in, model, in.remaining());
@@ -811,6 +860,19 @@ std::vector<uint8_t> serializeModel(const CalibratedModel& model) {
   out.u32(uint32_t(model.compliance_rad_per_nm.size()));
   out.rowMajor(model.compliance_rad_per_nm);
   out.rowMajor(model.compliance_sigma_rad_per_nm);
+  out.endSection(at);
+
+  at = out.beginSection(kMechanisms);
+  out.u32(uint32_t(model.mechanisms.size()));
+  for (const Mechanism& m : model.mechanisms) {
+    out.u32(static_cast<uint32_t>(m.kind));
+    out.i32(m.joint);
+    out.i32(m.source_joint);
+    out.i32(m.harmonic);
+    out.u32(uint32_t(m.parameters.size()));
+    for (const double v : m.parameters) out.f64(v);
+    for (const double v : m.sigma) out.f64(v);
+  }
   out.endSection(at);
 
   at = out.beginSection(kGpr);
@@ -942,6 +1004,30 @@ CalibratedModel readModelFile(const std::string& path) {
 }  // namespace stepcal
 
 namespace stepcal {
+
+std::string mechanismInModelProblem(const CalibratedModel& model, size_t index) {
+  const Mechanism& m = model.mechanisms[index];
+  const std::string problem = mechanismProblem(m, model.chain_Tracker.dof());
+  if (!problem.empty()) return problem;
+  const bool single = m.kind == MechanismKind::kSelfWeight ||
+                      m.kind == MechanismKind::kSensorBias ||
+                      m.kind == MechanismKind::kThermalExpansion;
+  for (size_t i = 0; single && i < index; ++i) {
+    if (model.mechanisms[i].kind == m.kind) {
+      return std::string("a second ") + toString(m.kind) + " (the first is mechanisms[" +
+             std::to_string(i) + "]); expected at most one";
+    }
+  }
+  if (m.kind == MechanismKind::kSensorBias && model.sensor_frame < 0) {
+    return "sensor_bias in a model without a sensor frame (registration.sensor_frame = " +
+           std::to_string(model.sensor_frame) + "); expected a sensor frame to bias";
+  }
+  if (m.kind == MechanismKind::kSelfWeight && model.gravity_Base.isZero(0.0)) {
+    return "self_weight in a model whose gravity is zero (registration.gravity_Base); expected "
+           "a nonzero gravity to weigh the links";
+  }
+  return {};
+}
 
 PhysicalModel physicalModelOf(const CalibratedModel& model) {
   PhysicalModel physical;

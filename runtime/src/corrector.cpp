@@ -11,9 +11,9 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 
-#include "stepcal/common/compliance.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/mechanisms.hpp"
 
 namespace stepcal::runtime {
 namespace {
@@ -37,10 +37,6 @@ uint64_t fnv1a64(const std::vector<uint8_t>& bytes) noexcept {
     h *= 1099511628211ull;
   }
   return h;
-}
-
-bool hasCompliance(const RuntimeModel& model) noexcept {
-  return model.file.compliance_rad_per_nm.size() > 0;
 }
 
 /// Whether R is a proper rotation to within kRotationTolerance.
@@ -73,21 +69,17 @@ std::pair<Vec3, double> reachSphere(const KinematicChain& chain) {
   return {chain.initialPose(0).translation(), kReachMargin * radius_m};
 }
 
-/// The corrected tip T_C2 at q (METHOD.md eq. 24, 32): FK at the deflected link angles, then
-/// exp(ξ̂) of the GPR mean; with_std also writes the GPR's std bound (the subset GP's,
-/// GprPredictor::predictMeanAndBoundInto) to ws.gpr_std. Leaves ws.chain
-/// evaluated at the link angles. Sizes must have been checked.
+/// The corrected tip T_C2 at q (METHOD.md eq. 32): FK at the link angles of the physical model
+/// (every mechanism, the thermal length scale at temp_c), then exp(ξ̂) of the GPR mean at
+/// (q, measured wrench); with_std also writes the GPR's std bound (the subset GP's,
+/// GprPredictor::predictMeanAndBoundInto) to ws.gpr_std. Leaves ws.chain evaluated at the link
+/// angles, ws.link_rad and ws.torque_nm set. Sizes must have been checked.
 Pose correctedTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                  const Vec6& wrench_Sensor, bool with_std) noexcept {
-  const CalibratedModel& file = model.file;
-  if (hasCompliance(model)) {
-    JointVector q_link_rad;
-    deflectedJointAngles(file.chain_Tracker, file.sensor_frame, q_rad, wrench_Sensor,
-                         file.compliance_rad_per_nm, ws.chain, q_link_rad);
-  } else {
-    forwardKinematics(file.chain_Tracker, q_rad, ws.chain);
-  }
-  if (!file.gpr) return tipPose(ws.chain);
+                  const Vec6& wrench_Sensor, double temp_c, bool with_std) noexcept {
+  const bool sized = physicalLinkAngles(model.physical, q_rad, wrench_Sensor, temp_c, ws.chain,
+                                        ws.link_rad, ws.torque_nm);
+  STEPCAL_INVARIANT(sized, "the physical model and q were checked to have the chain's size");
+  if (!model.file.gpr) return tipPose(ws.chain);
   ws.gpr_input.head(q_rad.size()) = q_rad;
   ws.gpr_input.tail<6>() = wrench_Sensor;
   model.gpr.predictMeanAndBoundInto(ws.gpr_input.data(), ws.gpr_mean.data(),
@@ -190,44 +182,112 @@ Vec6 bracket(const Vec6& xi, const Vec6& eta) noexcept {
   return out;
 }
 
-/// Derivative of the link angles by the commanded ones, I + M + M² with M = C_θ ∂τ/∂q_link (the
-/// two fixed-point steps of deflectedJointAngles), at the link angles in ws.chain (METHOD.md
-/// eq. 13, 15). The wrench is fixed in sensor axes, so τ_k = ξ_kᵀ w with ξ_k joint k's twist in
-/// sensor axes, and ∂τ_k/∂q_j = ([j ≤ k] − [j ≤ p]) wᵀ [ξ_j, ξ_k], p the sensor's parent joint.
-void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws,
-                         const Vec6& wrench_Sensor, JointMatrix& dqlink_dq) noexcept {
-  const KinematicChain& chain = model.file.chain_Tracker;
+/// The measured wrench less the model's sensor_bias, if any, sensor axes: N, N·m.
+Vec6 unbiasedWrench(const PhysicalModel& model, const Vec6& wrench_Sensor) noexcept {
+  Vec6 wrench = wrench_Sensor;
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kSensorBias) {
+      for (int i = 0; i < 6; ++i) wrench(i) -= m.parameters[static_cast<size_t>(i)];
+    }
+  }
+  return wrench;
+}
+
+/// dθ₀/dq of the commanded-angle mechanisms (mechanisms.hpp): identity, plus c at (j, i) for a
+/// joint_coupling of joint j to joint i, plus k (a cos k q_j − b sin k q_j) at (j, j) for a
+/// transmission_error of joint j. Exact. True when it differs from the identity.
+bool commandedAngleDerivative(const PhysicalModel& model, const JointVector& q_rad,
+                              JointMatrix& dtheta0_dq) noexcept {
+  const int n = model.chain_Tracker.dof();
+  dtheta0_dq = JointMatrix::Identity(n, n);
+  bool changed = false;
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kJointCoupling) {
+      dtheta0_dq(m.joint, m.source_joint) += m.parameters[0];
+      changed = true;
+    } else if (m.kind == MechanismKind::kTransmissionError) {
+      const double k = m.harmonic, angle = k * q_rad(m.joint);
+      dtheta0_dq(m.joint, m.joint) +=
+          k * (m.parameters[0] * std::cos(angle) - m.parameters[1] * std::sin(angle));
+      changed = true;
+    }
+  }
+  return changed;
+}
+
+/// ∂θ/∂τ per joint at the torques τ [N·m]: the compliance C, plus (b / τ_s) sech²(τ_j / τ_s) of
+/// a backlash and c τ₀² / (τ₀ + |τ_j|)² of a nonlinear_stiffness, rad/(N·m) (mechanisms.hpp).
+/// True when any entry is nonzero.
+bool torqueCompliance(const PhysicalModel& model, const JointVector& tau_nm,
+                      JointVector& dtheta_dtau) noexcept {
+  dtheta_dtau = model.compliance_rad_per_nm;
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kBacklash) {
+      const double c = std::cosh(tau_nm(m.joint) / kBacklashSmoothingTorque_nm);
+      dtheta_dtau(m.joint) += m.parameters[0] / (kBacklashSmoothingTorque_nm * c * c);
+    } else if (m.kind == MechanismKind::kNonlinearStiffness) {
+      const double t0 = m.parameters[1], d = t0 + std::abs(tau_nm(m.joint));
+      dtheta_dtau(m.joint) += m.parameters[0] * t0 * t0 / (d * d);
+    }
+  }
+  return !dtheta_dtau.isZero(0.0);
+}
+
+/// Derivative of the link angles by the commanded ones, dθ/dq = (I + M + M² + M³) dθ₀/dq with
+/// M = diag(∂θ/∂τ) ∂τ/∂θ (the three fixed-point passes of physicalLinkAngles, linearised), at
+/// the link angles in ws.chain and the torques in ws.torque_nm (METHOD.md eq. 13, 15). ∂τ/∂θ is
+/// that of the measured wrench less the sensor bias, held in sensor axes: τ_k = ξ_kᵀ w with ξ_k
+/// joint k's twist in sensor axes, so ∂τ_k/∂θ_j = ([j ≤ k] − [j ≤ p]) wᵀ [ξ_j, ξ_k], p the
+/// sensor's parent joint. The self_weight torques' derivative is left out (solveInverse).
+void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws, const JointVector& q_rad,
+                         const Vec6& wrench_Sensor, JointMatrix& dtheta_dq) noexcept {
+  const PhysicalModel& physical = model.physical;
+  const KinematicChain& chain = physical.chain_Tracker;
   const int n = chain.dof();
-  const int p = chain.frames()[static_cast<size_t>(model.file.sensor_frame)].parent;
+  JointMatrix dtheta0_dq;
+  const bool commanded = commandedAngleDerivative(physical, q_rad, dtheta0_dq);
+  JointVector dtheta_dtau;
+  const bool has_sensor = physical.sensor_frame >= 0;
+  if (!has_sensor || !torqueCompliance(physical, ws.torque_nm, dtheta_dtau)) {
+    dtheta_dq = dtheta0_dq;
+    return;
+  }
+  const Vec6 wrench = unbiasedWrench(physical, wrench_Sensor);
+  const int p = chain.frames()[static_cast<size_t>(physical.sensor_frame)].parent;
   Jacobian twists_Sensor;
   spatialJacobian(chain, ws.chain, twists_Sensor);
   const Mat6 Ad_SensorRoot =
-      lie::adjoint(framePose(chain, ws.chain, model.file.sensor_frame).inverse());
+      lie::adjoint(framePose(chain, ws.chain, physical.sensor_frame).inverse());
   for (int k = 0; k < n; ++k) twists_Sensor.col(k) = Ad_SensorRoot * twists_Sensor.col(k);
   JointMatrix M = JointMatrix::Zero(n, n);
   for (int k = 0; k < n; ++k) {
     for (int j = 0; j < n; ++j) {
       const int c = (j <= k) - (j < p);  // 0-based j: joint j+1 ≤ p ⇔ j < p
       if (c != 0) {
-        M(k, j) = model.file.compliance_rad_per_nm(k) * c *
-                  wrench_Sensor.dot(bracket(twists_Sensor.col(j), twists_Sensor.col(k)));
+        M(k, j) = dtheta_dtau(k) * c *
+                  wrench.dot(bracket(twists_Sensor.col(j), twists_Sensor.col(k)));
       }
     }
   }
-  dqlink_dq = JointMatrix::Identity(n, n) + M + M * M;
+  const JointMatrix M2 = M * M;
+  const JointMatrix series = JointMatrix::Identity(n, n) + M + M2 + M2 * M;
+  if (commanded) {
+    dtheta_dq.noalias() = series * dtheta0_dq;
+  } else {
+    dtheta_dq = series;
+  }
 }
 
 /// Jacobian of the corrected tip by the commanded joints into ws.J: the tip point Jacobian at
-/// the link angles in ws.chain times d q_link / d q. The GPR's own derivative is left out (it is
-/// small: a quasi-Newton Jacobian; the residual is always the full model's).
-void correctedJacobian(const RuntimeModel& model, Workspace& ws,
+/// the link angles in ws.chain times dθ/dq (linkAngleDerivative). The GPR's own derivative is
+/// left out (it is small: a quasi-Newton Jacobian; the residual is always the full model's).
+void correctedJacobian(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
                        const Vec6& wrench_Sensor) noexcept {
-  tipPointJacobian(model.file.chain_Tracker, ws.chain, ws.J);
-  if (!hasCompliance(model)) return;
-  JointMatrix dqlink_dq;
-  linkAngleDerivative(model, ws, wrench_Sensor, dqlink_dq);
+  tipPointJacobian(model.physical.chain_Tracker, ws.chain, ws.J);
+  JointMatrix dtheta_dq;
+  linkAngleDerivative(model, ws, q_rad, wrench_Sensor, dtheta_dq);
   const Jacobian J_link = ws.J;
-  ws.J.noalias() = J_link * dqlink_dq;
+  ws.J.noalias() = J_link * dtheta_dq;
 }
 
 /// The OUT_OF_DOMAIN threshold on σ/σ_f: √(1 − kDomainVarianceShare · (1 − s²)), s the largest
@@ -262,6 +322,23 @@ std::unique_ptr<const RuntimeModel> build(CalibratedModel file, uint64_t model_i
                          std::to_string(frames) + " attached frames",
                      source);
   }
+  if (file.compliance_rad_per_nm.size() != 0 && file.compliance_rad_per_nm.size() != n) {
+    throw InputError("the model has " + std::to_string(file.compliance_rad_per_nm.size()) +
+                         " joint compliances for " + std::to_string(n) + " joints",
+                     source);
+  }
+  if (file.sensor_frame >= frames) {
+    throw InputError("the model's sensor frame " + std::to_string(file.sensor_frame) +
+                         " is not one of its " + std::to_string(frames) + " attached frames",
+                     source);
+  }
+  for (size_t i = 0; i < file.mechanisms.size(); ++i) {
+    const std::string problem = mechanismInModelProblem(file, i);
+    if (!problem.empty()) {
+      throw InputError("mechanisms[" + std::to_string(i) + "]: " + problem, source);
+    }
+  }
+  model->physical = physicalModelOf(file);
   if (file.gpr) {
     model->gpr = GprPredictor::fromParameters(*file.gpr);
     if (model->gpr.inputDim() != n + 6 || model->gpr.outputDim() != 6) {
@@ -310,6 +387,8 @@ std::unique_ptr<const RuntimeModel> RuntimeModel::fromModel(CalibratedModel mode
 Workspace makeWorkspace(const RuntimeModel& model) {
   Workspace ws;
   const int n = model.file.chain_Tracker.dof();
+  ws.link_rad.setZero(n);
+  ws.torque_nm.setZero(n);
   ws.J.setZero(6, n);
   if (model.file.gpr) {
     ws.gpr = model.gpr.makeWorkspace();
@@ -327,13 +406,13 @@ bool workspaceFits(const RuntimeModel& model, const Workspace& ws) noexcept {
 }
 
 ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                             const Vec6& wrench_Sensor) noexcept {
+                             const Vec6& wrench_Sensor, double temp_c) noexcept {
   ForwardResult result;
   if (q_rad.size() != model.file.chain_Tracker.dof() || !q_rad.allFinite() ||
-      !wrench_Sensor.allFinite() || !workspaceFits(model, ws)) {
+      !wrench_Sensor.allFinite() || !validTemperature(temp_c) || !workspaceFits(model, ws)) {
     return result;
   }
-  result.X_TrackerTip = correctedTip(model, ws, q_rad, wrench_Sensor, true);
+  result.X_TrackerTip = correctedTip(model, ws, q_rad, wrench_Sensor, temp_c, true);
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
   result.status = outOfDomain(model, result.gpr_std) ? Status::kOutOfDomain : Status::kOk;
   return result;
@@ -341,12 +420,13 @@ ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const Joi
 
 InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
                            const Pose& X_TrackerTip_desired, const Vec6& wrench_Sensor,
-                           const JointVector& q_seed_rad, Clock::time_point deadline,
-                           const InverseOptions& options) noexcept {
+                           double temp_c, const JointVector& q_seed_rad,
+                           Clock::time_point deadline, const InverseOptions& options) noexcept {
   InverseResult result;
   const KinematicChain& chain = model.file.chain_Tracker;
   if (q_seed_rad.size() != chain.dof() || !q_seed_rad.allFinite() ||
-      !wrench_Sensor.allFinite() || !X_TrackerTip_desired.translation().allFinite() ||
+      !wrench_Sensor.allFinite() || !validTemperature(temp_c) ||
+      !X_TrackerTip_desired.translation().allFinite() ||
       !isRotation(X_TrackerTip_desired.linear()) || !validOptions(options) ||
       !workspaceFits(model, ws)) {
     return result;
@@ -365,7 +445,7 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   // is the answer's, and ws.chain is still evaluated there.
   Pose X_TrackerTip_last = Pose::Identity();
   while (!beyond_reach) {
-    X_TrackerTip_last = correctedTip(model, ws, q_rad, wrench_Sensor, true);
+    X_TrackerTip_last = correctedTip(model, ws, q_rad, wrench_Sensor, temp_c, true);
     const Vec6 e = poseResidual(X_TrackerTip_desired, X_TrackerTip_last);
     const double cost = e.squaredNorm();
     if (cost < best_cost) {
@@ -379,7 +459,7 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
       break;
     }
     if (result.iterations >= options.max_iterations || Clock::now() >= deadline) break;
-    correctedJacobian(model, ws, wrench_Sensor);
+    correctedJacobian(model, ws, q_rad, wrench_Sensor);
     dampedStep(ws.J, e, options, dq_rad);
     const double largest_rad = dq_rad.cwiseAbs().maxCoeff();
     if (largest_rad > options.max_step_rad) dq_rad *= options.max_step_rad / largest_rad;
@@ -391,7 +471,8 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   result.q_target_rad = q_best_rad;
   result.X_TrackerTip_predicted = converged
                                       ? X_TrackerTip_last
-                                      : correctedTip(model, ws, q_best_rad, wrench_Sensor, true);
+                                      : correctedTip(model, ws, q_best_rad, wrench_Sensor, temp_c,
+                                                     true);
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
   const Vec6 e = poseResidual(X_TrackerTip_desired, result.X_TrackerTip_predicted);
   result.residual_position_m = e.head<3>().norm();
@@ -399,7 +480,7 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   if (!converged) {
     result.status = beyond_reach || held_at_limit ? Status::kUnreachable : Status::kNotConverged;
   } else {
-    correctedJacobian(model, ws, wrench_Sensor);
+    correctedJacobian(model, ws, q_best_rad, wrench_Sensor);
     GramMatrix G;
     gramMatrix(ws.J, G);
     if (smallestSingularValueOrFloor(G, options.singular_value_threshold) <

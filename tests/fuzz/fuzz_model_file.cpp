@@ -4,15 +4,16 @@
 //
 //   clang++ -std=c++17 -O2 -g -Icommon/include $(pkg-config --cflags eigen3) \
 //     -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
-//     tests/fuzz/fuzz_model_file.cpp common/src/{error,lie,chain,model_file}.cpp \
-//     -o fuzz_model_file
+//     tests/fuzz/fuzz_model_file.cpp \
+//     common/src/{error,lie,chain,compliance,mechanisms,model_file}.cpp -o fuzz_model_file
 //
 // Each input is parsed twice: as given (the checksum refuses nearly every mutation), then with
 // its size field and CRC re-stamped, so the fuzzer reaches the structural and semantic checks.
 // A file that parses must serialise back to exactly the same bytes.
 //
 // Built with -DSTEPCAL_FUZZ_SEED_MAIN (and without -fsanitize=fuzzer) the same file is instead
-// a seed generator: `make_seeds FOLDER` writes small valid models to start the corpus from.
+// a seed generator: `make_seeds FOLDER` writes small valid models to start the corpus from (one
+// with every section filled, a mechanism of every kind included).
 #include <cstdint>
 #include <cstdlib>
 #include <vector>
@@ -108,6 +109,20 @@ int main(int argc, char** argv) {
   full.compliance_rad_per_nm = stepcal::JointVector::Constant(6, 2e-6);
   full.compliance_sigma_rad_per_nm = stepcal::JointVector::Constant(6, 1e-7);
   full.gpr = stepcal::test::randomConsistentGpr(8, 12, 6);
+  using stepcal::MechanismKind;
+  std::vector<double> self_weight;
+  for (int k = 0; k < 6; ++k) {
+    self_weight.insert(self_weight.end(), {40.0 - 5 * k, 4.0, 0.5, -1.0});
+  }
+  full.mechanisms = {
+      {MechanismKind::kBacklash, 1, -1, 0, {2e-4}, {1e-5}},
+      {MechanismKind::kSelfWeight, -1, -1, 0, self_weight, std::vector<double>(24, 0.1)},
+      {MechanismKind::kTransmissionError, 2, -1, 2, {3e-5, -1e-5}, {1e-6, 1e-6}},
+      {MechanismKind::kNonlinearStiffness, 3, -1, 0, {1e-6, 50.0}, {1e-7, 5.0}},
+      {MechanismKind::kThermalExpansion, -1, -1, 0, {1.2e-5, 20.0}, {1e-6, 0.0}},
+      {MechanismKind::kSensorBias, -1, -1, 0, {0.5, -0.3, 1.2, 0.01, 0.02, -0.03},
+       std::vector<double>(6, 0.01)},
+      {MechanismKind::kJointCoupling, 4, 3, 0, {1e-4}, {1e-5}}};
   full.provenance = {"0123abcd", "2024-05-01T12:34:56Z", "stepcal 0.1.0", "/data/c1",
                      {{"POE + stiffness + GPR", 20, 30, 1e-4, 3e-4, 2e-4}}};
   writeSeed(folder + "/full.model", full);

@@ -52,6 +52,10 @@ void decodeAndCheck(const uint8_t* data, size_t size) {
         request.mode == stepcal::service::Mode::kInverse);
   check(request.q_rad.size() == stepcal::service::kMessageJoints && request.q_rad.allFinite());
   check(request.seed_q_rad.allFinite() && request.wrench_Sensor.allFinite());
+  check(std::isnan(request.temp_c) ||
+        (request.temp_c >= stepcal::runtime::kMinTemperature_c &&
+         request.temp_c <= stepcal::runtime::kMaxTemperature_c));
+  check(std::isnan(request.temp_c) ? std::isnan(msg.temp_c) : msg.temp_c == request.temp_c);
   const stepcal::Pose& X = request.X_TrackerTip_desired;
   check(X.translation().allFinite());
   check((X.linear().transpose() * X.linear() - stepcal::Mat3::Identity()).cwiseAbs().maxCoeff() <
@@ -103,6 +107,7 @@ int main(int argc, char** argv) {
   forward.wrench_source = correction_request_t::WRENCH_GIVEN;
   const double wrench[6] = {3.0, -1.5, -196.0, 0.4, 0.2, -0.01};
   std::memcpy(forward.wrench, wrench, sizeof wrench);
+  forward.temp_c = 23.5;
   forward.deadline_us = 150;
   writeSeed(folder + "/forward.request", forward);
 
@@ -110,6 +115,7 @@ int main(int argc, char** argv) {
   inverse.request_id = 2;
   inverse.mode = correction_request_t::MODE_INVERSE;
   inverse.wrench_source = correction_request_t::WRENCH_LIVE_SENSOR;
+  inverse.temp_c = std::nan("");  // not measured
   const double p_m[3] = {2.1, -0.3, 1.4};
   const double q_wxyz[4] = {0.5, 0.5, -0.5, 0.5};
   std::memcpy(inverse.desired_position_m, p_m, sizeof p_m);

@@ -1,9 +1,10 @@
 // stepcal-bench: time of the runtime's two real-time calls on a model file.
 //
-//   build/bin/stepcal-bench --model MODEL [--calls N] [--json]
+//   build/bin/stepcal-bench --model MODEL [--calls N] [--temp-c T] [--json]
 //
 // Poses: the model's GPR training inputs de-normalised (joints q and wrench), so every call lies
-// in the model's workspace. correctForward runs at (q, wrench); solveInverse targets the forward
+// in the model's workspace; every call at the structure temperature --temp-c (°C; default NaN,
+// not measured). correctForward runs at (q, wrench); solveInverse targets the forward
 // correction of the same (q, wrench) from a seed 2° off on every joint (alternating sign), with a
 // deadline far away so that the solver's own tolerances end it. Each call is timed alone with
 // std::chrono::steady_clock after a warm-up; heap allocations are counted over the timed calls.
@@ -38,7 +39,8 @@ struct BenchPose {
 };
 
 std::vector<BenchPose> workspacePoses(const runtime::RuntimeModel& model,
-                                      runtime::Workspace& ws, const std::string& path) {
+                                      runtime::Workspace& ws, double temp_c,
+                                      const std::string& path) {
   if (!model.file.gpr) {
     throw InputError("the model has no GPR step, so no training inputs to draw poses from", path);
   }
@@ -54,7 +56,7 @@ std::vector<BenchPose> workspacePoses(const runtime::RuntimeModel& model,
     pose.seed_q_rad = pose.q_rad;
     for (int i = 0; i < dof; ++i) pose.seed_q_rad[i] += (i % 2 ? -kSeedOffsetRad : kSeedOffsetRad);
     const runtime::ForwardResult forward =
-        runtime::correctForward(model, ws, pose.q_rad, pose.wrench_Sensor);
+        runtime::correctForward(model, ws, pose.q_rad, pose.wrench_Sensor, temp_c);
     if (forward.status != runtime::Status::kOk) continue;  // only poses answered plainly
     pose.X_TrackerTip_target = forward.X_TrackerTip;
     poses.push_back(pose);
@@ -96,7 +98,10 @@ int main(int argc, char** argv) {
   std::string model_path;
   int calls = 10000;
   bool json = false;
+  double temp_c = runtime::kUnknownTemperature_c;
   app.add_option("--model", model_path, "model file (stepcal calibrate --out)")->required();
+  app.add_option("--temp-c", temp_c,
+                 "structure temperature of every call, °C (default: not measured)");
   app.add_option("--calls", calls, "timed calls of each function after the warm-up")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
@@ -104,10 +109,15 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   try {
+    if (!runtime::validTemperature(temp_c)) {
+      throw InputError("--temp-c " + std::to_string(temp_c) + ": expected " +
+                       std::to_string(int(runtime::kMinTemperature_c)) + " … " +
+                       std::to_string(int(runtime::kMaxTemperature_c)) + " °C");
+    }
     const std::unique_ptr<const runtime::RuntimeModel> model =
         runtime::RuntimeModel::load(model_path);
     runtime::Workspace ws = runtime::makeWorkspace(*model);
-    const std::vector<BenchPose> poses = workspacePoses(*model, ws, model_path);
+    const std::vector<BenchPose> poses = workspacePoses(*model, ws, temp_c, model_path);
     const auto pose = [&](int call) -> const BenchPose& {
       return poses[static_cast<size_t>(call) % poses.size()];
     };
@@ -117,13 +127,13 @@ int main(int argc, char** argv) {
     inverse.latency_us.resize(static_cast<size_t>(calls));
     const auto runForward = [&](int call) {
       const BenchPose& p = pose(call);
-      return runtime::correctForward(*model, ws, p.q_rad, p.wrench_Sensor).status;
+      return runtime::correctForward(*model, ws, p.q_rad, p.wrench_Sensor, temp_c).status;
     };
     const auto runInverse = [&](int call, int& iterations) {
       const BenchPose& p = pose(call);
       const runtime::InverseResult r =
-          runtime::solveInverse(*model, ws, p.X_TrackerTip_target, p.wrench_Sensor, p.seed_q_rad,
-                                runtime::Clock::now() + std::chrono::seconds(1));
+          runtime::solveInverse(*model, ws, p.X_TrackerTip_target, p.wrench_Sensor, temp_c,
+                                p.seed_q_rad, runtime::Clock::now() + std::chrono::seconds(1));
       iterations = r.iterations;
       return r.status;
     };
@@ -154,6 +164,8 @@ int main(int argc, char** argv) {
 
     const nlohmann::json report = {{"model", model_path},
                                    {"poses", poses.size()},
+                                   {"temp_c", std::isnan(temp_c) ? nlohmann::json(nullptr)
+                                                                 : nlohmann::json(temp_c)},
                                    {"forward", toJson(forward, false)},
                                    {"inverse", toJson(inverse, true)},
                                    {"allocations", allocations}};

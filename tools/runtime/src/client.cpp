@@ -1,7 +1,9 @@
 // stepcal-client: sends correction requests to stepcal-runtime over LCM and measures the answers.
 //
-//   stepcal-client --forward q1 … q6 [--wrench fx fy fz mx my mz]          one request, rad / N, N·m
-//   stepcal-client --inverse x y z qw qx qy qz [--seed q1 … q6] [--wrench …]   m, unit quaternion
+//   stepcal-client --forward q1 … q6 [--wrench fx fy fz mx my mz] [--temp-c T]
+//                                                        one request, rad / N, N·m / °C
+//   stepcal-client --inverse x y z qw qx qy qz [--seed q1 … q6] [--wrench …] [--temp-c T]
+//                                                        m, unit quaternion
 //   stepcal-client --campaign DIR [--set validation] [--mode forward|inverse] [--count N]
 //                  [--rate HZ] [--truth truth.json] [--live-wrench [--settle-ms 5]] [--json]
 //   stepcal-client --ping N [--json]     raw LCM round trips to a `stepcal-client --echo`
@@ -10,11 +12,13 @@
 // Replies are matched to requests by request_id; a reply later than --timeout-ms counts as lost.
 // Without --rate one request is in flight at a time (the next goes when the reply arrives or
 // times out); with --rate requests leave on a fixed schedule. Campaign rows carry their measured
-// wrench (wrench_source = given). Accuracy counts OK replies only. Forward accuracy is against
-// the rows' measured poses; inverse requests ask for the measured pose from a seed 2° off the
-// row's joints (alternating sign), and their accuracy is against the twin's truth (where the true
-// robot goes at q_target) when --truth is given, else the solver's own residual. Forward answers
-// are also checked against the truth (where the true robot goes at q) when --truth is given.
+// wrench (wrench_source = given) and temperature (temp_c; NaN where the row has none), single
+// requests --temp-c (default NaN: not measured). Accuracy counts OK replies only. Forward
+// accuracy is against the rows' measured poses; inverse requests ask for the measured pose from
+// a seed 2° off the row's joints (alternating sign), and their accuracy is against the twin's
+// truth (where the true robot goes at q_target) when --truth is given, else the solver's own
+// residual. Forward answers are also checked against the truth (where the true robot goes at q)
+// when --truth is given.
 //
 // --live-wrench: the requests use the daemon's live sensor instead of the rows' wrenches. Before
 // each request the client publishes the row's joints and payload as robot_state_t, waits until a
@@ -66,6 +70,7 @@ constexpr int kStatusCount = 7;
 struct Args {
   std::string lcm_url = service::kDefaultLcmUrl;
   std::vector<double> forward_q_rad, inverse_pose, seed_q_rad, wrench;
+  double temp_c = runtime::kUnknownTemperature_c;  ///< single requests, °C
   std::string campaign_dir, set = "validation", mode = "forward", truth_path;
   int count = 0;
   double rate_hz = 0.0;
@@ -209,6 +214,7 @@ std::string latencyText(const nlohmann::json& j) {
 correction_request_t emptyRequest(const Args& args) {
   correction_request_t msg{};
   msg.desired_quaternion_wxyz[0] = 1.0;
+  msg.temp_c = runtime::kUnknownTemperature_c;
   msg.deadline_us = args.deadline_us;
   return msg;
 }
@@ -236,6 +242,7 @@ std::vector<correction_request_t> campaignRequests(const Args& args,
     correction_request_t msg = emptyRequest(args);
     msg.mode = inverse ? correction_request_t::MODE_INVERSE : correction_request_t::MODE_FORWARD;
     if (!args.live_wrench) setWrench(msg, row.wrenchOrZero());
+    if (row.temp_c) msg.temp_c = *row.temp_c;
     for (int j = 0; j < service::kMessageJoints; ++j) {
       msg.q_rad[j] = row.q_rad[j];
       msg.seed_q_rad[j] = row.q_rad[j] + (j % 2 ? -kSeedOffsetRad : kSeedOffsetRad);
@@ -374,6 +381,7 @@ int runSingle(const Args& args) {
   const bool inverse = !args.inverse_pose.empty();
   correction_request_t msg = emptyRequest(args);
   if (!args.wrench.empty()) setWrench(msg, Vec6(args.wrench.data()));
+  msg.temp_c = args.temp_c;
   if (inverse) {
     msg.mode = correction_request_t::MODE_INVERSE;
     std::copy(args.inverse_pose.begin(), args.inverse_pose.begin() + 3, msg.desired_position_m);
@@ -694,6 +702,9 @@ int main(int argc, char** argv) {
                  "given wrench on the sensor, fx fy fz (N) mx my mz (N m), sensor axes "
                  "(default: the daemon's live sensor)")
       ->expected(6);
+  app.add_option("--temp-c", args.temp_c,
+                 "structure temperature of a single request, °C, within -50 … 150 (default: not "
+                 "measured, no thermal correction)");
   app.add_option("--campaign", args.campaign_dir, "send a campaign's rows");
   app.add_option("--set", args.set, "campaign rows: geometry | stiffness | residual | validation")
       ->capture_default_str();
@@ -728,6 +739,14 @@ int main(int argc, char** argv) {
     }
     if (!args.wrench.empty() && args.forward_q_rad.empty() && args.inverse_pose.empty()) {
       throw InputError("--wrench goes with --forward or --inverse (campaign rows carry their own)");
+    }
+    if (!std::isnan(args.temp_c) &&
+        (!runtime::validTemperature(args.temp_c) ||
+         (args.forward_q_rad.empty() && args.inverse_pose.empty()))) {
+      throw InputError("--temp-c goes with --forward or --inverse and lies within " +
+                       std::to_string(int(runtime::kMinTemperature_c)) + " … " +
+                       std::to_string(int(runtime::kMaxTemperature_c)) +
+                       " °C (campaign rows carry their own)");
     }
     if (args.echo) return runEcho(args);
     if (args.ping_count > 0) return runPing(args);

@@ -54,7 +54,7 @@ Status decodeRequest(const void* data, int size, Request& out) noexcept {
       msg.wrench_source != correction_request_t::WRENCH_GIVEN) {
     return Status::kBadRequest;
   }
-  if (!allFinite(msg)) return Status::kBadRequest;
+  if (!allFinite(msg) || !runtime::validTemperature(msg.temp_c)) return Status::kBadRequest;
   out.mode = static_cast<Mode>(msg.mode);
   out.wrench_source = static_cast<WrenchSource>(msg.wrench_source);
   for (int i = 0; i < kMessageJoints; ++i) {
@@ -62,6 +62,7 @@ Status decodeRequest(const void* data, int size, Request& out) noexcept {
     out.seed_q_rad[i] = msg.seed_q_rad[i];
   }
   for (int i = 0; i < 6; ++i) out.wrench_Sensor[i] = msg.wrench[i];
+  out.temp_c = msg.temp_c;
   if (out.mode == Mode::kInverse) {
     const Eigen::Quaterniond q_TrackerTip(msg.desired_quaternion_wxyz[0],
                                           msg.desired_quaternion_wxyz[1],

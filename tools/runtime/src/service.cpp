@@ -123,7 +123,7 @@ Status Service::answer(const Request& request, const runtime::RuntimeModel& mode
   }
   if (request.mode == Mode::kForward) {
     const runtime::ForwardResult r =
-        runtime::correctForward(model, ws, request.q_rad, wrench_Sensor);
+        runtime::correctForward(model, ws, request.q_rad, wrench_Sensor, request.temp_c);
     if (carriesAnswer(r.status)) {
       writePose(r.X_TrackerTip, reply_.predicted_position_m, reply_.predicted_quaternion_wxyz);
       writeVector(r.gpr_std, reply_.gpr_std);
@@ -135,7 +135,8 @@ Status Service::answer(const Request& request, const runtime::RuntimeModel& mode
   const Clock::time_point deadline =
       received + std::chrono::nanoseconds(std::min(request_budget_ns, options_.budget_ns));
   const runtime::InverseResult r = runtime::solveInverse(
-      model, ws, request.X_TrackerTip_desired, wrench_Sensor, request.seed_q_rad, deadline);
+      model, ws, request.X_TrackerTip_desired, wrench_Sensor, request.temp_c, request.seed_q_rad,
+      deadline);
   if (carriesAnswer(r.status)) {
     for (int i = 0; i < kMessageJoints; ++i) reply_.q_target_rad[i] = r.q_target_rad[i];
     writePose(r.X_BaseTip_commanded, reply_.commanded_position_m,

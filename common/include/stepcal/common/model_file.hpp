@@ -1,16 +1,21 @@
 // The calibrated model file: everything the runtime needs to correct poses (METHOD.md eq. 32,
 // T_C2 = T_C(q) · T_STIF(q, F) · T_GPR(q, F)), written once by the offline trainer.
 //
-// Layout (format version 1). Integers and doubles are little-endian, doubles IEEE-754 binary64:
+// Layout (format version 2). Integers and doubles are little-endian, doubles IEEE-754 binary64:
 //
 //   header   24 B  magic "STEPCAL\0", u32 format version, u32 flags (0), u64 file size in bytes
 //   sections       each u32 tag (FourCC), u32 reserved (0), u64 payload length, payload;
-//                  exactly these six, in this order:
+//                  exactly these seven, in this order:
 //     "CHAN"  u32 n; n × {str name, f64 twist (v, ω)[6], f64 lower_rad, f64 upper_rad};
 //             n+1 × pose T_{k,k+1}(0); u32 f; f × {str name, u32 parent, pose X_ParentFrame}
 //     "NOMI"  the nominal chain, encoded as CHAN; same n and joint names as CHAN
 //     "REGI"  pose X_TrackerBase; f64 gravity_Base[3]; i32 sensor_frame
 //     "COMP"  u32 c (0 or n); f64 compliance_rad_per_nm[c]; f64 compliance_sigma_rad_per_nm[c]
+//     "MECH"  u32 k (≤ 64); k × {u32 kind, i32 joint, i32 source_joint, i32 harmonic, u32 p,
+//             f64 parameters[p], f64 sigma[p]} (mechanisms.hpp: kinds, joints 0-based, −1 = none,
+//             parameter layouts); each passes mechanismProblem; at most one self_weight,
+//             sensor_bias and thermal_expansion; sensor_bias needs a sensor frame (REGI),
+//             self_weight a nonzero gravity (REGI)
 //     "GPR "  u32 m, D, P (all 0 = no residual step); f64 input_offset[D], input_scale[D],
 //             output_mean[P], output_scale[P], length_scales[D], signal_sigma, noise_sigma;
 //             inputs_normalised, targets_standardised, alpha as m rows each
@@ -23,6 +28,8 @@
 // Every double is finite, except that a continuous joint's limits are −inf … inf.
 // The GPR's Cholesky factor is not stored: the runtime refactors K + σ_n² I from the inputs and
 // hyperparameters at load, and the loader checks α against the stored targets instead.
+// Version 1 (no MECH) is refused with a hint to re-run `stepcal calibrate`; there is no reader
+// of old versions.
 #pragma once
 
 #include <cstddef>
@@ -38,7 +45,9 @@
 namespace stepcal {
 
 /// Model file format version this build writes and reads.
-inline constexpr uint32_t kModelFormatVersion = 1;
+inline constexpr uint32_t kModelFormatVersion = 2;
+/// Largest number of mechanisms a model file holds.
+inline constexpr uint32_t kMaxMechanisms = 64;
 
 /// Gaussian-process residual model: shared squared-exponential ARD kernel over normalised
 /// inputs, standardised outputs (METHOD.md eq. 27, 30).
@@ -89,6 +98,12 @@ struct CalibratedModel {
   std::optional<GprParameters> gpr;         ///< absent = no residual step
   ModelProvenance provenance;
 };
+
+/// Empty when model.mechanisms[index] is well formed in this model: mechanismProblem for the
+/// model's dof; not a second self_weight, sensor_bias or thermal_expansion after one among
+/// mechanisms[0 .. index); sensor_bias only with a sensor frame, self_weight only with a nonzero
+/// gravity. Else what is wrong and what was expected. parseModel and the runtime's load use it.
+std::string mechanismInModelProblem(const CalibratedModel& model, size_t index);
 
 /// The model's physical part (no GPR): calibrated chain, compliance (zeros when the model has
 /// none), gravity in tracker axes, mechanisms.

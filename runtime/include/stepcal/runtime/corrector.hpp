@@ -1,17 +1,24 @@
 // Real-time pose correction with a calibrated model: forward (what pose will the robot really
 // reach) and inverse (which joint targets make the real robot reach a desired pose).
 //
+// The model applied is the file's physical model (mechanisms.hpp: geometry, joint compliance and
+// every identified mechanism, at the measured wrench and temperature) followed by the GPR's
+// residual twist (METHOD.md eq. 32), whose input stays (q, measured wrench) as in training.
+//
 // RuntimeModel is immutable after load; Workspace holds every buffer, sized once. The two
 // calls allocate nothing, lock nothing, throw nothing and return a status.
 #pragma once
 
 #include <chrono>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 
 #include "stepcal/common/chain.hpp"
 #include "stepcal/common/gpr_predictor.hpp"
+#include "stepcal/common/mechanisms.hpp"
 #include "stepcal/common/model_file.hpp"
 
 namespace stepcal::runtime {
@@ -31,9 +38,21 @@ const char* toString(Status status) noexcept;
 
 using Clock = std::chrono::steady_clock;
 
+/// Lowest and highest structure temperature the real-time calls accept, °C.
+inline constexpr double kMinTemperature_c = -50.0;
+inline constexpr double kMaxTemperature_c = 150.0;
+/// The temperature of a caller without a thermometer: NaN, no thermal correction.
+inline constexpr double kUnknownTemperature_c = std::numeric_limits<double>::quiet_NaN();
+/// Whether temp_c [°C] is NaN (not measured: no thermal correction) or within
+/// kMinTemperature_c … kMaxTemperature_c; ±inf and values outside are not.
+inline bool validTemperature(double temp_c) noexcept {
+  return std::isnan(temp_c) || (temp_c >= kMinTemperature_c && temp_c <= kMaxTemperature_c);
+}
+
 /// Everything the runtime needs, built once from a model file (off the real-time path).
 struct RuntimeModel {
   CalibratedModel file;         ///< as loaded
+  PhysicalModel physical;       ///< physicalModelOf(file), built once at load
   GprPredictor gpr;             ///< valid when file.gpr is present
   uint64_t model_id = 0;        ///< FNV-1a 64 of the file's bytes: tells answers of two models apart
   /// GPR relative predictive std (σ/σ_f) above which a request is OUT_OF_DOMAIN. Set at load
@@ -56,13 +75,16 @@ struct RuntimeModel {
   static std::unique_ptr<const RuntimeModel> load(const std::string& path);
   /// Builds from an in-memory model (tests). Throws InputError when the model lacks what the
   /// real-time calls rely on: a nominal chain of the calibrated chain's size, a valid sensor
-  /// frame when it has compliance, a GPR with n + 6 inputs and 6 outputs.
+  /// frame when it has compliance, mechanisms that pass mechanismInModelProblem, a GPR with
+  /// n + 6 inputs and 6 outputs.
   static std::unique_ptr<const RuntimeModel> fromModel(CalibratedModel model, uint64_t model_id);
 };
 
 /// All scratch space of the real-time calls; sized for one model by makeWorkspace.
 struct Workspace {
   ChainWorkspace chain;
+  JointVector link_rad;   ///< link angles θ of the last evaluation, rad
+  JointVector torque_nm;  ///< joint torques τ of its last fixed-point pass, N·m
   Jacobian J;
   GprPredictor::Workspace gpr;
   Eigen::VectorXd gpr_input;  ///< n + 6
@@ -82,12 +104,15 @@ struct ForwardResult {
   ///< (gpr_std is an upper bound on the exact predictive std: GprPredictor::predictMeanAndBoundInto)
 };
 
-/// Pose the robot reaches at commanded joints q [rad] under wrench_Sensor [N, N·m]:
-/// T_C2 = T_C(q + C τ) · exp(ξ̂_GPR(q, F)) (METHOD.md eq. 24, 32). Status OK, OUT_OF_DOMAIN
-/// (pose still returned) or BAD_REQUEST (wrong size, NaN/inf, workspace of another shape).
-/// Allocation-free; never throws.
+/// Pose the robot reaches at commanded joints q [rad] under the measured wrench_Sensor [N, N·m]
+/// at structure temperature temp_c [°C; NaN: not measured, the model's reference temperature]:
+/// T_C2 = FK_T(θ) · exp(ξ̂_GPR(q, F)), θ the link angles of the physical model with every
+/// mechanism (physicalLinkAngles; with compliance alone θ = q + C τ(θ), METHOD.md eq. 24, 32).
+/// Status OK, OUT_OF_DOMAIN (pose still returned) or BAD_REQUEST (wrong size, NaN/inf, a
+/// temperature validTemperature refuses, workspace of another shape). Allocation-free; never
+/// throws.
 ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                             const Vec6& wrench_Sensor) noexcept;
+                             const Vec6& wrench_Sensor, double temp_c) noexcept;
 
 struct InverseOptions {
   int max_iterations = 8;
@@ -113,19 +138,25 @@ struct InverseResult {
   double residual_orientation_rad = 0.0;         ///< angle between the two rotations, rad
 };
 
-/// Joint targets that make the real robot (the full corrected model) reach X_TrackerTip_desired
-/// under wrench_Sensor, by damped Newton steps from q_seed_rad (clamped into the joint limits),
-/// staying within the limits. Residual (p_desired − p, log(R_desired Rᵀ)) of the full model,
-/// tracker axes; Jacobian the tip point Jacobian at the deflected link angles times their
-/// derivative by q (the GPR's own derivative, small, is left out: quasi-Newton). Stops at the
+/// Joint targets that make the real robot (the full corrected model, as correctForward) reach
+/// X_TrackerTip_desired under wrench_Sensor at temp_c [°C; NaN: not measured], by damped Newton
+/// steps from q_seed_rad (clamped into the joint limits), staying within the limits. Residual
+/// (p_desired − p, log(R_desired Rᵀ)) of the full model, tracker axes. Jacobian (quasi-Newton):
+/// the tip point Jacobian at the link angles θ (thermal length scale included) times dθ/dq =
+/// (I + M + M² + M³) dθ₀/dq, the three fixed-point passes of physicalLinkAngles linearised with
+/// M = diag(∂θ/∂τ) ∂τ_W/∂θ: dθ₀/dq exact (joint_coupling, transmission_error), ∂θ/∂τ exact per
+/// joint (compliance, backlash, nonlinear_stiffness at the pass's torques), ∂τ_W/∂θ the measured
+/// wrench's (bias removed) torques. Left out: the self_weight torques' change with the pose
+/// (C ∂τ_self/∂θ, ~1e-3: steps converge at that linear rate near the answer), the changes of
+/// ∂θ/∂τ and ∂τ/∂θ between passes, and the GPR's own derivative (small). Stops at the
 /// tolerances, the iteration cap or the deadline (checked before every step: never more than
-/// one step past it), returning its best answer. Status: BAD_REQUEST (sizes, NaN/inf, not a
-/// rotation, bad options); UNREACHABLE (tip beyond the reach sphere, or not converged with a
-/// joint held at its limit); NOT_CONVERGED; else, converged: NEAR_SINGULAR, OUT_OF_DOMAIN or OK,
-/// in that order. Allocation-free; never throws.
+/// one step past it), returning its best answer. Status: BAD_REQUEST (sizes, NaN/inf, a
+/// temperature validTemperature refuses, not a rotation, bad options); UNREACHABLE (tip beyond
+/// the reach sphere, or not converged with a joint held at its limit); NOT_CONVERGED; else,
+/// converged: NEAR_SINGULAR, OUT_OF_DOMAIN or OK, in that order. Allocation-free; never throws.
 InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
                            const Pose& X_TrackerTip_desired, const Vec6& wrench_Sensor,
-                           const JointVector& q_seed_rad, Clock::time_point deadline,
-                           const InverseOptions& options = {}) noexcept;
+                           double temp_c, const JointVector& q_seed_rad,
+                           Clock::time_point deadline, const InverseOptions& options = {}) noexcept;
 
 }  // namespace stepcal::runtime

@@ -31,16 +31,19 @@ struct Request {
   Pose X_TrackerTip_desired = Pose::Identity();
   WrenchSource wrench_source = WrenchSource::kLiveSensor;
   Vec6 wrench_Sensor = Vec6::Zero();  ///< given wrench, sensor axes: (f [N], m [N·m])
+  /// Structure temperature, °C; NaN: not measured (no thermal correction).
+  double temp_c = runtime::kUnknownTemperature_c;
   JointVector seed_q_rad = JointVector::Zero(kMessageJoints);  ///< inverse: start, rad
   int32_t deadline_us = 0;  ///< ≤ 0: the daemon's budget alone, µs
 };
 
 /// Decodes the LCM bytes of a correction_request_t and validates them: kOk, or kBadRequest when
 /// the bytes are truncated, too long or of another type, the mode or wrench source is unknown,
-/// a double is NaN or infinite, or (inverse) the quaternion's norm is off by more than
-/// kQuaternionNormTolerance. out.request_id_known says whether a reply can be addressed (the
-/// type's fingerprint matches and the id's bytes are present). Never allocates, never throws,
-/// never reads outside [data, data + size).
+/// a double other than temp_c is NaN or infinite, temp_c is neither NaN nor within
+/// runtime::kMinTemperature_c … kMaxTemperature_c (runtime::validTemperature), or (inverse) the
+/// quaternion's norm is off by more than kQuaternionNormTolerance. out.request_id_known says
+/// whether a reply can be addressed (the type's fingerprint matches and the id's bytes are
+/// present). Never allocates, never throws, never reads outside [data, data + size).
 runtime::Status decodeRequest(const void* data, int size, Request& out) noexcept;
 
 }  // namespace stepcal::service

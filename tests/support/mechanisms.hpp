@@ -1,0 +1,49 @@
+// Mechanisms of every kind for the six-joint test arms (shaped like the IRB 4400), at magnitudes
+// a heavy robot shows; shared by the model-file, runtime and service tests.
+#pragma once
+
+#include <cmath>
+#include <utility>
+#include <vector>
+
+#include "stepcal/common/mechanisms.hpp"
+
+namespace stepcal::test {
+
+/// Self-weight parameters of six links: [m_k kg, h_k = m_k · c_k kg·m (3)] per link, centres of
+/// mass c_k a few decimetres from each link's frame (mechanisms.hpp layout).
+inline std::vector<double> selfWeightParameters() {
+  const double mass_kg[6] = {180, 120, 90, 25, 12, 4};
+  const Vec3 centre_m[6] = {{0.05, 0.0, -0.2}, {0.0, 0.4, 0.05}, {0.15, 0.05, 0.0},
+                            {0.0, 0.0, 0.3},   {0.02, 0.0, 0.05}, {0.0, 0.0, 0.03}};
+  std::vector<double> p;
+  for (int k = 0; k < 6; ++k) {
+    const Vec3 h = mass_kg[k] * centre_m[k];
+    p.insert(p.end(), {mass_kg[k], h.x(), h.y(), h.z()});
+  }
+  return p;
+}
+
+/// A mechanism whose 1-σ are 5 % of its parameters' magnitudes.
+inline Mechanism mechanism(MechanismKind kind, int joint, int source_joint, int harmonic,
+                           std::vector<double> parameters) {
+  std::vector<double> sigma;
+  for (const double p : parameters) sigma.push_back(0.05 * std::abs(p));
+  return {kind, joint, source_joint, harmonic, std::move(parameters), std::move(sigma)};
+}
+
+/// One mechanism of every kind for a six-joint arm, joints 0-based, in the catalogue's order:
+/// [0] backlash (joint 2), [1] self_weight, [2] transmission_error (joint 3, harmonic 2),
+/// [3] nonlinear_stiffness (joint 4), [4] thermal_expansion (T_ref 20 °C), [5] sensor_bias,
+/// [6] joint_coupling (joint 5 → joint 6).
+inline std::vector<Mechanism> mechanismOfEveryKind() {
+  return {mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-4}),
+          mechanism(MechanismKind::kSelfWeight, -1, -1, 0, selfWeightParameters()),
+          mechanism(MechanismKind::kTransmissionError, 2, -1, 2, {3e-5, -1.5e-5}),
+          mechanism(MechanismKind::kNonlinearStiffness, 3, -1, 0, {4e-6, 60.0}),
+          mechanism(MechanismKind::kThermalExpansion, -1, -1, 0, {1.15e-5, 20.0}),
+          mechanism(MechanismKind::kSensorBias, -1, -1, 0, {1.5, -0.8, 2.1, 0.03, -0.02, 0.01}),
+          mechanism(MechanismKind::kJointCoupling, 5, 4, 0, {-1.2e-3})};
+}
+
+}  // namespace stepcal::test

@@ -173,7 +173,7 @@ TEST(Runtime, ForwardAppliesBacklashTransmissionCouplingAndNonlinearStiffnessAtA
   CalibratedModel file =
       withMechanisms({mechanism(MechanismKind::kTransmissionError, 2, -1, 2, {a, b}),
                       mechanism(MechanismKind::kJointCoupling, 4, 1, 0, {c}),
-                      mechanism(MechanismKind::kBacklash, 5, -1, 0, {lost_rad}),
+                      mechanism(MechanismKind::kBacklash, 5, -1, 0, {lost_rad, 5.0}),
                       mechanism(MechanismKind::kNonlinearStiffness, 5, -1, 0, {c_n, t0})},
                      false);
   const double c6 = file.compliance_rad_per_nm(5);
@@ -195,7 +195,7 @@ TEST(Runtime, ForwardAppliesBacklashTransmissionCouplingAndNonlinearStiffnessAtA
       JointVector theta = q;
       theta(2) += a * std::sin(2 * q(2)) + b * std::cos(2 * q(2));
       theta(4) += c * q(1);
-      theta(5) += c6 * tau_nm + lost_rad * std::tanh(tau_nm / kBacklashSmoothingTorque_nm) +
+      theta(5) += c6 * tau_nm + lost_rad * std::tanh(tau_nm / 5.0) +
                   c_n * tau_nm * t0 / (t0 + std::abs(tau_nm));
       const ForwardResult r = correctForward(*model, ws, q, wrench_Sensor, kUnknownTemperature_c);
       ASSERT_EQ(r.status, Status::kOk);
@@ -427,7 +427,7 @@ TEST(Runtime, InverseJacobianCarriesCouplingTransmissionAndBacklash) {
   const auto model = RuntimeModel::fromModel(
       withMechanisms({mechanism(MechanismKind::kJointCoupling, 2, 1, 0, {0.05}),
                       mechanism(MechanismKind::kTransmissionError, 3, -1, 3, {0.01, 0.01}),
-                      mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-3}),
+                      mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-3, 5.0}),
                       mechanism(MechanismKind::kNonlinearStiffness, 2, -1, 0, {2e-5, 20.0})},
                      true),
       16);

@@ -914,7 +914,7 @@ TEST(Twin, EveryMechanismRoundTripsThroughTruthJson) {
   for (size_t k = 0; k < 4; ++k) EXPECT_EQ(effects.at(1 + k), everyHiddenEffect()[k]);
   for (size_t k = 0; k < 3; ++k) EXPECT_EQ(effects.at(5 + k), selfWeightThermalAndBias()[k]);
   EXPECT_EQ(truth.at("options").at("temperature_swing_c"), 3.0);
-  EXPECT_EQ(truth.at("options").at("temperature_period_rows"), 400.0);
+  EXPECT_EQ(truth.at("options").at("temperature_period_rows"), 300.0);
 
   const TwinRobot copy = TwinRobot::fromTruthJson(nlohmann::json::parse(truth.dump()));
   EXPECT_EQ(copy.truthJson(), truth);

@@ -223,8 +223,8 @@ bool torqueCompliance(const PhysicalModel& model, const JointVector& tau_nm,
   dtheta_dtau = model.compliance_rad_per_nm;
   for (const Mechanism& m : model.mechanisms) {
     if (m.kind == MechanismKind::kBacklash) {
-      const double c = std::cosh(tau_nm(m.joint) / kBacklashSmoothingTorque_nm);
-      dtheta_dtau(m.joint) += m.parameters[0] / (kBacklashSmoothingTorque_nm * c * c);
+      const double c = std::cosh(tau_nm(m.joint) / m.parameters[1]);
+      dtheta_dtau(m.joint) += m.parameters[0] / (m.parameters[1] * c * c);
     } else if (m.kind == MechanismKind::kNonlinearStiffness) {
       const double t0 = m.parameters[1], d = t0 + std::abs(tau_nm(m.joint));
       dtheta_dtau(m.joint) += m.parameters[0] * t0 * t0 / (d * d);

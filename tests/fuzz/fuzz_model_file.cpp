@@ -115,7 +115,7 @@ int main(int argc, char** argv) {
     self_weight.insert(self_weight.end(), {40.0 - 5 * k, 4.0, 0.5, -1.0});
   }
   full.mechanisms = {
-      {MechanismKind::kBacklash, 1, -1, 0, {2e-4}, {1e-5}},
+      {MechanismKind::kBacklash, 1, -1, 0, {2e-4, 5.0}, {1e-5, 0.0}},
       {MechanismKind::kSelfWeight, -1, -1, 0, self_weight, std::vector<double>(24, 0.1)},
       {MechanismKind::kTransmissionError, 2, -1, 2, {3e-5, -1e-5}, {1e-6, 1e-6}},
       {MechanismKind::kNonlinearStiffness, 3, -1, 0, {1e-6, 50.0}, {1e-7, 5.0}},

@@ -37,7 +37,7 @@ inline Mechanism mechanism(MechanismKind kind, int joint, int source_joint, int 
 /// [3] nonlinear_stiffness (joint 4), [4] thermal_expansion (T_ref 20 °C), [5] sensor_bias,
 /// [6] joint_coupling (joint 5 → joint 6).
 inline std::vector<Mechanism> mechanismOfEveryKind() {
-  return {mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-4}),
+  return {mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-4, 5.0}),
           mechanism(MechanismKind::kSelfWeight, -1, -1, 0, selfWeightParameters()),
           mechanism(MechanismKind::kTransmissionError, 2, -1, 2, {3e-5, -1.5e-5}),
           mechanism(MechanismKind::kNonlinearStiffness, 3, -1, 0, {4e-6, 60.0}),

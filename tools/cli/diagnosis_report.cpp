@@ -2,23 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
+
+#include "text_format.hpp"
 
 namespace stepcal::cli {
 namespace {
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
-
-std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
-std::string format(const char* fmt, ...) {
-  char buffer[512];
-  va_list args;
-  va_start(args, fmt);
-  std::vsnprintf(buffer, sizeof buffer, fmt, args);
-  va_end(args);
-  return buffer;
-}
 
 std::vector<std::string> parameterNames(const Mechanism& m) {
   return mechanismParameterNames(m.kind, static_cast<int>(m.parameters.size() / 4));

@@ -1,29 +1,19 @@
 #include "report.hpp"
 
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <map>
 #include <set>
 #include <sstream>
 
 #include "stepcal/common/lie.hpp"
+#include "text_format.hpp"
 
 namespace stepcal::cli {
 namespace {
 
 constexpr double kMm = 1e3;
 constexpr double kDeg = 180.0 / M_PI;
-
-std::string printf_string(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
-std::string printf_string(const char* fmt, ...) {
-  char buf[512];
-  va_list args;
-  va_start(args, fmt);
-  std::vsnprintf(buf, sizeof buf, fmt, args);
-  va_end(args);
-  return buf;
-}
 
 // NaN (no orientation measured) becomes null in JSON.
 nlohmann::json numberOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
@@ -63,18 +53,18 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
     first = false;
   }
   out << "), " << outcome.nominal_Base.dof() << " joints, tip " << campaign.tip_link << "\n";
-  out << printf_string("tracker noise %.4f mm, %.4f deg per axis%s -> noise floor (mean) %.4f mm, %.4f deg\n",
+  out << format("tracker noise %.4f mm, %.4f deg per axis%s -> noise floor (mean) %.4f mm, %.4f deg\n",
                        campaign.tracker.position_sigma_m * kMm,
                        campaign.tracker.orientation_sigma_rad * kDeg,
                        campaign.tracker.stated ? "" : " (not stated in campaign.yaml; assumed)",
                        outcome.floor_position_m * kMm, outcome.floor_orientation_rad * kDeg);
-  out << printf_string(
+  out << format(
       "step 1, geometry (local POE): %d rows, %s after %d iterations; rank %d of %d, condition %.3g\n",
       poe.fit_rows, poe.converged ? "converged" : "NOT converged", poe.iterations,
       poe.observability.rank, poe.observability.parameter_count, poe.observability.condition_number);
   out << "  convergence (rms position mm, rms orientation deg):";
   for (const auto& h : poe.history) {
-    out << printf_string(" [%d] %.4f %.5f", h.iteration, h.rms_position_m * kMm,
+    out << format(" [%d] %.4f %.5f", h.iteration, h.rms_position_m * kMm,
                          h.rms_orientation_rad * kDeg);
   }
   out << "\n  unobservable combinations, kept at their nominal values ("
@@ -82,22 +72,22 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
   for (const auto& u : poe.observability.unobservable) out << "    - " << u.description << "\n";
 
   if (outcome.has_stiffness) {
-    out << printf_string("step 2, joint compliance: %d loaded/unloaded pairs, rms fit residual %.4f mm\n",
+    out << format("step 2, joint compliance: %d loaded/unloaded pairs, rms fit residual %.4f mm\n",
                          outcome.stiffness.pairs, outcome.stiffness.rms_position_residual_m * kMm);
-    out << printf_string("  %-14s %14s %12s %8s %14s\n", "joint", "K (Nm/rad)", "1-sigma", "rel.", "max |tau| Nm");
+    out << format("  %-14s %14s %12s %8s %14s\n", "joint", "K (Nm/rad)", "1-sigma", "rel.", "max |tau| Nm");
     for (const auto& j : outcome.stiffness.joints) {
       if (j.excited) {
-        out << printf_string("  %-14s %14.0f %12.0f %7.1f%% %14.1f\n", j.joint.c_str(), j.stiffness_nm_per_rad,
+        out << format("  %-14s %14.0f %12.0f %7.1f%% %14.1f\n", j.joint.c_str(), j.stiffness_nm_per_rad,
                              j.stiffness_sigma_nm_per_rad,
                              100.0 * j.stiffness_sigma_nm_per_rad / j.stiffness_nm_per_rad, j.max_torque_nm);
       } else {
-        out << printf_string("  %-14s %14s %12s %8s %14.1f  (too little torque from these loads to identify: taken as rigid)\n",
+        out << format("  %-14s %14s %12s %8s %14.1f  (too little torque from these loads to identify: taken as rigid)\n",
                              j.joint.c_str(), "-", "-", "-", j.max_torque_nm);
       }
     }
     out << "  check on validation pairs, modelled vs measured deflection (paper: 11.9 / 11.3 / 11.4 % mean):\n";
     for (const auto& v : outcome.stiffness_validation) {
-      out << printf_string("    %5.1f kg: %3d pairs, deflection %.3f mm, deviation mean %.1f %%, max %.1f %%\n",
+      out << format("    %5.1f kg: %3d pairs, deflection %.3f mm, deviation mean %.1f %%, max %.1f %%\n",
                            v.load_kg, v.pairs, v.mean_deflection_m * kMm, v.mean_deviation_pct,
                            v.max_deviation_pct);
     }
@@ -108,21 +98,21 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
     if (!*residual) continue;
     const auto& r = **residual;
     const auto& h = r.gp.hyperparameters();
-    out << printf_string("step 3, GPR on the %s residual: %d %s rows, log marginal likelihood %.1f\n",
+    out << format("step 3, GPR on the %s residual: %d %s rows, log marginal likelihood %.1f\n",
                          residual == &outcome.gpr ? (outcome.has_stiffness ? "POE + stiffness" : "POE")
                                                   : "POE (baseline POE + GPR)",
                          r.training_rows, r.training_set.c_str(), r.gp.logMarginalLikelihood());
-    out << printf_string("  sigma_n %.4g, sigma_f %.4g (standardised outputs); length scales (normalised inputs):",
+    out << format("  sigma_n %.4g, sigma_f %.4g (standardised outputs); length scales (normalised inputs):",
                          h.noise_sigma, h.signal_sigma);
-    for (Eigen::Index d = 0; d < h.length_scales.size(); ++d) out << printf_string(" %.3g", h.length_scales(d));
+    for (Eigen::Index d = 0; d < h.length_scales.size(); ++d) out << format(" %.3g", h.length_scales(d));
     out << "\n  10-fold CV mean squared error per output (mm^2 / deg^2 -> rms):";
     for (Eigen::Index o = 0; o < r.report.cv_mse.size(); ++o) {
       const double unit = o < 3 ? kMm : kDeg;
-      out << printf_string(" %.4f", std::sqrt(r.report.cv_mse(o)) * unit);
+      out << format(" %.4f", std::sqrt(r.report.cv_mse(o)) * unit);
     }
     out << "\n";
   }
-  out << printf_string("time: geometry %.3f s, stiffness %.3f s, GPR %.3f s\n", outcome.seconds_geometry,
+  out << format("time: geometry %.3f s, stiffness %.3f s, GPR %.3f s\n", outcome.seconds_geometry,
                        outcome.seconds_stiffness, outcome.seconds_gpr);
   out << "\n" << formatAccuracyTable(outcome.accuracy);
   out << "methods: nominal = nominal URDF, tracker registered (closed form); frames = tracker and "
@@ -137,35 +127,35 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
   const auto pose = [](const Pose& X) {
     const Vec3 rpy = lie::rpyFromRotation(X.linear()) * kDeg;
     const Vec3 p = X.translation() * kMm;
-    return printf_string("xyz (%.4f, %.4f, %.4f) mm, rpy (%.5f, %.5f, %.5f) deg", p.x(), p.y(), p.z(),
+    return format("xyz (%.4f, %.4f, %.4f) mm, rpy (%.5f, %.5f, %.5f) deg", p.x(), p.y(), p.z(),
                          rpy.x(), rpy.y(), rpy.z());
   };
-  out << printf_string("stepcal model, format version %u, %zu bytes\n", kModelFormatVersion, file_bytes);
+  out << format("stepcal model, format version %u, %zu bytes\n", kModelFormatVersion, file_bytes);
   const ModelProvenance& prov = model.provenance;
   out << "provenance: campaign " << prov.campaign_path << " (hash " << prov.campaign_hash << "), trained "
       << prov.created_utc << " by stepcal " << prov.trainer_version << "\n";
   out << "chain: " << chain.dof() << " revolute joints, rooted at the tracker frame\n";
   for (int k = 0; k <= chain.dof(); ++k) {
     const std::string name = k < chain.dof() ? chain.joints()[static_cast<size_t>(k)].name : "tip";
-    out << printf_string("  T_{%d,%d}(0) -> %-14s %s\n", k, k + 1, name.c_str(), pose(chain.initialPose(k)).c_str());
+    out << format("  T_{%d,%d}(0) -> %-14s %s\n", k, k + 1, name.c_str(), pose(chain.initialPose(k)).c_str());
   }
   for (const ChainJoint& j : chain.joints()) {
     const Vec6& s = j.twist_Local;
-    out << printf_string("  twist %-14s (%.3g, %.3g, %.3g, %.3g, %.3g, %.3g), limits [%.2f, %.2f] deg\n", j.name.c_str(),
+    out << format("  twist %-14s (%.3g, %.3g, %.3g, %.3g, %.3g, %.3g), limits [%.2f, %.2f] deg\n", j.name.c_str(),
                          s(0), s(1), s(2), s(3), s(4), s(5), j.lower_rad * kDeg, j.upper_rad * kDeg);
   }
   const KinematicChain& nominal = model.nominal_Base;
-  out << printf_string("nominal chain: %d revolute joints, rooted at the robot base, tool T_{%d,%d}(0) %s\n",
+  out << format("nominal chain: %d revolute joints, rooted at the robot base, tool T_{%d,%d}(0) %s\n",
                        nominal.dof(), nominal.dof(), nominal.dof() + 1,
                        pose(nominal.initialPose(nominal.dof())).c_str());
   out << "tracker registration X_TrackerBase: " << pose(model.X_TrackerBase) << "\n";
   for (size_t f = 0; f < chain.frames().size(); ++f) {
     const AttachedFrame& frame = chain.frames()[f];
-    out << printf_string("frame %s on chain frame %d: %s%s\n", frame.name.c_str(), frame.parent,
+    out << format("frame %s on chain frame %d: %s%s\n", frame.name.c_str(), frame.parent,
                          pose(frame.X_ParentFrame).c_str(),
                          static_cast<int>(f) == model.sensor_frame ? " (F/T sensor)" : "");
   }
-  out << printf_string("gravity in base: (%.5f, %.5f, %.5f) m/s^2\n", model.gravity_Base.x(),
+  out << format("gravity in base: (%.5f, %.5f, %.5f) m/s^2\n", model.gravity_Base.x(),
                        model.gravity_Base.y(), model.gravity_Base.z());
   if (model.compliance_rad_per_nm.size() == 0) {
     out << "compliance: none (no step 2)\n";
@@ -173,7 +163,7 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
     out << "joint stiffness (Nm/rad, 1-sigma):";
     for (Eigen::Index j = 0; j < model.compliance_rad_per_nm.size(); ++j) {
       const double c = model.compliance_rad_per_nm(j), sc = model.compliance_sigma_rad_per_nm(j);
-      out << (c > 0 ? printf_string(" %.0f+-%.0f", 1 / c, sc / (c * c)) : std::string(" rigid"));
+      out << (c > 0 ? format(" %.0f+-%.0f", 1 / c, sc / (c * c)) : std::string(" rigid"));
     }
     out << "\n";
   }
@@ -186,7 +176,7 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
     out << "mechanism " << describe(m) << ":";
     for (size_t i = 0; i < names.size(); ++i) {
       if (m.kind == MechanismKind::kSelfWeight && m.parameters[i] == 0.0) continue;
-      out << printf_string(" %s %.5g+-%.2g", names[i].c_str(), m.parameters[i], m.sigma[i]);
+      out << format(" %s %.5g+-%.2g", names[i].c_str(), m.parameters[i], m.sigma[i]);
     }
     out << "\n";
   }
@@ -194,15 +184,15 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
     out << "GPR: none (no step 3)\n";
   } else {
     const GprParameters& g = *model.gpr;
-    out << printf_string("GPR: %ld training points, %ld inputs, %ld outputs; sigma_n %.4g, sigma_f %.4g; length scales:",
+    out << format("GPR: %ld training points, %ld inputs, %ld outputs; sigma_n %.4g, sigma_f %.4g; length scales:",
                          static_cast<long>(g.inputs_normalised.rows()), static_cast<long>(g.inputs_normalised.cols()),
                          static_cast<long>(g.alpha.cols()), g.noise_sigma, g.signal_sigma);
-    for (Eigen::Index d = 0; d < g.length_scales.size(); ++d) out << printf_string(" %.3g", g.length_scales(d));
+    for (Eigen::Index d = 0; d < g.length_scales.size(); ++d) out << format(" %.3g", g.length_scales(d));
     out << "\n";
   }
   out << "validation figures at training time (mean / max position mm, mean orientation deg):\n";
   for (const ValidationFigure& v : prov.validation) {
-    out << printf_string("  %-20s %5.1f kg %4d rows  %8.4f / %8.4f  %.4f\n", v.method.c_str(), v.load_kg, v.rows,
+    out << format("  %-20s %5.1f kg %4d rows  %8.4f / %8.4f  %.4f\n", v.method.c_str(), v.load_kg, v.rows,
                          v.mean_position_m * kMm, v.max_position_m * kMm, v.mean_orientation_rad * kDeg);
   }
   return out.str();
@@ -212,22 +202,22 @@ std::string formatAccuracyTable(const std::vector<trainer::AccuracySummary>& sum
   std::ostringstream out;
   const std::vector<std::string> methods = methodsOf(summaries);
   out << "accuracy: mean / max position error (mm), mean orientation error (deg)\n";
-  out << printf_string("%-11s %7s %5s", "set", "load_kg", "rows");
-  for (const auto& m : methods) out << printf_string("   %-24s", m.c_str());
+  out << format("%-11s %7s %5s", "set", "load_kg", "rows");
+  for (const auto& m : methods) out << format("   %-24s", m.c_str());
   out << "\n";
   std::map<std::pair<int, double>, std::map<std::string, const trainer::AccuracySummary*>> table;
   for (const auto& s : summaries) table[{static_cast<int>(s.set), s.load_kg}][s.method] = &s;
   for (const auto& [key, by_method] : table) {
     const trainer::AccuracySummary* any = by_method.begin()->second;
-    out << printf_string("%-11s %7.1f %5d", toString(any->set), any->load_kg, any->rows);
+    out << format("%-11s %7.1f %5d", toString(any->set), any->load_kg, any->rows);
     for (const auto& m : methods) {
       const auto it = by_method.find(m);
       if (it == by_method.end()) {
-        out << printf_string("   %-24s", "-");
+        out << format("   %-24s", "-");
         continue;
       }
       const auto& s = *it->second;
-      out << printf_string("   %7.4f / %7.4f %7.4f", s.mean_position_m * kMm, s.max_position_m * kMm,
+      out << format("   %7.4f / %7.4f %7.4f", s.mean_position_m * kMm, s.max_position_m * kMm,
                            s.mean_orientation_rad * kDeg);
     }
     out << "\n";

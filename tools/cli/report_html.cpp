@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <iterator>
 #include <map>
@@ -11,26 +10,13 @@
 #include <vector>
 
 #include "stepcal/common/error.hpp"
+#include "text_format.hpp"
 
 namespace stepcal::cli {
 namespace {
 
 constexpr double kMm = 1e3;
 constexpr double kDeg = 180.0 / 3.14159265358979323846;
-
-std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
-std::string format(const char* fmt, ...) {
-  va_list args, args_copy;
-  va_start(args, fmt);
-  va_copy(args_copy, args);
-  const int length = std::vsnprintf(nullptr, 0, fmt, args);
-  va_end(args);
-  std::string out(static_cast<size_t>(std::max(length, 0)) + 1, '\0');
-  std::vsnprintf(out.data(), out.size(), fmt, args_copy);
-  va_end(args_copy);
-  out.pop_back();
-  return out;
-}
 
 /// Text made safe for HTML element content and attribute values.
 std::string escape(std::string_view text) {

@@ -124,10 +124,8 @@ TEST(Runtime, StatusNames) {
 
 TEST(Runtime, ForwardEqualsTrainersModelOnEveryRowAndLayer) {
   // The full model, and the model without its GPR, its compliance or both: each against the
-  // trainer's last layer of the same model file. Rigid layers agree to rounding. With compliance
-  // the runtime's physical model takes three fixed-point passes (mechanisms.hpp), the trainer's
-  // stiffness layer two (deflectedJointAngles): they differ by the third pass's change, M² C τ
-  // with M = C ∂τ/∂θ ~ 1e-3, about 1e-9 m here, four orders below the tracker's noise.
+  // trainer's last layer of the same model file. Both evaluate the physical model with
+  // physicalLinkAngles (mechanisms.hpp), so every layer agrees to rounding.
   struct Variant {
     std::string name;
     CalibratedModel model;
@@ -148,7 +146,7 @@ TEST(Runtime, ForwardEqualsTrainersModelOnEveryRowAndLayer) {
     ASSERT_EQ(layers.back().first, variant.name);
     const auto model = RuntimeModel::fromModel(variant.model, 1);
     Workspace ws = makeWorkspace(*model);
-    const double tolerance = variant.model.compliance_rad_per_nm.size() > 0 ? 1e-8 : 1e-12;
+    const double tolerance = 1e-12;
     double worst = 0.0;
     std::map<Status, int> statuses;
     for (const Measurement& row : paper().campaign.rows) {

@@ -29,8 +29,8 @@ struct Hidden {
   MechanismKind kind = MechanismKind::kBacklash;
   int joint = -1;          // 0-based, −1 = none
   int source_joint = -1;   // joint_coupling
-  int harmonic = 0;
-  size_t primary = 0;      // index of the parameter checked to 20 %
+  int harmonic = 0;        // transmission_error: the harmonic hidden
+  size_t primary = 0;      // index of the parameter checked to 20 % (a profile: in harmonic)
   double truth = 0.0;      // its true value, SI
   bool load_dependent = false;
   std::vector<double> self_weight_truth;  // self_weight: (m, m·com) per link, as the model holds them
@@ -64,8 +64,11 @@ Hidden drawHidden(uint64_t seed) {
       break;
     }
     case 1: {
+      // A harmonic whose period fits at least twice into the joint's arc on the paper's campaign
+      // (joints 1–3 sweep 90–120°, 4–6 over 200°): a slower one is not separable from the
+      // joint's geometry there (TransmissionError.SlowHarmonicOnANarrowArc).
       const int joint = pick(rng, {1, 2, 3, 4, 5, 6});
-      const int harmonic = pick(rng, {1, 2, 3, 4});
+      const int harmonic = std::uniform_int_distribution<int>(joint <= 3 ? 9 : 4, 16)(rng);
       const double amplitude = uniform(rng, 5e-5, 1.2e-4), phase = uniform(rng, -M_PI, M_PI);
       const double a = amplitude * std::cos(phase), b = amplitude * std::sin(phase);
       h.effect = {{"name", "transmission_error"}, {"joint", joint}, {"harmonic", harmonic},
@@ -181,7 +184,7 @@ const FoundEffect* findEffect(const Diagnosis& d, const Hidden& h) {
   for (const FoundEffect& e : d.effects) {
     const Mechanism& m = e.mechanism;
     if (m.kind == h.kind && m.joint == h.joint && m.source_joint == h.source_joint &&
-        m.harmonic == h.harmonic) {
+        m.order >= h.harmonic) {
       return &e;
     }
   }
@@ -220,6 +223,18 @@ TEST_P(HiddenEffect, IsNamedWithItsJointParameterAndGain) {
           rmsGravityTorque(d.extended_model, campaign, e->mechanism.parameters, joint);
       EXPECT_NEAR(fitted, truth, 0.2 * truth) << "RMS gravity torque of joint " << joint + 1;
     }
+  } else if (h.kind == MechanismKind::kTransmissionError) {
+    // The profile holds the hidden harmonic, and that harmonic is its strongest.
+    const Mechanism& m = e->mechanism;
+    const size_t at = static_cast<size_t>(2 * (h.harmonic - 1));
+    EXPECT_NEAR(m.parameters[at + h.primary], h.truth, 0.2 * std::abs(h.truth));
+    for (int k = 1; k <= m.order; ++k) {
+      if (k == h.harmonic) continue;
+      const size_t other = static_cast<size_t>(2 * (k - 1));
+      EXPECT_LT(std::hypot(m.parameters[other], m.parameters[other + 1]),
+                0.2 * std::hypot(m.parameters[at], m.parameters[at + 1]))
+          << "harmonic " << k;
+    }
   } else {
     const double fitted = e->mechanism.parameters[h.primary];
     EXPECT_NEAR(fitted, h.truth, 0.2 * std::abs(h.truth));
@@ -253,6 +268,29 @@ TEST(Diagnose, CleanCampaignsNameNothing) {
     EXPECT_LT(d.before.noise_ratio, 1.2);
     for (const CandidateScore& c : d.candidates) EXPECT_FALSE(c.significant) << describe(c.mechanism);
   }
+}
+
+// An eccentric gear: harmonic 1 on joint 2, which the paper's campaign sweeps over 88° only.
+// There a geometric error of the joint reproduces most of it, and an imbalance of the upper arm
+// acting through joint 2's compliance the same sinusoid of q₂: the diagnosis may name either,
+// but must say that the data cannot tell the two apart; the model reaches the noise at every
+// load.
+TEST(TransmissionError, SlowHarmonicOnANarrowArcIsReportedAsAmbiguous) {
+  const nlohmann::json eccentric = {{"name", "transmission_error"}, {"joint", 2}, {"harmonic", 1},
+                                    {"sin_rad", 8e-5},              {"cos_rad", -5e-5}};
+  const Diagnosis d = diagnoseSimulation(paperOptions(17, {eccentric}));
+  ASSERT_EQ(d.effects.size(), 1u) << "named: " << effectsText(d);
+  const Mechanism& named = d.effects[0].mechanism;
+  const bool profile = named.kind == MechanismKind::kTransmissionError && named.joint == 1;
+  EXPECT_TRUE(profile || named.kind == MechanismKind::kSelfWeight) << effectsText(d);
+  bool ambiguous = false;
+  for (const Mechanism& other : d.effects[0].alternatives) {
+    ambiguous = ambiguous || (profile ? other.kind == MechanismKind::kSelfWeight
+                                      : other.kind == MechanismKind::kTransmissionError &&
+                                            other.joint == 1);
+  }
+  EXPECT_TRUE(ambiguous) << "the other explanation is not reported as equivalent";
+  for (const GainRow& g : d.gain) EXPECT_LT(g.after.mean_position_m, 1.5 * d.floor_position_m);
 }
 
 TEST(Diagnose, TwoMechanismsAreBothFound) {
@@ -337,7 +375,7 @@ TEST(DiagnoseCommand, JsonModelAndReport) {
   EXPECT_EQ(e.at("name"), "backlash");
   EXPECT_EQ(e.at("joint"), 2);
   EXPECT_TRUE(e.at("joints").is_null());
-  EXPECT_TRUE(e.at("harmonic").is_null());
+  EXPECT_TRUE(e.at("order").is_null());
   EXPECT_NEAR(e.at("parameters").at("lost_motion_rad").get<double>(), 2e-4, 0.2 * 2e-4);
   EXPECT_GT(e.at("uncertainty").at("lost_motion_rad").get<double>(), 0.0);
   EXPECT_GT(e.at("cv_gain_mm").get<double>(), 0.0);

@@ -1,5 +1,5 @@
-// Importer of the IPA UR10 data set: the real Series C (skipped when the shared data folder
-// is absent), which way round Trafo_TM_F_init.txt is, and refusal of broken synthetic files.
+// Importer of the IPA UR10 data set: the real Series C (tests/data keeps a copy), which way round
+// Trafo_TM_F_init.txt is, and refusal of broken synthetic files.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -16,6 +16,7 @@
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/importers/ipa.hpp"
+#include "stepcal/trainer/registration.hpp"
 #include "support/campaign_rows.hpp"
 #include "support/files.hpp"
 #include "support/input_error.hpp"
@@ -26,14 +27,10 @@ namespace {
 namespace fs = std::filesystem;
 
 const std::string kUr10Urdf = std::string(STEPCAL_ROBOTS_DIR) + "/ur10.urdf";
-const fs::path kSeriesC = fs::path(STEPCAL_SHARED_DATA_DIR) / "ipa-robot-accuracy" / "Series_C";
+// A copy of Series C travels with the tests (tests/data/ipa-robot-accuracy/NOTICE.md).
+const fs::path kSeriesC = fs::path(STEPCAL_TEST_DATA_DIR) / "ipa-robot-accuracy" / "Series_C";
 const fs::path kSeriesCCsv = kSeriesC / "measurements_random_poses.csv";
 constexpr double kDeg = M_PI / 180.0;
-
-#define SKIP_WITHOUT_DATA()                                                         \
-  do {                                                                              \
-    if (!fs::exists(kSeriesCCsv)) GTEST_SKIP() << "no IPA data at " << kSeriesCCsv; \
-  } while (0)
 
 Mat3 eulerXyz(double rx_deg, double ry_deg, double rz_deg) {
   return (Eigen::AngleAxisd(rx_deg * kDeg, Vec3::UnitX()) *
@@ -56,7 +53,6 @@ using test::writeText;
 // The real Series C
 
 TEST(IpaImport, SeriesCRowsSetsAndUnits) {
-  SKIP_WITHOUT_DATA();
   const Campaign& c = seriesC();
   ASSERT_EQ(c.rows.size(), 2773u);  // 2774 lines with the header
   EXPECT_EQ(c.rowsIn(RowSet::kGeometry).size(), 2000u);
@@ -98,7 +94,6 @@ TEST(IpaImport, SeriesCRowsSetsAndUnits) {
 }
 
 TEST(IpaImport, SeriesCRobotDescriptionHasTheTmacLink) {
-  SKIP_WITHOUT_DATA();
   const KinematicChain chain = chainFromUrdf(seriesC().urdf_xml, "base_link", "tmac");
   ASSERT_EQ(chain.dof(), 6);
   const KinematicChain flange = chainFromUrdfFile(kUr10Urdf, "base_link", "tool0");
@@ -111,7 +106,6 @@ TEST(IpaImport, SeriesCRobotDescriptionHasTheTmacLink) {
 }
 
 TEST(IpaImport, SeriesCRoundTripsThroughCampaignFiles) {
-  SKIP_WITHOUT_DATA();
   const Campaign& c = seriesC();
   TempDir dir;
   writeCampaign(c, (dir.path() / "series_c").string());
@@ -160,8 +154,23 @@ std::vector<double> seriesNumbers(std::string line) {
 // The Goal columns are the commanded T-Mac TCP in ROS's base_link (our base_link turned by π
 // about z). FK·X⁻¹ reproduces them to well under a millimetre with the nominal UR10, FK·X is
 // off by twice the 109 mm offset: the file holds X_TcpFlange.
+// The UR10 stood upright before a levelled tracker: registered to the nominal arm, the base's z
+// axis is the tracker's vertical to a fraction of a degree, so the importer's gravity_in_base of
+// −9.80665 m/s² along the base z holds (and the self weight's torques with it).
+TEST(IpaImport, SeriesCBaseIsUprightSoGravityIsMinusZ) {
+  const Campaign& c = seriesC();
+  ASSERT_TRUE(c.gravity_in_base.has_value());
+  EXPECT_EQ(*c.gravity_in_base, Vec3(0.0, 0.0, -9.80665));
+  std::vector<const Measurement*> rows;
+  for (const Measurement& m : c.rows) rows.push_back(&m);
+  const KinematicChain chain = chainFromUrdf(c.urdf_xml, c.base_link, c.tip_link);
+  const Pose X_TrackerBase = trainer::registerTracker(chain, rows);
+  const double tilt_deg =
+      std::acos(std::min(1.0, X_TrackerBase.linear().col(2).dot(Vec3::UnitZ()))) / kDeg;
+  EXPECT_LT(tilt_deg, 0.5);
+}
+
 TEST(IpaImport, TrafoFileIsTheFlangeInTheTcpFrame) {
-  SKIP_WITHOUT_DATA();
   const KinematicChain flange = chainFromUrdfFile(kUr10Urdf, "base_link", "tool0");
   const Pose X_File = readTrafoMatrix(kSeriesC / "Trafo_TM_F_init.txt");
   Pose X_RosBaseBase = Pose::Identity();
@@ -201,7 +210,6 @@ TEST(IpaImport, TrafoFileIsTheFlangeInTheTcpFrame) {
 // The tracker's T-Mac axes are the TCP axes turned by π about z: R_measured·R_FK(tmac)ᵀ is one
 // constant rotation (the tracker's) to a fraction of a degree; with the TCP axes it is not.
 TEST(IpaImport, MeasuredOrientationMatchesTheTmacLink) {
-  SKIP_WITHOUT_DATA();
   const Campaign& c = seriesC();
   const KinematicChain chain = chainFromUrdf(c.urdf_xml, "base_link", "tmac");
   const Mat3 R_TmacTcp = lie::rotationFromRpy(0, 0, M_PI);  // the turn is its own inverse

@@ -153,9 +153,11 @@ void expectSameModel(const CalibratedModel& a, const CalibratedModel& b) {
     EXPECT_EQ(ma.kind, mb.kind) << i;
     EXPECT_EQ(ma.joint, mb.joint) << i;
     EXPECT_EQ(ma.source_joint, mb.source_joint) << i;
-    EXPECT_EQ(ma.harmonic, mb.harmonic) << i;
+    EXPECT_EQ(ma.order, mb.order) << i;
     EXPECT_EQ(ma.parameters, mb.parameters) << i;
     EXPECT_EQ(ma.sigma, mb.sigma) << i;
+    EXPECT_EQ(ma.coverage.arcs_rad, mb.coverage.arcs_rad) << i;
+    EXPECT_EQ(ma.coverage.fade_rad, mb.coverage.fade_rad) << i;
   }
   ASSERT_EQ(a.gpr.has_value(), b.gpr.has_value());
   if (a.gpr) {
@@ -245,11 +247,14 @@ size_t payloadOf(const std::vector<uint8_t>& b, const char (&tag)[5]) {
   return 0;
 }
 
-/// Byte offset of mechanism record i in MECH (kind, joint, source_joint, harmonic, p, then p
-/// parameters and p sigmas).
+/// Byte offset of mechanism record i in MECH (kind, joint, source_joint, order, p, then p
+/// parameters, p sigmas, the coverage's arc count a, 2a arc numbers and its fade).
 size_t mechanismAt(const std::vector<uint8_t>& b, size_t i) {
   size_t at = payloadOf(b, "MECH") + 4;
-  for (size_t j = 0; j < i; ++j) at += 20 + 16 * size_t(getU32(b, at + 16));
+  for (size_t j = 0; j < i; ++j) {
+    at += 20 + 16 * size_t(getU32(b, at + 16));
+    at += 4 + 16 * size_t(getU32(b, at)) + 8;
+  }
   return at;
 }
 
@@ -443,14 +448,14 @@ TEST_F(ModelFileTest, ChecksumMismatchSaysCorrupted) {
 }
 
 TEST_F(ModelFileTest, VersionMismatchNamesBothVersionsAndTheCommandToRerun) {
-  EXPECT_EQ(getU32(bytes(), 8), 2u);
-  for (const uint32_t version : {1u, 3u}) {
+  EXPECT_EQ(getU32(bytes(), 8), 3u);
+  for (const uint32_t version : {1u, 2u, 4u}) {
     std::vector<uint8_t> b = bytes();
     putU32(b, 8, version);
     refix(b);
     const std::string message = refusal(b);
     EXPECT_EQ(message.rfind("test.model: byte 8, version: model format version " +
-                                std::to_string(version) + ", this build reads 2",
+                                std::to_string(version) + ", this build reads 3",
                             0),
               0u)
         << message;
@@ -467,7 +472,7 @@ TEST_F(ModelFileTest, VersionOneFileWithoutMechanismsIsRefusedNotRead) {
   putU32(b, 8, 1);
   refix(b);
   const std::string message = refusal(b);
-  EXPECT_NE(message.find("byte 8, version: model format version 1, this build reads 2"),
+  EXPECT_NE(message.find("byte 8, version: model format version 1, this build reads 3"),
             std::string::npos)
       << message;
   EXPECT_NE(message.find("re-run `stepcal calibrate`"), std::string::npos) << message;
@@ -654,7 +659,8 @@ TEST_F(ModelFileTest, MechanismsOfEveryKindRoundTripBetweenCompliancesAndGpr) {
   const size_t mech = payloadOf(b, "MECH");
   EXPECT_EQ(mech, compliance + 4 + 2 * 8 * 6 + 16);
   EXPECT_EQ(getU32(b, mech), 7u);
-  // Record by record: header, parameters, sigmas; 4 + Σ (20 + 16 p) bytes in all.
+  // Record by record: header, parameters, sigmas, coverage (arc count, arcs, fade);
+  // 4 + Σ (20 + 16 p + 4 + 16 a + 8) bytes in all.
   size_t length = 4;
   for (size_t i = 0; i < 7; ++i) {
     const Mechanism& m = model().mechanisms[i];
@@ -662,14 +668,22 @@ TEST_F(ModelFileTest, MechanismsOfEveryKindRoundTripBetweenCompliancesAndGpr) {
     EXPECT_EQ(getU32(b, at), static_cast<uint32_t>(m.kind));
     EXPECT_EQ(int32_t(getU32(b, at + 4)), m.joint);
     EXPECT_EQ(int32_t(getU32(b, at + 8)), m.source_joint);
-    EXPECT_EQ(int32_t(getU32(b, at + 12)), m.harmonic);
+    EXPECT_EQ(int32_t(getU32(b, at + 12)), m.order);
     ASSERT_EQ(getU32(b, at + 16), m.parameters.size());
     for (size_t k = 0; k < m.parameters.size(); ++k) {
       EXPECT_EQ(getF64(b, at + 20 + 8 * k), m.parameters[k]);
       EXPECT_EQ(getF64(b, at + 20 + 8 * (m.parameters.size() + k)), m.sigma[k]);
     }
-    length += 20 + 16 * m.parameters.size();
+    const size_t coverage = at + 20 + 16 * m.parameters.size();
+    ASSERT_EQ(2 * size_t(getU32(b, coverage)), m.coverage.arcs_rad.size());
+    for (size_t k = 0; k < m.coverage.arcs_rad.size(); ++k) {
+      EXPECT_EQ(getF64(b, coverage + 4 + 8 * k), m.coverage.arcs_rad[k]);
+    }
+    EXPECT_EQ(getF64(b, coverage + 4 + 8 * m.coverage.arcs_rad.size()), m.coverage.fade_rad);
+    length += 20 + 16 * m.parameters.size() + 4 + 8 * m.coverage.arcs_rad.size() + 8;
   }
+  // The transmission profile carries its coverage; the other kinds none.
+  EXPECT_FALSE(model().mechanisms[2].coverage.arcs_rad.empty());
   EXPECT_EQ(payloadOf(b, "GPR "), mech + length + 16);
   // No mechanisms: an empty MECH (its count alone).
   CalibratedModel none = model();
@@ -705,9 +719,17 @@ TEST_F(ModelFileTest, EachMalformedMechanismIsRefusedWithItsOffsetIndexAndProble
       {[&](auto& e) { putU32(e, backlash + 4, uint32_t(-1)); }, backlash, "mechanisms[0]",
        "backlash joint index -1; expected 0 to 5"},
       {[&](auto& e) { putU32(e, transmission + 12, 0); }, transmission, "mechanisms[2]",
-       "transmission_error harmonic 0; expected 1 to 64"},
+       "transmission_error order 0; expected 1 to 64 harmonics"},
+      {[&](auto& e) { putU32(e, transmission + 12, 1); }, transmission, "mechanisms[2]",
+       "transmission_error has 4 parameters and 4 sigmas; expected 2"},
       {[&](auto& e) { putU32(e, transmission, uint32_t(MechanismKind::kJointCoupling)); }, transmission,
-       "mechanisms[2]", "joint_coupling has 2 parameters and 2 sigmas; expected 1"},
+       "mechanisms[2]", "joint_coupling order 2; expected 1 to 64 harmonics for transmission_error"},
+      {[&](auto& e) { putF64(e, transmission + 20 + 64 + 4 + 8, 0.0); }, transmission,
+       "mechanisms[2]", "coverage arc 0 (start 1 rad, length 0 rad); expected start in [0, 2pi)"},
+      {[&](auto& e) { putF64(e, transmission + 20 + 64 + 4, 7.0); }, transmission,
+       "mechanisms[2]", "coverage arc 0 (start 7 rad"},
+      {[&](auto& e) { putF64(e, transmission + 20 + 64 + 4 + 16, -0.1); }, transmission,
+       "mechanisms[2]", "coverage fade -0.1"},
       {[&](auto& e) { putF64(e, nonlinear + 20 + 8, 0.0); }, nonlinear, "mechanisms[3]",
        "nonlinear_stiffness saturation_torque_nm"},
       {[&](auto& e) { putU32(e, coupling + 8, 5); }, coupling, "mechanisms[6]",
@@ -717,7 +739,7 @@ TEST_F(ModelFileTest, EachMalformedMechanismIsRefusedWithItsOffsetIndexAndProble
       {[&](auto& e) { putF64(e, backlash + 20, nan); }, backlash + 20, "mechanisms[0].parameters[0]",
        "nan; expected a finite number"},
       {[&](auto& e) { putU32(e, backlash + 16, 1000); }, backlash + 16,
-       "mechanisms[0].parameter_count", "1000; expected 0 … 32"},
+       "mechanisms[0].parameter_count", "1000; expected 0 … 128"},
       {[&](auto& e) { putU32(e, payloadOf(e, "MECH"), 65); }, payloadOf(b, "MECH"),
        "mechanisms.count", "65; expected 0 … 64"},
   };
@@ -811,7 +833,13 @@ TEST_F(ModelFileTest, SerialiseRefusesWhatTheLoaderWouldRefuse) {
   bad.mechanisms[0].sigma.push_back(0.0);  // the layout has one count for both
   EXPECT_THROW(serializeModel(bad), InputError);
   bad = model();
-  bad.mechanisms[2].harmonic = 0;
+  bad.mechanisms[2].order = 0;
+  EXPECT_THROW(serializeModel(bad), InputError);
+  bad = model();
+  bad.mechanisms[2].coverage.fade_rad = 0.0;
+  EXPECT_THROW(serializeModel(bad), InputError);
+  bad = model();
+  bad.mechanisms[0].coverage = {{0.0, 1.0}, 0.1};  // backlash has no coverage
   EXPECT_THROW(serializeModel(bad), InputError);
   bad = model();
   bad.mechanisms.push_back(bad.mechanisms[4]);  // a second thermal_expansion

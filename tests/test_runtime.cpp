@@ -169,7 +169,7 @@ TEST(Runtime, ForwardAppliesBacklashTransmissionCouplingAndNonlinearStiffnessAtA
   // on joint 6 C₆ τ + b_l tanh(τ / τ_s) + c_n τ τ₀ / (τ₀ + |τ|) (mechanisms.hpp).
   const double a = 3e-5, b = -1.5e-5, c = -1.2e-3, lost_rad = 2e-4, c_n = 4e-6, t0 = 60.0;
   CalibratedModel file =
-      withMechanisms({mechanism(MechanismKind::kTransmissionError, 2, -1, 2, {a, b}),
+      withMechanisms({mechanism(MechanismKind::kTransmissionError, 2, -1, 2, {0.0, 0.0, a, b}),
                       mechanism(MechanismKind::kJointCoupling, 4, 1, 0, {c}),
                       mechanism(MechanismKind::kBacklash, 5, -1, 0, {lost_rad, 5.0}),
                       mechanism(MechanismKind::kNonlinearStiffness, 5, -1, 0, {c_n, t0})},
@@ -424,7 +424,7 @@ TEST(Runtime, InverseJacobianCarriesCouplingTransmissionAndBacklash) {
   // few steps as the plain model (InverseRecoversCommandedJointsInFewSteps).
   const auto model = RuntimeModel::fromModel(
       withMechanisms({mechanism(MechanismKind::kJointCoupling, 2, 1, 0, {0.05}),
-                      mechanism(MechanismKind::kTransmissionError, 3, -1, 3, {0.01, 0.01}),
+                      mechanism(MechanismKind::kTransmissionError, 3, -1, 3, {0.0, 0.0, 0.0, 0.0, 0.01, 0.01}),
                       mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-3, 5.0}),
                       mechanism(MechanismKind::kNonlinearStiffness, 2, -1, 0, {2e-5, 20.0})},
                      true),

@@ -1,6 +1,8 @@
 #include "stepcal/common/mechanisms.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/lie.hpp"
@@ -17,6 +19,8 @@ constexpr MechanismKind kAllKinds[] = {
 // The fixed point θ = θ₀ + Δθ(τ(θ)) contracts by ~C·m·g·r ≈ 1e-3 per pass; three passes leave
 // an error far below a nanoradian (METHOD.md eq. 24 uses two for compliance alone).
 constexpr int kFixedPointPasses = 3;
+
+constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
 
 bool usesJoint(MechanismKind kind) {
   return kind == MechanismKind::kBacklash || kind == MechanismKind::kTransmissionError ||
@@ -45,7 +49,97 @@ std::optional<MechanismKind> mechanismKindFromString(const std::string& name) {
   return std::nullopt;
 }
 
-std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof) {
+double coverageGate(const AngleCoverage& coverage, double q_rad, double* derivative) noexcept {
+  if (derivative) *derivative = 0.0;
+  const size_t arcs = coverage.arcs_rad.size() / 2;
+  if (arcs == 0) return 1.0;
+  double angle = std::fmod(q_rad, kTwoPi);
+  if (angle < 0.0) angle += kTwoPi;
+  double best = 0.0, best_slope = 0.0;
+  for (size_t a = 0; a < arcs; ++a) {
+    const double start = coverage.arcs_rad[2 * a], length = coverage.arcs_rad[2 * a + 1];
+    if (length >= kTwoPi) {  // the full turn: no edge
+      if (derivative) *derivative = 0.0;
+      return 1.0;
+    }
+    double u = angle - start;  // position inside the arc, [0, 2π)
+    if (u < 0.0) u += kTwoPi;
+    if (u > length) continue;
+    // Distance to the nearer edge, and its slope along q.
+    const bool near_start = u < length - u;
+    const double d = near_start ? u : length - u;
+    const double x = d / coverage.fade_rad;
+    if (x >= 1.0) {
+      if (derivative) *derivative = 0.0;
+      return 1.0;
+    }
+    const double g = x * x * (3.0 - 2.0 * x);
+    if (g > best) {
+      best = g;
+      best_slope = 6.0 * x * (1.0 - x) / coverage.fade_rad * (near_start ? 1.0 : -1.0);
+    }
+  }
+  if (derivative) *derivative = best_slope;
+  return best;
+}
+
+std::string coverageProblem(const AngleCoverage& coverage) {
+  const std::vector<double>& a = coverage.arcs_rad;
+  if (a.empty()) return {};
+  if (a.size() % 2 != 0 || a.size() / 2 > static_cast<size_t>(kMaxCoverageArcs)) {
+    return "coverage has " + std::to_string(a.size()) +
+           " numbers; expected pairs (start, length), at most " +
+           std::to_string(kMaxCoverageArcs) + " arcs";
+  }
+  if (!(std::isfinite(coverage.fade_rad) && coverage.fade_rad > 0.0)) {
+    return "coverage fade " + std::to_string(coverage.fade_rad) + " rad; expected > 0";
+  }
+  for (size_t i = 0; i < a.size(); i += 2) {
+    const double start = a[i], length = a[i + 1];
+    char line[200];
+    if (!(std::isfinite(start) && start >= 0.0 && start < kTwoPi && std::isfinite(length) &&
+          length > 0.0 && length <= kTwoPi)) {
+      std::snprintf(line, sizeof line,
+                    "coverage arc %zu (start %.9g rad, length %.9g rad); expected start in [0, "
+                    "2pi), length in (0, 2pi]",
+                    i / 2, start, length);
+      return line;
+    }
+    if (i > 0 && !(start >= a[i - 2] + a[i - 1])) {
+      std::snprintf(line, sizeof line,
+                    "coverage arc %zu starts at %.9g rad, inside the arc before it; expected arcs "
+                    "ordered by start, not overlapping",
+                    i / 2, start);
+      return line;
+    }
+  }
+  const size_t last = a.size() - 2;
+  if (a.size() > 2 && a[last] + a[last + 1] > a[0] + kTwoPi) {
+    return "the last coverage arc wraps over the first; expected arcs not overlapping";
+  }
+  return {};
+}
+
+double transmissionOffset(const Mechanism& m, double q_rad, double* derivative) noexcept {
+  // sin(kq), cos(kq) by the recurrence e^{i(k+1)q} = e^{ikq} e^{iq}: one sin/cos per profile.
+  const double s1 = std::sin(q_rad), c1 = std::cos(q_rad);
+  double s = s1, c = c1, value = 0.0, slope = 0.0;
+  for (int k = 1; k <= m.order; ++k) {
+    const double a = m.parameters[static_cast<size_t>(2 * (k - 1))];
+    const double b = m.parameters[static_cast<size_t>(2 * (k - 1) + 1)];
+    value += a * s + b * c;
+    slope += k * (a * c - b * s);
+    const double s_next = s * c1 + c * s1;
+    c = c * c1 - s * s1;
+    s = s_next;
+  }
+  double gate_slope = 0.0;
+  const double gate = coverageGate(m.coverage, q_rad, derivative ? &gate_slope : nullptr);
+  if (derivative) *derivative = gate * slope + gate_slope * value;
+  return gate * value;
+}
+
+std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof, int order) {
   switch (kind) {
     case MechanismKind::kBacklash: return {"lost_motion_rad", "smoothing_torque_nm"};
     case MechanismKind::kSelfWeight: {
@@ -59,7 +153,14 @@ std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof) {
       }
       return names;
     }
-    case MechanismKind::kTransmissionError: return {"sin_rad", "cos_rad"};
+    case MechanismKind::kTransmissionError: {
+      std::vector<std::string> names;
+      for (int k = 1; k <= order; ++k) {
+        names.push_back("h" + std::to_string(k) + "_sin_rad");
+        names.push_back("h" + std::to_string(k) + "_cos_rad");
+      }
+      return names;
+    }
     case MechanismKind::kNonlinearStiffness:
       return {"extra_compliance_rad_per_nm", "saturation_torque_nm"};
     case MechanismKind::kThermalExpansion: return {"expansion_per_k", "reference_temp_c"};
@@ -78,7 +179,12 @@ std::string mechanismProblem(const Mechanism& m, int dof) {
            "; expected 1 to 7 (mechanisms.hpp)";
   }
   const std::string what = toString(m.kind);
-  const size_t count = mechanismParameterNames(m.kind, dof).size();
+  if ((m.kind == MechanismKind::kTransmissionError) != (m.order >= 1) ||
+      m.order > kMaxHarmonics) {
+    return what + " order " + std::to_string(m.order) + "; expected 1 to " +
+           std::to_string(kMaxHarmonics) + " harmonics for transmission_error, else 0";
+  }
+  const size_t count = mechanismParameterNames(m.kind, dof, m.order).size();
   if (m.parameters.size() != count || m.sigma.size() != count) {
     return what + " has " + std::to_string(m.parameters.size()) + " parameters and " +
            std::to_string(m.sigma.size()) + " sigmas; expected " + std::to_string(count);
@@ -100,10 +206,11 @@ std::string mechanismProblem(const Mechanism& m, int dof) {
     return what + " source joint index " + std::to_string(m.source_joint) +
            "; expected a joint other than the moved one for joint_coupling, else -1";
   }
-  if ((m.kind == MechanismKind::kTransmissionError) != (m.harmonic >= 1) ||
-      m.harmonic > 64) {
-    return what + " harmonic " + std::to_string(m.harmonic) +
-           "; expected 1 to 64 for transmission_error, else 0";
+  if (m.kind != MechanismKind::kTransmissionError && !m.coverage.arcs_rad.empty()) {
+    return what + " has a joint-angle coverage; expected one only for transmission_error";
+  }
+  if (const std::string problem = coverageProblem(m.coverage); !problem.empty()) {
+    return what + " " + problem;
   }
   if ((m.kind == MechanismKind::kNonlinearStiffness || m.kind == MechanismKind::kBacklash) &&
       !(m.parameters[1] > 0.0)) {
@@ -120,8 +227,8 @@ std::string describe(const Mechanism& m) {
     case MechanismKind::kNonlinearStiffness:
       return s + " (joint " + std::to_string(m.joint + 1) + ")";
     case MechanismKind::kTransmissionError:
-      return s + " (joint " + std::to_string(m.joint + 1) + ", harmonic " +
-             std::to_string(m.harmonic) + ")";
+      return s + " (joint " + std::to_string(m.joint + 1) + ", " + std::to_string(m.order) +
+             (m.order == 1 ? " harmonic)" : " harmonics)");
     case MechanismKind::kJointCoupling:
       return s + " (joint " + std::to_string(m.source_joint + 1) + " -> joint " +
              std::to_string(m.joint + 1) + ")";
@@ -145,6 +252,17 @@ bool PhysicalModel::has(MechanismKind kind) const noexcept {
     if (m.kind == kind) return true;
   }
   return false;
+}
+
+uint32_t jointsOutsideCoverage(const PhysicalModel& model, const JointVector& q_rad) noexcept {
+  uint32_t outside = 0;
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kTransmissionError && m.joint < q_rad.size() &&
+        coverageGate(m.coverage, q_rad(m.joint)) < 1.0) {
+      outside |= 1u << m.joint;
+    }
+  }
+  return outside;
 }
 
 void selfWeightTorques(const KinematicChain& chain, const ChainWorkspace& ws,
@@ -185,8 +303,7 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
     if (m.kind == MechanismKind::kJointCoupling) {
       theta0(m.joint) += p(0) * q_rad(m.source_joint);
     } else if (m.kind == MechanismKind::kTransmissionError) {
-      const double angle = m.harmonic * q_rad(m.joint);
-      theta0(m.joint) += p(0) * std::sin(angle) + p(1) * std::cos(angle);
+      theta0(m.joint) += transmissionOffset(m, q_rad(m.joint));
     } else if (m.kind == MechanismKind::kSensorBias) {
       for (int i = 0; i < 6; ++i) wrench(i) -= p(static_cast<size_t>(i));
     } else if (m.kind == MechanismKind::kSelfWeight) {
@@ -198,7 +315,9 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
   JointVector tau_self;
   theta_rad = theta0;
   tau_nm.setZero(n);
-  for (int pass = 0; pass < kFixedPointPasses; ++pass) {
+  // Without a wrench or self weight every torque is zero and θ = θ₀: no passes.
+  const int passes = has_sensor || self_weight != nullptr ? kFixedPointPasses : 0;
+  for (int pass = 0; pass < passes; ++pass) {
     forwardKinematics(chain, theta_rad, ws, scale);
     spatialJacobian(chain, ws, J);
     tau_nm.setZero(n);

@@ -41,9 +41,11 @@ constexpr uint32_t kMaxValidationFigures = 1024;
 /// The runtime factors an m × m kernel at load (3.2 GB at this bound); more is not usable.
 constexpr uint32_t kMaxGprSamples = 20000;
 constexpr uint32_t kMaxGprDims = 64;
-/// The longest parameter layout of a mechanism: self_weight's 4 per link.
-constexpr uint32_t kMaxMechanismParameters = 4 * kMaxJoints;
-/// Bytes of a mechanism record before its parameters: kind, joint, source_joint, harmonic, p.
+/// The longest parameter layout of a mechanism: a transmission profile's 2 per harmonic (more
+/// than self_weight's 4 per link).
+constexpr uint32_t kMaxMechanismParameters = 2 * kMaxHarmonics;
+static_assert(kMaxMechanismParameters >= 4 * kMaxJoints, "self_weight must fit");
+/// Bytes of a mechanism record before its parameters: kind, joint, source_joint, order, p.
 constexpr size_t kMechanismHeaderBytes = 5 * 4;
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
@@ -602,13 +604,18 @@ void readMechanisms(Reader& in, CalibratedModel& model) {
     m.kind = static_cast<MechanismKind>(in.u32(field + ".kind"));
     m.joint = in.i32(field + ".joint");
     m.source_joint = in.i32(field + ".source_joint");
-    m.harmonic = in.i32(field + ".harmonic");
+    m.order = in.i32(field + ".order");
     const uint32_t p =
         in.count(field + ".parameter_count", 0, kMaxMechanismParameters, 2 * sizeof(double));
     m.parameters.resize(p);
     m.sigma.resize(p);
     in.f64s(m.parameters.data(), p, field + ".parameters");
     in.f64s(m.sigma.data(), p, field + ".sigma");
+    const uint32_t arcs = in.count(field + ".coverage.arc_count", 0, kMaxCoverageArcs,
+                                   2 * sizeof(double));
+    m.coverage.arcs_rad.resize(2 * size_t(arcs));
+    in.f64s(m.coverage.arcs_rad.data(), m.coverage.arcs_rad.size(), field + ".coverage.arcs_rad");
+    in.f64s(&m.coverage.fade_rad, 1, field + ".coverage.fade_rad");
     model.mechanisms.push_back(std::move(m));
     const std::string problem = mechanismInModelProblem(model, i);
     if (!problem.empty()) in.fail(at, field, problem);
@@ -733,8 +740,9 @@ CalibratedModel parseChecked(const uint8_t* data, size_t size, const std::string
     in.fail(8, "version",
             "model format version " + std::to_string(version) + ", this build reads " +
                 std::to_string(kModelFormatVersion) +
-                " (no reader of other versions); hint: re-run `stepcal calibrate` on the "
-                "campaign to write the model in this format");
+                " (no reader of other versions); hint: re-run `stepcal calibrate` (and "
+                "`stepcal diagnose --out` for an extended model) on the campaign to write the "
+                "model in this format");
   }
   const uint32_t flags = in.u32("flags");
   if (flags != 0) {
@@ -868,10 +876,13 @@ std::vector<uint8_t> serializeModel(const CalibratedModel& model) {
     out.u32(static_cast<uint32_t>(m.kind));
     out.i32(m.joint);
     out.i32(m.source_joint);
-    out.i32(m.harmonic);
+    out.i32(m.order);
     out.u32(uint32_t(m.parameters.size()));
     for (const double v : m.parameters) out.f64(v);
     for (const double v : m.sigma) out.f64(v);
+    out.u32(uint32_t(m.coverage.arcs_rad.size() / 2));
+    for (const double v : m.coverage.arcs_rad) out.f64(v);
+    out.f64(m.coverage.fade_rad);
   }
   out.endSection(at);
 

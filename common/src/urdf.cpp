@@ -67,21 +67,57 @@ bool isRevolute(const urdf::Joint& j) {
   return j.type == urdf::Joint::REVOLUTE || j.type == urdf::Joint::CONTINUOUS;
 }
 
-}  // namespace
-
-KinematicChain chainFromUrdf(const std::string& urdf_xml, const std::string& base_link,
-                             const std::string& tip_link,
-                             const std::vector<std::string>& attached_links,
-                             const std::string& source) {
+urdf::ModelInterfaceSharedPtr parseOrThrow(const std::string& urdf_xml, const std::string& source) {
   CapturingHandler handler;
   console_bridge::useOutputHandler(&handler);
-  const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(urdf_xml);
+  urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(urdf_xml);
   console_bridge::restorePreviousOutputHandler();
   if (!model) {
     throw InputError("not a valid URDF robot description: " +
                          (handler.messages.empty() ? std::string("parse failed") : handler.messages),
                      source);
   }
+  return model;
+}
+
+// Adds the inertials of link and every link hanging from it by fixed joints (X_BodyLink: the
+// link's pose in the body frame) to mass and first moment; true when any had an <inertial>.
+bool addRigidInertials(const urdf::ModelInterface& model, const urdf::Link& link,
+                       const Pose& X_BodyLink, double& mass, Vec3& first_moment,
+                       const std::string& source) {
+  bool found = false;
+  if (link.inertial) {
+    const double m = link.inertial->mass;
+    if (!(std::isfinite(m) && m >= 0.0)) {
+      throw InputError("link '" + link.name + "' has <mass value=\"" + std::to_string(m) +
+                           "\">; expected a finite mass >= 0 kg",
+                       source);
+    }
+    const Pose X_BodyCom = X_BodyLink * toPose(link.inertial->origin);
+    mass += link.inertial->mass;
+    first_moment += link.inertial->mass * X_BodyCom.translation();
+    found = true;
+  }
+  for (const urdf::JointSharedPtr& j : link.child_joints) {
+    if (j->type != urdf::Joint::FIXED) continue;
+    const urdf::LinkConstSharedPtr child = model.getLink(j->child_link_name);
+    if (child) {
+      found = addRigidInertials(model, *child,
+                                X_BodyLink * toPose(j->parent_to_joint_origin_transform), mass,
+                                first_moment, source) ||
+              found;
+    }
+  }
+  return found;
+}
+
+}  // namespace
+
+KinematicChain chainFromUrdf(const std::string& urdf_xml, const std::string& base_link,
+                             const std::string& tip_link,
+                             const std::vector<std::string>& attached_links,
+                             const std::string& source) {
+  const urdf::ModelInterfaceSharedPtr model = parseOrThrow(urdf_xml, source);
   if (!model->getLink(base_link)) {
     throw InputError("base_link '" + base_link + "' is not a link of the robot description",
                      source);
@@ -154,6 +190,32 @@ KinematicChain chainFromUrdf(const std::string& urdf_xml, const std::string& bas
     frames.push_back(f);
   }
   return KinematicChain(std::move(joints), std::move(initial), std::move(frames));
+}
+
+std::optional<std::vector<double>> bodyMassesFromUrdf(const std::string& urdf_xml,
+                                                      const std::string& base_link,
+                                                      const std::string& tip_link,
+                                                      const std::string& source) {
+  const KinematicChain chain = chainFromUrdf(urdf_xml, base_link, tip_link, {}, source);
+  const urdf::ModelInterfaceSharedPtr model = parseOrThrow(urdf_xml, source);
+  std::vector<double> parameters;
+  bool found = false;
+  for (const urdf::JointConstSharedPtr& j : pathFromBase(*model, base_link, tip_link, source,
+                                                         "tip_link")) {
+    if (j->type == urdf::Joint::FIXED) continue;
+    // Body k: joint k's child link (its frame is frame k) and what hangs from it rigidly.
+    double mass = 0.0;
+    Vec3 first_moment = Vec3::Zero();
+    found = addRigidInertials(*model, *model->getLink(j->child_link_name), Pose::Identity(), mass,
+                              first_moment, source) ||
+            found;
+    parameters.insert(parameters.end(), {mass, first_moment.x(), first_moment.y(),
+                                         first_moment.z()});
+  }
+  STEPCAL_INVARIANT(parameters.size() == 4 * static_cast<size_t>(chain.dof()),
+                    "one body per revolute joint");
+  if (!found) return std::nullopt;
+  return parameters;
 }
 
 std::string readTextFile(const std::string& path) {

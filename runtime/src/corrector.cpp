@@ -194,8 +194,9 @@ Vec6 unbiasedWrench(const PhysicalModel& model, const Vec6& wrench_Sensor) noexc
 }
 
 /// dθ₀/dq of the commanded-angle mechanisms (mechanisms.hpp): identity, plus c at (j, i) for a
-/// joint_coupling of joint j to joint i, plus k (a cos k q_j − b sin k q_j) at (j, j) for a
-/// transmission_error of joint j. Exact. True when it differs from the identity.
+/// joint_coupling of joint j to joint i, plus the gated profile's derivative at (j, j) for a
+/// transmission_error of joint j (transmissionOffset). Exact. True when it differs from the
+/// identity.
 bool commandedAngleDerivative(const PhysicalModel& model, const JointVector& q_rad,
                               JointMatrix& dtheta0_dq) noexcept {
   const int n = model.chain_Tracker.dof();
@@ -206,9 +207,9 @@ bool commandedAngleDerivative(const PhysicalModel& model, const JointVector& q_r
       dtheta0_dq(m.joint, m.source_joint) += m.parameters[0];
       changed = true;
     } else if (m.kind == MechanismKind::kTransmissionError) {
-      const double k = m.harmonic, angle = k * q_rad(m.joint);
-      dtheta0_dq(m.joint, m.joint) +=
-          k * (m.parameters[0] * std::cos(angle) - m.parameters[1] * std::sin(angle));
+      double slope = 0.0;
+      transmissionOffset(m, q_rad(m.joint), &slope);
+      dtheta0_dq(m.joint, m.joint) += slope;
       changed = true;
     }
   }
@@ -315,11 +316,15 @@ std::unique_ptr<const RuntimeModel> build(CalibratedModel file, uint64_t model_i
                      source);
   }
   const int frames = static_cast<int>(file.chain_Tracker.frames().size());
-  if (file.compliance_rad_per_nm.size() > 0 &&
+  // Compliance acts on the measured wrench's torques (a sensor frame) or on the arm's own weight.
+  bool self_weight = false;
+  for (const Mechanism& m : file.mechanisms) self_weight = self_weight || m.kind == MechanismKind::kSelfWeight;
+  if (file.compliance_rad_per_nm.size() > 0 && !self_weight &&
       (file.sensor_frame < 0 || file.sensor_frame >= frames)) {
     throw InputError("the model has joint compliance but its sensor frame " +
                          std::to_string(file.sensor_frame) + " is not one of its " +
-                         std::to_string(frames) + " attached frames",
+                         std::to_string(frames) +
+                         " attached frames, and no self_weight loads the joints",
                      source);
   }
   if (file.compliance_rad_per_nm.size() != 0 && file.compliance_rad_per_nm.size() != n) {
@@ -415,6 +420,7 @@ ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const Joi
   result.X_TrackerTip = correctedTip(model, ws, q_rad, wrench_Sensor, temp_c, true);
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
   result.status = outOfDomain(model, result.gpr_std) ? Status::kOutOfDomain : Status::kOk;
+  result.uncovered_joints = jointsOutsideCoverage(model.physical, q_rad);
   return result;
 }
 
@@ -474,6 +480,7 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
                                       : correctedTip(model, ws, q_best_rad, wrench_Sensor, temp_c,
                                                      true);
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
+  result.uncovered_joints = jointsOutsideCoverage(model.physical, q_best_rad);
   const Vec6 e = poseResidual(X_TrackerTip_desired, result.X_TrackerTip_predicted);
   result.residual_position_m = e.head<3>().norm();
   result.residual_orientation_rad = e.tail<3>().norm();

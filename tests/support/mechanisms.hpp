@@ -25,21 +25,24 @@ inline std::vector<double> selfWeightParameters() {
 }
 
 /// A mechanism whose 1-σ are 5 % of its parameters' magnitudes.
-inline Mechanism mechanism(MechanismKind kind, int joint, int source_joint, int harmonic,
-                           std::vector<double> parameters) {
+inline Mechanism mechanism(MechanismKind kind, int joint, int source_joint, int order,
+                           std::vector<double> parameters, AngleCoverage coverage = {}) {
   std::vector<double> sigma;
   for (const double p : parameters) sigma.push_back(0.05 * std::abs(p));
-  return {kind, joint, source_joint, harmonic, std::move(parameters), std::move(sigma)};
+  return {kind, joint, source_joint, order, std::move(parameters), std::move(sigma),
+          std::move(coverage)};
 }
 
 /// One mechanism of every kind for a six-joint arm, joints 0-based, in the catalogue's order:
-/// [0] backlash (joint 2), [1] self_weight, [2] transmission_error (joint 3, harmonic 2),
+/// [0] backlash (joint 2), [1] self_weight, [2] transmission_error (joint 3, harmonics 1 and 2,
+/// covering 57°–315°),
 /// [3] nonlinear_stiffness (joint 4), [4] thermal_expansion (T_ref 20 °C), [5] sensor_bias,
 /// [6] joint_coupling (joint 5 → joint 6).
 inline std::vector<Mechanism> mechanismOfEveryKind() {
   return {mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-4, 5.0}),
           mechanism(MechanismKind::kSelfWeight, -1, -1, 0, selfWeightParameters()),
-          mechanism(MechanismKind::kTransmissionError, 2, -1, 2, {3e-5, -1.5e-5}),
+          mechanism(MechanismKind::kTransmissionError, 2, -1, 2, {1e-5, 2e-5, 3e-5, -1.5e-5},
+                    {{1.0, 4.5}, 0.2}),
           mechanism(MechanismKind::kNonlinearStiffness, 3, -1, 0, {4e-6, 60.0}),
           mechanism(MechanismKind::kThermalExpansion, -1, -1, 0, {1.15e-5, 20.0}),
           mechanism(MechanismKind::kSensorBias, -1, -1, 0, {1.5, -0.8, 2.1, 0.03, -0.02, 0.01}),

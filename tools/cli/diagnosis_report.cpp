@@ -12,22 +12,66 @@ namespace {
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
 std::vector<std::string> parameterNames(const Mechanism& m) {
-  return mechanismParameterNames(m.kind, static_cast<int>(m.parameters.size() / 4));
+  // self_weight's layout has 4 entries per joint: the count gives the dof.
+  return mechanismParameterNames(m.kind, static_cast<int>(m.parameters.size() / 4), m.order);
 }
 
-nlohmann::json mechanismJson(const Mechanism& m) {
+// Harmonic k's amplitude √(a² + b²), rad.
+double amplitude(const Mechanism& m, int k) {
+  return std::hypot(m.parameters[static_cast<size_t>(2 * (k - 1))],
+                    m.parameters[static_cast<size_t>(2 * (k - 1) + 1)]);
+}
+
+// Harmonics by amplitude, largest first (1-based).
+std::vector<int> strongestHarmonics(const Mechanism& m, size_t count) {
+  std::vector<int> order(static_cast<size_t>(m.order));
+  for (int k = 1; k <= m.order; ++k) order[static_cast<size_t>(k - 1)] = k;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return amplitude(m, a) > amplitude(m, b); });
+  if (order.size() > count) order.resize(count);
+  return order;
+}
+
+nlohmann::json coverageJson(const AngleCoverage& c) {
+  nlohmann::json arcs = nlohmann::json::array();
+  for (size_t i = 0; i + 1 < c.arcs_rad.size(); i += 2) {
+    arcs.push_back({kRadToDeg * c.arcs_rad[i], kRadToDeg * (c.arcs_rad[i] + c.arcs_rad[i + 1])});
+  }
+  return arcs;
+}
+
+// share: per harmonic, the share a geometric error could produce (empty: not computed).
+nlohmann::json mechanismJson(const Mechanism& m, const std::vector<double>& share = {}) {
   nlohmann::json j;
   j["name"] = toString(m.kind);
   j["joint"] = m.joint >= 0 ? nlohmann::json(m.joint + 1) : nlohmann::json(nullptr);
   j["joints"] = m.source_joint >= 0 ? nlohmann::json::array({m.source_joint + 1, m.joint + 1})
                                     : nlohmann::json(nullptr);
-  j["harmonic"] = m.harmonic > 0 ? nlohmann::json(m.harmonic) : nlohmann::json(nullptr);
-  j["parameters"] = parametersJson(m, m.parameters);
+  j["order"] = m.order > 0 ? nlohmann::json(m.order) : nlohmann::json(nullptr);
+  if (m.kind != MechanismKind::kTransmissionError) {
+    j["parameters"] = parametersJson(m, m.parameters);
+    j["uncertainty"] = parametersJson(m, m.sigma);
+    return j;
+  }
+  j["harmonics"] = nlohmann::json::array();
+  for (int k = 1; k <= m.order; ++k) {
+    const size_t a = static_cast<size_t>(2 * (k - 1));
+    nlohmann::json h = {{"harmonic", k},
+                        {"sin_rad", m.parameters[a]},
+                        {"cos_rad", m.parameters[a + 1]},
+                        {"sin_sigma_rad", m.sigma[a]},
+                        {"cos_sigma_rad", m.sigma[a + 1]}};
+    if (static_cast<size_t>(k) <= share.size()) h["geometry_share"] = share[static_cast<size_t>(k - 1)];
+    j["harmonics"].push_back(h);
+  }
+  j["strongest_harmonics"] = strongestHarmonics(m, 3);
+  j["coverage_deg"] = coverageJson(m.coverage);
   return j;
 }
 
 // "name = value ± σ" for each parameter, skipping self_weight's links that carry nothing.
 std::string parameterText(const Mechanism& m) {
+  if (m.kind == MechanismKind::kTransmissionError) return transmissionSummary(m);
   const std::vector<std::string> names = parameterNames(m);
   std::string out;
   for (size_t i = 0; i < names.size(); ++i) {
@@ -55,6 +99,26 @@ std::string statisticsText(const char* title, const trainer::ResidualStatistics&
 }
 
 }  // namespace
+
+std::string transmissionSummary(const Mechanism& m) {
+  std::string out = "strongest";
+  const std::vector<int> top = strongestHarmonics(m, 3);
+  for (size_t i = 0; i < top.size(); ++i) {
+    out += format("%s h%d %.0f", i == 0 ? "" : ",", top[i], 1e6 * amplitude(m, top[i]));
+  }
+  return out + " urad; " + coverageText(m);
+}
+
+std::string coverageText(const Mechanism& m) {
+  std::string out = "covers";
+  if (m.coverage.arcs_rad.empty()) return out + " every angle";
+  for (size_t i = 0; i + 1 < m.coverage.arcs_rad.size(); i += 2) {
+    const double from = kRadToDeg * m.coverage.arcs_rad[i];
+    out += format("%s %.0f..%.0f", i == 0 ? "" : ",", from,
+                  from + kRadToDeg * m.coverage.arcs_rad[i + 1]);
+  }
+  return out + " deg";
+}
 
 nlohmann::json parametersJson(const Mechanism& mechanism, const std::vector<double>& values) {
   const std::vector<std::string> names = parameterNames(mechanism);
@@ -94,9 +158,29 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
   }
   out += format("\nVerdict: %s\n", toString(d.verdict));
   for (const trainer::FoundEffect& e : d.effects) {
-    out += format("  %s: %s (held-out gain %.4f mm, t %.1f)\n", describe(e.mechanism).c_str(),
-                  parameterText(e.mechanism).c_str(), e.cv_gain_mm, e.t_statistic);
+    out += format("  round %d, %s: ", e.round, describe(e.mechanism).c_str());
+    if (e.mechanism.kind == MechanismKind::kTransmissionError) {
+      out += format("RMS %.0f urad over the fit rows, ", 1e6 * e.rms_rad);
+    }
+    std::string parameters =
+        e.harmonics_separable ? parameterText(e.mechanism)
+                              : "harmonics not separable on its angles; " + coverageText(e.mechanism);
+    if (!e.compliance_joints.empty()) {  // self weight with the URDF's masses
+      parameters = "link masses from the URDF (kg:";
+      for (size_t k = 0; k < e.mechanism.parameters.size(); k += 4) {
+        parameters += format(" %.3g", e.mechanism.parameters[k]);
+      }
+      parameters += ")";
+    }
+    out += format("%s (held-out gain %.4f mm, t %.1f)\n", parameters.c_str(), e.cv_gain_mm,
+                  e.t_statistic);
+    const JointVector& c = d.extended_model.compliance_rad_per_nm;
+    for (int j : e.compliance_joints) {
+      out += format("    joint %d compliance %.3g rad/(N·m) ± %.2g, from the arm's own weight\n",
+                    j + 1, c(j), d.extended_model.compliance_sigma_rad_per_nm(j));
+    }
   }
+  for (const std::string& line : d.identifiability) out += "  identifiability: " + line + "\n";
   if (!d.unexplained_trend.empty()) {
     out += "  " + std::string(d.verdict == trainer::Verdict::kUnexplained
                                   ? "unexplained structure: "
@@ -136,8 +220,23 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
   j["verdict"] = toString(d.verdict);
   j["effects"] = nlohmann::json::array();
   for (const trainer::FoundEffect& e : d.effects) {
-    nlohmann::json x = mechanismJson(e.mechanism);
-    x["uncertainty"] = parametersJson(e.mechanism, e.mechanism.sigma);
+    nlohmann::json x = mechanismJson(e.mechanism, e.geometry_share);
+    if (e.mechanism.kind == MechanismKind::kTransmissionError) {
+      x["rms_urad"] = 1e6 * e.rms_rad;
+      x["ridge"] = e.ridge;
+      x["harmonics_separable"] = e.harmonics_separable;
+    }
+    if (!e.compliance_joints.empty()) {
+      x["compliance"] = nlohmann::json::array();
+      for (int j : e.compliance_joints) {
+        x["compliance"].push_back(
+            {{"joint", j + 1},
+             {"compliance_rad_per_nm", d.extended_model.compliance_rad_per_nm(j)},
+             {"sigma_rad_per_nm", d.extended_model.compliance_sigma_rad_per_nm(j)}});
+      }
+    }
+    x["alternatives"] = nlohmann::json::array();
+    for (const Mechanism& m : e.alternatives) x["alternatives"].push_back(describe(m));
     x["cv_gain_mm"] = e.cv_gain_mm;
     x["t_statistic"] = e.t_statistic;
     x["p_value"] = e.p_value;
@@ -148,6 +247,8 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
   for (const trainer::CandidateScore& c : d.candidates) {
     nlohmann::json x = mechanismJson(c.mechanism);
     x["round"] = c.round;
+    x["configurations"] = c.configurations;
+    if (c.mechanism.kind == MechanismKind::kTransmissionError) x["ridge"] = c.ridge;
     x["cv_gain_mm"] = c.cv_gain_mm;
     x["relative_reduction"] = c.relative_reduction;
     x["t_statistic"] = c.t_statistic;
@@ -158,6 +259,7 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
   }
   j["untestable"] = nlohmann::json::array();
   for (const auto& u : d.untestable) j["untestable"].push_back({{"name", u.name}, {"reason", u.reason}});
+  j["identifiability"] = d.identifiability;
   j["unexplained_trend"] =
       d.unexplained_trend.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.unexplained_trend);
   auto stats = [](const trainer::ResidualStatistics& s) {

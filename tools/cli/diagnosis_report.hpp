@@ -14,13 +14,25 @@ namespace stepcal::cli {
 std::string formatDiagnosis(const trainer::Diagnosis& diagnosis, double seconds_calibrate);
 
 /// The diagnosis as JSON: `verdict` ("found", "none", "unexplained"), `effects` → [{name, joint,
-/// joints, harmonic, parameters, uncertainty, cv_gain_mm, t_statistic, p_value}] in the order
-/// found (joints 1-based), `candidates` → every candidate tried with its score, `untestable`,
+/// joints, order, parameters, uncertainty, cv_gain_mm, t_statistic, p_value, round}] in the order
+/// found (joints 1-based). A transmission_error (a profile) has instead of parameters `harmonics`
+/// → [{harmonic, sin_rad, cos_rad, sin_sigma_rad, cos_sigma_rad, geometry_share}] (link angle +=
+/// sin_rad·sin(k q) + cos_rad·cos(k q), q the recorded joint angle, inside its coverage),
+/// `coverage_deg` → [[from, to]], `rms_urad` and `strongest_harmonics`; a self_weight whose masses
+/// come from the URDF has `compliance` → [{joint, compliance_rad_per_nm, sigma_rad_per_nm}].
+/// Then `candidates` → every family tried with its score, `untestable`, `identifiability`,
 /// `unexplained_trend`, `residual` {before, after}, `gain` → [{load_kg, rows,
 /// before_mean_position_mm, after_mean_position_mm, gpr_mean_position_mm, …}], `timing_s`.
 nlohmann::json diagnosisJson(const trainer::Diagnosis& diagnosis, double seconds_calibrate);
 
 /// A mechanism's parameters as a JSON object keyed by their names (SI, units in the names).
 nlohmann::json parametersJson(const Mechanism& mechanism, const std::vector<double>& values);
+
+/// A transmission profile in one line: its strongest harmonics (amplitude √(a² + b²), µrad) and
+/// the joint angles it covers (deg), e.g. "strongest h8 212, h2 95, h7 60 urad; covers 52..180 deg".
+std::string transmissionSummary(const Mechanism& profile);
+
+/// The joint angles a profile covers, deg, e.g. "covers 52..180 deg".
+std::string coverageText(const Mechanism& profile);
 
 }  // namespace stepcal::cli

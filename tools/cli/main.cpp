@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <optional>
 
 #include <chrono>
 
@@ -17,6 +18,7 @@
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/importers/ipa.hpp"
 #include "stepcal/trainer/diagnose.hpp"
+#include "stepcal/trainer/validate.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
 
@@ -90,12 +92,12 @@ void runCalibrate(const std::string& dir, const std::string& model_out,
   }
 }
 
-// Accuracy of every layer of a model file (chain, + compliance, + GPR) on a campaign's rows.
-// With refit_frames, the tracker and tool frames are fitted again on the campaign's rows
-// (12 parameters; the joint frames stay the model's): for a campaign measured with the
-// tracker or the target moved.
+// Accuracy of every layer of a model file (chain, + compliance and mechanisms, + GPR) on a
+// campaign's rows, all of them and those every transmission profile covers. With refit_frames,
+// the tracker and tool frames are fitted again on the campaign's rows by each layer's model
+// (validate.hpp): for a campaign measured with the tracker or the target moved.
 void runValidate(const std::string& model_path, const std::string& dir, bool refit_frames,
-                 bool json) {
+                 const std::string& covered_by, bool json) {
   const CalibratedModel model = readModelFile(model_path);
   const Campaign campaign = readCampaign(dir);
   if (campaign.joint_count != model.chain_Tracker.dof()) {
@@ -103,29 +105,19 @@ void runValidate(const std::string& model_path, const std::string& dir, bool ref
                          " joints, the model " + std::to_string(model.chain_Tracker.dof()),
                      dir);
   }
-  CalibratedModel evaluated = model;
-  if (refit_frames) {
-    trainer::GeometricOptions frames_only;
-    frames_only.scope = trainer::GeometricScope::kFramesOnly;
-    std::vector<const Measurement*> rows;
-    for (const Measurement& m : campaign.rows) rows.push_back(&m);
-    const trainer::GeometricResult refit = trainer::calibrateGeometry(
-        model.chain_Tracker.rerooted(model.X_TrackerBase.inverse()), rows, campaign.tracker,
-        frames_only);
-    evaluated.chain_Tracker = refit.chain_Tracker;
-    evaluated.X_TrackerBase = refit.X_TrackerBase;
-  }
-  std::vector<trainer::AccuracySummary> summaries;
-  for (const auto& [layer, predictor] : trainer::modelLayers(evaluated)) {
-    const auto more = trainer::summarize(refit_frames ? layer + " (frames refit)" : layer,
-                                         predictor, campaign.rows);
-    summaries.insert(summaries.end(), more.begin(), more.end());
-  }
+  std::optional<CalibratedModel> covering;
+  if (!covered_by.empty()) covering = readModelFile(covered_by);
+  const trainer::ValidationResult v =
+      trainer::validateModel(model, campaign, refit_frames, covering ? &*covering : nullptr);
+  std::vector<trainer::AccuracySummary> summaries = v.all;
+  summaries.insert(summaries.end(), v.covered.begin(), v.covered.end());
   if (json) {
     std::cout << cli::accuracyJson(summaries).dump(2) << "\n";
   } else {
     std::cout << "model " << model_path << " (campaign " << model.provenance.campaign_path
-              << ") on " << dir << "\n" << cli::formatAccuracyTable(summaries);
+              << ") on " << dir << ": " << v.rows << " rows, " << v.covered_rows
+              << " inside every transmission profile's coverage\n"
+              << cli::formatAccuracyTable(summaries);
   }
 }
 
@@ -213,6 +205,10 @@ int main(int argc, char** argv) {
   bool refit_frames = false;
   validate->add_flag("--refit-frames", refit_frames,
                      "fit the tracker and tool frames again on this campaign (joint frames kept)");
+  std::string covered_by;
+  validate->add_option("--rows-covered-by", covered_by,
+                       "count as covered the rows this other model's profiles cover (to compare "
+                       "two models on the same rows)");
 
   std::string inspect_model;
   CLI::App* inspect = app.add_subcommand("inspect", "print what a model file holds");
@@ -255,7 +251,7 @@ int main(int argc, char** argv) {
     } else if (*diagnose_cmd) {
       runDiagnose(diagnose_dir, diagnose_model, diagnose_out, diagnose_report, diagnose_json);
     } else if (*validate) {
-      runValidate(validate_model, validate_dir, refit_frames, validate_json);
+      runValidate(validate_model, validate_dir, refit_frames, covered_by, validate_json);
     } else if (*demo) {
       SimulateArgs paper;
       paper.seed = demo_seed;

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "stepcal/common/lie.hpp"
+#include "diagnosis_report.hpp"
 #include "text_format.hpp"
 
 namespace stepcal::cli {
@@ -171,8 +172,12 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
     out << "mechanisms: none (stepcal diagnose adds them)\n";
   }
   for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kTransmissionError) {
+      out << "mechanism " << describe(m) << ": " << transmissionSummary(m) << "\n";
+      continue;
+    }
     const std::vector<std::string> names =
-        mechanismParameterNames(m.kind, model.chain_Tracker.dof());
+        mechanismParameterNames(m.kind, model.chain_Tracker.dof(), m.order);
     out << "mechanism " << describe(m) << ":";
     for (size_t i = 0; i < names.size(); ++i) {
       if (m.kind == MechanismKind::kSelfWeight && m.parameters[i] == 0.0) continue;

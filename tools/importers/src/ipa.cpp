@@ -58,6 +58,8 @@ constexpr std::array<const char*, 7> kIgnoredColumns = {
     "Timestamp", "Goal x", "Goal y", "Goal z", "Goal roll", "Goal pitch", "Goal yaw"};
 
 constexpr const char* kTrafoFile = "Trafo_TM_F_init.txt";
+/// Standard gravity, m/s².
+constexpr double kStandardGravity = 9.80665;
 /// Stated 1-σ noise of the Leica laser tracker with T-Mac (manufacturer's specification).
 constexpr double kTrackerPositionSigma_m = 0.015e-3;
 constexpr double kTrackerOrientationSigma_rad = 0.01 * M_PI / 180.0;
@@ -294,6 +296,9 @@ Campaign importIpaSeries(const std::string& series_csv, int validation_from_row,
   c.tracker.position_sigma_m = kTrackerPositionSigma_m;
   c.tracker.orientation_sigma_rad = kTrackerOrientationSigma_rad;
   c.tracker.stated = true;
+  // The UR10 stood upright: the registered base z axis is vertical in the (levelled) tracker's
+  // frame to 0.12° on Series C (tests/test_ipa_import.cpp), so gravity is −z of the base.
+  c.gravity_in_base = Vec3(0.0, 0.0, -kStandardGravity);
   c.joint_count = static_cast<int>(kJointColumns.size());
 
   const std::vector<std::string_view> lines = splitLines(text);

@@ -4,12 +4,14 @@
 //
 // One pose of the physical model at commanded angles q [rad], a measured wrench W_meas and a
 // temperature T, in this order:
-//   θ₀ = q + Σ_coupling c q_i e_j + Σ_transmission (a sin k q_j + b cos k q_j) e_j
+//   θ₀ = q + Σ_coupling c q_i e_j + Σ_transmission g_j(q_j) Σ_k (a_k sin k q_j + b_k cos k q_j) e_j
 //   W  = W_meas − b_sensor                                   (sensor_bias)
 //   τ  = J_s(θ)ᵀ W_root(θ) + τ_self(θ)                       (self_weight: link gravity torques)
 //   θ  = θ₀ + C τ + Σ_backlash b tanh(τ_j / τ_b) e_j
 //               + Σ_nonlinear c τ_j τ₀ / (τ₀ + |τ_j|) e_j     (the fixed point, three passes)
 //   X_TrackerTip = FK(θ) with the links' lengths × (1 + α (T − T_ref))   (thermal_expansion)
+// g_j is the transmission profile's coverage gate: 1 on the joint angles it was fitted on, fading
+// smoothly to 0 outside them, so a profile never extrapolates (AngleCoverage).
 // Joints are 0-based here and 1-based in names, reports and JSON.
 #pragma once
 
@@ -26,7 +28,7 @@ namespace stepcal {
 enum class MechanismKind : uint32_t {
   kBacklash = 1,            ///< joint j: lost motion b, taken up in the direction of τ_j
   kSelfWeight = 2,          ///< every link: lumped mass and first moment; C acts on their gravity
-  kTransmissionError = 3,   ///< joint j, harmonic k: a sin(k q_j) + b cos(k q_j)
+  kTransmissionError = 3,   ///< joint j: Σ_k a_k sin(k q_j) + b_k cos(k q_j), k = 1 … order
   kNonlinearStiffness = 4,  ///< joint j: extra compliance c at small torque, fading above τ₀
   kThermalExpansion = 5,    ///< link lengths × (1 + α (T − T_ref))
   kSensorBias = 6,          ///< a constant offset of the F/T reading
@@ -38,35 +40,69 @@ const char* toString(MechanismKind kind) noexcept;
 /// Kind of a snake-case name; nullopt when it names none.
 std::optional<MechanismKind> mechanismKindFromString(const std::string& name);
 
+/// Highest harmonic of a transmission profile.
+inline constexpr int kMaxHarmonics = 64;
+/// Most arcs in one coverage.
+inline constexpr int kMaxCoverageArcs = 32;
+
+/// The joint angles a 2π-periodic term was fitted on, as arcs of the circle, and the gate that
+/// switches the term off smoothly outside them: g(q) = 1 deeper than fade_rad inside an arc,
+/// smoothstep(d / fade_rad) at a distance d < fade_rad from its nearest edge, 0 outside every arc.
+/// The gate is C¹ in q, so a corrected trajectory has no step where it leaves the coverage.
+struct AngleCoverage {
+  /// Pairs (start, length) in rad: start ∈ [0, 2π), 0 < length ≤ 2π, ordered by start, not
+  /// overlapping. Empty = no gate (the term applies at every angle). length = 2π: the full turn.
+  std::vector<double> arcs_rad;
+  double fade_rad = 0.0;  ///< width of the ramp inside each edge, rad (> 0 when arcs are given)
+};
+
+/// Gate value g(q) ∈ [0, 1] of a coverage at angle q_rad, and dg/dq (1/rad) when derivative is
+/// given. Allocation-free.
+double coverageGate(const AngleCoverage& coverage, double q_rad,
+                    double* derivative = nullptr) noexcept;
+
+/// Empty when the coverage is well formed (see AngleCoverage); else what is wrong.
+std::string coverageProblem(const AngleCoverage& coverage);
+
 /// One identified mechanism with its parameters (SI) and their 1-σ.
 struct Mechanism {
   MechanismKind kind = MechanismKind::kBacklash;
   int joint = -1;         ///< joint it moves (0-based): backlash, transmission, nonlinear, coupling
   int source_joint = -1;  ///< joint_coupling: the joint whose commanded angle drives it
-  int harmonic = 0;       ///< transmission_error: k ≥ 1
+  int order = 0;          ///< transmission_error: harmonics 1 … order (1 ≤ order ≤ kMaxHarmonics)
   /// Layout per kind (mechanismParameterNames):
   ///   backlash            [b rad, τ_b N·m]: b tanh(τ_j/τ_b), a sign smoothed over ±τ_b (with
   ///                       no load the joint sits mid-play; τ_b is set from the loads, not fitted)
   ///   self_weight         per link k = 1..n: [m_k kg, h_k kg·m (3)], h_k = m_k · centre of mass
   ///                       in frame k (the frame after joint k's motion)
-  ///   transmission_error  [a rad, b rad]
+  ///   transmission_error  [a_1 rad, b_1 rad, …, a_order rad, b_order rad]: the link angle moves
+  ///                       by g(q_j) Σ_k a_k sin(k q_j) + b_k cos(k q_j), q_j the commanded angle
   ///   nonlinear_stiffness [c rad/(N·m), τ₀ N·m]
   ///   thermal_expansion   [α 1/K, T_ref °C]
   ///   sensor_bias         [f N (3), m N·m (3)], sensor_link axes
   ///   joint_coupling      [c rad/rad]
   std::vector<double> parameters;
   std::vector<double> sigma;  ///< 1-σ of each parameter, same size (0 = not estimated)
+  /// transmission_error: the angles of its joint it was fitted on (empty: everywhere); other
+  /// kinds: empty.
+  AngleCoverage coverage;
 };
 
-/// Names of a kind's parameters, units in the names, for an n-joint chain.
-std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof);
+/// Names of a kind's parameters, units in the names, for an n-joint chain (order: a
+/// transmission_error's harmonics, else unused).
+std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof, int order = 0);
 
 /// Empty when the mechanism is well formed for an n-joint chain; else what is wrong and what
 /// was expected (joint ranges, parameter count, finite values, τ₀ > 0, harmonic ≥ 1, …).
 std::string mechanismProblem(const Mechanism& mechanism, int dof);
 
-/// Short human name, e.g. "backlash (joint 2)", "transmission_error (joint 3, harmonic 2)".
+/// Short human name, e.g. "backlash (joint 2)", "transmission_error (joint 3, 24 harmonics)".
 std::string describe(const Mechanism& mechanism);
+
+/// Link-angle offset of a transmission_error at commanded angle q_rad, gate included, rad, and
+/// its derivative d/dq when derivative is given. Allocation-free (harmonics by recurrence).
+double transmissionOffset(const Mechanism& transmission, double q_rad,
+                          double* derivative = nullptr) noexcept;
 
 /// The calibrated physical model: geometry, compliance and mechanisms (no GPR).
 struct PhysicalModel {
@@ -89,6 +125,11 @@ struct PhysicalModel {
 bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
                         const Vec6& wrench_Sensor, double temp_c, ChainWorkspace& ws,
                         JointVector& theta_rad, JointVector& tau_nm) noexcept;
+
+/// Joints whose commanded angle lies (partly, within the fade) outside the coverage of their
+/// transmission profile: bit j set for joint j (0-based). There the profile's correction is
+/// faded out and the model is the rest of the physical model. Allocation-free.
+uint32_t jointsOutsideCoverage(const PhysicalModel& model, const JointVector& q_rad) noexcept;
 
 /// Gravity torques of the lumped link masses of a self_weight mechanism at the pose in ws,
 /// N·m (n entries). Allocation-free.

@@ -1,7 +1,7 @@
 // The calibrated model file: everything the runtime needs to correct poses (METHOD.md eq. 32,
 // T_C2 = T_C(q) · T_STIF(q, F) · T_GPR(q, F)), written once by the offline trainer.
 //
-// Layout (format version 2). Integers and doubles are little-endian, doubles IEEE-754 binary64:
+// Layout (format version 3). Integers and doubles are little-endian, doubles IEEE-754 binary64:
 //
 //   header   24 B  magic "STEPCAL\0", u32 format version, u32 flags (0), u64 file size in bytes
 //   sections       each u32 tag (FourCC), u32 reserved (0), u64 payload length, payload;
@@ -11,9 +11,10 @@
 //     "NOMI"  the nominal chain, encoded as CHAN; same n and joint names as CHAN
 //     "REGI"  pose X_TrackerBase; f64 gravity_Base[3]; i32 sensor_frame
 //     "COMP"  u32 c (0 or n); f64 compliance_rad_per_nm[c]; f64 compliance_sigma_rad_per_nm[c]
-//     "MECH"  u32 k (≤ 64); k × {u32 kind, i32 joint, i32 source_joint, i32 harmonic, u32 p,
-//             f64 parameters[p], f64 sigma[p]} (mechanisms.hpp: kinds, joints 0-based, −1 = none,
-//             parameter layouts); each passes mechanismProblem; at most one self_weight,
+//     "MECH"  u32 k (≤ 64); k × {u32 kind, i32 joint, i32 source_joint, i32 order, u32 p,
+//             f64 parameters[p], f64 sigma[p], u32 a (≤ 32), f64 coverage arcs (start, length)
+//             [2a], f64 coverage fade} (mechanisms.hpp: kinds, joints 0-based, −1 = none,
+//             parameter layouts, AngleCoverage); each passes mechanismProblem; at most one self_weight,
 //             sensor_bias and thermal_expansion; sensor_bias needs a sensor frame (REGI),
 //             self_weight a nonzero gravity (REGI)
 //     "GPR "  u32 m, D, P (all 0 = no residual step); f64 input_offset[D], input_scale[D],
@@ -28,8 +29,9 @@
 // Every double is finite, except that a continuous joint's limits are −inf … inf.
 // The GPR's Cholesky factor is not stored: the runtime refactors K + σ_n² I from the inputs and
 // hyperparameters at load, and the loader checks α against the stored targets instead.
-// Version 1 (no MECH) is refused with a hint to re-run `stepcal calibrate`; there is no reader
-// of old versions.
+// Versions 1 (no MECH) and 2 (transmission errors as single harmonics, no coverage) are refused
+// with a hint to re-run `stepcal calibrate` / `stepcal diagnose`; there is no reader of old
+// versions.
 #pragma once
 
 #include <cstddef>
@@ -45,7 +47,7 @@
 namespace stepcal {
 
 /// Model file format version this build writes and reads.
-inline constexpr uint32_t kModelFormatVersion = 2;
+inline constexpr uint32_t kModelFormatVersion = 3;
 /// Largest number of mechanisms a model file holds.
 inline constexpr uint32_t kMaxMechanisms = 64;
 

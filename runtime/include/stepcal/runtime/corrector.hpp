@@ -102,6 +102,9 @@ struct ForwardResult {
   Pose X_TrackerTip = Pose::Identity();  ///< corrected pose, T_C2 (METHOD.md eq. 32), m
   Vec6 gpr_std = Vec6::Zero();           ///< predictive 1-σ of the residual twist (v [m], ω [rad])
   ///< (gpr_std is an upper bound on the exact predictive std: GprPredictor::predictMeanAndBoundInto)
+  /// Bit j: joint j's angle lies outside the angles its transmission profile was fitted on, so
+  /// the profile is faded out there (jointsOutsideCoverage); the status is unaffected.
+  uint32_t uncovered_joints = 0;
 };
 
 /// Pose the robot reaches at commanded joints q [rad] under the measured wrench_Sensor [N, N·m]
@@ -136,6 +139,7 @@ struct InverseResult {
   int iterations = 0;                            ///< Newton steps taken
   double residual_position_m = 0.0;              ///< ‖p_desired − p_predicted‖ at q_target, m
   double residual_orientation_rad = 0.0;         ///< angle between the two rotations, rad
+  uint32_t uncovered_joints = 0;                 ///< at q_target, as ForwardResult::uncovered_joints
 };
 
 /// Joint targets that make the real robot (the full corrected model, as correctForward) reach

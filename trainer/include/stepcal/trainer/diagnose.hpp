@@ -1,17 +1,23 @@
 // Diagnosis: what the physical model (geometry + compliance) gets wrong, which catalogued
 // mechanism (mechanisms.hpp) explains it, and how much the extended model gains.
 //
-// 1. The physical model is refitted jointly on every fit row (geometry δ, compliances, the
-//    mechanisms found so far; Gauss–Newton, truncated SVD). Its residual is compared with the
-//    tracker noise and tested for trends in q_j, τ_j, load, temperature and seq.
-// 2. Every candidate (each mechanism on each joint, each harmonic, each coupling) is added to the
-//    linearised model and judged by cross-validation over poses (folds by pose_id): the held-out
-//    squared error per pose, noise-weighted, with and without it. A one-sided t-test on the
-//    per-pose reductions, Bonferroni-corrected over the round's candidates, keeps chance from
-//    naming a cause. The most significant is added and everything refitted; repeat.
-// 3. Verdict: found (the causes with parameters and 1-σ), none (nothing significant and the
-//    residual at the noise level), unexplained (significant structure no mechanism explains).
-// 4. The extended model (with a GPR refitted on its residual) and its gain on validation rows.
+// The model is built in two stages (trainer/src/diagnose/model.hpp): a global physical model
+// (geometry δ, compliances, every mechanism that holds at any pose: self weight, backlash,
+// nonlinear stiffness, coupling, thermal expansion, sensor bias), and on what it leaves, one
+// transmission profile per joint (a Fourier series in the joint angle, ridge-regularised, gated
+// to the joint angles it was fitted on). Each round:
+// 1. The residual is compared with the tracker noise and tested for trends in q_j, τ_j, load,
+//    temperature and seq.
+// 2. Every family not in the model yet (a global mechanism with its parameters; a joint's
+//    profile at every order and ridge of a grid) is added to the linearised two-stage model and
+//    judged by cross-validation over poses (folds by pose_id). A one-sided t-test on the per-pose
+//    reduction of the held-out squared error, Bonferroni-corrected over every configuration
+//    tried in the round, keeps chance from naming a cause; a cause must also remove ≥ 1 %.
+// 3. The best family is added (unless a simpler one is not significantly worse) and the model
+//    refitted: the global part jointly, then every profile on what it leaves. Repeat until
+//    nothing significant is left.
+// Then: the verdict (found, none, unexplained), the identifiable combinations, the extended model
+// (with a GPR refitted on its residual) and its gain on validation rows.
 #pragma once
 
 #include <optional>
@@ -27,14 +33,23 @@ namespace stepcal::trainer {
 
 struct DiagnoseOptions {
   int folds = 5;                ///< cross-validation folds over poses
-  int max_harmonic = 8;         ///< transmission_error candidates k = 1 … max_harmonic
-  int max_mechanisms = 4;       ///< rounds of "add the best, refit"
-  double family_alpha = 0.01;   ///< false-positive rate per round, all candidates together
+  /// Orders a transmission profile is tried at (harmonics 1 … order); the largest bounds it.
+  std::vector<int> profile_orders = {1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48};
+  /// Ridges a profile is tried with, relative to the mean diagonal of its Gram block (λ = ρ ·
+  /// mean ‖column‖²): the prior that keeps harmonics the data cannot tell apart near zero.
+  std::vector<double> profile_ridges = {1e-6, 1e-4, 1e-2};
+  /// A profile covers the arcs of its joint's fitted angles without gaps wider than this, deg
+  /// (at least twice the fade).
+  double coverage_gap_deg = 10.0;
+  /// Beyond the outermost fitted angles of each arc, the profile fades out over this width, deg.
+  double coverage_fade_deg = 5.0;
+  int max_rounds = 12;          ///< rounds of "add the best family, refit"
+  double family_alpha = 0.01;   ///< false-positive rate per round, all configurations together
   /// A cause must also remove at least this fraction of the held-out noise-weighted squared
   /// error: significant in practice, not only statistically (tiny, consistent misfits of the
   /// model otherwise accumulate as spurious causes).
   double min_relative_reduction = 0.01;
-  int refit_iterations = 12;    ///< Gauss–Newton iterations of a joint refit
+  int refit_iterations = 12;    ///< Gauss–Newton iterations of a global refit
   /// A residual this many times the stated tracker noise (RMS of noise-weighted entries) counts
   /// as unexplained even when it follows no tested variable.
   double noise_ratio_limit = 1.3;
@@ -45,15 +60,21 @@ enum class Verdict { kFound, kNone, kUnexplained };
 /// "found", "none" or "unexplained".
 const char* toString(Verdict verdict) noexcept;
 
-/// One candidate of one round, scored on held-out poses.
+/// One family of one round, at its best configuration, scored on held-out poses.
 struct CandidateScore {
-  Mechanism mechanism;       ///< parameters fitted on all fit rows (linearised), SI
+  /// Parameters fitted on all fit rows (linearised), SI; a profile at its best order.
+  Mechanism mechanism;
   int round = 1;
+  double ridge = 0.0;        ///< a profile's relative ridge ρ (DiagnoseOptions::profile_ridges)
+  int configurations = 1;    ///< configurations tried for it (orders × ridges for a profile)
   double cv_gain_mm = 0.0;   ///< held-out mean position error without minus with it, mm
   double relative_reduction = 0.0;  ///< fraction of the held-out squared error it removes
   double t_statistic = 0.0;  ///< of the per-pose reduction of the noise-weighted squared error
   double p_value = 1.0;      ///< one-sided, normal approximation
-  bool significant = false;  ///< p < family_alpha / (candidates in the round), enough removed
+  /// Its fitted parameters have the sign its physics needs (lost motion, extra compliance ≥ 0);
+  /// a candidate that explains the residual only with the wrong sign is not that mechanism.
+  bool physical = true;
+  bool significant = false;  ///< physical, p < family_alpha / (configurations in the round), enough removed
   bool chosen = false;
 };
 
@@ -65,9 +86,24 @@ struct UntestableCandidate {
 
 /// A named cause, in the order found.
 struct FoundEffect {
-  Mechanism mechanism;  ///< parameters and 1-σ from the final joint refit
+  Mechanism mechanism;  ///< parameters and 1-σ from the final refit
   int round = 1;
   double cv_gain_mm = 0.0, t_statistic = 0.0, p_value = 1.0;
+  /// transmission_error: RMS over the fit rows of the link-angle offset (gate included), rad;
+  /// its relative ridge; per harmonic the share of its effect a geometric error could produce.
+  double rms_rad = 0.0;
+  double ridge = 0.0;
+  std::vector<double> geometry_share;
+  /// transmission_error: whether its single harmonics mean something on the arc it covers. Not
+  /// when the largest harmonic's amplitude exceeds 3× the profile's RMS: the harmonics then
+  /// cancel each other over the arc (too narrow to tell them apart) and only the profile's
+  /// values there are determined.
+  bool harmonics_separable = true;
+  /// self_weight: joints whose compliance the arm's own weight identifies (0-based).
+  std::vector<int> compliance_joints;
+  /// Other significant families of its round that explained the held-out poses as well as it
+  /// did (per-pose errors, paired |t| < 2): the data cannot tell them from it.
+  std::vector<Mechanism> alternatives;
 };
 
 /// A cross-validated trend of the residual in one variable (cubic in the variable).
@@ -100,8 +136,10 @@ struct Diagnosis {
   std::vector<FoundEffect> effects;
   std::vector<CandidateScore> candidates;  ///< every round's, in order
   std::vector<UntestableCandidate> untestable;
-  ResidualStatistics before, after;        ///< of the joint refit without / with the effects
-  std::string unexplained_trend;           ///< verdict unexplained: what the residual follows
+  /// What the data can and cannot tell apart (confounded harmonics, self weight's combinations).
+  std::vector<std::string> identifiability;
+  ResidualStatistics before, after;        ///< of the model without / with the effects
+  std::string unexplained_trend;           ///< what the residual still follows, if anything
   std::vector<GainRow> gain;               ///< per validation load
   std::string gpr_method;                  ///< the GPR reference, e.g. "poe+stiffness+gpr"
   double floor_position_m = 0.0;           ///< mean error the tracker noise alone gives
@@ -115,8 +153,9 @@ struct Diagnosis {
 };
 
 /// Diagnoses a campaign against a calibrated model (its chain, compliance and mechanisms are
-/// the starting point; its GPR, if any, is the reference of the gain table). Throws InputError
-/// when the campaign does not fit the model or has too few fit poses for the folds.
+/// the starting point; its GPR, if any, is the reference of the gain table). Link masses come
+/// from the campaign's URDF <inertial> elements when it has them. Throws InputError when the
+/// campaign does not fit the model or has too few fit poses for the folds.
 Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
                    const DiagnoseOptions& options = {});
 

@@ -1,0 +1,334 @@
+#include "candidates.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "profiles.hpp"
+#include "stepcal/trainer/pipeline.hpp"
+
+namespace stepcal::trainer::diagnosis {
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+// A candidate whose largest column moves the weighted residual by less than this, for a
+// parameter step of typical size, has no effect on these rows and is not tried.
+constexpr double kNegligibleEffect = 1e-3;
+
+Mechanism blank(MechanismKind kind, int dof, int joint = -1, int source = -1, int order = 0) {
+  Mechanism m;
+  m.kind = kind;
+  m.joint = joint;
+  m.source_joint = source;
+  m.order = order;
+  m.parameters.assign(mechanismParameterNames(kind, dof, order).size(), 0.0);
+  m.sigma.assign(m.parameters.size(), 0.0);
+  return m;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+double stdOf(const std::vector<double>& v) {
+  if (v.size() < 2) return 0.0;
+  double sum = 0.0, sum2 = 0.0;
+  for (double x : v) {
+    sum += x;
+    sum2 += x * x;
+  }
+  const double mean = sum / static_cast<double>(v.size());
+  return std::sqrt(std::max(0.0, sum2 / static_cast<double>(v.size()) - mean * mean));
+}
+
+bool present(const PhysicalModel& model, MechanismKind kind, int joint, int source) {
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind != kind) continue;
+    const bool one_per_model = kind == MechanismKind::kSelfWeight ||
+                               kind == MechanismKind::kSensorBias ||
+                               kind == MechanismKind::kThermalExpansion;
+    if (one_per_model || (m.joint == joint && m.source_joint == source)) return true;
+  }
+  return false;
+}
+
+// Appends columns to a growing screening matrix.
+struct ColumnSink {
+  std::vector<Eigen::VectorXd> columns;
+  std::vector<double> ridge;
+  Eigen::Index first;
+  Eigen::Index add(Eigen::VectorXd column, double column_ridge = 0.0) {
+    columns.push_back(std::move(column));
+    ridge.push_back(column_ridge);
+    return first + static_cast<Eigen::Index>(columns.size()) - 1;
+  }
+};
+
+// Link-angle column of joint j times a per-row feature.
+Eigen::VectorXd featureColumn(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
+                              const std::vector<double>& feature) {
+  Eigen::VectorXd c(fit.count);
+  for (size_t i = 0; i < fit.rows.size(); ++i) {
+    const int e = fit.start[i], k = fit.equations(i);
+    c.segment(e, k) = link_angle.block(e, joint, k, 1) * feature[i];
+  }
+  return c;
+}
+
+}  // namespace
+
+std::vector<int> gravityLoadedJoints(const PhysicalModel& global, const FitRows& fit,
+                                     const std::vector<JointVector>& theta_rad,
+                                     const std::vector<double>& masses,
+                                     std::vector<double>* torque_std_nm) {
+  const int n = global.chain_Tracker.dof();
+  std::vector<std::vector<double>> tau(static_cast<size_t>(n));
+  ChainWorkspace ws;
+  JointVector t;
+  for (size_t i = 0; i < fit.rows.size(); ++i) {
+    forwardKinematics(global.chain_Tracker, theta_rad[i], ws);
+    selfWeightTorques(global.chain_Tracker, ws, global.gravity_Tracker, masses, t);
+    for (int j = 0; j < n; ++j) tau[static_cast<size_t>(j)].push_back(t(j));
+  }
+  std::vector<double> spread;
+  for (const auto& v : tau) spread.push_back(stdOf(v));
+  const double largest = *std::max_element(spread.begin(), spread.end());
+  std::vector<int> joints;
+  for (int j = 0; j < n; ++j) {
+    const double s = spread[static_cast<size_t>(j)];
+    if (s >= 1.0 && s >= 0.1 * largest) joints.push_back(j);
+  }
+  if (torque_std_nm) *torque_std_nm = spread;
+  return joints;
+}
+
+Screening screening(const DiagnosisModel& model, const FitRows& fit, const RoundStart& start,
+                    const DiagnoseOptions& options,
+                    const std::optional<std::vector<double>>& body_masses) {
+  const PhysicalModel& global = model.global;
+  const int n = global.chain_Tracker.dof();
+  const Eigen::MatrixXd& L = start.linear.link_angle;
+  const Eigen::VectorXd& r0 = start.global.r;
+  Screening s;
+  const Eigen::Index geometry = start.linear.geometry.cols();
+  ColumnSink sink{{}, {}, geometry};
+
+  // Stage 1: geometry, then the global model's fitted parameters.
+  for (Eigen::Index c = 0; c < geometry; ++c) s.stage1.push_back(c);
+  for (const Parameter& p : globalParameters(model)) {
+    const bool lumped_mass =
+        p.mechanism >= 0 &&
+        global.mechanisms[static_cast<size_t>(p.mechanism)].kind == MechanismKind::kSelfWeight;
+    s.stage1.push_back(sink.add(parameterColumn(global, fit, r0, p),
+                                lumped_mass ? 1.0 / (kSelfWeightPriorSigma * kSelfWeightPriorSigma)
+                                            : 0.0));
+  }
+  // Stage 2: the current profiles.
+  for (const Profile& p : model.profiles) {
+    const Mechanism& m = p.mechanism;
+    const Eigen::MatrixXd B = profileColumns(L, fit, m.joint, m.coverage, m.order);
+    for (Eigen::Index c = 0; c < B.cols(); ++c) s.stage2.push_back(sink.add(B.col(c), p.ridge));
+  }
+
+  auto addGlobal = [&](Family family, std::vector<Eigen::VectorXd> columns,
+                       std::vector<double> steps, double column_ridge = 0.0) {
+    double effect = 0.0;
+    for (size_t c = 0; c < columns.size(); ++c) {
+      effect = std::max(effect, columns[c].norm() * steps[c]);
+    }
+    if (effect < kNegligibleEffect) {
+      s.untestable.push_back({describe(family.mechanism), "no effect on the tip at these rows"});
+      return;
+    }
+    for (Eigen::VectorXd& c : columns) family.columns.push_back(sink.add(std::move(c), column_ridge));
+    s.families.push_back(std::move(family));
+  };
+
+  // Torque-driven mechanisms need load torque on the joint; their torque scales (τ_b, τ₀) come
+  // from the loads the joint sees. Backlash is taken up at a tenth of the typical load (far above
+  // the sensor's noise, far below the loads); nonlinear stiffness: τ₀ on a grid (the compliance
+  // is linear in c for a given τ₀; far below the loads it is backlash, far above them linear
+  // compliance).
+  for (int j = 0; j < n; ++j) {
+    std::vector<double> loaded;
+    for (const JointVector& tau : start.global.tau_nm) {
+      if (std::abs(tau(j)) > 1.0) loaded.push_back(std::abs(tau(j)));
+    }
+    const double typical = median(loaded);
+    if (loaded.size() < 10 || typical < 10.0) {
+      for (const char* name : {"backlash", "nonlinear_stiffness"}) {
+        s.untestable.push_back({std::string(name) + " (joint " + std::to_string(j + 1) + ")",
+                                "the joint carries too little load torque on these rows"});
+      }
+      continue;
+    }
+    if (!present(global, MechanismKind::kBacklash, j, -1)) {
+      Family f;
+      f.mechanism = blank(MechanismKind::kBacklash, n, j);
+      f.mechanism.parameters[1] = 0.1 * typical;
+      f.free = {0};
+      std::vector<double> feature;
+      for (const JointVector& tau : start.global.tau_nm) {
+        feature.push_back(std::tanh(tau(j) / f.mechanism.parameters[1]));
+      }
+      addGlobal(std::move(f), {featureColumn(L, fit, j, feature)}, {typicalStep(blank(MechanismKind::kBacklash, n, j), 0)});
+    }
+    if (!present(global, MechanismKind::kNonlinearStiffness, j, -1)) {
+      for (double factor : {0.1, 0.25, 0.5, 1.0, 2.0}) {
+        Family f;
+        f.mechanism = blank(MechanismKind::kNonlinearStiffness, n, j);
+        const double t0 = factor * typical;
+        f.mechanism.parameters[1] = t0;
+        f.free = {0};
+        std::vector<double> feature;
+        for (const JointVector& tau : start.global.tau_nm) {
+          feature.push_back(tau(j) * t0 / (t0 + std::abs(tau(j))));
+        }
+        addGlobal(std::move(f), {featureColumn(L, fit, j, feature)}, {1e-4 / t0});
+      }
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      if (i == j || present(global, MechanismKind::kJointCoupling, j, i)) continue;
+      Family f;
+      f.mechanism = blank(MechanismKind::kJointCoupling, n, j, i);
+      f.free = {0};
+      std::vector<double> feature;
+      for (const Measurement* row : fit.rows) feature.push_back(row->q_rad(i));
+      addGlobal(std::move(f), {featureColumn(L, fit, j, feature)}, {1e-4});
+    }
+  }
+
+  // Self weight: with the URDF's masses, the compliance of every joint their gravity loads
+  // enough is identified from the arm's own weight alone (no payload needed); without them, the
+  // lumped masses act through a compliance the loads identified.
+  const bool compliant = global.compliance_rad_per_nm.size() == n &&
+                         global.compliance_rad_per_nm.maxCoeff() > 0.0;
+  if (present(global, MechanismKind::kSelfWeight, -1, -1)) {
+  } else if (global.gravity_Tracker.norm() == 0.0) {
+    s.untestable.push_back({"self_weight", "gravity is unknown (campaign.yaml gravity_in_base)"});
+  } else if (body_masses) {
+    Family f;
+    f.mechanism = blank(MechanismKind::kSelfWeight, n);
+    f.mechanism.parameters = *body_masses;
+    f.compliance = gravityLoadedJoints(global, fit, start.global.theta_rad, *body_masses);
+    ChainWorkspace ws;
+    JointVector tau;
+    std::vector<std::vector<double>> features(f.compliance.size());
+    for (size_t i = 0; i < fit.rows.size(); ++i) {
+      forwardKinematics(global.chain_Tracker, start.global.theta_rad[i], ws);
+      selfWeightTorques(global.chain_Tracker, ws, global.gravity_Tracker, *body_masses, tau);
+      for (size_t c = 0; c < f.compliance.size(); ++c) features[c].push_back(tau(f.compliance[c]));
+    }
+    std::vector<Eigen::VectorXd> columns;
+    std::vector<double> steps;
+    for (size_t c = 0; c < f.compliance.size(); ++c) {
+      columns.push_back(featureColumn(L, fit, f.compliance[c], features[c]));
+      steps.push_back(1e-6);  // rad/(N·m): a soft joint
+    }
+    if (columns.empty()) {
+      s.untestable.push_back({"self_weight", "no joint's gravity torque varies over these rows"});
+    } else {
+      addGlobal(std::move(f), std::move(columns), std::move(steps));
+    }
+  } else if (!compliant) {
+    s.untestable.push_back({"self_weight",
+                            "no link masses in the URDF, and no joint compliance from loads to "
+                            "act on lumped ones"});
+  } else {
+    Family f;
+    f.mechanism = blank(MechanismKind::kSelfWeight, n);
+    DiagnosisModel with = model;
+    with.global.mechanisms.push_back(f.mechanism);
+    const int index = static_cast<int>(with.global.mechanisms.size()) - 1;
+    std::vector<Eigen::VectorXd> columns;
+    std::vector<double> steps;
+    for (int i : freeParameters(f.mechanism, false)) {
+      f.free.push_back(i);
+      const Parameter p{index, i, typicalStep(f.mechanism, i)};
+      columns.push_back(parameterColumn(with.global, fit, r0, p));
+      steps.push_back(p.step);
+    }
+    addGlobal(std::move(f), std::move(columns), std::move(steps),
+              1.0 / (kSelfWeightPriorSigma * kSelfWeightPriorSigma));
+  }
+  if (present(global, MechanismKind::kSensorBias, -1, -1)) {
+  } else if (global.sensor_frame < 0 || !compliant) {
+    s.untestable.push_back({"sensor_bias", "the model has no F/T sensor or no compliance"});
+  } else {
+    Family f;
+    f.mechanism = blank(MechanismKind::kSensorBias, n);
+    DiagnosisModel with = model;
+    with.global.mechanisms.push_back(f.mechanism);
+    const int index = static_cast<int>(with.global.mechanisms.size()) - 1;
+    std::vector<Eigen::VectorXd> columns;
+    std::vector<double> steps;
+    for (int i = 0; i < 6; ++i) {
+      f.free.push_back(i);
+      const Parameter p{index, i, typicalStep(f.mechanism, i)};
+      columns.push_back(parameterColumn(with.global, fit, r0, p));
+      steps.push_back(p.step);
+    }
+    addGlobal(std::move(f), std::move(columns), std::move(steps));
+  }
+  if (!present(global, MechanismKind::kThermalExpansion, -1, -1)) {
+    std::vector<double> temps;
+    for (const Measurement* row : fit.rows) {
+      if (row->temp_c) temps.push_back(*row->temp_c);
+    }
+    double mean = 0.0;
+    for (double t : temps) mean += t;
+    mean = temps.empty() ? 0.0 : mean / static_cast<double>(temps.size());
+    const double spread = stdOf(temps);
+    if (temps.size() * 2 < fit.rows.size()) {
+      s.untestable.push_back({"thermal_expansion", "fewer than half the fit rows have temp_c"});
+    } else if (spread < 0.5) {
+      char reason[120];
+      std::snprintf(reason, sizeof reason,
+                    "temp_c varies by less than 0.5 °C (standard deviation %.2f °C)", spread);
+      s.untestable.push_back({"thermal_expansion", reason});
+    } else {
+      Family f;
+      f.mechanism = blank(MechanismKind::kThermalExpansion, n);
+      f.mechanism.parameters[1] = mean;
+      f.free = {0};
+      DiagnosisModel with = model;
+      with.global.mechanisms.push_back(f.mechanism);
+      const Parameter p{static_cast<int>(with.global.mechanisms.size()) - 1, 0, 1e-5};
+      addGlobal(std::move(f), {parameterColumn(with.global, fit, r0, p)}, {p.step});
+    }
+  }
+
+  // One profile per joint not yet profiled, at the highest order (lower orders are its leading
+  // columns), over the angles the fit rows cover.
+  const int max_order = *std::max_element(options.profile_orders.begin(), options.profile_orders.end());
+  for (int j = 0; j < n; ++j) {
+    bool profiled = false;
+    for (const Profile& p : model.profiles) profiled = profiled || p.mechanism.joint == j;
+    if (profiled) continue;
+    std::vector<double> angles;
+    for (const Measurement* row : fit.rows) angles.push_back(row->q_rad(j));
+    Family f;
+    f.stage = Stage::kProfile;
+    f.mechanism = blank(MechanismKind::kTransmissionError, n, j, -1, max_order);
+    f.mechanism.coverage = coverageOfAngles(angles, options.coverage_gap_deg * kDegToRad,
+                                            options.coverage_fade_deg * kDegToRad);
+    const Eigen::MatrixXd B = profileColumns(L, fit, j, f.mechanism.coverage, max_order);
+    for (Eigen::Index c = 0; c < B.cols(); ++c) f.columns.push_back(sink.add(B.col(c)));
+    s.families.push_back(std::move(f));
+  }
+
+  const Eigen::Index total = geometry + static_cast<Eigen::Index>(sink.columns.size());
+  s.A.resize(fit.count, total);
+  s.A.leftCols(geometry) = start.linear.geometry;
+  s.ridge = Eigen::VectorXd::Zero(total);
+  for (size_t c = 0; c < sink.columns.size(); ++c) {
+    s.A.col(geometry + static_cast<Eigen::Index>(c)) = sink.columns[c];
+    s.ridge(geometry + static_cast<Eigen::Index>(c)) = sink.ridge[c];
+  }
+  return s;
+}
+
+}  // namespace stepcal::trainer::diagnosis

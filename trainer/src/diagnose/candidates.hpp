@@ -1,0 +1,62 @@
+// The catalogue a diagnosis screens each round, as families with columns in one screening matrix
+// (internal to stepcal::trainer).
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "fit_rows.hpp"
+#include "model.hpp"
+#include "stepcal/trainer/diagnose.hpp"
+
+namespace stepcal::trainer::diagnosis {
+
+enum class Stage { kGlobal, kProfile };
+
+/// A family screened as one: a global mechanism (its free parameters, and the compliances it
+/// makes identifiable), or a joint's transmission profile (every order up to the highest).
+struct Family {
+  Stage stage = Stage::kGlobal;
+  /// Parameters at their start (zero, τ₀ and T_ref chosen; self weight's masses from the URDF);
+  /// a profile: its joint, the highest order, its coverage.
+  Mechanism mechanism;
+  std::vector<int> free;        ///< global: the mechanism's fitted parameters
+  std::vector<int> compliance;  ///< global: joints whose compliance it frees (self weight)
+  std::vector<Eigen::Index> columns;  ///< in the screening matrix, free then compliance
+  /// Fitted on every row it makes every compliance it frees negative: not a deflection.
+  bool negative_compliance = false;
+};
+
+/// One round's screening matrix: the current model's columns and every family's.
+struct Screening {
+  Eigen::MatrixXd A;                    ///< count × columns, the residual's weighting
+  Eigen::VectorXd ridge;                ///< per column (lumped masses' prior, profiles' ridges)
+  std::vector<Eigen::Index> stage1, stage2;
+  std::vector<Family> families;
+  std::vector<UntestableCandidate> untestable;
+};
+
+/// What the round starts from: the global model's evaluation (r0, θ, τ) and linearisation.
+struct RoundStart {
+  Evaluation global;
+  Linearisation linear;
+};
+
+/// Builds the round's screening: the current model's stage-1 and stage-2 columns, and every
+/// catalogued family not in the model yet. body_masses: the URDF's (bodyMassesFromUrdf), if any.
+Screening screening(const DiagnosisModel& model, const FitRows& fit, const RoundStart& start,
+                    const DiagnoseOptions& options,
+                    const std::optional<std::vector<double>>& body_masses);
+
+/// Joints whose gravity torque under the given self_weight parameters varies enough over the
+/// fit rows to identify their compliance from it (std ≥ 1 N·m and ≥ 10 % of the largest), and the
+/// std of each joint's gravity torque, N·m.
+std::vector<int> gravityLoadedJoints(const PhysicalModel& global, const FitRows& fit,
+                                     const std::vector<JointVector>& theta_rad,
+                                     const std::vector<double>& masses,
+                                     std::vector<double>* torque_std_nm = nullptr);
+
+}  // namespace stepcal::trainer::diagnosis

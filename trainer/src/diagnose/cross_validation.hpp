@@ -1,0 +1,109 @@
+// Cross-validation of linear corrections of the diagnosis's model over folds of poses, from
+// per-fold Gram blocks (internal to stepcal::trainer).
+//
+// The model is linearised as the two stages it is fitted in (model.hpp): stage 1, the global
+// columns (geometry and global parameters), fitted first on the global model's residual r0;
+// stage 2, the profiles' columns, fitted with their ridges on what stage 1 leaves. A candidate
+// joins stage 1 (a global mechanism) or stage 2 (a profile). For each fold the correction is
+// fitted on the other folds and judged on this one.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
+#include "fit_rows.hpp"
+
+namespace stepcal::trainer::diagnosis {
+
+/// The columns of one screening matrix A (count × p, the residual's weighting) against the
+/// global model's residual r0, summed per fold: what every cross-validated fit on them needs.
+/// Built once while the global model stays the same (a profile added changes none of it).
+struct FoldGrams {
+  FoldGrams(Eigen::MatrixXd A, const Eigen::VectorXd& r0, const FitRows& fit);
+  std::vector<Eigen::MatrixXd> G;  ///< per fold AᵀA of its rows, then the total (index folds)
+  std::vector<Eigen::VectorXd> b;  ///< per fold Aᵀ r0, then the total
+  std::vector<double> e0;          ///< per fold Σ r0²
+  Eigen::VectorXd scale;           ///< √ of the total Gram's diagonal (1 where it is 0)
+  /// A row-major, for row-by-row held-out errors.
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> A_rows;
+};
+
+class CrossValidation {
+ public:
+  /// grams and r0 (the global model's residual) must outlive it; stage1, stage2: the current
+  /// model's columns; ridge: per column (0 = none).
+  CrossValidation(const FoldGrams& grams, const Eigen::VectorXd& r0, const FitRows& fit,
+                  std::vector<Eigen::Index> stage1, std::vector<Eigen::Index> stage2,
+                  Eigen::VectorXd ridge);
+
+  /// A linear correction: its columns, and its coefficients fitted without each fold (index f)
+  /// and on every row (index folds).
+  struct Correction {
+    std::vector<Eigen::Index> columns;
+    std::vector<Eigen::VectorXd> x;
+    double sse = 0.0;  ///< held-out weighted squared error over all folds
+  };
+
+  /// The current model.
+  const Correction& base() const { return base_; }
+  /// The current model with global columns added to stage 1 (stage 2 refitted after it).
+  Correction withGlobal(const std::vector<Eigen::Index>& columns) const;
+
+  /// A profile candidate's columns at its highest order, with what every order shares (per
+  /// fold, T the training Gram, H the current profiles' ridged block).
+  struct ProfileCandidate {
+    std::vector<Eigen::Index> columns;
+    std::vector<Eigen::MatrixXd> X;       ///< H⁻¹ T[stage2, columns]
+    std::vector<Eigen::MatrixXd> schur;   ///< T[columns, columns] − T[columns, stage2] X
+    std::vector<Eigen::VectorXd> rhs;     ///< its right-hand side after stages 1 and 2
+  };
+  ProfileCandidate prepareProfile(const std::vector<Eigen::Index>& columns) const;
+  /// The current model with the candidate's first `width` columns added to stage 2, ridge λ.
+  Correction withProfile(const ProfileCandidate& candidate, int width, double lambda) const;
+
+  /// Stage 2 (the current profiles) fitted on every row after stage 1: coefficients in stage-2
+  /// column order and their 1-σ (s² (G + Λ)⁻¹, s² the residual variance).
+  struct Stage2 {
+    Eigen::VectorXd x, sigma;
+  };
+  Stage2 stage2OnAllRows() const;
+
+  /// Row by row on the held-out folds: weighted squared error per pose, position error per row.
+  struct Outcome {
+    std::vector<double> pose_sse;
+    std::vector<double> position_m;
+  };
+  Outcome heldOut(const Correction& correction) const;
+
+ private:
+  Eigen::MatrixXd trainingGram(int f, const std::vector<Eigen::Index>& a,
+                               const std::vector<Eigen::Index>& b) const;
+  Eigen::VectorXd trainingRhs(int f, const std::vector<Eigen::Index>& a) const;
+  Eigen::VectorXd solveStage1(int f, const std::vector<Eigen::Index>& columns) const;
+  double heldOutSse(int f, const std::vector<Eigen::Index>& columns, const Eigen::VectorXd& x) const;
+
+  const FoldGrams& grams_;
+  const Eigen::VectorXd& r0_;
+  const FitRows& fit_;
+  std::vector<Eigen::Index> stage1_, stage2_;
+  Eigen::VectorXd ridge_;
+  // The current model per fold (and on every row at index folds).
+  std::vector<Eigen::VectorXd> u_, p_, rhs2_;
+  std::vector<Eigen::LLT<Eigen::MatrixXd>> H_;
+  Correction base_;
+};
+
+/// Per-pose comparison of two held-out outcomes.
+struct Comparison {
+  double relative_reduction = 0.0;  ///< of the total held-out squared error
+  double t = 0.0, p = 1.0;          ///< one-sided t test of the per-pose reduction
+  double gain_mm = 0.0;             ///< mean held-out position error removed, mm
+};
+Comparison compare(const CrossValidation::Outcome& base, const CrossValidation::Outcome& with);
+
+/// Paired t statistic of a − b over poses (positive: a has the larger errors).
+double pairedT(const std::vector<double>& a, const std::vector<double>& b);
+
+}  // namespace stepcal::trainer::diagnosis

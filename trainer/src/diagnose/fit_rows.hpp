@@ -1,0 +1,48 @@
+// The diagnosis's fit rows as noise-weighted equations, the physical model's residual on them and
+// its linearisation (internal to stepcal::trainer).
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/common/mechanisms.hpp"
+
+namespace stepcal::trainer::diagnosis {
+
+/// The fit rows as noise-weighted equations: 3 position rows, then 3 rotation rows when measured.
+struct FitRows {
+  std::vector<const Measurement*> rows;
+  std::vector<int> start;  ///< first equation of each row
+  std::vector<int> fold;   ///< cross-validation fold of each row (all rows of a pose in one fold)
+  std::vector<int> pose;   ///< pose group of each row
+  int count = 0, poses = 0, folds = 0;
+  double w_p = 1.0, w_r = 1.0;  ///< 1/σ of the tracker: 1/m, 1/rad
+  int equations(size_t row) const { return rows[row]->has_orientation ? 6 : 3; }
+};
+
+/// Folds are a fixed shuffle of the poses: the same campaign gives the same folds.
+FitRows makeFitRows(const std::vector<const Measurement*>& rows, const TrackerNoise& noise,
+                    int folds);
+
+/// The physical model on every fit row: weighted residual (measured − modelled), and per row
+/// the link angles θ [rad] and joint torques τ [N·m] of the model.
+struct Evaluation {
+  Eigen::VectorXd r;
+  std::vector<JointVector> theta_rad, tau_nm;
+};
+Evaluation evaluate(const PhysicalModel& model, const FitRows& fit);
+/// The weighted residual alone.
+Eigen::VectorXd residuals(const PhysicalModel& model, const FitRows& fit);
+
+/// d(modelled)/d(parameter) in the residual's weighting (r(x + dx) ≈ r − A dx): the 6(n+1)
+/// initial-pose corrections (METHOD.md eq. 7) and each link angle θ_j (the tip's motion per
+/// radian of joint j at the model's link angles; the torques' change with θ is left out).
+struct Linearisation {
+  Eigen::MatrixXd geometry;    ///< count × 6(n+1)
+  Eigen::MatrixXd link_angle;  ///< count × n
+};
+Linearisation linearise(const PhysicalModel& model, const FitRows& fit, const Eigen::VectorXd& r);
+
+}  // namespace stepcal::trainer::diagnosis

@@ -1,0 +1,188 @@
+#include <cmath>
+
+#include "../least_squares.hpp"
+#include "model.hpp"
+
+namespace stepcal::trainer::diagnosis {
+namespace {
+
+// Singular values below this fraction of the largest are unobservable (as in step 1).
+constexpr double kRankTolerance = 1e-9;
+
+bool apply(const PhysicalModel& model, const std::vector<Parameter>& params,
+           const Eigen::VectorXd& x, double fraction, PhysicalModel& out) {
+  const int geometry = 6 * (model.chain_Tracker.dof() + 1);
+  out = model;
+  out.chain_Tracker = model.chain_Tracker.corrected(fraction * x.head(geometry));
+  for (size_t c = 0; c < params.size(); ++c) {
+    shift(out, params[c], fraction * x(geometry + static_cast<Eigen::Index>(c)));
+  }
+  for (const Mechanism& m : out.mechanisms) {
+    if (!mechanismProblem(m, out.chain_Tracker.dof()).empty()) return false;
+  }
+  return true;
+}
+
+double priorCost(const DiagnosisModel& model, const PhysicalModel& global) {
+  if (model.masses_from_urdf) return 0.0;
+  double cost = 0.0;
+  for (const Mechanism& m : global.mechanisms) {
+    if (m.kind != MechanismKind::kSelfWeight) continue;
+    for (double v : m.parameters) cost += (v / kSelfWeightPriorSigma) * (v / kSelfWeightPriorSigma);
+  }
+  return cost;
+}
+
+Eigen::MatrixXd jacobian(const PhysicalModel& model, const FitRows& fit, const Eigen::VectorXd& r,
+                         const std::vector<Parameter>& params) {
+  const Eigen::MatrixXd G = linearise(model, fit, r).geometry;
+  Eigen::MatrixXd A(fit.count, G.cols() + static_cast<Eigen::Index>(params.size()));
+  A.leftCols(G.cols()) = G;
+  for (size_t c = 0; c < params.size(); ++c) {
+    A.col(G.cols() + static_cast<Eigen::Index>(c)) = parameterColumn(model, fit, r, params[c]);
+  }
+  return A;
+}
+
+// Prior rows (value − 0)/σ for lumped self_weight parameters, appended to a linearised system.
+void addPriors(const DiagnosisModel& model, const PhysicalModel& global,
+               const std::vector<Parameter>& params, Eigen::MatrixXd& A, Eigen::VectorXd& r) {
+  if (model.masses_from_urdf) return;
+  const Eigen::Index geometry = A.cols() - static_cast<Eigen::Index>(params.size());
+  for (size_t c = 0; c < params.size(); ++c) {
+    const Parameter& p = params[c];
+    if (p.mechanism < 0 ||
+        global.mechanisms[static_cast<size_t>(p.mechanism)].kind != MechanismKind::kSelfWeight) {
+      continue;
+    }
+    const double value =
+        global.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)];
+    A.conservativeResize(A.rows() + 1, Eigen::NoChange);
+    A.row(A.rows() - 1).setZero();
+    A(A.rows() - 1, geometry + static_cast<Eigen::Index>(c)) = 1.0 / kSelfWeightPriorSigma;
+    r.conservativeResize(r.size() + 1);
+    r(r.size() - 1) = -value / kSelfWeightPriorSigma;
+  }
+}
+
+}  // namespace
+
+PhysicalModel DiagnosisModel::combined() const {
+  PhysicalModel out = global;
+  for (const Profile& p : profiles) out.mechanisms.push_back(p.mechanism);
+  return out;
+}
+
+void shift(PhysicalModel& model, const Parameter& p, double delta) {
+  if (p.mechanism < 0) {
+    model.compliance_rad_per_nm(p.index) += delta;
+  } else {
+    model.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)] +=
+        delta;
+  }
+}
+
+double typicalStep(const Mechanism& m, int index) {
+  switch (m.kind) {
+    case MechanismKind::kNonlinearStiffness:
+      return index == 0 ? 1e-4 / m.parameters[1] : 0.01 * m.parameters[1];
+    case MechanismKind::kThermalExpansion: return 1e-5;
+    case MechanismKind::kSensorBias: return index < 3 ? 1.0 : 0.1;
+    case MechanismKind::kSelfWeight: return index % 4 == 0 ? 1.0 : 0.5;
+    default: return 1e-4;
+  }
+}
+
+std::vector<int> freeParameters(const Mechanism& m, bool masses_from_urdf) {
+  std::vector<int> free;
+  if (m.kind == MechanismKind::kSelfWeight && masses_from_urdf) return free;
+  for (size_t i = 0; i < m.parameters.size(); ++i) {
+    if ((m.kind == MechanismKind::kThermalExpansion || m.kind == MechanismKind::kBacklash) &&
+        i == 1) {
+      continue;
+    }
+    if (m.kind == MechanismKind::kNonlinearStiffness && i == 1 && m.parameters[0] == 0.0) continue;
+    free.push_back(static_cast<int>(i));
+  }
+  return free;
+}
+
+std::vector<Parameter> globalParameters(const DiagnosisModel& model) {
+  std::vector<Parameter> params;
+  const JointVector& c = model.global.compliance_rad_per_nm;
+  for (int j = 0; j < c.size(); ++j) {
+    // Compliance enters linearly (to the fixed point's feedback), so the step's size is free.
+    if (model.compliance_free[static_cast<size_t>(j)]) {
+      params.push_back({-1, j, std::max(0.01 * c(j), 1e-8)});
+    }
+  }
+  for (size_t k = 0; k < model.global.mechanisms.size(); ++k) {
+    const Mechanism& m = model.global.mechanisms[k];
+    for (int i : freeParameters(m, model.masses_from_urdf)) {
+      params.push_back({static_cast<int>(k), i, typicalStep(m, i)});
+    }
+  }
+  return params;
+}
+
+Eigen::VectorXd parameterColumn(const PhysicalModel& model, const FitRows& fit,
+                                const Eigen::VectorXd& r0, const Parameter& p) {
+  PhysicalModel moved = model;
+  shift(moved, p, p.step);
+  return (r0 - residuals(moved, fit)) / p.step;
+}
+
+GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
+                      JointVector& compliance_sigma) {
+  PhysicalModel& global = model.global;
+  GlobalFit out;
+  out.r = residuals(global, fit);
+  out.cost = out.r.squaredNorm() + priorCost(model, global);
+  for (int it = 0; it < iterations; ++it) {
+    const std::vector<Parameter> params = globalParameters(model);
+    Eigen::MatrixXd A = jacobian(global, fit, out.r, params);
+    Eigen::VectorXd rhs = out.r;
+    addPriors(model, global, params, A, rhs);
+    const SvdSolution s = solveTruncated(A, rhs, kRankTolerance);
+    bool improved = false;
+    for (double fraction = 1.0; fraction > 1e-3; fraction *= 0.5) {
+      PhysicalModel candidate;
+      if (!apply(global, params, s.x, fraction, candidate)) continue;
+      const Eigen::VectorXd r = residuals(candidate, fit);
+      const double cost = r.squaredNorm() + priorCost(model, candidate);
+      if (cost < out.cost) {
+        // Go on while a step still removes a millionth of the cost (a tiny fraction of the noise).
+        improved = out.cost - cost > 1e-6 * out.cost;
+        global = std::move(candidate);
+        out.r = r;
+        out.cost = cost;
+        break;
+      }
+    }
+    if (!improved) break;
+  }
+  // Covariance of the final linearisation: s² (AᵀA)⁺ in column-normalised coordinates.
+  const std::vector<Parameter> params = globalParameters(model);
+  Eigen::MatrixXd A = jacobian(global, fit, out.r, params);
+  Eigen::VectorXd rhs = out.r;
+  addPriors(model, global, params, A, rhs);
+  const SvdSolution s = solveTruncated(A, rhs, kRankTolerance);
+  const double variance = out.cost / std::max(1, fit.count - s.rank);
+  const int geometry = 6 * (global.chain_Tracker.dof() + 1);
+  for (Mechanism& m : global.mechanisms) m.sigma.assign(m.parameters.size(), 0.0);
+  for (size_t c = 0; c < params.size(); ++c) {
+    const Eigen::Index col = geometry + static_cast<Eigen::Index>(c);
+    double var_z = 0.0;
+    for (int k = 0; k < s.rank; ++k) var_z += std::pow(s.V(col, k) / s.singular_values(k), 2);
+    const double sigma = std::sqrt(variance * var_z) / s.column_scale(col);
+    const Parameter& p = params[c];
+    if (p.mechanism < 0) {
+      compliance_sigma(p.index) = sigma;
+    } else {
+      global.mechanisms[static_cast<size_t>(p.mechanism)].sigma[static_cast<size_t>(p.index)] = sigma;
+    }
+  }
+  return out;
+}
+
+}  // namespace stepcal::trainer::diagnosis

@@ -1,0 +1,76 @@
+// The model a diagnosis builds (internal to stepcal::trainer): a global physical model (geometry,
+// compliance, every mechanism that holds at any pose) and transmission profiles on top of it.
+//
+// The two are fitted in that order. The global part explains all it can with physics that holds
+// everywhere; each profile then explains only what is left, and only on the joint angles it was
+// fitted on (its coverage gate). So where a profile fades out, the model is exactly the global
+// one: a profile can improve a pose it covers and cannot spoil one it does not.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "fit_rows.hpp"
+#include "stepcal/common/mechanisms.hpp"
+
+namespace stepcal::trainer::diagnosis {
+
+/// A transmission profile with its ridge: λ Σ (a_k² + b_k²) is added to the weighted squared
+/// residual when it is fitted.
+struct Profile {
+  Mechanism mechanism;  ///< kind transmission_error: joint, order, parameters, σ, coverage
+  double ridge = 0.0;   ///< λ, weighted-residual units per rad²
+};
+
+struct DiagnosisModel {
+  PhysicalModel global;                ///< no transmission_error in it
+  std::vector<bool> compliance_free;   ///< per joint: its compliance is fitted
+  bool masses_from_urdf = false;       ///< self_weight's masses are the URDF's, not fitted
+  std::vector<Profile> profiles;
+
+  /// The whole physical model: global + profiles.
+  PhysicalModel combined() const;
+};
+
+/// A scalar global parameter: a joint's compliance (mechanism −1) or a mechanism's parameter.
+struct Parameter {
+  int mechanism = -1;
+  int index = 0;
+  double step = 0.0;  ///< finite-difference step of typical size, SI
+};
+
+/// Moves a parameter by delta.
+void shift(PhysicalModel& model, const Parameter& p, double delta);
+
+/// A step that moves the link angles by ~1e-4 rad or the tip by ~0.1 mm.
+double typicalStep(const Mechanism& m, int index);
+
+/// The fitted parameters of a global mechanism (thermal's reference temperature and backlash's
+/// smoothing are chosen, not fitted; nonlinear stiffness's τ₀ only once its compliance is
+/// nonzero; self_weight's masses not when they come from the URDF).
+std::vector<int> freeParameters(const Mechanism& m, bool masses_from_urdf);
+
+/// Every fitted global parameter: free compliances, then each mechanism's free parameters.
+std::vector<Parameter> globalParameters(const DiagnosisModel& model);
+
+/// Forward-difference column d(modelled)/d(p) in the residual's weighting.
+Eigen::VectorXd parameterColumn(const PhysicalModel& model, const FitRows& fit,
+                                const Eigen::VectorXd& r0, const Parameter& p);
+
+/// 1-σ of the weak prior on lumped link masses (kg and kg·m per parameter) when the URDF gives
+/// none: only their gravity torques are identifiable, the prior keeps the rest near zero.
+inline constexpr double kSelfWeightPriorSigma = 50.0;
+
+struct GlobalFit {
+  Eigen::VectorXd r;  ///< weighted residual of the global model (no profiles)
+  double cost = 0.0;  ///< r² plus the priors
+};
+
+/// Joint Gauss–Newton refit of the global model on every fit row (geometry δ, free compliances,
+/// mechanisms; truncated SVD; priors on lumped masses), profiles left out. Fills the global
+/// mechanisms' σ and compliance_sigma (n entries) from the final linearisation.
+GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
+                      JointVector& compliance_sigma);
+
+}  // namespace stepcal::trainer::diagnosis

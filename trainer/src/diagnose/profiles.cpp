@@ -1,0 +1,190 @@
+#include "profiles.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+namespace stepcal::trainer::diagnosis {
+namespace {
+
+constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
+
+double wrap(double angle_rad) {
+  const double a = std::fmod(angle_rad, kTwoPi);
+  return a < 0.0 ? a + kTwoPi : a;
+}
+
+}  // namespace
+
+AngleCoverage coverageOfAngles(std::vector<double> angles_rad, double max_gap_rad,
+                               double fade_rad) {
+  AngleCoverage coverage;
+  coverage.fade_rad = fade_rad;
+  if (angles_rad.empty()) return coverage;
+  for (double& a : angles_rad) a = wrap(a);
+  std::sort(angles_rad.begin(), angles_rad.end());
+  // Gaps wider than max_gap_rad, each as the index of the angle after it (cyclically).
+  std::vector<size_t> after_gap;
+  const size_t m = angles_rad.size();
+  for (size_t i = 0; i < m; ++i) {
+    const double next = i + 1 < m ? angles_rad[i + 1] : angles_rad[0] + kTwoPi;
+    if (next - angles_rad[i] > max_gap_rad) after_gap.push_back((i + 1) % m);
+  }
+  if (after_gap.empty()) {
+    coverage.arcs_rad = {0.0, kTwoPi};
+    return coverage;
+  }
+  // Each run of angles, widened by the fade on both sides: the gate is 1 on every fitted angle
+  // and fades out beyond the outermost ones.
+  std::vector<std::pair<double, double>> arcs;
+  for (size_t g = 0; g < after_gap.size(); ++g) {
+    const size_t first = after_gap[g];
+    const size_t last = (after_gap[(g + 1) % after_gap.size()] + m - 1) % m;
+    double length = angles_rad[last] - angles_rad[first];
+    if (length < 0.0) length += kTwoPi;
+    arcs.emplace_back(wrap(angles_rad[first] - fade_rad), std::min(kTwoPi, length + 2.0 * fade_rad));
+  }
+  if (arcs.size() == 1 && arcs[0].second >= kTwoPi) {
+    coverage.arcs_rad = {0.0, kTwoPi};
+    return coverage;
+  }
+  std::sort(arcs.begin(), arcs.end());
+  if (arcs.size() > static_cast<size_t>(kMaxCoverageArcs)) {
+    // Keep the longest; a profile over more scattered angles than that is not one.
+    std::sort(arcs.begin(), arcs.end(),
+              [](const auto& a, const auto& b) { return a.second > b.second; });
+    arcs.resize(static_cast<size_t>(kMaxCoverageArcs));
+    std::sort(arcs.begin(), arcs.end());
+  }
+  for (const auto& [start, length] : arcs) {
+    coverage.arcs_rad.push_back(start);
+    coverage.arcs_rad.push_back(length);
+  }
+  return coverage;
+}
+
+void profileFeatures(const AngleCoverage& coverage, int order, double q_rad, double* out) {
+  const double g = coverageGate(coverage, q_rad);
+  const double s1 = std::sin(q_rad), c1 = std::cos(q_rad);
+  double s = s1, c = c1;
+  for (int k = 0; k < order; ++k) {
+    out[2 * k] = g * s;
+    out[2 * k + 1] = g * c;
+    const double s_next = s * c1 + c * s1;
+    c = c * c1 - s * s1;
+    s = s_next;
+  }
+}
+
+Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
+                               const AngleCoverage& coverage, int order) {
+  Eigen::MatrixXd B(fit.count, 2 * order);
+  Eigen::VectorXd f(2 * order);
+  for (size_t i = 0; i < fit.rows.size(); ++i) {
+    profileFeatures(coverage, order, fit.rows[i]->q_rad(joint), f.data());
+    const int e = fit.start[i], k = fit.equations(i);
+    B.middleRows(e, k) = link_angle.block(e, joint, k, 1) * f.transpose();
+  }
+  return B;
+}
+
+void fitProfiles(DiagnosisModel& model, const FitRows& fit) {
+  if (model.profiles.empty()) return;
+  Eigen::Index width = 0;
+  for (const Profile& p : model.profiles) width += 2 * p.mechanism.order;
+  auto columnsAt = [&](const PhysicalModel& at, const Eigen::VectorXd& r) {
+    const Eigen::MatrixXd link_angle = linearise(at, fit, r).link_angle;
+    Eigen::MatrixXd A(fit.count, width);
+    Eigen::Index c = 0;
+    for (const Profile& p : model.profiles) {
+      const Mechanism& m = p.mechanism;
+      A.middleCols(c, 2 * m.order) = profileColumns(link_angle, fit, m.joint, m.coverage, m.order);
+      c += 2 * m.order;
+    }
+    return A;
+  };
+  Eigen::VectorXd ridge(width), x = Eigen::VectorXd::Zero(width);
+  Eigen::Index c = 0;
+  for (const Profile& p : model.profiles) {
+    ridge.segment(c, 2 * p.mechanism.order).setConstant(p.ridge);
+    c += 2 * p.mechanism.order;
+  }
+  auto store = [&](const Eigen::VectorXd& coefficients, const Eigen::VectorXd* sigma) {
+    Eigen::Index at = 0;
+    for (Profile& p : model.profiles) {
+      const int w = 2 * p.mechanism.order;
+      for (int i = 0; i < w; ++i) {
+        p.mechanism.parameters[static_cast<size_t>(i)] = coefficients(at + i);
+        if (sigma) p.mechanism.sigma[static_cast<size_t>(i)] = (*sigma)(at + i);
+      }
+      at += w;
+    }
+  };
+  // Linear from the global model (profiles off), then one Gauss–Newton step at the result:
+  // a profile moves the link angles by ~1e-3 rad, so the second step changes little.
+  const Eigen::VectorXd r_global = residuals(model.global, fit);
+  Eigen::MatrixXd A = columnsAt(model.global, r_global);
+  Eigen::MatrixXd H = A.transpose() * A;
+  H.diagonal() += ridge;
+  x = H.llt().solve(A.transpose() * r_global);
+  store(x, nullptr);
+  PhysicalModel combined = model.combined();
+  Eigen::VectorXd r = residuals(combined, fit);
+  double cost = r.squaredNorm() + x.dot(ridge.cwiseProduct(x));
+  A = columnsAt(combined, r);
+  H = A.transpose() * A;
+  H.diagonal() += ridge;
+  const Eigen::LLT<Eigen::MatrixXd> llt(H);
+  const Eigen::VectorXd step = llt.solve(A.transpose() * r - ridge.cwiseProduct(x));
+  const Eigen::VectorXd x_next = x + step;
+  store(x_next, nullptr);
+  const Eigen::VectorXd r_next = residuals(model.combined(), fit);
+  const double cost_next = r_next.squaredNorm() + x_next.dot(ridge.cwiseProduct(x_next));
+  if (cost_next < cost) {
+    x = x_next;
+    r = r_next;
+    cost = cost_next;
+  }
+  const double variance = r.squaredNorm() / std::max<double>(1.0, double(fit.count - width));
+  const Eigen::VectorXd sigma =
+      (variance * llt.solve(Eigen::MatrixXd::Identity(width, width)).diagonal())
+          .cwiseMax(0.0)
+          .cwiseSqrt();
+  store(x, &sigma);
+}
+
+double profileRms(const Mechanism& profile, const FitRows& fit) {
+  double sum = 0.0;
+  for (const Measurement* row : fit.rows) {
+    const double v = transmissionOffset(profile, row->q_rad(profile.joint));
+    sum += v * v;
+  }
+  return fit.rows.empty() ? 0.0 : std::sqrt(sum / static_cast<double>(fit.rows.size()));
+}
+
+std::vector<double> geometryShare(const Eigen::MatrixXd& geometry,
+                                  const Eigen::MatrixXd& profile) {
+  // P_G B = G (GᵀG)⁺ GᵀB, the pseudo-inverse truncated as step 1 truncates the geometry.
+  const Eigen::VectorXd scale = geometry.colwise().norm().transpose().cwiseMax(1e-300);
+  const Eigen::MatrixXd Gs = geometry * scale.cwiseInverse().asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Gs.transpose() * Gs);
+  const Eigen::VectorXd& lambda = eig.eigenvalues();
+  const double cutoff = 1e-15 * lambda.maxCoeff();
+  const Eigen::MatrixXd GtB = Gs.transpose() * profile;
+  std::vector<double> share;
+  for (Eigen::Index k = 0; k + 1 < profile.cols(); k += 2) {
+    double reached = 0.0;
+    for (Eigen::Index i = 0; i < lambda.size(); ++i) {
+      if (lambda(i) <= cutoff) continue;
+      const Eigen::RowVector2d proj = eig.eigenvectors().col(i).transpose() * GtB.middleCols(k, 2);
+      reached += proj.squaredNorm() / lambda(i);
+    }
+    const double total = profile.middleCols(k, 2).squaredNorm();
+    share.push_back(total > 0.0 ? std::min(1.0, reached / total) : 0.0);
+  }
+  return share;
+}
+
+}  // namespace stepcal::trainer::diagnosis

@@ -1,0 +1,41 @@
+// Transmission profiles: the joint angles they cover, their columns and their joint fit on what
+// the global model leaves (internal to stepcal::trainer).
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "fit_rows.hpp"
+#include "model.hpp"
+
+namespace stepcal::trainer::diagnosis {
+
+/// The arcs of the circle the angles cover [rad]: split wherever consecutive angles (mod 2π) are
+/// more than max_gap_rad apart (≥ 2 fade_rad, so that widened arcs do not overlap), each run
+/// widened by fade_rad on both sides, so the gate is 1 at every angle given and fades to 0 within
+/// fade_rad beyond the outermost ones. The full turn when no gap is that wide.
+AngleCoverage coverageOfAngles(std::vector<double> angles_rad, double max_gap_rad,
+                               double fade_rad);
+
+/// The gated basis at angle q: out[2(k−1)] = g(q) sin(k q), out[2(k−1)+1] = g(q) cos(k q),
+/// k = 1 … order.
+void profileFeatures(const AngleCoverage& coverage, int order, double q_rad, double* out);
+
+/// Columns of a profile of `order` harmonics on joint j: the link-angle column of j times each
+/// gated basis function, count × 2·order.
+Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
+                               const AngleCoverage& coverage, int order);
+
+/// Fits every profile of the model jointly, with their ridges, on the residual of its global
+/// model (which stays as it is): parameters and σ (from s² (AᵀA + Λ)⁻¹) of each profile.
+void fitProfiles(DiagnosisModel& model, const FitRows& fit);
+
+/// RMS over the fit rows of a profile's link-angle offset, gate included, rad.
+double profileRms(const Mechanism& profile, const FitRows& fit);
+
+/// Per harmonic of a profile, the share of its columns' squared norm that the geometry columns
+/// reach (1: a geometric error explains it entirely, 0: orthogonal to every geometric error).
+std::vector<double> geometryShare(const Eigen::MatrixXd& geometry, const Eigen::MatrixXd& profile);
+
+}  // namespace stepcal::trainer::diagnosis

@@ -83,7 +83,7 @@ grep -h "stepcal-runtime:" "$out/daemon.log" | head -1
 echo "settings: $rate_hz Hz sensor polls, max wrench age $max_age_ms ms, budget $budget_us us"
 
 common=(--lcm-url "$url" --campaign "$campaign" --set validation --mode "$mode"
-        --truth "$campaign/truth.json" --timeout-ms 1000 --json)
+        --truth "$campaign/truth.json" --timeout-ms 5000 --json)  # a reply counts as lost after 5 s
 "$bin/stepcal-client" "${common[@]}" >"$out/offline.json"
 "$bin/stepcal-client" "${common[@]}" --live-wrench --wrench-channel STEPCAL_WRENCH >"$out/live.json"
 

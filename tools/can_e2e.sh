@@ -113,15 +113,16 @@ echo "results: $out"
 # The live wrench differs from the measured one by the F/T noise only (the twin's payload wrench
 # plus fresh noise), so live must equal offline row by row, allowing only what that noise can
 # move: every request answered, OK or OUT_OF_DOMAIN; the GPR std within 1 % (observed: at most
-# 0.07 %); a status flipped only where the row's two std lie on both sides of the daemon's one
+# 0.02 %); a status flipped only where the row's two std lie on both sides of the daemon's one
 # threshold (statuses consistent with a single cut in gpr_std over both runs); the live mean
 # position error within 10 % (or 2 µm) of the offline one. Separately, with margin, rows inside
 # the loads the GPR was trained on (set=residual) are seldom OUT_OF_DOMAIN: at most 2 % in each
-# run (seed 4: 0 of 240 whatever the fit's end point, 8 end points tried; README).
+# run (seed 4: 0 of 240 at each of the 7 fit end points that 7 CPU cache sizes gave before the
+# fit pinned them; docs/architecture.md).
 # (No process substitution: the VM has no /dev/fd.)
 load_range=$(awk -F, '
   NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
-  $col["set"] == "residual" { l = $col["load_kg"] + 0; if (!n++ || l < lo) lo = l; if (n == 1 || l > hi) hi = l }
+  $col["set"] == "residual" { l = $col["load_kg"] + 0; if (!n++) lo = hi = l; if (l < lo) lo = l; if (l > hi) hi = l }
   END { if (n) print lo, hi; else print "null null" }' "$campaign/measurements.csv")
 load_min=${load_range% *}
 load_max=${load_range#* }

@@ -17,10 +17,12 @@
 # STEPCAL_E2E_MODE (forward | inverse, default forward), STEPCAL_E2E_RATE_HZ (sensor polls),
 # STEPCAL_E2E_MAX_WRENCH_AGE_MS and STEPCAL_E2E_BUDGET_US (the daemon's limits). Under the
 # emulated VM (STEPCAL_IN_VCAN_VM=1) every program runs some 100 to 400 times slower, so the
-# defaults there are 250 Hz polls, a 500 ms age limit and a 100 ms budget (else 1000 Hz, 20 ms
-# and 200 µs), and the absolute latencies are the emulator's, not the machine's. No wait is
-# timed: before each live request the client waits for the sensor's echo of the robot state and
-# then for two samples the daemon took after it (the daemon republishes them on STEPCAL_WRENCH).
+# defaults there are 250 Hz polls and a 100 ms budget (else 1000 Hz and 200 µs), and the
+# absolute latencies are the emulator's, not the machine's. No wait is timed: before each live
+# request the client waits for the sensor's echo of the robot state and then for two samples the
+# daemon took after it (the daemon republishes them on STEPCAL_WRENCH). So the wrench age limit
+# only has to catch a sensor that stopped: 10 s in the VM, 1 s else, far above what a loaded
+# host's scheduling delays (in the VM one request once met a 500 ms limit).
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -37,11 +39,11 @@ iface=${STEPCAL_CAN_IFACE:-vcan0}
 url=${LCM_URL:-udpm://239.255.76.67:7667?ttl=0}
 if [[ ${STEPCAL_IN_VCAN_VM:-0} == 1 ]]; then
   rate_hz=${STEPCAL_E2E_RATE_HZ:-250}
-  max_age_ms=${STEPCAL_E2E_MAX_WRENCH_AGE_MS:-500}
+  max_age_ms=${STEPCAL_E2E_MAX_WRENCH_AGE_MS:-10000}
   budget_us=${STEPCAL_E2E_BUDGET_US:-100000}
 else
   rate_hz=${STEPCAL_E2E_RATE_HZ:-1000}
-  max_age_ms=${STEPCAL_E2E_MAX_WRENCH_AGE_MS:-20}
+  max_age_ms=${STEPCAL_E2E_MAX_WRENCH_AGE_MS:-1000}
   budget_us=${STEPCAL_E2E_BUDGET_US:-200}
 fi
 mode=${STEPCAL_E2E_MODE:-forward}
@@ -65,8 +67,9 @@ sleep 0.2  # the sensor answers from its first frame on; the daemon reads it at 
   --sensor-republish STEPCAL_WRENCH 2>"$out/daemon.log" &
 pids+=($!)
 
-# Ready when a forward request with the live wrench is answered OK.
-for _ in $(seq 100); do
+# Ready when a forward request with the live wrench is answered OK (within seconds; the bound of
+# about 3 min is for a starved VM).
+for _ in $(seq 600); do
   if "$bin/stepcal-client" --lcm-url "$url" --forward 0 0 0 0 0.5 0 --timeout-ms 200 --json \
       2>/dev/null | jq -e '.status == "OK"' >/dev/null; then
     ready=1

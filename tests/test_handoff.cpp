@@ -67,6 +67,7 @@ TEST(WrenchSlot, OneWriterThreeReadersNeverTear) {
   struct ReaderStats {
     long reads = 0, misses = 0, torn = 0, backwards = 0;
     uint64_t distinct = 0;
+    std::atomic<bool> enough{false};  // > 1000 reads and the writer seen moving on
   };
   std::array<ReaderStats, 3> stats{};
   std::vector<std::thread> readers;
@@ -84,12 +85,22 @@ TEST(WrenchSlot, OneWriterThreeReadersNeverTear) {
         if (s.sequence < last) ++mine.backwards;
         if (s.sequence != last) ++mine.distinct;
         last = s.sequence;
+        if (mine.reads > 1000 && mine.distinct >= 2) mine.enough.store(true, std::memory_order_relaxed);
       }
     });
   }
+  // At least 500 ms, then until every reader has read enough (on a loaded machine a reader may
+  // get few turns): a count, not a time, decides when the run is long enough.
+  const auto enough = [&] {
+    for (const ReaderStats& s : stats) {
+      if (!s.enough.load(std::memory_order_relaxed)) return false;
+    }
+    return true;
+  };
   uint64_t published = 1;
-  const auto end = std::chrono::steady_clock::now() + milliseconds(500);
-  while (std::chrono::steady_clock::now() < end) {
+  const auto start = std::chrono::steady_clock::now();
+  while (std::chrono::steady_clock::now() < start + milliseconds(500) ||
+         (!enough() && std::chrono::steady_clock::now() < start + std::chrono::seconds(30))) {
     for (int i = 0; i < 64; ++i) slot.publish(sampleFor(++published));
   }
   stop = true;

@@ -418,7 +418,8 @@ TEST(LcmService, BadRequestsGetBadRequestOrAreCounted) {
 
 TEST(LcmService, StaleLiveWrenchIsStaleWrench) {
   ServiceOptions options = generousOptions();
-  options.max_wrench_age_ns = 5'000'000;
+  // Ages far apart, so a descheduled test thread can neither freshen nor stale a sample.
+  options.max_wrench_age_ns = 500'000'000;
   MemqService memq(options);
   const Measurement& row = validationRow();
   correction_request_t msg = forwardRequest(row, 9);
@@ -436,7 +437,7 @@ TEST(LcmService, StaleLiveWrenchIsStaleWrench) {
   };
   runtime::WrenchSample sample;
   sample.wrench_Sensor = row.wrenchOrZero();
-  sample.stamp_ns = nowNs() - 50'000'000;  // 50 ms old
+  sample.stamp_ns = nowNs() - 5'000'000'000;  // 5 s old
   memq.service().publishWrench(sample);
   EXPECT_EQ(status(), Status::kStaleWrench);
   sample.stamp_ns = nowNs();
@@ -477,7 +478,9 @@ struct ChannelLog {
 // the republished samples leave over LCM.
 TEST(LcmService, CanFeedServesTheLiveWrenchAndTakesCommands) {
   const std::unique_ptr<lcm_t, void (*)(lcm_t*)> lcm(lcm_create("memq://"), &lcm_destroy);
-  Service service(paperModel(), "paper.stepcal", generousOptions());
+  ServiceOptions service_options = generousOptions();
+  service_options.max_wrench_age_ns = 1'000'000'000;  // what is tested is the wrench, not its age
+  Service service(paperModel(), "paper.stepcal", service_options);
   LcmServer server(lcm.get(), service);
   int ends[2];
   ASSERT_EQ(socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, ends), 0);
@@ -522,7 +525,7 @@ TEST(LcmService, CanFeedServesTheLiveWrenchAndTakesCommands) {
     const correction_reply_t from_sensor = ask(live);
     const correction_reply_t from_row = ask(forwardRequest(row, 22));
     ASSERT_EQ(from_sensor.status, int8_t(Status::kOk));
-    EXPECT_GT(from_sensor.wrench_stamp_ns, before_ns - 50'000'000);
+    EXPECT_GT(from_sensor.wrench_stamp_ns, before_ns - service_options.max_wrench_age_ns);
     EXPECT_LE(from_sensor.wrench_stamp_ns, runtime::steadyNowNs());
     EXPECT_EQ(from_row.wrench_stamp_ns, 0) << "a given wrench has no stamp";
     // The sensor rounds the wrench to whole gauge counts (≈ 0.05 N): far below a micrometre.
@@ -545,7 +548,11 @@ TEST(LcmService, CanFeedServesTheLiveWrenchAndTakesCommands) {
     pump();
     EXPECT_EQ(feed.refusedCommands(), 2);
     EXPECT_TRUE(feed.driver().biased());
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    // Two samples more: the second is published after the first, which the bias already tares.
+    const int64_t samples = feed.driver().counters().samples;
+    while (feed.driver().counters().samples < samples + 2) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
     correction_request_t unloaded = forwardRequest(row, 23);
     for (double& w : unloaded.wrench) w = 0.0;
     const correction_reply_t tared = ask(live);

@@ -857,21 +857,30 @@ TEST(Runtime, DeadlineIsKept) {
   endless.position_tolerance_m = 0.0;
   endless.orientation_tolerance_rad = 0.0;
   endless.max_iterations = 1000;
-  auto start = Clock::now();
-  const InverseResult hundred = [&] {
-    InverseOptions o = endless;
-    o.max_iterations = 100;
-    return solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c, seed, kNoDeadline, o);
-  }();
-  const auto step = (Clock::now() - start) / 101;
-  ASSERT_EQ(hundred.iterations, 100);
+  // Being descheduled only ever makes a run slower, so the fastest of 5 runs is the solver's own
+  // time, both for the step and for the cut: a solver that ignored the deadline would take all
+  // 1000 steps (50 budgets) every time.
+  InverseOptions hundred_steps = endless;
+  hundred_steps.max_iterations = 100;
+  auto step = Clock::duration::max();
+  for (int run = 0; run < 5; ++run) {
+    const auto start = Clock::now();
+    const InverseResult hundred = solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c,
+                                               seed, kNoDeadline, hundred_steps);
+    step = std::min(step, (Clock::now() - start) / 101);
+    ASSERT_EQ(hundred.iterations, 100);
+  }
   const auto budget = 20 * step;
-  start = Clock::now();
-  const InverseResult cut = solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c, seed,
-                                         start + budget, endless);
-  const auto elapsed = Clock::now() - start;
-  EXPECT_EQ(cut.status, Status::kNotConverged);
-  EXPECT_LT(cut.iterations, 1000);
+  InverseResult cut;
+  auto elapsed = Clock::duration::max();
+  for (int run = 0; run < 5; ++run) {
+    const auto start = Clock::now();
+    cut = solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c, seed, start + budget,
+                       endless);
+    elapsed = std::min(elapsed, Clock::now() - start);
+    EXPECT_EQ(cut.status, Status::kNotConverged);
+    EXPECT_LT(cut.iterations, 1000);
+  }
   // One step late, one evaluation at the answer, and slack for a loaded machine.
   EXPECT_LT(elapsed, budget + 3 * step + std::chrono::milliseconds(2));
   std::cout << "[ timing     ] one Newton step "

@@ -18,12 +18,12 @@ bad() {
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
-# Sends frame $2 on vcan0 every 0.2 s (at most ~5 s) until candump $1 (a pid) has exited: the
-# first send could otherwise happen before candump has bound its socket.
+# Sends frame $2 on vcan0 every 0.2 s until candump $1 (a pid, under `timeout 30`) has exited:
+# the first send could otherwise happen before candump has bound its socket. Bounded by
+# candump's timeout, not by a count of sends: under emulation on a loaded host each exec is slow.
 send_until_received() {
-  local pid=$1 frame=$2 i
-  for ((i = 0; i < 25; i++)); do
-    kill -0 "$pid" 2>/dev/null || break
+  local pid=$1 frame=$2
+  while kill -0 "$pid" 2>/dev/null; do
     cansend vcan0 "$frame"
     sleep 0.2
   done
@@ -42,7 +42,7 @@ if ! command -v cansend >/dev/null 2>&1 || ! command -v candump >/dev/null 2>&1;
   bad "cansend/candump not found: apt-get install can-utils"
 else
   # 1. A data frame.
-  timeout 10 candump -n 1 -L vcan0 >"$tmp/data" 2>&1 &
+  timeout 30 candump -n 1 -L vcan0 >"$tmp/data" 2>&1 &
   send_until_received $! 123#DEADBEEF
   if grep -q ' vcan0 123#DEADBEEF$' "$tmp/data"; then
     ok "data frame 123#DEADBEEF sent by cansend received by candump"
@@ -53,7 +53,7 @@ else
   # 2. An error frame injected from userspace: CAN_ERR_FLAG | CAN_ERR_BUSOFF (0x40). cansend
   # sets CAN_EFF_FLAG too for an 8-digit id, so the socket sees can_id 0xA0000040.
   # Only error frames (0~0 matches no data frame) with every error class enabled.
-  timeout 10 candump -n 1 -L 'vcan0,0~0,#FFFFFFFF' >"$tmp/err" 2>&1 &
+  timeout 30 candump -n 1 -L 'vcan0,0~0,#FFFFFFFF' >"$tmp/err" 2>&1 &
   send_until_received $! 20000040#0000000000000000
   if grep -qi ' vcan0 20000040#0000000000000000$' "$tmp/err"; then
     ok "error frame 20000040# (bus-off) passes vcan to a CAN_RAW socket with CAN_RAW_ERR_FILTER"

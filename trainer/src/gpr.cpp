@@ -26,6 +26,20 @@ constexpr double kFailedObjective = 1e10;
 constexpr double kConstantColumnTolerance = 1e-10;
 // fromParts rejects α whose normwise backward error exceeds this.
 constexpr double kAlphaBackwardErrorLimit = 1e-8;
+// The cache sizes Eigen's matrix products and triangular solves are told, bytes: its own
+// fallback values for x86 (see pinEigenBlocking).
+constexpr std::ptrdiff_t kPinnedL1CacheBytes = 32 * 1024;
+constexpr std::ptrdiff_t kPinnedL2CacheBytes = 256 * 1024;
+constexpr std::ptrdiff_t kPinnedL3CacheBytes = 2 * 1024 * 1024;
+
+/// Eigen cuts its matrix products and triangular solves into blocks sized from the CPU's caches
+/// (CPUID), and the cut sets the order of the sums: the same fit rounded differently on two
+/// CPUs (a host with 48 KiB L1 and qemu's 64 KiB), and a flat likelihood carried those last bits
+/// to different hyperparameters. Fixed sizes make every CPU cut alike. Process-wide and kept:
+/// later products block alike too, only their speed differs.
+void pinEigenBlocking() {
+  Eigen::setCpuCacheSizes(kPinnedL1CacheBytes, kPinnedL2CacheBytes, kPinnedL3CacheBytes);
+}
 
 /// Lower triangle (with diagonal) of E_ij = exp(−½ ‖z_i − z_j‖²) for scaled inputs Z (m × D).
 void fillUnitKernelLower(const Eigen::MatrixXd& Z, Eigen::MatrixXd& E) {
@@ -369,6 +383,7 @@ Eigen::VectorXd GaussianProcess::startingPoint(int index, int input_dim, const G
 
 GaussianProcess GaussianProcess::fit(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y,
                                      const GprOptions& options, GprFitReport* report) {
+  pinEigenBlocking();
   const GprScaling scaling = GprScaling::fromData(X, Y);
   const Eigen::Index D = X.cols();
   const Eigen::MatrixXd Xn = normaliseInputs(X, scaling);
@@ -386,23 +401,25 @@ GaussianProcess GaussianProcess::fit(const Eigen::MatrixXd& X, const Eigen::Matr
 
   const int restarts = std::max(1, options.restarts);
   const int threads = std::clamp(options.threads, 1, restarts);
+  // Each start is optimised alone and lands in its own slot, so which thread ran it (and when)
+  // changes nothing; so does a failure, rethrown by start index.
   std::vector<GprRestart> results(restarts);
-  std::vector<std::exception_ptr> failures(threads);
+  std::vector<std::exception_ptr> failures(restarts);
   std::atomic<int> next_restart{0};  // starts differ in cost: hand them out on demand
-  auto work = [&](int thread) {
-    try {
-      for (int r = next_restart++; r < restarts; r = next_restart++) {
+  auto work = [&] {
+    for (int r = next_restart++; r < restarts; r = next_restart++) {
+      try {
         results[r] = optimiseFrom(Xn, Yn, startingPoint(r, static_cast<int>(D), b), lower, upper,
                                   options.max_iterations,
                                   options.short_length_scale_prior * std::sqrt(static_cast<double>(D)));
+      } catch (...) {
+        failures[r] = std::current_exception();
       }
-    } catch (...) {
-      failures[thread] = std::current_exception();
     }
   };
   std::vector<std::thread> workers;
-  for (int t = 1; t < threads; ++t) workers.emplace_back(work, t);
-  work(0);
+  for (int t = 1; t < threads; ++t) workers.emplace_back(work);
+  work();
   for (std::thread& worker : workers) worker.join();
   for (const std::exception_ptr& failure : failures) {
     if (failure) std::rethrow_exception(failure);
@@ -435,6 +452,7 @@ GaussianProcess GaussianProcess::withHyperparameters(const Eigen::MatrixXd& X,
                                                      const Eigen::MatrixXd& Y,
                                                      const GprScaling& scaling,
                                                      const GprHyperparameters& hyperparameters) {
+  pinEigenBlocking();
   requireFiniteData(X, Y);
   requireValidScaling(scaling, X.cols(), Y.cols());
   requireValidHyperparameters(hyperparameters, X.cols());

@@ -5,7 +5,7 @@
 //   stepcal-client --inverse x y z qw qx qy qz [--seed q1 … q6] [--wrench …] [--temp-c T]
 //                                                        m, unit quaternion
 //   stepcal-client --campaign DIR [--set validation] [--mode forward|inverse] [--count N]
-//                  [--rate HZ] [--truth truth.json] [--live-wrench [--settle-ms 5]] [--json]
+//                  [--rate HZ] [--truth truth.json] [--live-wrench [--wrench-channel C]] [--json]
 //   stepcal-client --ping N [--json]     raw LCM round trips to a `stepcal-client --echo`
 //   stepcal-client --echo                answers STEPCAL_PING on STEPCAL_PONG until SIGINT/SIGTERM
 //
@@ -22,9 +22,11 @@
 //
 // --live-wrench: the requests use the daemon's live sensor instead of the rows' wrenches. Before
 // each request the client publishes the row's joints and payload as robot_state_t, waits until a
-// simulated sensor (stepcal-ftsim --truth) echoes it as applied, then --settle-ms for the driver
-// to read it; the report adds the latency from the CAN frame (the reply's wrench_stamp_ns) to the
-// reply.
+// simulated sensor (stepcal-ftsim --truth) echoes it as applied, then until the daemon has taken
+// two samples stamped after the echo (wrench_t on --wrench-channel, where stepcal-runtime
+// --sensor-republish puts each sample it took): the first may still be the reading the sensor
+// made just before it applied the state. The report adds the latency from the CAN frame (the
+// reply's wrench_stamp_ns) to the reply.
 #include <CLI/CLI.hpp>
 #include <poll.h>
 #include <signal.h>
@@ -45,10 +47,12 @@
 #include <stepcal_lcm/correction_reply_t.hpp>
 #include <stepcal_lcm/correction_request_t.hpp>
 #include <stepcal_lcm/robot_state_t.hpp>
+#include <stepcal_lcm/wrench_t.hpp>
 
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/runtime/can_socket.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/latency.hpp"
@@ -80,7 +84,7 @@ struct Args {
   double timeout_ms = 100.0;
   bool json = false;
   bool live_wrench = false;
-  double settle_ms = 5.0;
+  std::string wrench_channel = service::kWrenchChannel;
 };
 
 /// An LCM instance for the lifetime of the object.
@@ -450,12 +454,26 @@ std::optional<twin::TwinRobot> readTruth(const std::string& path) {
 struct StateEcho {
   int64_t wanted_utime = 0;
   bool seen = false;
-  int missing = 0;  ///< states never echoed within 2 s (no simulated sensor listening?)
+  int missing = 0;  ///< states not echoed, or not read twice after, within 10 s (no simulator?)
   static void on(const lcm_recv_buf_t* rbuf, const char*, void* user) {
     auto* self = static_cast<StateEcho*>(user);
     stepcal_lcm::robot_state_t state{};
     if (state.decode(rbuf->data, 0, int(rbuf->data_size)) > 0 && state.utime == self->wanted_utime) {
       self->seen = true;
+    }
+  }
+};
+
+/// Counts the daemon's samples (wrench_t) stamped after a time: when it has two, its live wrench
+/// is of the state applied before that time.
+struct FreshSamples {
+  int64_t after_ns = 0;  ///< CLOCK_MONOTONIC, as the samples' stamps
+  int count = 0;
+  static void on(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+    auto* self = static_cast<FreshSamples*>(user);
+    stepcal_lcm::wrench_t sample{};
+    if (sample.decode(rbuf->data, 0, int(rbuf->data_size)) > 0 && sample.stamp_ns > self->after_ns) {
+      ++self->count;
     }
   }
 };
@@ -466,7 +484,6 @@ int runCampaign(Args args) {
     throw InputError("--mode '" + args.mode + "': expected forward or inverse");
   }
   const bool inverse = args.mode == "inverse";
-  if (!(args.settle_ms >= 0.0)) throw InputError("--settle-ms must be ≥ 0");
   if (args.live_wrench && args.rate_hz > 0.0) {
     throw InputError("--live-wrench sends one request at a time: drop --rate");
   }
@@ -496,8 +513,13 @@ int runCampaign(Args args) {
   Exchange exchange;
   std::vector<uint8_t> state_buffer(size_t(stepcal_lcm::robot_state_t{}.getEncodedSize()));
   StateEcho echo;
+  FreshSamples fresh;
   lcm_subscription_t* applied =
       lcm_subscribe(lcm.get(), service::kRobotStateAppliedChannel, &StateEcho::on, &echo);
+  lcm_subscription_t* samples =
+      args.live_wrench
+          ? lcm_subscribe(lcm.get(), args.wrench_channel.c_str(), &FreshSamples::on, &fresh)
+          : nullptr;
   const auto publishRobotState = [&](size_t i) {
     // Where the robot now is and what it carries, tagged with a fresh utime.
     stepcal_lcm::robot_state_t state{};
@@ -508,15 +530,18 @@ int runCampaign(Args args) {
     echo.seen = false;
     const int size = state.encode(state_buffer.data(), 0, int(state_buffer.size()));
     lcm_publish(lcm.get(), service::kRobotStateChannel, state_buffer.data(), unsigned(size));
-    const Clock::time_point give_up = Clock::now() + std::chrono::seconds(2);
+    const Clock::time_point give_up = Clock::now() + std::chrono::seconds(10);
     while (!echo.seen && Clock::now() < give_up) handleUntil(lcm.get(), give_up);
-    if (!echo.seen) ++echo.missing;
-    handleUntil(lcm.get(), Clock::now() + std::chrono::microseconds(int64_t(args.settle_ms * 1e3)));
+    fresh.after_ns = runtime::steadyNowNs();
+    fresh.count = 0;
+    while (echo.seen && fresh.count < 2 && Clock::now() < give_up) handleUntil(lcm.get(), give_up);
+    if (!echo.seen || fresh.count < 2) ++echo.missing;
   };
   const std::vector<correction_reply_t> replies =
       sendRequests(lcm.get(), args, std::move(requests), exchange,
                    args.live_wrench ? std::function<void(size_t)>(publishRobotState) : nullptr);
   lcm_unsubscribe(lcm.get(), applied);
+  if (samples) lcm_unsubscribe(lcm.get(), samples);
 
   long status_counts[kStatusCount] = {};
   std::vector<double> compute_us;
@@ -524,9 +549,15 @@ int runCampaign(Args args) {
   std::vector<double> frame_to_reply_us;
   double iterations = 0;
   int64_t model_id = 0;
+  // Per request: its row, status and GPR std (row by row comparisons of two runs).
+  nlohmann::json per_row = nlohmann::json::array();
   for (size_t i = 0; i < replies.size(); ++i) {
+    nlohmann::json& entry = per_row.emplace_back(nlohmann::json{
+        {"line", row_of[i]->source_line}, {"load_kg", row_of[i]->load_kg}, {"status", nullptr}});
     if (std::isnan(exchange.round_trip_us[i])) continue;
     const correction_reply_t& r = replies[i];
+    entry["status"] = runtime::toString(static_cast<runtime::Status>(r.status));
+    entry["gpr_std"] = std::vector<double>(r.gpr_std, r.gpr_std + 6);
     if (r.status >= 0 && r.status < kStatusCount) ++status_counts[r.status];
     compute_us.push_back(double(r.compute_ns) * 1e-3);
     model_id = r.model_id;
@@ -580,6 +611,7 @@ int runCampaign(Args args) {
       {"statuses", statuses},
       {"accuracy",
        accuracy.toJson(inverse ? (truth ? "twin truth" : "solver residual") : "measured pose")}};
+  report["rows"] = per_row;
   if (inverse) {
     report["mean_iterations"] = accuracy.poses ? iterations / accuracy.poses : 0.0;
   } else if (truth) {
@@ -715,8 +747,9 @@ int main(int argc, char** argv) {
   app.add_flag("--live-wrench", args.live_wrench,
                "campaign: use the daemon's live sensor; publish each row's joints and payload as "
                "robot_state_t first");
-  app.add_option("--settle-ms", args.settle_ms,
-                 "--live-wrench: wait after publishing the robot state, ms")->capture_default_str();
+  app.add_option("--wrench-channel", args.wrench_channel,
+                 "--live-wrench: channel of the daemon's samples (stepcal-runtime --sensor-republish)")
+      ->capture_default_str();
   app.add_option("--ping", args.ping_count, "raw LCM round trips to `stepcal-client --echo`");
   app.add_flag("--echo", args.echo, "answer STEPCAL_PING on STEPCAL_PONG until stopped");
   app.add_option("--deadline-us", args.deadline_us,

@@ -42,7 +42,7 @@ struct GprOptions {
   int restarts = 4;         ///< optimiser starts, see GaussianProcess::startingPoint
   int max_iterations = 80;  ///< L-BFGS-B iterations per start
   int cv_folds = 10;        ///< folds of the cross-validation loss reported by fit (< 2: none)
-  int threads = 2;          ///< starts optimised in parallel; the result does not depend on it
+  int threads = 2;          ///< starts optimised in parallel; the result does not depend on it, bit for bit
   GprBounds bounds;
   /// Length scales below ℓ₀ = this · √D (normalised input units) cost ½ (log(ℓ/ℓ₀))² nats
   /// each: on a white-noise residual the likelihood cannot tell "all noise" from "signal with
@@ -106,6 +106,9 @@ class GaussianProcess {
   /// Fits scaling and hyperparameters to X (m × D, raw inputs) and Y (m × P, raw outputs) by
   /// maximising the log marginal likelihood. Throws InputError on empty, mismatched or
   /// non-finite data, or bounds that are not positive and increasing.
+  /// Bit-identical for one binary whatever GprOptions::threads and the CPU's cache sizes: it
+  /// first pins Eigen's blocking (Eigen::setCpuCacheSizes, for the whole process; so does
+  /// withHyperparameters), so no other thread may run Eigen products while it starts.
   static GaussianProcess fit(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y,
                              const GprOptions& options = {}, GprFitReport* report = nullptr);
 

@@ -649,7 +649,7 @@ TEST_F(ModelFileTest, NominalChainFollowsTheCalibratedChainAndDescribesTheSameRo
 
 TEST_F(ModelFileTest, MechanismsOfEveryKindRoundTripBetweenCompliancesAndGpr) {
   const CalibratedModel parsed = parse(bytes());
-  ASSERT_EQ(parsed.mechanisms.size(), 7u);
+  ASSERT_EQ(parsed.mechanisms.size(), 8u);
   for (size_t i = 0; i < parsed.mechanisms.size(); ++i) {
     EXPECT_EQ(static_cast<uint32_t>(parsed.mechanisms[i].kind), uint32_t(i + 1)) << i;
   }
@@ -658,11 +658,11 @@ TEST_F(ModelFileTest, MechanismsOfEveryKindRoundTripBetweenCompliancesAndGpr) {
   const size_t compliance = payloadOf(b, "COMP");
   const size_t mech = payloadOf(b, "MECH");
   EXPECT_EQ(mech, compliance + 4 + 2 * 8 * 6 + 16);
-  EXPECT_EQ(getU32(b, mech), 7u);
+  EXPECT_EQ(getU32(b, mech), 8u);
   // Record by record: header, parameters, sigmas, coverage (arc count, arcs, fade);
   // 4 + Σ (20 + 16 p + 4 + 16 a + 8) bytes in all.
   size_t length = 4;
-  for (size_t i = 0; i < 7; ++i) {
+  for (size_t i = 0; i < 8; ++i) {
     const Mechanism& m = model().mechanisms[i];
     const size_t at = mechanismAt(b, i);
     EXPECT_EQ(getU32(b, at), static_cast<uint32_t>(m.kind));
@@ -713,7 +713,7 @@ TEST_F(ModelFileTest, EachMalformedMechanismIsRefusedWithItsOffsetIndexAndProble
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const std::vector<Case> cases = {
       {[&](auto& e) { putU32(e, backlash, 9); }, backlash, "mechanisms[0]",
-       "mechanism kind 9; expected 1 to 7"},
+       "mechanism kind 9; expected 1 to 8"},
       {[&](auto& e) { putU32(e, backlash + 4, 6); }, backlash, "mechanisms[0]",
        "backlash joint index 6; expected 0 to 5"},
       {[&](auto& e) { putU32(e, backlash + 4, uint32_t(-1)); }, backlash, "mechanisms[0]",
@@ -778,7 +778,7 @@ TEST_F(ModelFileTest, MechanismsThatCannotBeTogetherOrLackTheirInputsAreRefused)
                                     std::pair{size_t(5), std::string("sensor_bias")}}) {
     const auto [b, at] = withRecordRepeated(bytes(), index);
     const std::string message = refusal(b);
-    EXPECT_NE(message.find("byte " + std::to_string(at) + ", mechanisms[7]: a second " + kind +
+    EXPECT_NE(message.find("byte " + std::to_string(at) + ", mechanisms[8]: a second " + kind +
                            " (the first is mechanisms[" + std::to_string(index) +
                            "]); expected at most one"),
               std::string::npos)
@@ -786,6 +786,29 @@ TEST_F(ModelFileTest, MechanismsThatCannotBeTogetherOrLackTheirInputsAreRefused)
   }
   // A second backlash is another joint's or adds to the first: allowed.
   EXPECT_EQ(refusal(withRecordRepeated(bytes(), 0).first), "");
+  // A second profile, or a second profile geometry, of the same joint.
+  for (const auto& [index, kind] : {std::pair{size_t(2), std::string("transmission_error")},
+                                    std::pair{size_t(7), std::string("profile_geometry")}}) {
+    const auto [b, at] = withRecordRepeated(bytes(), index);
+    const std::string message = refusal(b);
+    EXPECT_NE(message.find("byte " + std::to_string(at) + ", mechanisms[8]: a second " + kind +
+                           " of joint 3 (the first is mechanisms[" + std::to_string(index) +
+                           "]); expected at most one per joint"),
+              std::string::npos)
+        << message;
+  }
+  // A profile geometry whose joint has no profile.
+  {
+    std::vector<uint8_t> b = bytes();
+    putU32(b, mechanismAt(b, 7) + 4, 4);
+    refix(b);
+    const std::string message = refusal(b);
+    EXPECT_NE(message.find("byte " + std::to_string(mechanismAt(b, 7)) +
+                           ", mechanisms[7]: profile_geometry of joint 5 without a "
+                           "transmission_error of that joint"),
+              std::string::npos)
+        << message;
+  }
 
   // sensor_bias without a sensor frame, self_weight without gravity.
   std::vector<uint8_t> b = bytes();

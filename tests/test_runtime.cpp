@@ -213,6 +213,66 @@ TEST(Runtime, ForwardAppliesBacklashTransmissionCouplingAndNonlinearStiffnessAtA
             << " m; smallest effect on the tip " << smallest_effect_m << " m\n";
 }
 
+// A profile on joint 3 covering q₃ ∈ [1, 2.5] rad (fade 0.1 rad) with its share of the geometry:
+// deeper than the fade inside, the link angle moves by the profile and every initial pose by its
+// correction (closed form); beyond the arc, the model is the one without them, exactly, and the
+// reply flags joint 3; across the edge the correction changes smoothly (no step along a
+// trajectory).
+TEST(Runtime, ProfileAndItsGeometryFadeOutSmoothlyOutsideTheFittedAngles) {
+  const double a = 4e-5, b = -2.5e-5, fade_rad = 0.1;
+  const AngleCoverage coverage{{1.0, 1.5}, fade_rad};
+  const std::vector<double> delta = test::profileGeometryParameters();
+  const CalibratedModel file = withMechanisms(
+      {mechanism(MechanismKind::kTransmissionError, 2, -1, 3, {0.0, 0.0, 0.0, 0.0, a, b}, coverage),
+       mechanism(MechanismKind::kProfileGeometry, 2, -1, 0, delta)},
+      false);
+  CalibratedModel plain = file;
+  plain.mechanisms.clear();
+  const auto model = RuntimeModel::fromModel(file, 21), without = RuntimeModel::fromModel(plain, 22);
+  Workspace ws = makeWorkspace(*model), ws_without = makeWorkspace(*without);
+  // Rigid: no wrench, so the link angles are the commanded ones plus the profile.
+  const KinematicChain corrected =
+      file.chain_Tracker.corrected(Eigen::Map<const Eigen::VectorXd>(delta.data(), 42));
+  JointVector q = validationRows().front()->q_rad;
+  auto at = [&](double q3, Workspace& w, const RuntimeModel& m) {
+    q(2) = q3;
+    return correctForward(m, w, q, Vec6::Zero(), kUnknownTemperature_c);
+  };
+  for (const double q3 : {1.2, 1.75, 2.35}) {  // deeper than the fade
+    const ForwardResult r = at(q3, ws, *model);
+    JointVector theta = q;
+    theta(2) += a * std::sin(3 * q3) + b * std::cos(3 * q3);
+    const auto [position_m, rotation] =
+        positionAndRotationDifference(r.X_TrackerTip, nominalTip(corrected, theta));
+    EXPECT_LT(position_m, 1e-12) << "q3 " << q3;
+    EXPECT_LT(rotation, 1e-12) << "q3 " << q3;
+    EXPECT_EQ(r.uncovered_joints, 0u);
+  }
+  for (const double q3 : {0.85, 2.65, -1.0}) {  // beyond the arc
+    const ForwardResult r = at(q3, ws, *model);
+    const ForwardResult r0 = at(q3, ws_without, *without);
+    EXPECT_EQ(positionAndRotationDifference(r.X_TrackerTip, r0.X_TrackerTip),
+              std::make_pair(0.0, 0.0))
+        << "q3 " << q3;
+    EXPECT_EQ(r.uncovered_joints, 1u << 2);
+  }
+  EXPECT_EQ(at(1.05, ws, *model).uncovered_joints, 1u << 2);  // on the ramp
+  // Across the lower edge in steps of fade/400: the correction (with minus without) never
+  // jumps; a step in the gate would move it by its whole size at once.
+  double largest_m = 0.0, largest_step_m = 0.0;
+  Vec3 previous = Vec3::Zero();
+  for (int i = 0; i <= 1600; ++i) {
+    const double q3 = 1.0 - 2.0 * fade_rad + i * fade_rad / 400.0;
+    const Vec3 correction = at(q3, ws, *model).X_TrackerTip.translation() -
+                            at(q3, ws_without, *without).X_TrackerTip.translation();
+    largest_m = std::max(largest_m, correction.norm());
+    if (i > 0) largest_step_m = std::max(largest_step_m, (correction - previous).norm());
+    previous = correction;
+  }
+  EXPECT_GT(largest_m, 1e-5) << "the profile and its geometry must move the tip";
+  EXPECT_LT(largest_step_m, 0.02 * largest_m);
+}
+
 /// Gravity torques of point masses (mass m_k at c_k = h_k / m_k in frame k) at link angles θ,
 /// written from the definition: τ_j = Σ_{k ≥ j} ω_j · ((p_k − o_j) × m_k g), ω_j joint j's axis and
 /// o_j a point on it (ω × v of its local twist), root frame, N·m.
@@ -547,7 +607,7 @@ TEST(Runtime, RefusesModelsTheRealTimePathCannotUse) {
       << refusal(bad_joint);
   CalibratedModel two_biases = withMechanisms(mechanismOfEveryKind(), true);
   two_biases.mechanisms.push_back(two_biases.mechanisms[5]);
-  EXPECT_NE(refusal(two_biases).find("mechanisms[7]: a second sensor_bias"), std::string::npos)
+  EXPECT_NE(refusal(two_biases).find("mechanisms[8]: a second sensor_bias"), std::string::npos)
       << refusal(two_biases);
   CalibratedModel weightless = withMechanisms(mechanismOfEveryKind(), true);
   weightless.gravity_Base.setZero();

@@ -55,8 +55,24 @@ KinematicChain KinematicChain::rerooted(const Pose& X_NewRootOldRoot) const {
   return out;
 }
 
+namespace {
+
+// Initial pose k as evaluated: its translation scaled, then the weighted correction applied.
+Pose evaluatedInitialPose(const KinematicChain& chain, int k, double scale,
+                          const InitialPoseCorrection& correction) noexcept {
+  Pose T = chain.initialPose(k);
+  T.translation() *= scale;
+  if (correction.delta != nullptr && correction.weight != 0.0) {
+    const Vec6 delta = correction.weight * Eigen::Map<const Vec6>(correction.delta + 6 * k);
+    T = T * lie::expSE3(delta);
+  }
+  return T;
+}
+
+}  // namespace
+
 bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainWorkspace& ws,
-                       double link_length_scale) noexcept {
+                       double link_length_scale, const InitialPoseCorrection& correction) noexcept {
   const int n = chain.dof();
   if (q.size() != n) return false;
   ws.dof = n;
@@ -64,12 +80,11 @@ bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainW
   for (int i = 1; i <= n; ++i) {
     const Vec6& s = chain.joints()[static_cast<size_t>(i - 1)].twist_Local;
     const Pose& X_prev = ws.X_RootFrame[static_cast<size_t>(i - 1)];
-    const Pose& T = chain.initialPose(i - 1);
-    const double scale = i == 1 ? 1.0 : link_length_scale;
+    const Pose T = evaluatedInitialPose(chain, i - 1, i == 1 ? 1.0 : link_length_scale, correction);
     Pose& X = ws.X_RootFrame[static_cast<size_t>(i)];
     // X_0,i = X_0,i-1 · T · exp(ŝ q), composed as rotation and translation (no 4×4 products).
     const Mat3 R_prevT = X_prev.linear() * T.linear();
-    const Vec3 p_prevT = X_prev.linear() * (scale * T.translation()) + X_prev.translation();
+    const Vec3 p_prevT = X_prev.linear() * T.translation() + X_prev.translation();
     if (s.head<3>().isZero(0.0)) {
       // A revolute axis through the frame origin: Rodrigues' formula for the unit axis a.
       const Vec3 a = s.tail<3>();
@@ -85,11 +100,10 @@ bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainW
     }
   }
   const Pose& X_n = ws.X_RootFrame[static_cast<size_t>(n)];
-  const Pose& T_tip = chain.initialPose(n);
+  const Pose T_tip = evaluatedInitialPose(chain, n, link_length_scale, correction);
   Pose& X_tip = ws.X_RootFrame[static_cast<size_t>(n + 1)];
   X_tip.linear() = X_n.linear() * T_tip.linear();
-  X_tip.translation() =
-      X_n.linear() * (link_length_scale * T_tip.translation()) + X_n.translation();
+  X_tip.translation() = X_n.linear() * T_tip.translation() + X_n.translation();
   return true;
 }
 

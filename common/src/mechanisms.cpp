@@ -1,6 +1,7 @@
 #include "stepcal/common/mechanisms.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 
@@ -14,7 +15,7 @@ constexpr MechanismKind kAllKinds[] = {
     MechanismKind::kBacklash,           MechanismKind::kSelfWeight,
     MechanismKind::kTransmissionError,  MechanismKind::kNonlinearStiffness,
     MechanismKind::kThermalExpansion,   MechanismKind::kSensorBias,
-    MechanismKind::kJointCoupling};
+    MechanismKind::kJointCoupling,      MechanismKind::kProfileGeometry};
 
 // The fixed point θ = θ₀ + Δθ(τ(θ)) contracts by ~C·m·g·r ≈ 1e-3 per pass; three passes leave
 // an error far below a nanoradian (METHOD.md eq. 24 uses two for compliance alone).
@@ -24,7 +25,8 @@ constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
 
 bool usesJoint(MechanismKind kind) {
   return kind == MechanismKind::kBacklash || kind == MechanismKind::kTransmissionError ||
-         kind == MechanismKind::kNonlinearStiffness || kind == MechanismKind::kJointCoupling;
+         kind == MechanismKind::kNonlinearStiffness || kind == MechanismKind::kJointCoupling ||
+         kind == MechanismKind::kProfileGeometry;
 }
 
 }  // namespace
@@ -38,6 +40,7 @@ const char* toString(MechanismKind kind) noexcept {
     case MechanismKind::kThermalExpansion: return "thermal_expansion";
     case MechanismKind::kSensorBias: return "sensor_bias";
     case MechanismKind::kJointCoupling: return "joint_coupling";
+    case MechanismKind::kProfileGeometry: return "profile_geometry";
   }
   return "unknown";
 }
@@ -167,6 +170,16 @@ std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof, in
     case MechanismKind::kSensorBias:
       return {"fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm"};
     case MechanismKind::kJointCoupling: return {"ratio"};
+    case MechanismKind::kProfileGeometry: {
+      std::vector<std::string> names;
+      for (int k = 0; k <= dof; ++k) {
+        const std::string pose = "pose" + std::to_string(k) + "_";
+        for (const char* p : {"vx_m", "vy_m", "vz_m", "wx_rad", "wy_rad", "wz_rad"}) {
+          names.push_back(pose + p);
+        }
+      }
+      return names;
+    }
   }
   return {};
 }
@@ -176,7 +189,7 @@ std::string mechanismProblem(const Mechanism& m, int dof) {
   for (MechanismKind kind : kAllKinds) known = known || kind == m.kind;
   if (!known) {
     return "mechanism kind " + std::to_string(static_cast<uint32_t>(m.kind)) +
-           "; expected 1 to 7 (mechanisms.hpp)";
+           "; expected 1 to 8 (mechanisms.hpp)";
   }
   const std::string what = toString(m.kind);
   if ((m.kind == MechanismKind::kTransmissionError) != (m.order >= 1) ||
@@ -225,6 +238,7 @@ std::string describe(const Mechanism& m) {
   switch (m.kind) {
     case MechanismKind::kBacklash:
     case MechanismKind::kNonlinearStiffness:
+    case MechanismKind::kProfileGeometry:
       return s + " (joint " + std::to_string(m.joint + 1) + ")";
     case MechanismKind::kTransmissionError:
       return s + " (joint " + std::to_string(m.joint + 1) + ", " + std::to_string(m.order) +
@@ -252,6 +266,28 @@ bool PhysicalModel::has(MechanismKind kind) const noexcept {
     if (m.kind == kind) return true;
   }
   return false;
+}
+
+const Mechanism* transmissionOf(const PhysicalModel& model, int joint) noexcept {
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kTransmissionError && m.joint == joint) return &m;
+  }
+  return nullptr;
+}
+
+bool profileGeometryDelta(const PhysicalModel& model, const JointVector& q_rad,
+                          double* delta) noexcept {
+  bool any = false;
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind != MechanismKind::kProfileGeometry || m.joint >= q_rad.size()) continue;
+    const Mechanism* profile = transmissionOf(model, m.joint);
+    const double gate = profile ? coverageGate(profile->coverage, q_rad(m.joint)) : 0.0;
+    if (!any) std::fill(delta, delta + m.parameters.size(), 0.0);
+    any = true;
+    if (gate == 0.0) continue;
+    for (size_t i = 0; i < m.parameters.size(); ++i) delta[i] += gate * m.parameters[i];
+  }
+  return any;
 }
 
 uint32_t jointsOutsideCoverage(const PhysicalModel& model, const JointVector& q_rad) noexcept {
@@ -298,6 +334,9 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
   JointVector theta0 = q_rad;
   Vec6 wrench = wrench_Sensor;
   const Mechanism* self_weight = nullptr;
+  std::array<double, 6 * (kMaxJoints + 1)> delta;
+  InitialPoseCorrection geometry;
+  if (profileGeometryDelta(model, q_rad, delta.data())) geometry = {delta.data(), 1.0};
   for (const Mechanism& m : model.mechanisms) {
     const auto p = [&m](size_t i) { return m.parameters[i]; };
     if (m.kind == MechanismKind::kJointCoupling) {
@@ -318,7 +357,7 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
   // Without a wrench or self weight every torque is zero and θ = θ₀: no passes.
   const int passes = has_sensor || self_weight != nullptr ? kFixedPointPasses : 0;
   for (int pass = 0; pass < passes; ++pass) {
-    forwardKinematics(chain, theta_rad, ws, scale);
+    forwardKinematics(chain, theta_rad, ws, scale, geometry);
     spatialJacobian(chain, ws, J);
     tau_nm.setZero(n);
     if (has_sensor) {
@@ -339,7 +378,7 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
       }
     }
   }
-  forwardKinematics(chain, theta_rad, ws, scale);
+  forwardKinematics(chain, theta_rad, ws, scale, geometry);
   return true;
 }
 

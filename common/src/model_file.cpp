@@ -45,6 +45,7 @@ constexpr uint32_t kMaxGprDims = 64;
 /// than self_weight's 4 per link).
 constexpr uint32_t kMaxMechanismParameters = 2 * kMaxHarmonics;
 static_assert(kMaxMechanismParameters >= 4 * kMaxJoints, "self_weight must fit");
+static_assert(kMaxMechanismParameters >= 6 * (kMaxJoints + 1), "profile_geometry must fit");
 /// Bytes of a mechanism record before its parameters: kind, joint, source_joint, order, p.
 constexpr size_t kMechanismHeaderBytes = 5 * 4;
 
@@ -1023,11 +1024,31 @@ std::string mechanismInModelProblem(const CalibratedModel& model, size_t index) 
   const bool single = m.kind == MechanismKind::kSelfWeight ||
                       m.kind == MechanismKind::kSensorBias ||
                       m.kind == MechanismKind::kThermalExpansion;
-  for (size_t i = 0; single && i < index; ++i) {
-    if (model.mechanisms[i].kind == m.kind) {
+  // A joint has at most one profile and one profile geometry.
+  const bool per_joint = m.kind == MechanismKind::kTransmissionError ||
+                         m.kind == MechanismKind::kProfileGeometry;
+  for (size_t i = 0; i < index; ++i) {
+    const Mechanism& earlier = model.mechanisms[i];
+    if (earlier.kind != m.kind) continue;
+    if (single) {
       return std::string("a second ") + toString(m.kind) + " (the first is mechanisms[" +
              std::to_string(i) + "]); expected at most one";
     }
+    if (per_joint && earlier.joint == m.joint) {
+      return std::string("a second ") + toString(m.kind) + " of joint " +
+             std::to_string(m.joint + 1) + " (the first is mechanisms[" + std::to_string(i) +
+             "]); expected at most one per joint";
+    }
+  }
+  const auto profiled = [&](int joint) {
+    for (const Mechanism& other : model.mechanisms) {
+      if (other.kind == MechanismKind::kTransmissionError && other.joint == joint) return true;
+    }
+    return false;
+  };
+  if (m.kind == MechanismKind::kProfileGeometry && !profiled(m.joint)) {
+    return "profile_geometry of joint " + std::to_string(m.joint + 1) +
+           " without a transmission_error of that joint; expected the profile it goes with";
   }
   if (m.kind == MechanismKind::kSensorBias && model.sensor_frame < 0) {
     return "sensor_bias in a model without a sensor frame (registration.sensor_frame = " +

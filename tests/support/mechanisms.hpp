@@ -24,6 +24,17 @@ inline std::vector<double> selfWeightParameters() {
   return p;
 }
 
+/// A profile geometry of a six-joint arm: 7 initial-pose corrections (v m, ω rad), tens of µm
+/// and µrad, different on every pose and axis.
+inline std::vector<double> profileGeometryParameters() {
+  std::vector<double> p;
+  for (int k = 0; k < 7; ++k) {
+    for (int i = 0; i < 3; ++i) p.push_back(1e-6 * (10.0 + 7.0 * k - 4.0 * i));
+    for (int i = 0; i < 3; ++i) p.push_back(1e-6 * (-20.0 + 5.0 * k + 9.0 * i));
+  }
+  return p;
+}
+
 /// A mechanism whose 1-σ are 5 % of its parameters' magnitudes.
 inline Mechanism mechanism(MechanismKind kind, int joint, int source_joint, int order,
                            std::vector<double> parameters, AngleCoverage coverage = {}) {
@@ -37,7 +48,8 @@ inline Mechanism mechanism(MechanismKind kind, int joint, int source_joint, int 
 /// [0] backlash (joint 2), [1] self_weight, [2] transmission_error (joint 3, harmonics 1 and 2,
 /// covering 57°–315°),
 /// [3] nonlinear_stiffness (joint 4), [4] thermal_expansion (T_ref 20 °C), [5] sensor_bias,
-/// [6] joint_coupling (joint 5 → joint 6).
+/// [6] joint_coupling (joint 5 → joint 6), [7] profile_geometry (joint 3: tens of µm and µrad
+/// on every initial pose).
 inline std::vector<Mechanism> mechanismOfEveryKind() {
   return {mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-4, 5.0}),
           mechanism(MechanismKind::kSelfWeight, -1, -1, 0, selfWeightParameters()),
@@ -46,7 +58,8 @@ inline std::vector<Mechanism> mechanismOfEveryKind() {
           mechanism(MechanismKind::kNonlinearStiffness, 3, -1, 0, {4e-6, 60.0}),
           mechanism(MechanismKind::kThermalExpansion, -1, -1, 0, {1.15e-5, 20.0}),
           mechanism(MechanismKind::kSensorBias, -1, -1, 0, {1.5, -0.8, 2.1, 0.03, -0.02, 0.01}),
-          mechanism(MechanismKind::kJointCoupling, 5, 4, 0, {-1.2e-3})};
+          mechanism(MechanismKind::kJointCoupling, 5, 4, 0, {-1.2e-3}),
+          mechanism(MechanismKind::kProfileGeometry, 2, -1, 0, profileGeometryParameters())};
 }
 
 }  // namespace stepcal::test

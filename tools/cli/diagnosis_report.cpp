@@ -91,8 +91,8 @@ std::string statisticsText(const char* title, const trainer::ResidualStatistics&
   int shown = 0;
   for (const trainer::TrendScore& t : s.trends) {
     if (shown == 6) break;
-    out += format("    trend in %-9s held-out gain %8.4f mm  t %7.1f  %s\n", t.variable.c_str(),
-                  t.cv_gain_mm, t.t_statistic, t.significant ? "significant" : "");
+    out += format("    trend in %-9s held-out gain %8.4f mm  z %7.1f  %s\n", t.variable.c_str(),
+                  t.cv_gain_mm, t.z_statistic, t.significant ? "significant" : "");
     ++shown;
   }
   return out;
@@ -107,6 +107,16 @@ std::string transmissionSummary(const Mechanism& m) {
     out += format("%s h%d %.0f", i == 0 ? "" : ",", top[i], 1e6 * amplitude(m, top[i]));
   }
   return out + " urad; " + coverageText(m);
+}
+
+std::string profileGeometrySummary(const Mechanism& m) {
+  double v = 0.0, w = 0.0;
+  for (size_t k = 0; k + 6 <= m.parameters.size(); k += 6) {
+    v = std::max(v, std::hypot(m.parameters[k], m.parameters[k + 1], m.parameters[k + 2]));
+    w = std::max(w, std::hypot(m.parameters[k + 3], m.parameters[k + 4], m.parameters[k + 5]));
+  }
+  return format("initial poses moved by up to %.0f um, %.0f urad where joint %d's profile holds",
+                1e6 * v, 1e6 * w, m.joint + 1);
 }
 
 std::string coverageText(const Mechanism& m) {
@@ -134,11 +144,11 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
       d.fit_rows, d.fit_poses, d.folds, d.validation_rows);
   out += "What the physical model (geometry + compliance, refitted on every fit row) gets wrong\n";
   out += statisticsText("  before", d.before);
-  out += "\nCandidates that stood out (held-out gain, t; significant = family-wise 1 %):\n";
+  out += "\nCandidates that stood out (held-out gain, signed-rank z; significant = family-wise 1 %):\n";
   std::vector<const trainer::CandidateScore*> sorted;
   for (const auto& c : d.candidates) sorted.push_back(&c);
   std::stable_sort(sorted.begin(), sorted.end(), [](const auto* a, const auto* b) {
-    return a->round != b->round ? a->round < b->round : a->t_statistic > b->t_statistic;
+    return a->round != b->round ? a->round < b->round : a->z_statistic > b->z_statistic;
   });
   int round = 0, shown = 0;
   for (const trainer::CandidateScore* c : sorted) {
@@ -148,9 +158,9 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
       out += format("  round %d\n", round);
     }
     if (shown++ >= 5 && !c->chosen) continue;
-    out += format("    %-42s gain %8.4f mm  removes %5.1f %%  t %7.1f  %s\n",
+    out += format("    %-42s gain %8.4f mm  removes %5.1f %%  z %7.1f  %s\n",
                   describe(c->mechanism).c_str(), c->cv_gain_mm, 100.0 * c->relative_reduction,
-                  c->t_statistic,
+                  c->z_statistic,
                   c->chosen ? "chosen" : c->significant ? "significant" : "");
   }
   for (const auto& u : d.untestable) {
@@ -172,8 +182,8 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
       }
       parameters += ")";
     }
-    out += format("%s (held-out gain %.4f mm, t %.1f)\n", parameters.c_str(), e.cv_gain_mm,
-                  e.t_statistic);
+    out += format("%s (held-out gain %.4f mm, z %.1f)\n", parameters.c_str(), e.cv_gain_mm,
+                  e.z_statistic);
     const JointVector& c = d.extended_model.compliance_rad_per_nm;
     for (int j : e.compliance_joints) {
       out += format("    joint %d compliance %.3g rad/(N·m) ± %.2g, from the arm's own weight\n",
@@ -238,7 +248,7 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
     x["alternatives"] = nlohmann::json::array();
     for (const Mechanism& m : e.alternatives) x["alternatives"].push_back(describe(m));
     x["cv_gain_mm"] = e.cv_gain_mm;
-    x["t_statistic"] = e.t_statistic;
+    x["z_statistic"] = e.z_statistic;
     x["p_value"] = e.p_value;
     x["round"] = e.round;
     j["effects"].push_back(x);
@@ -251,7 +261,7 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
     if (c.mechanism.kind == MechanismKind::kTransmissionError) x["ridge"] = c.ridge;
     x["cv_gain_mm"] = c.cv_gain_mm;
     x["relative_reduction"] = c.relative_reduction;
-    x["t_statistic"] = c.t_statistic;
+    x["z_statistic"] = c.z_statistic;
     x["p_value"] = c.p_value;
     x["significant"] = c.significant;
     x["chosen"] = c.chosen;
@@ -273,7 +283,7 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
     for (const trainer::TrendScore& t : s.trends) {
       x["trends"].push_back({{"variable", t.variable},
                              {"cv_gain_mm", t.cv_gain_mm},
-                             {"t_statistic", t.t_statistic},
+                             {"z_statistic", t.z_statistic},
                              {"p_value", t.p_value},
                              {"significant", t.significant}});
     }

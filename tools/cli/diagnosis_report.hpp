@@ -14,7 +14,7 @@ namespace stepcal::cli {
 std::string formatDiagnosis(const trainer::Diagnosis& diagnosis, double seconds_calibrate);
 
 /// The diagnosis as JSON: `verdict` ("found", "none", "unexplained"), `effects` → [{name, joint,
-/// joints, order, parameters, uncertainty, cv_gain_mm, t_statistic, p_value, round}] in the order
+/// joints, order, parameters, uncertainty, cv_gain_mm, z_statistic, p_value, round}] in the order
 /// found (joints 1-based). A transmission_error (a profile) has instead of parameters `harmonics`
 /// → [{harmonic, sin_rad, cos_rad, sin_sigma_rad, cos_sigma_rad, geometry_share}] (link angle +=
 /// sin_rad·sin(k q) + cos_rad·cos(k q), q the recorded joint angle, inside its coverage),
@@ -31,6 +31,10 @@ nlohmann::json parametersJson(const Mechanism& mechanism, const std::vector<doub
 /// A transmission profile in one line: its strongest harmonics (amplitude √(a² + b²), µrad) and
 /// the joint angles it covers (deg), e.g. "strongest h8 212, h2 95, h7 60 urad; covers 52..180 deg".
 std::string transmissionSummary(const Mechanism& profile);
+
+/// A profile geometry in one line: its largest translation (µm) and rotation (µrad) of an
+/// initial pose, e.g. "initial poses moved by up to 41 um, 63 urad where joint 2's profile holds".
+std::string profileGeometrySummary(const Mechanism& geometry);
 
 /// The joint angles a profile covers, deg, e.g. "covers 52..180 deg".
 std::string coverageText(const Mechanism& profile);

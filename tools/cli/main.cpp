@@ -115,9 +115,11 @@ void runValidate(const std::string& model_path, const std::string& dir, bool ref
     std::cout << cli::accuracyJson(summaries).dump(2) << "\n";
   } else {
     std::cout << "model " << model_path << " (campaign " << model.provenance.campaign_path
-              << ") on " << dir << ": " << v.rows << " rows, " << v.covered_rows
-              << " inside every transmission profile's coverage\n"
-              << cli::formatAccuracyTable(summaries);
+              << ") on " << dir << ": " << v.rows << " rows";
+    if (!v.covered.empty() || v.covered_rows > 0 || covering) {
+      std::cout << ", " << v.covered_rows << " inside every transmission profile's coverage";
+    }
+    std::cout << "\n" << cli::formatAccuracyTable(summaries);
   }
 }
 

@@ -176,6 +176,10 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
       out << "mechanism " << describe(m) << ": " << transmissionSummary(m) << "\n";
       continue;
     }
+    if (m.kind == MechanismKind::kProfileGeometry) {
+      out << "mechanism " << describe(m) << ": " << profileGeometrySummary(m) << "\n";
+      continue;
+    }
     const std::vector<std::string> names =
         mechanismParameterNames(m.kind, model.chain_Tracker.dof(), m.order);
     out << "mechanism " << describe(m) << ":";

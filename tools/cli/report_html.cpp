@@ -1022,16 +1022,16 @@ std::string diagnosisHtml(const Campaign& campaign, const trainer::Diagnosis& d)
       if (c.round == round) in_round.push_back(&c);
     }
     std::sort(in_round.begin(), in_round.end(),
-              [](const auto* a, const auto* b) { return a->t_statistic > b->t_statistic; });
+              [](const auto* a, const auto* b) { return a->z_statistic > b->z_statistic; });
     BarChart chart;
     chart.title = format("round %d: the ten best of %zu candidates", round, in_round.size());
     chart.x_label = "candidate";
-    chart.y_label = "held-out t statistic";
-    BarSeries bars{"t (chosen one first among equals)", "#1f77b4", {}};
+    chart.y_label = "held-out signed-rank z";
+    BarSeries bars{"z (chosen one first among equals)", "#1f77b4", {}};
     for (size_t i = 0; i < in_round.size() && i < 10; ++i) {
       chart.categories.push_back(describe(in_round[i]->mechanism) +
                                  (in_round[i]->chosen ? " *" : ""));
-      bars.values.push_back(in_round[i]->t_statistic);
+      bars.values.push_back(in_round[i]->z_statistic);
     }
     chart.bars.push_back(bars);
     out << "<figure class=\"bars\">" << renderBars(chart) << "</figure>";

@@ -116,10 +116,13 @@ ValidationResult validateModel(const CalibratedModel& model, const Campaign& cam
   }
   std::vector<Measurement> all_rows(campaign.rows.begin(), campaign.rows.end()), covered_rows;
   const PhysicalModel covering = coverage_of ? physicalModelOf(*coverage_of) : physical;
-  for (const Measurement& row : campaign.rows) {
-    if (row.q_rad.size() == covering.chain_Tracker.dof() &&
-        jointsOutsideCoverage(covering, row.q_rad) == 0) {
-      covered_rows.push_back(row);
+  // Covered rows are counted only for a model with profiles (without, every row is covered).
+  if (covering.has(MechanismKind::kTransmissionError)) {
+    for (const Measurement& row : campaign.rows) {
+      if (row.q_rad.size() == covering.chain_Tracker.dof() &&
+          jointsOutsideCoverage(covering, row.q_rad) == 0) {
+        covered_rows.push_back(row);
+      }
     }
   }
   out.rows = static_cast<int>(all_rows.size());

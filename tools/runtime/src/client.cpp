@@ -328,6 +328,15 @@ std::string vectorText(const double* v, int n, double scale = 1.0, const char* f
   return text + "]";
 }
 
+/// The joints (1-based) of a reply's uncovered_joints bits, e.g. [1, 4].
+nlohmann::json uncoveredJoints(int32_t bits) {
+  nlohmann::json joints = nlohmann::json::array();
+  for (int j = 0; j < 32; ++j) {
+    if ((static_cast<uint32_t>(bits) >> j) & 1u) joints.push_back(j + 1);
+  }
+  return joints;
+}
+
 /// A model id as printed by stepcal-runtime: 16 hex digits.
 std::string modelIdText(int64_t model_id) {
   char text[17];
@@ -344,7 +353,8 @@ nlohmann::json replyJson(const correction_reply_t& r, bool inverse) {
       {"compute_us", double(r.compute_ns) * 1e-3},
       {"predicted_position_m", array(r.predicted_position_m, 3)},
       {"predicted_quaternion_wxyz", array(r.predicted_quaternion_wxyz, 4)},
-      {"gpr_std", array(r.gpr_std, 6)}};
+      {"gpr_std", array(r.gpr_std, 6)},
+      {"uncovered_joints", uncoveredJoints(r.uncovered_joints)}};
   if (inverse) {
     j["q_target_rad"] = array(r.q_target_rad, 6);
     j["commanded_position_m"] = array(r.commanded_position_m, 3);
@@ -374,6 +384,10 @@ void printReply(const correction_reply_t& r, double round_trip_us, bool inverse)
               vectorText(r.predicted_position_m, 3).c_str(),
               vectorText(r.predicted_quaternion_wxyz, 4).c_str());
   std::printf("gpr_std (v m, w rad)      %s\n", vectorText(r.gpr_std, 6, 1.0, "%.3e").c_str());
+  if (r.uncovered_joints != 0) {
+    std::printf("outside the fitted angles of the profile of joint(s) %s\n",
+                uncoveredJoints(r.uncovered_joints).dump().c_str());
+  }
   if (inverse) {
     std::printf("iterations %d, residual %.4f mm, %.5f deg\n", r.iterations,
                 r.residual_position_m * 1e3, r.residual_orientation_rad * kRadToDeg);

@@ -127,6 +127,7 @@ Status Service::answer(const Request& request, const runtime::RuntimeModel& mode
     if (carriesAnswer(r.status)) {
       writePose(r.X_TrackerTip, reply_.predicted_position_m, reply_.predicted_quaternion_wxyz);
       writeVector(r.gpr_std, reply_.gpr_std);
+      reply_.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);
     }
     return r.status;
   }
@@ -144,6 +145,7 @@ Status Service::answer(const Request& request, const runtime::RuntimeModel& mode
     writePose(r.X_TrackerTip_predicted, reply_.predicted_position_m,
               reply_.predicted_quaternion_wxyz);
     writeVector(r.gpr_std, reply_.gpr_std);
+    reply_.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);
     reply_.iterations = r.iterations;
     reply_.residual_position_m = r.residual_position_m;
     reply_.residual_orientation_rad = r.residual_orientation_rad;

@@ -105,7 +105,8 @@ std::vector<int> gravityLoadedJoints(const PhysicalModel& global, const FitRows&
 
 Screening screening(const DiagnosisModel& model, const FitRows& fit, const RoundStart& start,
                     const DiagnoseOptions& options,
-                    const std::optional<std::vector<double>>& body_masses) {
+                    const std::optional<std::vector<double>>& body_masses,
+                    const Mechanism* only) {
   const PhysicalModel& global = model.global;
   const int n = global.chain_Tracker.dof();
   const Eigen::MatrixXd& L = start.linear.link_angle;
@@ -124,13 +125,30 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
                                 lumped_mass ? 1.0 / (kSelfWeightPriorSigma * kSelfWeightPriorSigma)
                                             : 0.0));
   }
-  // Stage 2: the current profiles.
+  // Stage 2: the geometry's change that goes with the profiles (every fit row lies inside every
+  // profile's gate, so its columns are the geometry's), then the current profiles.
+  for (Eigen::Index c = 0; c < geometry; ++c) {
+    const Eigen::VectorXd column = start.linear.geometry.col(c);
+    const double ridge = kProfileGeometryRidge * std::max(column.squaredNorm(), 1e-300);
+    s.stage2.push_back(sink.add(column, ridge));
+  }
+  const int max_order = *std::max_element(options.profile_orders.begin(), options.profile_orders.end());
   for (const Profile& p : model.profiles) {
-    const Mechanism& m = p.mechanism;
-    const Eigen::MatrixXd B = profileColumns(L, fit, m.joint, m.coverage, m.order);
-    for (Eigen::Index c = 0; c < B.cols(); ++c) s.stage2.push_back(sink.add(B.col(c), p.ridge));
+    Family f;
+    f.stage = Stage::kProfile;
+    f.mechanism = blank(MechanismKind::kTransmissionError, n, p.mechanism.joint, -1,
+                        std::max(max_order, p.mechanism.order));
+    f.mechanism.coverage = p.mechanism.coverage;
+    const Eigen::MatrixXd B =
+        profileColumns(L, fit, f.mechanism.joint, f.mechanism.coverage, f.mechanism.order);
+    for (Eigen::Index c = 0; c < B.cols(); ++c) f.columns.push_back(sink.add(B.col(c)));
+    s.profiled.push_back(std::move(f));
   }
 
+  auto wanted = [&](MechanismKind kind, int joint = -1, int source = -1) {
+    return only == nullptr ||
+           (only->kind == kind && only->joint == joint && only->source_joint == source);
+  };
   auto addGlobal = [&](Family family, std::vector<Eigen::VectorXd> columns,
                        std::vector<double> steps, double column_ridge = 0.0) {
     double effect = 0.0;
@@ -163,7 +181,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
       }
       continue;
     }
-    if (!present(global, MechanismKind::kBacklash, j, -1)) {
+    if (!present(global, MechanismKind::kBacklash, j, -1) && wanted(MechanismKind::kBacklash, j)) {
       Family f;
       f.mechanism = blank(MechanismKind::kBacklash, n, j);
       f.mechanism.parameters[1] = 0.1 * typical;
@@ -174,7 +192,8 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
       }
       addGlobal(std::move(f), {featureColumn(L, fit, j, feature)}, {typicalStep(blank(MechanismKind::kBacklash, n, j), 0)});
     }
-    if (!present(global, MechanismKind::kNonlinearStiffness, j, -1)) {
+    if (!present(global, MechanismKind::kNonlinearStiffness, j, -1) &&
+        wanted(MechanismKind::kNonlinearStiffness, j)) {
       for (double factor : {0.1, 0.25, 0.5, 1.0, 2.0}) {
         Family f;
         f.mechanism = blank(MechanismKind::kNonlinearStiffness, n, j);
@@ -191,7 +210,10 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
   }
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j < n; ++j) {
-      if (i == j || present(global, MechanismKind::kJointCoupling, j, i)) continue;
+      if (i == j || present(global, MechanismKind::kJointCoupling, j, i) ||
+          !wanted(MechanismKind::kJointCoupling, j, i)) {
+        continue;
+      }
       Family f;
       f.mechanism = blank(MechanismKind::kJointCoupling, n, j, i);
       f.free = {0};
@@ -206,7 +228,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
   // lumped masses act through a compliance the loads identified.
   const bool compliant = global.compliance_rad_per_nm.size() == n &&
                          global.compliance_rad_per_nm.maxCoeff() > 0.0;
-  if (present(global, MechanismKind::kSelfWeight, -1, -1)) {
+  if (present(global, MechanismKind::kSelfWeight, -1, -1) || !wanted(MechanismKind::kSelfWeight)) {
   } else if (global.gravity_Tracker.norm() == 0.0) {
     s.untestable.push_back({"self_weight", "gravity is unknown (campaign.yaml gravity_in_base)"});
   } else if (body_masses) {
@@ -254,7 +276,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     addGlobal(std::move(f), std::move(columns), std::move(steps),
               1.0 / (kSelfWeightPriorSigma * kSelfWeightPriorSigma));
   }
-  if (present(global, MechanismKind::kSensorBias, -1, -1)) {
+  if (present(global, MechanismKind::kSensorBias, -1, -1) || !wanted(MechanismKind::kSensorBias)) {
   } else if (global.sensor_frame < 0 || !compliant) {
     s.untestable.push_back({"sensor_bias", "the model has no F/T sensor or no compliance"});
   } else {
@@ -273,7 +295,8 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     }
     addGlobal(std::move(f), std::move(columns), std::move(steps));
   }
-  if (!present(global, MechanismKind::kThermalExpansion, -1, -1)) {
+  if (!present(global, MechanismKind::kThermalExpansion, -1, -1) &&
+      wanted(MechanismKind::kThermalExpansion)) {
     std::vector<double> temps;
     for (const Measurement* row : fit.rows) {
       if (row->temp_c) temps.push_back(*row->temp_c);
@@ -303,8 +326,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
 
   // One profile per joint not yet profiled, at the highest order (lower orders are its leading
   // columns), over the angles the fit rows cover.
-  const int max_order = *std::max_element(options.profile_orders.begin(), options.profile_orders.end());
-  for (int j = 0; j < n; ++j) {
+  for (int j = 0; j < n && only == nullptr; ++j) {
     bool profiled = false;
     for (const Profile& p : model.profiles) profiled = profiled || p.mechanism.joint == j;
     if (profiled) continue;
@@ -328,7 +350,20 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     s.A.col(geometry + static_cast<Eigen::Index>(c)) = sink.columns[c];
     s.ridge(geometry + static_cast<Eigen::Index>(c)) = sink.ridge[c];
   }
+  setStage2(s, model, geometry);
   return s;
+}
+
+void setStage2(Screening& s, const DiagnosisModel& model, Eigen::Index geometry) {
+  s.stage2.resize(static_cast<size_t>(geometry));
+  for (size_t i = 0; i < model.profiles.size(); ++i) {
+    const Profile& p = model.profiles[i];
+    for (int c = 0; c < 2 * p.mechanism.order; ++c) {
+      const Eigen::Index column = s.profiled[i].columns[static_cast<size_t>(c)];
+      s.stage2.push_back(column);
+      s.ridge(column) = p.ridge;
+    }
+  }
 }
 
 }  // namespace stepcal::trainer::diagnosis

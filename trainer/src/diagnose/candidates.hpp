@@ -35,9 +35,17 @@ struct Screening {
   Eigen::MatrixXd A;                    ///< count × columns, the residual's weighting
   Eigen::VectorXd ridge;                ///< per column (lumped masses' prior, profiles' ridges)
   std::vector<Eigen::Index> stage1, stage2;
-  std::vector<Family> families;
+  std::vector<Family> families;  ///< not in the model yet
+  /// The model's profiles as families at the highest order (model order): stage 2 holds the
+  /// leading 2·order columns of each, so each can be tried again at every order.
+  std::vector<Family> profiled;
   std::vector<UntestableCandidate> untestable;
 };
+
+/// Stage 2 of a screening for the model's profiles: the geometry's change (its first `geometry`
+/// entries, kept), then the leading 2·order columns of each profiled family, with their ridges
+/// set in the screening's ridge.
+void setStage2(Screening& s, const DiagnosisModel& model, Eigen::Index geometry);
 
 /// What the round starts from: the global model's evaluation (r0, θ, τ) and linearisation.
 struct RoundStart {
@@ -46,10 +54,12 @@ struct RoundStart {
 };
 
 /// Builds the round's screening: the current model's stage-1 and stage-2 columns, and every
-/// catalogued family not in the model yet. body_masses: the URDF's (bodyMassesFromUrdf), if any.
+/// catalogued family not in the model yet (only: just the global families of that mechanism's
+/// kind, joint and source joint). body_masses: the URDF's (bodyMassesFromUrdf), if any.
 Screening screening(const DiagnosisModel& model, const FitRows& fit, const RoundStart& start,
                     const DiagnoseOptions& options,
-                    const std::optional<std::vector<double>>& body_masses);
+                    const std::optional<std::vector<double>>& body_masses,
+                    const Mechanism* only = nullptr);
 
 /// Joints whose gravity torque under the given self_weight parameters varies enough over the
 /// fit rows to identify their compliance from it (std ≥ 1 N·m and ≥ 10 % of the largest), and the

@@ -2,6 +2,7 @@
 
 #include "parallel.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/Eigenvalues>
@@ -10,7 +11,7 @@ namespace stepcal::trainer::diagnosis {
 namespace {
 
 // Eigenvalues of a column-normalised Gram below this fraction of the largest are unobservable.
-constexpr double kGramRankTolerance = 1e-15;
+constexpr double kGramRankTolerance = 1e-12;
 
 std::vector<Eigen::Index> joined(const std::vector<Eigen::Index>& a,
                                  const std::vector<Eigen::Index>& b) {
@@ -19,27 +20,30 @@ std::vector<Eigen::Index> joined(const std::vector<Eigen::Index>& a,
   return out;
 }
 
-// One-sided p-value of a t statistic, normal approximation (hundreds of poses).
-double upperTailP(double t) { return 0.5 * std::erfc(t / std::sqrt(2.0)); }
-
 }  // namespace
+
+double upperTailP(double z) { return 0.5 * std::erfc(z / std::sqrt(2.0)); }
 
 FoldGrams::FoldGrams(Eigen::MatrixXd A, const Eigen::VectorXd& r0, const FitRows& fit) {
   const Eigen::Index p = A.cols();
   const int folds = fit.folds;
-  std::vector<std::vector<int>> rows_of_fold(static_cast<size_t>(folds));
+  rows_of_fold.assign(static_cast<size_t>(folds), {});
   for (size_t i = 0; i < fit.rows.size(); ++i) {
     rows_of_fold[static_cast<size_t>(fit.fold[i])].push_back(static_cast<int>(i));
   }
   G.assign(static_cast<size_t>(folds) + 1, Eigen::MatrixXd::Zero(p, p));
   b.assign(static_cast<size_t>(folds) + 1, Eigen::VectorXd::Zero(p));
   e0.assign(static_cast<size_t>(folds), 0.0);
+  A_fold.resize(static_cast<size_t>(folds));
+  r0_fold.resize(static_cast<size_t>(folds));
   parallelFor(static_cast<size_t>(folds), [&](size_t fold) {
     const int f = static_cast<int>(fold);
     Eigen::Index count = 0;
     for (int i : rows_of_fold[static_cast<size_t>(f)]) count += fit.equations(static_cast<size_t>(i));
-    Eigen::MatrixXd Af(count, p);
-    Eigen::VectorXd rf(count);
+    Eigen::MatrixXd& Af = A_fold[fold];
+    Eigen::VectorXd& rf = r0_fold[fold];
+    Af.resize(count, p);
+    rf.resize(count);
     Eigen::Index e = 0;
     for (int i : rows_of_fold[static_cast<size_t>(f)]) {
       const int k = fit.equations(static_cast<size_t>(i));
@@ -61,7 +65,6 @@ FoldGrams::FoldGrams(Eigen::MatrixXd A, const Eigen::VectorXd& r0, const FitRows
   for (Eigen::Index c = 0; c < p; ++c) {
     if (!(scale(c) > 0.0)) scale(c) = 1.0;
   }
-  A_rows = A;
 }
 
 CrossValidation::CrossValidation(const FoldGrams& grams, const Eigen::VectorXd& r0,
@@ -213,15 +216,14 @@ CrossValidation::Stage2 CrossValidation::stage2OnAllRows() const {
   out.x = p_[all];
   const Eigen::Index width = static_cast<Eigen::Index>(stage2_.size());
   if (width == 0) return out;
+  out.H = trainingGram(fit_.folds, stage2_, stage2_);
+  for (Eigen::Index c = 0; c < width; ++c) out.H(c, c) += ridge_(stage2_[static_cast<size_t>(c)]);
   double e0 = 0.0;
   for (double e : grams_.e0) e0 += e;
   const Eigen::VectorXd& x = base_.x[all];
   const double sse = e0 - 2.0 * x.dot(grams_.b[all](base_.columns)) +
                      x.dot(grams_.G[all](base_.columns, base_.columns) * x);
-  const double variance = std::max(0.0, sse) / std::max<double>(1.0, double(fit_.count - width));
-  out.sigma = (variance * H_[all].solve(Eigen::MatrixXd::Identity(width, width)).diagonal())
-                  .cwiseMax(0.0)
-                  .cwiseSqrt();
+  out.variance = std::max(0.0, sse) / std::max<double>(1.0, double(fit_.count - width));
   return out;
 }
 
@@ -229,57 +231,69 @@ CrossValidation::Outcome CrossValidation::heldOut(const Correction& correction) 
   Outcome out;
   out.pose_sse.assign(static_cast<size_t>(fit_.poses), 0.0);
   out.position_m.assign(fit_.rows.size(), 0.0);
-  // Each fold's coefficients scattered over every column: a row's prediction is then one
-  // contiguous dot product.
-  const Eigen::Index p = grams_.A_rows.cols();
-  std::vector<Eigen::VectorXd> dense(static_cast<size_t>(fit_.folds), Eigen::VectorXd::Zero(p));
   for (int f = 0; f < fit_.folds; ++f) {
-    const Eigen::VectorXd& x = correction.x[static_cast<size_t>(f)];
+    const size_t k = static_cast<size_t>(f);
+    // The fold's residual over just the correction's columns (column by column: A streams once).
+    Eigen::VectorXd e = grams_.r0_fold[k];
+    const Eigen::VectorXd& x = correction.x[k];
     for (size_t a = 0; a < correction.columns.size(); ++a) {
-      dense[static_cast<size_t>(f)](correction.columns[a]) += x(static_cast<Eigen::Index>(a));
+      e.noalias() -= x(static_cast<Eigen::Index>(a)) * grams_.A_fold[k].col(correction.columns[a]);
     }
-  }
-  for (size_t i = 0; i < fit_.rows.size(); ++i) {
-    const int k = fit_.equations(i), e0 = fit_.start[i];
-    const Eigen::VectorXd& x = dense[static_cast<size_t>(fit_.fold[i])];
-    Eigen::Matrix<double, 6, 1> e = Eigen::Matrix<double, 6, 1>::Zero();
-    for (int c = 0; c < k; ++c) e(c) = r0_(e0 + c) - grams_.A_rows.row(e0 + c).dot(x);
-    out.pose_sse[static_cast<size_t>(fit_.pose[i])] += e.squaredNorm();
-    out.position_m[i] = e.head<3>().norm() / fit_.w_p;
+    Eigen::Index at = 0;
+    for (int i : grams_.rows_of_fold[k]) {
+      const int equations = fit_.equations(static_cast<size_t>(i));
+      out.pose_sse[static_cast<size_t>(fit_.pose[static_cast<size_t>(i)])] +=
+          e.segment(at, equations).squaredNorm();
+      out.position_m[static_cast<size_t>(i)] = e.segment<3>(at).norm() / fit_.w_p;
+      at += equations;
+    }
   }
   return out;
 }
 
 Comparison compare(const CrossValidation::Outcome& base, const CrossValidation::Outcome& with) {
   Comparison c;
-  const size_t n = base.pose_sse.size();
-  double sum = 0.0, sum2 = 0.0, total = 0.0;
-  for (size_t i = 0; i < n; ++i) {
-    const double d = base.pose_sse[i] - with.pose_sse[i];
-    sum += d;
-    sum2 += d * d;
+  double reduction = 0.0, total = 0.0;
+  for (size_t i = 0; i < base.pose_sse.size(); ++i) {
+    reduction += base.pose_sse[i] - with.pose_sse[i];
     total += base.pose_sse[i];
   }
-  const double mean = sum / static_cast<double>(n);
-  c.relative_reduction = total > 0.0 ? sum / total : 0.0;
-  const double var = (sum2 - sum * mean) / static_cast<double>(n - 1);
-  c.t = var > 0.0 ? mean / std::sqrt(var / static_cast<double>(n)) : 0.0;
-  c.p = upperTailP(c.t);
+  c.relative_reduction = total > 0.0 ? reduction / total : 0.0;
+  c.z = signedRankZ(base.pose_sse, with.pose_sse);
+  c.p = upperTailP(c.z);
   double gain = 0.0;
   for (size_t i = 0; i < base.position_m.size(); ++i) gain += base.position_m[i] - with.position_m[i];
   c.gain_mm = 1e3 * gain / static_cast<double>(base.position_m.size());
   return c;
 }
 
-double pairedT(const std::vector<double>& a, const std::vector<double>& b) {
-  double sum = 0.0, sum2 = 0.0;
+double signedRankZ(const std::vector<double>& a, const std::vector<double>& b) {
+  std::vector<double> d;
   for (size_t i = 0; i < a.size(); ++i) {
-    sum += a[i] - b[i];
-    sum2 += (a[i] - b[i]) * (a[i] - b[i]);
+    if (a[i] != b[i]) d.push_back(a[i] - b[i]);
   }
-  const double n = static_cast<double>(a.size()), mean = sum / n;
-  const double var = (sum2 - sum * mean) / (n - 1.0);
-  return var > 0.0 ? mean / std::sqrt(var / n) : 0.0;
+  const size_t n = d.size();
+  if (n == 0) return 0.0;
+  std::vector<size_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(),
+            [&](size_t x, size_t y) { return std::abs(d[x]) < std::abs(d[y]); });
+  // Ranks of |d|, ties sharing their mean rank; W⁺ the sum over positive differences.
+  double w_plus = 0.0, tie_term = 0.0;
+  for (size_t i = 0; i < n;) {
+    size_t j = i;
+    while (j + 1 < n && std::abs(d[order[j + 1]]) == std::abs(d[order[i]])) ++j;
+    const double rank = 0.5 * static_cast<double>(i + j) + 1.0, t = static_cast<double>(j - i + 1);
+    tie_term += t * t * t - t;
+    for (size_t k = i; k <= j; ++k) {
+      if (d[order[k]] > 0.0) w_plus += rank;
+    }
+    i = j + 1;
+  }
+  const double m = static_cast<double>(n);
+  const double mean = m * (m + 1.0) / 4.0;
+  const double variance = m * (m + 1.0) * (2.0 * m + 1.0) / 24.0 - tie_term / 48.0;
+  return variance > 0.0 ? (w_plus - mean) / std::sqrt(variance) : 0.0;
 }
 
 }  // namespace stepcal::trainer::diagnosis

@@ -26,8 +26,11 @@ struct FoldGrams {
   std::vector<Eigen::VectorXd> b;  ///< per fold Aᵀ r0, then the total
   std::vector<double> e0;          ///< per fold Σ r0²
   Eigen::VectorXd scale;           ///< √ of the total Gram's diagonal (1 where it is 0)
-  /// A row-major, for row-by-row held-out errors.
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> A_rows;
+  /// Per fold, its equations: A's rows and r0, and the fit rows they belong to (in order, each
+  /// row's equations together), for row-by-row held-out errors over just the columns used.
+  std::vector<Eigen::MatrixXd> A_fold;
+  std::vector<Eigen::VectorXd> r0_fold;
+  std::vector<std::vector<int>> rows_of_fold;
 };
 
 class CrossValidation {
@@ -63,10 +66,13 @@ class CrossValidation {
   /// The current model with the candidate's first `width` columns added to stage 2, ridge λ.
   Correction withProfile(const ProfileCandidate& candidate, int width, double lambda) const;
 
-  /// Stage 2 (the current profiles) fitted on every row after stage 1: coefficients in stage-2
-  /// column order and their 1-σ (s² (G + Λ)⁻¹, s² the residual variance).
+  /// Stage 2 (the geometry's change and the current profiles) fitted on every row after stage 1:
+  /// coefficients in stage-2 column order, their Gram with the ridges and the residual variance
+  /// (storeStage2).
   struct Stage2 {
-    Eigen::VectorXd x, sigma;
+    Eigen::VectorXd x;
+    Eigen::MatrixXd H;
+    double variance = 0.0;
   };
   Stage2 stage2OnAllRows() const;
 
@@ -98,12 +104,17 @@ class CrossValidation {
 /// Per-pose comparison of two held-out outcomes.
 struct Comparison {
   double relative_reduction = 0.0;  ///< of the total held-out squared error
-  double t = 0.0, p = 1.0;          ///< one-sided t test of the per-pose reduction
+  double z = 0.0, p = 1.0;          ///< one-sided signed-rank test of the per-pose reduction
   double gain_mm = 0.0;             ///< mean held-out position error removed, mm
 };
 Comparison compare(const CrossValidation::Outcome& base, const CrossValidation::Outcome& with);
 
-/// Paired t statistic of a − b over poses (positive: a has the larger errors).
-double pairedT(const std::vector<double>& a, const std::vector<double>& b);
+/// Wilcoxon signed-rank statistic of the pairs a_i − b_i, as a standard normal z (ties and zeros
+/// handled; positive: a has the larger errors). Robust where a t statistic is not: one pose that
+/// a candidate extrapolates to badly cannot hide a reduction that holds at most poses.
+double signedRankZ(const std::vector<double>& a, const std::vector<double>& b);
+
+/// One-sided p-value of a standard normal z (upper tail).
+double upperTailP(double z);
 
 }  // namespace stepcal::trainer::diagnosis

@@ -6,8 +6,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <numeric>
+#include <optional>
 
 #include "candidates.hpp"
 #include "cross_validation.hpp"
@@ -23,6 +25,8 @@ namespace stepcal::trainer {
 namespace {
 
 using namespace diagnosis;
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -65,7 +69,7 @@ Scored scoreGlobal(const Family& family, const CrossValidation& cv,
   const Comparison cmp = compare(base, s.outcome);
   s.score.cv_gain_mm = cmp.gain_mm;
   s.score.relative_reduction = cmp.relative_reduction;
-  s.score.t_statistic = cmp.t;
+  s.score.z_statistic = cmp.z;
   s.score.p_value = cmp.p;
   const MechanismKind kind = family.mechanism.kind;
   s.score.physical = !family.negative_compliance &&
@@ -101,8 +105,12 @@ void pruneNegativeCompliance(Family& family, const CrossValidation& cv, size_t s
   }
 }
 
-// A profile family over the grid of orders and ridges: the best ridge per order by held-out
-// squared error, then the lowest order not significantly worse than the best (paired t < 2).
+// A profile family over the grid of orders and ridges, the simplest configuration the held-out
+// poses do not show to be worse than the best: the best ridge per order by held-out squared
+// error; the lowest order whose best is not significantly worse than the best order's (signed-rank
+// z < 2 on the per-pose errors); at that order, the largest ridge not significantly worse than
+// its best. The cross-validated error is flat near its minimum, so the minimum itself moves with
+// small changes of the data; the simplest configuration on the flat part does not.
 Scored scoreProfile(const Family& family, const CrossValidation& cv,
                     const CrossValidation::Outcome& base, const FoldGrams& grams,
                     const DiagnoseOptions& options) {
@@ -112,61 +120,79 @@ Scored scoreProfile(const Family& family, const CrossValidation& cv,
   mean_diag /= static_cast<double>(family.columns.size());
   std::vector<int> orders = options.profile_orders;
   std::sort(orders.begin(), orders.end());
-  struct PerOrder {
-    int order;
-    double rho, lambda;
+  std::vector<double> ridges = options.profile_ridges;
+  std::sort(ridges.begin(), ridges.end());
+  struct Configuration {
+    int order = 0;
+    double rho = 0.0;
     CrossValidation::Correction correction;
   };
-  std::vector<PerOrder> best;
+  // Per order, every ridge's correction (ascending ridge) and the index of the best.
+  std::vector<std::vector<Configuration>> grid;
+  std::vector<size_t> best_ridge;
   for (int order : orders) {
     if (2 * order > static_cast<int>(family.columns.size())) continue;
-    PerOrder p{order, 0.0, 0.0, {}};
-    bool first = true;
-    for (double rho : options.profile_ridges) {
-      CrossValidation::Correction c = cv.withProfile(prepared, 2 * order, rho * mean_diag);
-      if (first || c.sse < p.correction.sse) {
-        p = {order, rho, rho * mean_diag, std::move(c)};
-        first = false;
-      }
+    std::vector<Configuration> row;
+    for (double rho : ridges) {
+      row.push_back({order, rho, cv.withProfile(prepared, 2 * order, rho * mean_diag)});
     }
-    best.push_back(std::move(p));
+    size_t best = 0;
+    for (size_t i = 1; i < row.size(); ++i) {
+      if (row[i].correction.sse < row[best].correction.sse) best = i;
+    }
+    grid.push_back(std::move(row));
+    best_ridge.push_back(best);
   }
+  auto bestOf = [&](size_t o) -> const Configuration& { return grid[o][best_ridge[o]]; };
   size_t top = 0;
-  for (size_t i = 1; i < best.size(); ++i) {
-    if (best[i].correction.sse < best[top].correction.sse) top = i;
+  for (size_t o = 1; o < grid.size(); ++o) {
+    if (bestOf(o).correction.sse < bestOf(top).correction.sse) top = o;
   }
-  const CrossValidation::Outcome top_outcome = cv.heldOut(best[top].correction);
-  size_t chosen = top;
-  CrossValidation::Outcome chosen_outcome = top_outcome;
-  for (size_t i = 0; i < top; ++i) {
-    CrossValidation::Outcome o = cv.heldOut(best[i].correction);
-    if (pairedT(o.pose_sse, top_outcome.pose_sse) < 2.0) {
-      chosen = i;
-      chosen_outcome = std::move(o);
+  const CrossValidation::Outcome top_outcome = cv.heldOut(bestOf(top).correction);
+  size_t order_index = top;
+  CrossValidation::Outcome order_outcome = top_outcome;
+  for (size_t o = 0; o < top; ++o) {
+    CrossValidation::Outcome outcome = cv.heldOut(bestOf(o).correction);
+    if (signedRankZ(outcome.pose_sse, top_outcome.pose_sse) < 2.0) {
+      order_index = o;
+      order_outcome = std::move(outcome);
       break;
     }
   }
-  const int order = best[chosen].order;
+  size_t ridge_index = best_ridge[order_index];
+  CrossValidation::Outcome chosen_outcome = order_outcome;
+  for (size_t i = grid[order_index].size(); i-- > best_ridge[order_index] + 1;) {
+    CrossValidation::Outcome outcome = cv.heldOut(grid[order_index][i].correction);
+    if (signedRankZ(outcome.pose_sse, order_outcome.pose_sse) < 2.0) {
+      ridge_index = i;
+      chosen_outcome = std::move(outcome);
+      break;
+    }
+  }
+  const Configuration& chosen = grid[order_index][ridge_index];
+  const int order = chosen.order;
   Scored s;
   s.family = &family;
   s.outcome = std::move(chosen_outcome);
-  s.lambda = best[chosen].lambda;
+  s.lambda = chosen.rho * mean_diag;
   Mechanism m = family.mechanism;
   m.order = order;
   m.parameters.assign(static_cast<size_t>(2 * order), 0.0);
   m.sigma.assign(m.parameters.size(), 0.0);
-  const Eigen::VectorXd& x = best[chosen].correction.x.back();
+  const Eigen::VectorXd& x = chosen.correction.x.back();
   for (int i = 0; i < 2 * order; ++i) {
     m.parameters[static_cast<size_t>(i)] = x(x.size() - 2 * order + i);
   }
   s.score.mechanism = std::move(m);
-  s.score.ridge = best[chosen].rho;
-  s.score.configurations = static_cast<int>(best.size() * options.profile_ridges.size());
-  const Comparison cmp = compare(base, s.outcome);
-  s.score.cv_gain_mm = cmp.gain_mm;
-  s.score.relative_reduction = cmp.relative_reduction;
-  s.score.t_statistic = cmp.t;
-  s.score.p_value = cmp.p;
+  s.score.ridge = chosen.rho;
+  s.score.configurations = static_cast<int>(grid.size() * ridges.size());
+  // Its gain is that of the configuration added; its test that of the best configuration
+  // (whether the family explains anything at all; Bonferroni covers the choice among them).
+  const Comparison added = compare(base, s.outcome), best = compare(base, top_outcome);
+  s.score.cv_gain_mm = added.gain_mm;
+  s.score.relative_reduction = added.relative_reduction;
+  s.score.z_statistic = best.z;
+  s.score.p_value = best.p;
   s.spent = 2 * order;
   return s;
 }
@@ -203,9 +229,40 @@ size_t choose(const std::vector<Scored>& scored, std::vector<size_t> significant
   size_t chosen = best;
   for (size_t k : significant) {
     if (scored[k].spent >= scored[chosen].spent) continue;
-    if (pairedT(scored[k].outcome.pose_sse, scored[best].outcome.pose_sse) < 2.0) chosen = k;
+    if (signedRankZ(scored[k].outcome.pose_sse, scored[best].outcome.pose_sse) < 2.0) chosen = k;
   }
   return chosen;
+}
+
+// A family that explained nearly as much as the one chosen (at least half its reduction) in the
+// round it was chosen, and its reduction then.
+struct Rival {
+  Mechanism mechanism;
+  double relative_reduction = 0.0;
+};
+
+bool sameCandidate(const Mechanism& a, const Mechanism& b) {
+  return a.kind == b.kind && a.joint == b.joint && a.source_joint == b.source_joint;
+}
+
+// The rivals of the effect named last that this round's scores (with that effect in the model)
+// show to explain nothing more: no configuration of them removes the practical minimum or a
+// quarter of what they removed before. They explained the same error: the rows cannot tell
+// them from the effect.
+void namePreviousAlternatives(const std::vector<Scored>& scored, const DiagnoseOptions& options,
+                              const std::vector<Rival>& rivals, FoundEffect& effect) {
+  for (const Rival& rival : rivals) {
+    double now = -std::numeric_limits<double>::infinity();
+    for (const Scored& s : scored) {
+      if (sameCandidate(s.score.mechanism, rival.mechanism)) {
+        now = std::max(now, s.score.relative_reduction);
+      }
+    }
+    if (std::isfinite(now) &&
+        now < std::max(options.min_relative_reduction, 0.25 * rival.relative_reduction)) {
+      effect.alternatives.push_back(rival.mechanism);
+    }
+  }
 }
 
 // Adds a chosen family to the model: a profile (its coefficients come from the next stage-2
@@ -229,6 +286,18 @@ void addFamily(DiagnosisModel& model, const Scored& chosen) {
 
 // Whether a found mechanism's sign-constrained parameter (lost motion, extra compliance) is
 // negative.
+// Index in d.effects of the k-th global cause found (effects other than profiles are the global
+// mechanisms found, in the same order).
+long globalEffect(const Diagnosis& d, size_t k) {
+  size_t global_index = 0;
+  for (size_t e = 0; e < d.effects.size(); ++e) {
+    if (d.effects[e].mechanism.kind == MechanismKind::kTransmissionError) continue;
+    if (global_index++ == k) return static_cast<long>(e);
+  }
+  STEPCAL_INVARIANT(false, "every global mechanism found has its effect");
+  return -1;
+}
+
 bool wrongSign(const Mechanism& m) {
   return (m.kind == MechanismKind::kBacklash || m.kind == MechanismKind::kNonlinearStiffness) &&
          m.parameters[0] < 0.0;
@@ -269,33 +338,73 @@ void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpti
                                 mechanismParameterNames(m.kind, 0)[0] +
                                 " turned negative once refitted with the other causes found "
                                 "(another of them explains what it did)");
-    // Its effect: the (dropped − base_globals)-th global one in the order found.
-    size_t global_index = 0;
-    for (auto e = d.effects.begin(); e != d.effects.end(); ++e) {
-      if (e->mechanism.kind == MechanismKind::kTransmissionError) continue;
-      if (global_index++ == dropped - base_globals) {
-        d.effects.erase(e);
-        break;
-      }
-    }
+    d.effects.erase(d.effects.begin() + globalEffect(d, dropped - base_globals));
     model.global.mechanisms.erase(model.global.mechanisms.begin() + static_cast<long>(dropped));
   }
 }
 
-// The profiles' coefficients and σ from stage 2 fitted on every row (stage-2 columns are the
-// profiles' in model order). Exact for the linearised model: a profile moves the link angles by
-// ~1e-3 rad, so the Jacobian's change it causes is far below the noise.
+// The model without its global mechanism k: the compliances only it made identifiable (self
+// weight) go back to the starting model's.
+void dropGlobal(DiagnosisModel& model, size_t k, const FoundEffect& effect,
+                const std::vector<bool>& starting_compliance) {
+  const Mechanism& m = model.global.mechanisms[k];
+  for (int j : effect.compliance_joints) {
+    if (starting_compliance[static_cast<size_t>(j)]) continue;
+    model.global.compliance_rad_per_nm(j) = 0.0;
+    model.compliance_free[static_cast<size_t>(j)] = false;
+  }
+  if (m.kind == MechanismKind::kSelfWeight) model.masses_from_urdf = false;
+  model.global.mechanisms.erase(model.global.mechanisms.begin() + static_cast<long>(k));
+}
+
+// Global mechanism k (found here) tried again as a candidate with every other cause in the
+// model: its best configuration's comparison when it is no longer significant (so it is to be
+// dropped), nullopt when it still is or cannot be tried.
+std::optional<Comparison> withoutGlobal(const DiagnosisModel& model, size_t k, size_t base_globals,
+                                        const FitRows& fit, const DiagnoseOptions& options,
+                                        const std::optional<std::vector<double>>& body_masses,
+                                        const std::vector<bool>& starting_compliance,
+                                        const Diagnosis& d) {
+  DiagnosisModel trial = model;
+  Diagnosis scratch = d;
+  const Mechanism removed = model.global.mechanisms[k];
+  dropGlobal(trial, k, d.effects[static_cast<size_t>(globalEffect(d, k - base_globals))],
+             starting_compliance);
+  scratch.effects.erase(scratch.effects.begin() + globalEffect(d, k - base_globals));
+  JointVector sigma = JointVector::Zero(trial.global.chain_Tracker.dof());
+  refitPhysical(trial, fit, options, base_globals, sigma, scratch);
+  if (trial.global.mechanisms.size() + 1 != model.global.mechanisms.size()) return std::nullopt;
+  fitProfiles(trial, fit);
+  RoundStart start;
+  start.global = evaluate(trial.global, fit);
+  start.linear = linearise(trial.global, fit, start.global.r);
+  Screening one = screening(trial, fit, start, options, body_masses, &removed);
+  if (one.families.empty()) return std::nullopt;
+  const FoldGrams grams(std::move(one.A), start.global.r, fit);
+  const CrossValidation cv(grams, start.global.r, fit, one.stage1, one.stage2, one.ridge);
+  const CrossValidation::Outcome base = cv.heldOut(cv.base());
+  std::optional<Comparison> best;
+  bool significant = false;
+  for (Family& family : one.families) {
+    pruneNegativeCompliance(family, cv, one.stage1.size(), trial);
+    const Scored scored = scoreGlobal(family, cv, base, one.stage1.size());
+    const Comparison c = compare(base, scored.outcome);
+    significant = significant ||
+                  (scored.score.physical &&
+                   c.p < options.family_alpha / static_cast<double>(one.families.size()) &&
+                   c.relative_reduction >= options.min_relative_reduction);
+    if (!best || c.relative_reduction > best->relative_reduction) best = c;
+  }
+  if (significant) return std::nullopt;
+  return best;
+}
+
+// The profiles' coefficients, σ and shares of the geometry from stage 2 fitted on every row.
+// Exact for the linearised model: a profile moves the link angles by ~1e-3 rad, so the
+// Jacobian's change it causes is far below the noise.
 void storeProfiles(DiagnosisModel& model, const CrossValidation& cv) {
   const CrossValidation::Stage2 s = cv.stage2OnAllRows();
-  Eigen::Index at = 0;
-  for (Profile& p : model.profiles) {
-    for (size_t i = 0; i < p.mechanism.parameters.size(); ++i) {
-      p.mechanism.parameters[i] = s.x(at);
-      p.mechanism.sigma[i] = s.sigma(at);
-      ++at;
-    }
-  }
-  STEPCAL_INVARIANT(at == s.x.size(), "stage 2 holds every profile's columns");
+  storeStage2(model, s.H, s.x, s.variance);
 }
 
 std::string percent(double share) {
@@ -347,17 +456,27 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
   DiagnosisModel dm;
   dm.global = physicalModelOf(model);
   dm.global.mechanisms.clear();
+  // A given model's profiles are refitted on this campaign, over the angles its fit rows cover
+  // (so every fit row lies inside every gate); their geometry shares are fitted with them.
   for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kProfileGeometry) continue;
     if (m.kind != MechanismKind::kTransmissionError) {
       dm.global.mechanisms.push_back(m);
       dm.masses_from_urdf = dm.masses_from_urdf ||
                             (m.kind == MechanismKind::kSelfWeight && body_masses &&
                              m.parameters == *body_masses);
-    } else {
-      dm.profiles.push_back({m, 0.0});
+      continue;
     }
+    Profile p;
+    p.mechanism = m;
+    std::vector<double> angles;
+    for (const Measurement* row : rows) angles.push_back(row->q_rad(m.joint));
+    p.mechanism.coverage = coverageOfAngles(angles, options.coverage_gap_deg * kDegToRad,
+                                            options.coverage_fade_deg * kDegToRad);
+    dm.profiles.push_back(std::move(p));
   }
   for (int j = 0; j < n; ++j) dm.compliance_free.push_back(dm.global.compliance_rad_per_nm(j) > 0.0);
+  const std::vector<bool> starting_compliance = dm.compliance_free;
   if (!dm.profiles.empty()) {
     const Evaluation e = evaluate(dm.global, fit);
     const Linearisation lin = linearise(dm.global, fit, e.r);
@@ -390,9 +509,11 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
   // 2. Families, round by round. The screening (columns and their per-fold Grams) is rebuilt only
   // when the global model changes: a profile added changes none of it, it only joins stage 2.
   const size_t base_globals = dm.global.mechanisms.size(), base_profiles = dm.profiles.size();
+  const Eigen::Index geometry = 6 * (n + 1);
   RoundStart start;
   Screening sc;
   std::unique_ptr<FoldGrams> grams;
+  std::vector<Rival> rivals;  // of the effect named last
   for (int round = 1; round <= options.max_rounds; ++round) {
     clock = std::chrono::steady_clock::now();
     const bool rebuilt = !grams;
@@ -400,7 +521,7 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
       start.global = evaluate(dm.global, fit);
       start.linear = linearise(dm.global, fit, start.global.r);
       sc = screening(dm, fit, start, options, body_masses);
-      if (round == 1) d.untestable = sc.untestable;
+      d.untestable = sc.untestable;  // what the model as it now stands cannot try
       grams = std::make_unique<FoldGrams>(std::move(sc.A), start.global.r, fit);
       sc.A.resize(0, 0);
     }
@@ -415,6 +536,7 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
                       ? scoreGlobal(family, cv, base, sc.stage1.size())
                       : scoreProfile(family, cv, base, *grams, options);
     });
+    if (!d.effects.empty()) namePreviousAlternatives(scored, options, rivals, d.effects.back());
     int configurations = 0;
     for (const Scored& s : scored) configurations += s.score.configurations;
     std::vector<size_t> significant;
@@ -437,26 +559,25 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
     FoundEffect effect;
     effect.round = round;
     effect.cv_gain_mm = scored[chosen].score.cv_gain_mm;
-    effect.t_statistic = scored[chosen].score.t_statistic;
+    effect.z_statistic = scored[chosen].score.z_statistic;
     effect.p_value = scored[chosen].score.p_value;
     effect.ridge = scored[chosen].score.ridge;
     effect.compliance_joints = scored[chosen].family->compliance;
     effect.mechanism = scored[chosen].score.mechanism;
+    rivals.clear();
     for (size_t k : significant) {
-      if (k != chosen && std::abs(pairedT(scored[k].outcome.pose_sse,
-                                          scored[chosen].outcome.pose_sse)) < 2.0) {
-        effect.alternatives.push_back(scored[k].score.mechanism);
+      if (k != chosen && scored[k].score.relative_reduction >=
+                             0.5 * scored[chosen].score.relative_reduction) {
+        rivals.push_back({scored[k].score.mechanism, scored[k].score.relative_reduction});
       }
     }
     d.effects.push_back(std::move(effect));
     const Family& family = *scored[chosen].family;
     if (family.stage == Stage::kProfile) {
       // Its leading 2·order columns join stage 2 with its ridge; the other families stay.
-      for (int c = 0; c < 2 * scored[chosen].score.mechanism.order; ++c) {
-        sc.stage2.push_back(family.columns[static_cast<size_t>(c)]);
-        sc.ridge(family.columns[static_cast<size_t>(c)]) = scored[chosen].lambda;
-      }
+      sc.profiled.push_back(family);
       sc.families.erase(sc.families.begin() + static_cast<long>(&family - sc.families.data()));
+      setStage2(sc, dm, geometry);
       storeProfiles(dm, CrossValidation(*grams, start.global.r, fit, sc.stage1, sc.stage2, sc.ridge));
     } else {
       clock = std::chrono::steady_clock::now();
@@ -466,7 +587,73 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
     }
     for (Scored& s : scored) d.candidates.push_back(std::move(s.score));
   }
-  if (!grams) fitProfiles(dm, fit);  // the last round changed the global model
+  // Backward: a global cause named in an early round that the causes named after it explain is
+  // dropped (a physical constant goes first when it is significant, and may only have stood for
+  // a part of what a later cause explains in full).
+  for (size_t k = base_globals; k < dm.global.mechanisms.size();) {
+    clock = std::chrono::steady_clock::now();
+    const std::optional<Comparison> without = withoutGlobal(dm, k, base_globals, fit, options,
+                                                            body_masses, starting_compliance, d);
+    d.seconds_screening += secondsSince(clock);
+    if (!without) {
+      ++k;
+      continue;
+    }
+    const Mechanism removed = dm.global.mechanisms[k];
+    char line[300];
+    std::snprintf(line, sizeof line,
+                  ": dropped, the causes named after it explain what it did (tried again with "
+                  "them in the model it removes %.1f %% of the held-out error, z = %.1f: not "
+                  "significant)",
+                  100.0 * without->relative_reduction, without->z);
+    d.identifiability.push_back(describe(removed) + line);
+    DiagnosisModel trial = dm;
+    dropGlobal(trial, k, d.effects[static_cast<size_t>(globalEffect(d, k - base_globals))],
+               starting_compliance);
+    d.effects.erase(d.effects.begin() + globalEffect(d, k - base_globals));
+    dm = std::move(trial);
+    refitPhysical(dm, fit, options, base_globals, compliance_sigma, d);
+    fitProfiles(dm, fit);
+    grams.reset();
+  }
+
+  // Each profile's order and ridge chosen again with every other cause in the model: when it
+  // was chosen, the profiles found after it were not there to explain their part.
+  if (!dm.profiles.empty()) {
+    clock = std::chrono::steady_clock::now();
+    if (!grams) {
+      start.global = evaluate(dm.global, fit);
+      start.linear = linearise(dm.global, fit, start.global.r);
+      sc = screening(dm, fit, start, options, body_masses);
+      grams = std::make_unique<FoldGrams>(std::move(sc.A), start.global.r, fit);
+      sc.A.resize(0, 0);
+    }
+    for (size_t i = 0; i < dm.profiles.size(); ++i) {
+      DiagnosisModel without = dm;
+      without.profiles.erase(without.profiles.begin() + static_cast<long>(i));
+      Screening others = sc;
+      others.profiled.erase(others.profiled.begin() + static_cast<long>(i));
+      setStage2(others, without, geometry);
+      const CrossValidation cv(*grams, start.global.r, fit, others.stage1, others.stage2,
+                               others.ridge);
+      const Scored again =
+          scoreProfile(sc.profiled[i], cv, cv.heldOut(cv.base()), *grams, options);
+      Profile& p = dm.profiles[i];
+      p.mechanism.order = again.score.mechanism.order;
+      p.mechanism.parameters.assign(static_cast<size_t>(2 * p.mechanism.order), 0.0);
+      p.mechanism.sigma.assign(p.mechanism.parameters.size(), 0.0);
+      p.ridge = again.lambda;
+      for (FoundEffect& e : d.effects) {
+        if (e.mechanism.kind == MechanismKind::kTransmissionError &&
+            e.mechanism.joint == p.mechanism.joint) {
+          e.ridge = again.score.ridge;
+        }
+      }
+    }
+    setStage2(sc, dm, geometry);
+    storeProfiles(dm, CrossValidation(*grams, start.global.r, fit, sc.stage1, sc.stage2, sc.ridge));
+    d.seconds_screening += secondsSince(clock);
+  }
 
   // Every effect's parameters and σ from the final fit, in the order found.
   {
@@ -484,9 +671,11 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
   // Identifiability of what was found.
   for (const FoundEffect& f : d.effects) {
     for (const Mechanism& other : f.alternatives) {
-      d.identifiability.push_back(describe(f.mechanism) + " and " + describe(other) +
-                                  " explain the held-out poses equally well (paired |t| < 2): "
-                                  "these rows cannot tell them apart; the first was named");
+      d.identifiability.push_back(
+          describe(f.mechanism) + " and " + describe(other) +
+          " explain the same error: the second removed at least half as much held-out error as "
+          "the first, and nothing once the first was in the model; these rows cannot tell them "
+          "apart (the first was named)");
     }
   }
   {
@@ -514,13 +703,19 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
         }
         f.geometry_share = geometryShare(
             lin.geometry, profileColumns(lin.link_angle, fit, m.joint, m.coverage, m.order));
+        std::string shared;
         for (size_t k = 0; k < f.geometry_share.size(); ++k) {
           if (f.geometry_share[k] < 0.5) continue;
+          shared += (shared.empty() ? "harmonic " : ", ") + std::to_string(k + 1) + " " +
+                    percent(f.geometry_share[k]);
+        }
+        if (!shared.empty()) {
           d.identifiability.push_back(
-              describe(m) + ": harmonic " + std::to_string(k + 1) + " is " +
-              percent(f.geometry_share[k]) +
-              " within reach of a geometric error (a tilt, offset or eccentricity of the joint); "
-              "the geometry was fitted first, so the profile carries only what it cannot explain");
+              describe(m) + ": " + shared +
+              " within reach of a geometric error on these rows (a tilt, offset or "
+              "eccentricity of the joint): the profile and the geometry were fitted together and "
+              "the ridge keeps what they share small; what the geometry took of the profile is "
+              "its profile_geometry, switched with it");
         }
       } else if (m.kind == MechanismKind::kSelfWeight && dm.masses_from_urdf) {
         std::vector<double> spread;

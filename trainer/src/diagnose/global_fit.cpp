@@ -70,6 +70,15 @@ void addPriors(const DiagnosisModel& model, const PhysicalModel& global,
 PhysicalModel DiagnosisModel::combined() const {
   PhysicalModel out = global;
   for (const Profile& p : profiles) out.mechanisms.push_back(p.mechanism);
+  for (const Profile& p : profiles) {
+    if (p.geometry.size() == 0) continue;
+    Mechanism m;
+    m.kind = MechanismKind::kProfileGeometry;
+    m.joint = p.mechanism.joint;
+    m.parameters.assign(p.geometry.data(), p.geometry.data() + p.geometry.size());
+    m.sigma.assign(p.geometry_sigma.data(), p.geometry_sigma.data() + p.geometry_sigma.size());
+    out.mechanisms.push_back(std::move(m));
+  }
   return out;
 }
 

@@ -2,9 +2,13 @@
 // compliance, every mechanism that holds at any pose) and transmission profiles on top of it.
 //
 // The two are fitted in that order. The global part explains all it can with physics that holds
-// everywhere; each profile then explains only what is left, and only on the joint angles it was
-// fitted on (its coverage gate). So where a profile fades out, the model is exactly the global
-// one: a profile can improve a pose it covers and cannot spoil one it does not.
+// everywhere; the profiles then explain what is left jointly with a change of the geometry, each
+// only on the joint angles it was fitted on (its coverage gate, 1 on every fit row). That change
+// of the geometry is split by profile: joint j's share δ_j is the geometry's least-squares
+// answer to joint j's profile on the fit rows, with the opposite sign (δ_j = −G⁺ B_j c_j, so
+// Σ_j δ_j is the joint fit's change of the geometry), and it is switched by joint j's gate
+// (profile_geometry, mechanisms.hpp). Where a profile fades out, its share of the geometry goes
+// with it: a row outside every profile sees exactly the global model.
 #pragma once
 
 #include <vector>
@@ -16,20 +20,22 @@
 
 namespace stepcal::trainer::diagnosis {
 
-/// A transmission profile with its ridge: λ Σ (a_k² + b_k²) is added to the weighted squared
-/// residual when it is fitted.
+/// A transmission profile with its ridge (λ Σ (a_k² + b_k²) is added to the weighted squared
+/// residual when it is fitted) and its share of the geometry.
 struct Profile {
   Mechanism mechanism;  ///< kind transmission_error: joint, order, parameters, σ, coverage
   double ridge = 0.0;   ///< λ, weighted-residual units per rad²
+  /// δ_j of the initial poses that goes with the profile (6(n+1); empty: none yet), its 1-σ.
+  Eigen::VectorXd geometry, geometry_sigma;
 };
 
 struct DiagnosisModel {
-  PhysicalModel global;                ///< no transmission_error in it
+  PhysicalModel global;                ///< no transmission_error or profile_geometry in it
   std::vector<bool> compliance_free;   ///< per joint: its compliance is fitted
   bool masses_from_urdf = false;       ///< self_weight's masses are the URDF's, not fitted
   std::vector<Profile> profiles;
 
-  /// The whole physical model: global + profiles.
+  /// The whole physical model: global + each profile with its profile_geometry.
   PhysicalModel combined() const;
 };
 
@@ -57,6 +63,10 @@ std::vector<Parameter> globalParameters(const DiagnosisModel& model);
 /// Forward-difference column d(modelled)/d(p) in the residual's weighting.
 Eigen::VectorXd parameterColumn(const PhysicalModel& model, const FitRows& fit,
                                 const Eigen::VectorXd& r0, const Parameter& p);
+
+/// Ridge of the geometry's columns in the profiles' fit, relative to their squared norm: only
+/// keeps the geometry's unobservable combinations (METHOD.md: rank 30 of 42) at zero.
+inline constexpr double kProfileGeometryRidge = 1e-9;
 
 /// 1-σ of the weak prior on lumped link masses (kg and kg·m per parameter) when the URDF gives
 /// none: only their gravity torques are identifiable, the prior keeps the rest near zero.

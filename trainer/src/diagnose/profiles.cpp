@@ -6,6 +6,8 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
+#include "stepcal/common/error.hpp"
+
 namespace stepcal::trainer::diagnosis {
 namespace {
 
@@ -90,69 +92,58 @@ Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows&
   return B;
 }
 
+void storeStage2(DiagnosisModel& model, const Eigen::MatrixXd& H, const Eigen::VectorXd& x,
+                 double variance) {
+  const Eigen::Index geometry = 6 * (model.global.chain_Tracker.dof() + 1);
+  const Eigen::Index width = H.rows();
+  const Eigen::MatrixXd covariance =
+      variance * Eigen::LLT<Eigen::MatrixXd>(H).solve(Eigen::MatrixXd::Identity(width, width));
+  const Eigen::LLT<Eigen::MatrixXd> geometry_gram(H.topLeftCorner(geometry, geometry));
+  Eigen::Index at = geometry;
+  for (Profile& p : model.profiles) {
+    const Eigen::Index w = 2 * p.mechanism.order;
+    for (Eigen::Index i = 0; i < w; ++i) {
+      p.mechanism.parameters[static_cast<size_t>(i)] = x(at + i);
+      p.mechanism.sigma[static_cast<size_t>(i)] = std::sqrt(std::max(0.0, covariance(at + i, at + i)));
+    }
+    // The geometry's least-squares answer to this profile's effect, with the opposite sign.
+    const Eigen::MatrixXd response = geometry_gram.solve(H.block(0, at, geometry, w));
+    p.geometry = -response * x.segment(at, w);
+    p.geometry_sigma = (response * covariance.block(at, at, w, w) * response.transpose())
+                           .diagonal()
+                           .cwiseMax(0.0)
+                           .cwiseSqrt();
+    at += w;
+  }
+  STEPCAL_INVARIANT(at == width, "stage 2 holds the geometry and every profile");
+}
+
 void fitProfiles(DiagnosisModel& model, const FitRows& fit) {
   if (model.profiles.empty()) return;
-  Eigen::Index width = 0;
+  const Eigen::Index geometry = 6 * (model.global.chain_Tracker.dof() + 1);
+  Eigen::Index width = geometry;
   for (const Profile& p : model.profiles) width += 2 * p.mechanism.order;
-  auto columnsAt = [&](const PhysicalModel& at, const Eigen::VectorXd& r) {
-    const Eigen::MatrixXd link_angle = linearise(at, fit, r).link_angle;
-    Eigen::MatrixXd A(fit.count, width);
-    Eigen::Index c = 0;
-    for (const Profile& p : model.profiles) {
-      const Mechanism& m = p.mechanism;
-      A.middleCols(c, 2 * m.order) = profileColumns(link_angle, fit, m.joint, m.coverage, m.order);
-      c += 2 * m.order;
-    }
-    return A;
-  };
-  Eigen::VectorXd ridge(width), x = Eigen::VectorXd::Zero(width);
-  Eigen::Index c = 0;
-  for (const Profile& p : model.profiles) {
-    ridge.segment(c, 2 * p.mechanism.order).setConstant(p.ridge);
-    c += 2 * p.mechanism.order;
-  }
-  auto store = [&](const Eigen::VectorXd& coefficients, const Eigen::VectorXd* sigma) {
-    Eigen::Index at = 0;
-    for (Profile& p : model.profiles) {
-      const int w = 2 * p.mechanism.order;
-      for (int i = 0; i < w; ++i) {
-        p.mechanism.parameters[static_cast<size_t>(i)] = coefficients(at + i);
-        if (sigma) p.mechanism.sigma[static_cast<size_t>(i)] = (*sigma)(at + i);
-      }
-      at += w;
-    }
-  };
-  // Linear from the global model (profiles off), then one Gauss–Newton step at the result:
-  // a profile moves the link angles by ~1e-3 rad, so the second step changes little.
+  // Linear at the global model (profiles off): a profile moves the link angles by ~1e-3 rad, so
+  // the Jacobian's change it causes moves the tip by ~1 µm at most.
   const Eigen::VectorXd r_global = residuals(model.global, fit);
-  Eigen::MatrixXd A = columnsAt(model.global, r_global);
+  const Linearisation lin = linearise(model.global, fit, r_global);
+  Eigen::MatrixXd A(fit.count, width);
+  A.leftCols(geometry) = lin.geometry;
+  Eigen::VectorXd ridge(width);
+  ridge.head(geometry) =
+      kProfileGeometryRidge * lin.geometry.colwise().squaredNorm().transpose().cwiseMax(1e-300);
+  Eigen::Index c = geometry;
+  for (const Profile& p : model.profiles) {
+    const Mechanism& m = p.mechanism;
+    A.middleCols(c, 2 * m.order) = profileColumns(lin.link_angle, fit, m.joint, m.coverage, m.order);
+    ridge.segment(c, 2 * m.order).setConstant(p.ridge);
+    c += 2 * m.order;
+  }
   Eigen::MatrixXd H = A.transpose() * A;
   H.diagonal() += ridge;
-  x = H.llt().solve(A.transpose() * r_global);
-  store(x, nullptr);
-  PhysicalModel combined = model.combined();
-  Eigen::VectorXd r = residuals(combined, fit);
-  double cost = r.squaredNorm() + x.dot(ridge.cwiseProduct(x));
-  A = columnsAt(combined, r);
-  H = A.transpose() * A;
-  H.diagonal() += ridge;
-  const Eigen::LLT<Eigen::MatrixXd> llt(H);
-  const Eigen::VectorXd step = llt.solve(A.transpose() * r - ridge.cwiseProduct(x));
-  const Eigen::VectorXd x_next = x + step;
-  store(x_next, nullptr);
-  const Eigen::VectorXd r_next = residuals(model.combined(), fit);
-  const double cost_next = r_next.squaredNorm() + x_next.dot(ridge.cwiseProduct(x_next));
-  if (cost_next < cost) {
-    x = x_next;
-    r = r_next;
-    cost = cost_next;
-  }
-  const double variance = r.squaredNorm() / std::max<double>(1.0, double(fit.count - width));
-  const Eigen::VectorXd sigma =
-      (variance * llt.solve(Eigen::MatrixXd::Identity(width, width)).diagonal())
-          .cwiseMax(0.0)
-          .cwiseSqrt();
-  store(x, &sigma);
+  const Eigen::VectorXd x = H.llt().solve(A.transpose() * r_global);
+  const double sse = (r_global - A * x).squaredNorm();
+  storeStage2(model, H, x, sse / std::max<double>(1.0, double(fit.count - width)));
 }
 
 double profileRms(const Mechanism& profile, const FitRows& fit) {

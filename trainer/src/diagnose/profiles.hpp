@@ -27,8 +27,16 @@ void profileFeatures(const AngleCoverage& coverage, int order, double q_rad, dou
 Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
                                const AngleCoverage& coverage, int order);
 
-/// Fits every profile of the model jointly, with their ridges, on the residual of its global
-/// model (which stays as it is): parameters and σ (from s² (AᵀA + Λ)⁻¹) of each profile.
+/// Stores a solved stage 2 in the model's profiles. Stage-2 columns: the geometry's 6(n+1), then
+/// each profile's in model order; H their Gram with the ridges, x the coefficients, variance the
+/// residual's. Each profile gets its coefficients and σ (from variance · H⁻¹) and its share of
+/// the geometry, δ_j = −H_gg⁻¹ H_gj c_j (model.hpp), with its σ.
+void storeStage2(DiagnosisModel& model, const Eigen::MatrixXd& H, const Eigen::VectorXd& x,
+                 double variance);
+
+/// Fits every profile of the model jointly with a change of the geometry, with their ridges, on
+/// the residual of its global model (which stays as it is), and stores it (storeStage2). The
+/// profiles' coverage must hold every fit row.
 void fitProfiles(DiagnosisModel& model, const FitRows& fit);
 
 /// RMS over the fit rows of a profile's link-angle offset, gate included, rad.

@@ -133,13 +133,13 @@ ResidualStatistics statistics(const Eigen::VectorXd& r, const FitRows& eq,
     const std::optional<Comparison> c = trendOf(variables.values[v], r, eq);
     if (!c) continue;
     ++tested;
-    s.trends.push_back({variables.names[v], c->gain_mm, c->t, c->p, false});
+    s.trends.push_back({variables.names[v], c->gain_mm, c->z, c->p, false});
   }
   for (TrendScore& t : s.trends) {
     t.significant = t.p_value < alpha / std::max(1, tested) && t.cv_gain_mm > 0.0;
   }
   std::sort(s.trends.begin(), s.trends.end(), [](const TrendScore& a, const TrendScore& b) {
-    return a.t_statistic > b.t_statistic;
+    return a.z_statistic > b.z_statistic;
   });
   return s;
 }
@@ -149,8 +149,8 @@ std::string trendSummary(const ResidualStatistics& s, double limit) {
   for (const TrendScore& t : s.trends) {
     if (!t.significant) continue;
     char line[160];
-    std::snprintf(line, sizeof line, "%s%s (a cubic trend in it removes %.4f mm held-out, t = %.1f)",
-                  out.empty() ? "" : "; ", t.variable.c_str(), t.cv_gain_mm, t.t_statistic);
+    std::snprintf(line, sizeof line, "%s%s (a cubic trend in it removes %.4f mm held-out, z = %.1f)",
+                  out.empty() ? "" : "; ", t.variable.c_str(), t.cv_gain_mm, t.z_statistic);
     out += line;
   }
   if (out.empty() && s.noise_ratio > limit) {

@@ -69,11 +69,20 @@ struct ChainWorkspace {
   int dof = 0;
 };
 
+/// Corrections of the initial poses for one evaluation: T_{k,k+1}(0) · exp(weight · δ̂_k)
+/// (METHOD.md eq. 9 applied with a weight); delta holds 6(n+1) entries (δ_0 … δ_n, each (v, ω)).
+struct InitialPoseCorrection {
+  const double* delta = nullptr;  ///< null or weight 0: no correction
+  double weight = 0.0;
+};
+
 /// Evaluates every chain frame at q (rad). Allocation-free. Returns false on a size mismatch.
 /// link_length_scale multiplies the translations of T_{1,2}(0) … T_{n,n+1}(0), the robot's own
 /// links (thermal expansion, mechanisms.hpp); T_{0,1}(0), the root's offset, is never scaled.
+/// correction, if given, moves each initial pose after its scaling.
 bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainWorkspace& ws,
-                       double link_length_scale = 1.0) noexcept;
+                       double link_length_scale = 1.0,
+                       const InitialPoseCorrection& correction = {}) noexcept;
 /// Tip pose X_0,n+1 from a workspace filled by forwardKinematics.
 inline const Pose& tipPose(const ChainWorkspace& ws) noexcept {
   return ws.X_RootFrame[static_cast<size_t>(ws.dof + 1)];

@@ -10,8 +10,13 @@
 //   θ  = θ₀ + C τ + Σ_backlash b tanh(τ_j / τ_b) e_j
 //               + Σ_nonlinear c τ_j τ₀ / (τ₀ + |τ_j|) e_j     (the fixed point, three passes)
 //   X_TrackerTip = FK(θ) with the links' lengths × (1 + α (T − T_ref))   (thermal_expansion)
-// g_j is the transmission profile's coverage gate: 1 on the joint angles it was fitted on, fading
-// smoothly to 0 outside them, so a profile never extrapolates (AngleCoverage).
+//                  and each initial pose T_k · exp(Σ_j g_j(q_j) δ̂_jk)          (profile_geometry)
+// g_j is joint j's transmission profile's coverage gate: 1 on the joint angles it was fitted on,
+// fading smoothly to 0 outside them, so a profile never extrapolates (AngleCoverage). A profile
+// is fitted jointly with the geometry; profile_geometry δ_j is the part of that geometry which
+// goes with joint j's profile (the geometry's least-squares answer to the profile's effect on
+// the fit rows, with the opposite sign), switched by the same gate. Where a profile fades out,
+// so does its share of the geometry, and the model is the one fitted without that profile.
 // Joints are 0-based here and 1-based in names, reports and JSON.
 #pragma once
 
@@ -33,6 +38,7 @@ enum class MechanismKind : uint32_t {
   kThermalExpansion = 5,    ///< link lengths × (1 + α (T − T_ref))
   kSensorBias = 6,          ///< a constant offset of the F/T reading
   kJointCoupling = 7,       ///< joint j's link angle moves with joint i's commanded angle
+  kProfileGeometry = 8,     ///< joint j: initial-pose corrections that go with its transmission profile
 };
 
 /// Snake-case name, e.g. "transmission_error".
@@ -67,7 +73,8 @@ std::string coverageProblem(const AngleCoverage& coverage);
 /// One identified mechanism with its parameters (SI) and their 1-σ.
 struct Mechanism {
   MechanismKind kind = MechanismKind::kBacklash;
-  int joint = -1;         ///< joint it moves (0-based): backlash, transmission, nonlinear, coupling
+  int joint = -1;  ///< joint it moves (0-based): backlash, transmission, nonlinear, coupling;
+                   ///< profile_geometry: the joint whose transmission profile it goes with
   int source_joint = -1;  ///< joint_coupling: the joint whose commanded angle drives it
   int order = 0;          ///< transmission_error: harmonics 1 … order (1 ≤ order ≤ kMaxHarmonics)
   /// Layout per kind (mechanismParameterNames):
@@ -81,6 +88,8 @@ struct Mechanism {
   ///   thermal_expansion   [α 1/K, T_ref °C]
   ///   sensor_bias         [f N (3), m N·m (3)], sensor_link axes
   ///   joint_coupling      [c rad/rad]
+  ///   profile_geometry    per initial pose k = 0..n: [δ_k (v m (3), ω rad (3))], applied as
+  ///                       T_k · exp(g(q_j) δ̂_k), g the gate of joint j's transmission_error
   std::vector<double> parameters;
   std::vector<double> sigma;  ///< 1-σ of each parameter, same size (0 = not estimated)
   /// transmission_error: the angles of its joint it was fitted on (empty: everywhere); other
@@ -125,6 +134,15 @@ struct PhysicalModel {
 bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
                         const Vec6& wrench_Sensor, double temp_c, ChainWorkspace& ws,
                         JointVector& theta_rad, JointVector& tau_nm) noexcept;
+
+/// Initial-pose corrections of every profile_geometry at commanded angles q, each weighted by its
+/// profile's gate, summed into delta (6(n+1) entries, δ_0 … δ_n). False (delta untouched) when
+/// the model has none. Allocation-free.
+bool profileGeometryDelta(const PhysicalModel& model, const JointVector& q_rad,
+                          double* delta) noexcept;
+
+/// The transmission_error of joint j, or null.
+const Mechanism* transmissionOf(const PhysicalModel& model, int joint) noexcept;
 
 /// Joints whose commanded angle lies (partly, within the fade) outside the coverage of their
 /// transmission profile: bit j set for joint j (0-based). There the profile's correction is

@@ -14,9 +14,11 @@
 //     "MECH"  u32 k (≤ 64); k × {u32 kind, i32 joint, i32 source_joint, i32 order, u32 p,
 //             f64 parameters[p], f64 sigma[p], u32 a (≤ 32), f64 coverage arcs (start, length)
 //             [2a], f64 coverage fade} (mechanisms.hpp: kinds, joints 0-based, −1 = none,
-//             parameter layouts, AngleCoverage); each passes mechanismProblem; at most one self_weight,
-//             sensor_bias and thermal_expansion; sensor_bias needs a sensor frame (REGI),
-//             self_weight a nonzero gravity (REGI)
+//             parameter layouts, AngleCoverage); each passes mechanismProblem; at most one
+//             self_weight, sensor_bias and thermal_expansion, at most one transmission_error
+//             and one profile_geometry per joint; a profile_geometry needs its joint's
+//             transmission_error, sensor_bias a sensor frame (REGI), self_weight a nonzero
+//             gravity (REGI)
 //     "GPR "  u32 m, D, P (all 0 = no residual step); f64 input_offset[D], input_scale[D],
 //             output_mean[P], output_scale[P], length_scales[D], signal_sigma, noise_sigma;
 //             inputs_normalised, targets_standardised, alpha as m rows each

@@ -37,7 +37,7 @@ struct DiagnoseOptions {
   std::vector<int> profile_orders = {1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48};
   /// Ridges a profile is tried with, relative to the mean diagonal of its Gram block (λ = ρ ·
   /// mean ‖column‖²): the prior that keeps harmonics the data cannot tell apart near zero.
-  std::vector<double> profile_ridges = {1e-6, 1e-4, 1e-2};
+  std::vector<double> profile_ridges = {1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1};
   /// A profile covers the arcs of its joint's fitted angles without gaps wider than this, deg
   /// (at least twice the fade).
   double coverage_gap_deg = 10.0;
@@ -69,7 +69,10 @@ struct CandidateScore {
   int configurations = 1;    ///< configurations tried for it (orders × ridges for a profile)
   double cv_gain_mm = 0.0;   ///< held-out mean position error without minus with it, mm
   double relative_reduction = 0.0;  ///< fraction of the held-out squared error it removes
-  double t_statistic = 0.0;  ///< of the per-pose reduction of the noise-weighted squared error
+  /// Signed-rank z of the per-pose reduction of the noise-weighted squared error (a profile: at
+  /// its best configuration, which the test is about; gain and reduction are those of the
+  /// configuration added, the simplest one not significantly worse)
+  double z_statistic = 0.0;
   double p_value = 1.0;      ///< one-sided, normal approximation
   /// Its fitted parameters have the sign its physics needs (lost motion, extra compliance ≥ 0);
   /// a candidate that explains the residual only with the wrong sign is not that mechanism.
@@ -88,7 +91,7 @@ struct UntestableCandidate {
 struct FoundEffect {
   Mechanism mechanism;  ///< parameters and 1-σ from the final refit
   int round = 1;
-  double cv_gain_mm = 0.0, t_statistic = 0.0, p_value = 1.0;
+  double cv_gain_mm = 0.0, z_statistic = 0.0, p_value = 1.0;
   /// transmission_error: RMS over the fit rows of the link-angle offset (gate included), rad;
   /// its relative ridge; per harmonic the share of its effect a geometric error could produce.
   double rms_rad = 0.0;
@@ -101,8 +104,8 @@ struct FoundEffect {
   bool harmonics_separable = true;
   /// self_weight: joints whose compliance the arm's own weight identifies (0-based).
   std::vector<int> compliance_joints;
-  /// Other significant families of its round that explained the held-out poses as well as it
-  /// did (per-pose errors, paired |t| < 2): the data cannot tell them from it.
+  /// Other significant families of its round that removed at least half as much held-out error
+  /// and nothing more once it was in the model: the data cannot tell them from it.
   std::vector<Mechanism> alternatives;
 };
 
@@ -110,7 +113,7 @@ struct FoundEffect {
 struct TrendScore {
   std::string variable;      ///< e.g. "q2_deg", "tau3_nm", "load_kg", "temp_c", "seq"
   double cv_gain_mm = 0.0;   ///< held-out mean position error removed by the trend, mm
-  double t_statistic = 0.0, p_value = 1.0;
+  double z_statistic = 0.0, p_value = 1.0;
   bool significant = false;  ///< Bonferroni over the variables tested
 };
 

@@ -179,9 +179,10 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
 std::vector<std::pair<std::string, PoseModel>> modelLayers(const CalibratedModel& model) {
   std::vector<std::pair<std::string, PoseModel>> layers;
   PoseModel physical = chainModel(model.chain_Tracker);
-  layers.emplace_back(kMethodPoe, physical);
   const bool stiffness = model.compliance_rad_per_nm.size() > 0 && model.sensor_frame >= 0;
   const bool extended = !model.mechanisms.empty();
+  // An extended model's chain was fitted with its mechanisms: alone it is no model of the robot.
+  if (!extended) layers.emplace_back(kMethodPoe, physical);
   if (stiffness || extended) {
     physical = physicalPoseModel(physicalModelOf(model));
     layers.emplace_back(extended ? kMethodExtended : kMethodPoeStiffness, physical);

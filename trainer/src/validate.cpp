@@ -79,15 +79,9 @@ PoseModel withGpr(PoseModel physical, const GprParameters& parameters) {
 ValidationResult validateModel(const CalibratedModel& model, const Campaign& campaign,
                                bool refit_frames, const CalibratedModel* coverage_of) {
   const int n = model.chain_Tracker.dof();
+  diagnosis::requireJointCount(campaign, n);
   std::vector<const Measurement*> rows;
-  for (const Measurement& row : campaign.rows) {
-    if (row.q_rad.size() != n) {
-      throw InputError("row has " + std::to_string(row.q_rad.size()) +
-                           " joint angles but the model's chain has " + std::to_string(n),
-                       campaign.measurements_file, row.source_line);
-    }
-    rows.push_back(&row);
-  }
+  for (const Measurement& row : campaign.rows) rows.push_back(&row);
   const diagnosis::FitRows fit = diagnosis::makeFitRows(rows, campaign.tracker, 1);
   const std::vector<std::pair<std::string, PoseModel>> layers = modelLayers(model);
 
@@ -100,18 +94,18 @@ ValidationResult validateModel(const CalibratedModel& model, const Campaign& cam
   out.frames_refit = refit_frames;
   std::vector<PoseModel> predictors;
   PoseModel physical_layer;
-  for (size_t l = 0; l < layers.size(); ++l) {
-    const std::string& name = layers[l].first;
+  for (const auto& [name, layer] : layers) {
     if (!refit_frames) {
-      predictors.push_back(layers[l].second);
-    } else if (l == 0) {
-      predictors.push_back(physicalPoseModel(refitFrames(chain_only, fit)));
-    } else if (l == 1 && name != kMethodPoeGpr) {
+      predictors.push_back(layer);
+    } else if (name == kMethodPoe) {
+      physical_layer = physicalPoseModel(refitFrames(chain_only, fit));
+      predictors.push_back(physical_layer);
+    } else if (name == kMethodPoeStiffness || name == kMethodExtended) {
       physical_layer = physicalPoseModel(refitFrames(physical, fit));
       predictors.push_back(physical_layer);
     } else {
-      // The GPR on its physical layer (the chain when the model has no other).
-      predictors.push_back(withGpr(physical_layer ? physical_layer : predictors.front(), *model.gpr));
+      // The GPR on its physical layer, the one before it.
+      predictors.push_back(withGpr(physical_layer, *model.gpr));
     }
   }
   std::vector<Measurement> all_rows(campaign.rows.begin(), campaign.rows.end()), covered_rows;

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "parallel.hpp"
+#include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 
@@ -29,6 +30,16 @@ void forEachRow(const FitRows& fit, const Body& row_body) {
 }
 
 }  // namespace
+
+void requireJointCount(const Campaign& campaign, int n) {
+  for (const Measurement& row : campaign.rows) {
+    if (row.q_rad.size() != n) {
+      throw InputError("row has " + std::to_string(row.q_rad.size()) +
+                           " joint angles but the model's chain has " + std::to_string(n),
+                       campaign.measurements_file, row.source_line);
+    }
+  }
+}
 
 FitRows makeFitRows(const std::vector<const Measurement*>& rows, const TrackerNoise& noise,
                     int folds) {

@@ -22,6 +22,9 @@ struct FitRows {
   int equations(size_t row) const { return rows[row]->has_orientation ? 6 : 3; }
 };
 
+/// Throws InputError naming the file and line of the first row whose joint count is not n.
+void requireJointCount(const Campaign& campaign, int n);
+
 /// Folds are a fixed shuffle of the poses: the same campaign gives the same folds.
 FitRows makeFitRows(const std::vector<const Measurement*>& rows, const TrackerNoise& noise,
                     int folds);

@@ -104,8 +104,8 @@ struct FoundEffect {
   bool harmonics_separable = true;
   /// self_weight: joints whose compliance the arm's own weight identifies (0-based).
   std::vector<int> compliance_joints;
-  /// Other significant families of its round that removed at least half as much held-out error
-  /// and nothing more once it was in the model: the data cannot tell them from it.
+  /// Other significant families of its round that removed nearly as much held-out error (at
+  /// least 80 %) and nothing more once it was in the model: the data cannot tell them from it.
   std::vector<Mechanism> alternatives;
 };
 

@@ -96,7 +96,9 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
 CalibratedModel modelFromOutcome(const Campaign& campaign, const CalibrationOutcome& outcome);
 
 /// Pose predictors for a model file's layers, in order: "poe" (the chain), then
-/// "poe+stiffness" and "poe[+stiffness]+gpr" where the model holds those steps.
+/// "poe+stiffness" and "poe[+stiffness]+gpr" where the model holds those steps; for an extended
+/// model (one with mechanisms), "extended" and "extended+gpr" (its chain was fitted with its
+/// mechanisms and compliance, so it has no layer of its own).
 std::vector<std::pair<std::string, PoseModel>> modelLayers(const CalibratedModel& model);
 
 /// FNV-1a 64 of the campaign's robot description and rows as read, in hex: two campaigns

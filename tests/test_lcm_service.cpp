@@ -1,4 +1,4 @@
-// The runtime's LCM service (tools/runtime): requests through an in-process memq:// LCM get the
+// The runtime's LCM service (runtime/service): requests through an in-process memq:// LCM get the
 // runtime's own answers (at the temperature they carry, for a model with mechanisms too), bad
 // bytes get BAD_REQUEST or are counted and never crash it, a stale
 // live wrench gives STALE_WRENCH, a reload keeps answering and changes the model id, handling a

@@ -105,6 +105,27 @@ TEST(Lie, ExpSE3MatchesMatrixExponentialSeries) {
   EXPECT_LT((expSE3(xi).matrix() - sum).norm(), 1e-14);
 }
 
+// expSE3 spells ŵ² out; its rotation is expSO3's and its translation V v with V from the series
+// Σ ŵᵏ/(k+1)!, at identity, near it, near π and at random (translations of 1 m scale).
+TEST(Lie, ExpSE3AgreesWithExpSO3AndTheSeriesOfV) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const Vec3& w : rotationVectors()) {
+    const Vec3 v(u(rng), u(rng), u(rng));
+    Vec6 xi;
+    xi << v, w;
+    const Pose T = expSE3(xi);
+    EXPECT_LT((T.linear() - expSO3(w)).norm(), 1e-15) << w.transpose();
+    Mat3 V = Mat3::Identity(), term = Mat3::Identity();
+    for (int k = 1; k < 60; ++k) {
+      term = term * hat(w) / (k + 1);
+      V += term;
+    }
+    EXPECT_LT((T.translation() - V * v).norm(), 1e-14) << w.transpose();
+    EXPECT_EQ(T.matrix().row(3), Eigen::RowVector4d(0, 0, 0, 1));
+  }
+}
+
 TEST(Lie, AdjointTransformsTwists) {
   // Ad_T ξ̂ = T ξ̂ T⁻¹ (closed form, any T).
   Vec6 xi, t;

@@ -454,12 +454,13 @@ TEST(Runtime, InverseRoundTripsThroughForwardWithMechanismsOfEveryKind) {
     ASSERT_EQ(r.status, Status::kOk) << toString(r.status) << " on row " << row->seq;
     ++iterations[r.iterations];
     // To 1e-10 m/rad within the default 8 steps, though the self weight's derivative is left
-    // out of the Jacobian (one step more than with the other mechanisms alone).
+    // out of the Jacobian (one step more than with the other mechanisms alone) and the GPR's
+    // twist is held frozen between its evaluations (one more at this tolerance).
     const InverseResult tight =
         solveInverse(*model, ws, forward.X_TrackerTip, wrench, temp_c, perturbed(row->q_rad, rng),
                      kNoDeadline, tightOptions());
     ASSERT_EQ(tight.status, Status::kOk) << toString(tight.status) << " on row " << row->seq;
-    EXPECT_LE(tight.iterations, 6);
+    EXPECT_LE(tight.iterations, 7);
     ++iterations_tight[tight.iterations];
     const ForwardResult at_target = correctForward(*model, ws, r.q_target_rad, wrench, temp_c);
     EXPECT_EQ(r.X_TrackerTip_predicted.matrix(), at_target.X_TrackerTip.matrix());
@@ -481,13 +482,14 @@ TEST(Runtime, InverseRoundTripsThroughForwardWithMechanismsOfEveryKind) {
 TEST(Runtime, InverseJacobianCarriesCouplingTransmissionAndBacklash) {
   // Strong coupling and transmission error and a wide backlash change dθ/dq by several per cent:
   // with their derivatives in the Jacobian Newton still converges quadratically, to 1e-10 in as
-  // few steps as the plain model (InverseRecoversCommandedJointsInFewSteps).
+  // few steps as the plain model without its GPR (InverseRecoversCommandedJointsInFewSteps).
+  // Without a GPR: its twist, held frozen between evaluations, is not what is tested here.
   const auto model = RuntimeModel::fromModel(
       withMechanisms({mechanism(MechanismKind::kJointCoupling, 2, 1, 0, {0.05}),
                       mechanism(MechanismKind::kTransmissionError, 3, -1, 3, {0.0, 0.0, 0.0, 0.0, 0.01, 0.01}),
                       mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-3, 5.0}),
                       mechanism(MechanismKind::kNonlinearStiffness, 2, -1, 0, {2e-5, 20.0})},
-                     true),
+                     false),
       16);
   Workspace ws = makeWorkspace(*model);
   std::mt19937_64 rng(17);
@@ -725,6 +727,9 @@ TEST(Runtime, FarFromTheTrainingDataIsOutOfDomain) {
   EXPECT_LT(in_domain.gpr_std(0), 0.9 * r.gpr_std(0));
 }
 
+// From seeds 1.5–2.5° off: to 1e-10 in at most 5 steps (the GPR's twist is held frozen between
+// its evaluations, a step more than a Newton that evaluates it every step; without the GPR, at
+// most 4: InverseJacobianCarriesCouplingTransmissionAndBacklash), to the default 1e-6 in 3.
 TEST(Runtime, InverseRecoversCommandedJointsInFewSteps) {
   const RuntimeModel& model = paperRuntime();
   Workspace ws = makeWorkspace(model);
@@ -739,7 +744,7 @@ TEST(Runtime, InverseRecoversCommandedJointsInFewSteps) {
     const InverseResult r = solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c, seed,
                                          kNoDeadline, tightOptions());
     ASSERT_EQ(r.status, Status::kOk) << toString(r.status) << " on row " << row->seq;
-    EXPECT_LE(r.iterations, 4);
+    EXPECT_LE(r.iterations, 5);
     EXPECT_LE(r.residual_position_m, 1e-10);
     EXPECT_LE(r.residual_orientation_rad, 1e-10);
     worst_q_rad = std::max(worst_q_rad, (r.q_target_rad - row->q_rad).cwiseAbs().maxCoeff());
@@ -753,6 +758,7 @@ TEST(Runtime, InverseRecoversCommandedJointsInFewSteps) {
     const InverseResult d =
         solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c, seed, kNoDeadline);
     EXPECT_EQ(d.status, Status::kOk);
+    EXPECT_LE(d.iterations, 3);
     ++iterations_default[d.iterations];
   }
   EXPECT_LT(worst_q_rad, 1e-9);

@@ -17,7 +17,7 @@ lcm-gen --cpp --cpp-std c++11 --cpp-hpath "$out/lcmtypes" "$root"/lcmtypes/*.lcm
 # -fno-strict-aliasing: LCM 1.3's generated decoders need it (lcmtypes/CMakeLists.txt).
 # shellcheck disable=SC2207  # pkg-config prints space-separated flags
 flags=(-std=c++17 -O2 -g -Wall -Wextra -fno-strict-aliasing
-  -I"$root/common/include" -I"$root/runtime/include" -I"$root/tools/runtime/include"
+  -I"$root/common/include" -I"$root/runtime/include" -I"$root/runtime/service/include"
   -isystem "$out/lcmtypes" $(pkg-config --cflags eigen3))
 # Objects carry coverage instrumentation; only the fuzzer link pulls in libFuzzer's main.
 # shellcheck disable=SC2054  # the commas belong to the flag
@@ -28,7 +28,7 @@ compile() {
   local src=$1 obj=$2
   shift 2
   if [[ -f $obj && -z $(find "$src" "$root/common/include" "$root/runtime/include" \
-    "$root/tools/runtime/include" "$root/lcmtypes" -newer "$obj" -print -quit) ]]; then
+    "$root/runtime/service/include" "$root/lcmtypes" -newer "$obj" -print -quit) ]]; then
     return
   fi
   echo "compiling $src"
@@ -36,7 +36,7 @@ compile() {
   pids+=($!)
 }
 pids=()
-compile "$root/tools/runtime/src/request.cpp" "$out/obj/request.o"
+compile "$root/runtime/service/src/request.cpp" "$out/obj/request.o"
 compile "$root/tests/fuzz/fuzz_request_decoder.cpp" "$out/obj/fuzz_target.o"
 compile "$root/tests/fuzz/fuzz_request_decoder.cpp" "$out/obj/make_seeds.o" -DSTEPCAL_FUZZ_SEED_MAIN
 failed=0

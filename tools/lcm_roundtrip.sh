@@ -9,7 +9,8 @@
 #   N          requests and pings (default 100000)
 # Environment: STEPCAL_BIN_DIR (default build/bin), LCM_URL (default
 # udpm://239.255.76.67:7667?ttl=0), MODE (forward | inverse, default forward), REALTIME=1
-# (daemon with --realtime), OUT (folder for the JSON results, default a temporary one).
+# (daemon with --realtime), RATE_HZ (requests and pings on a fixed schedule at this rate; default
+# one in flight at a time), OUT (folder for the JSON results, default a temporary one).
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -65,9 +66,12 @@ done
 [[ -n ${ready:-} ]] || { echo "lcm_roundtrip: daemon or echo not answering" >&2; cat "$out"/*.log >&2; exit 1; }
 
 echo "$count raw pings (stepcal-client --ping ↔ --echo) on $url ..."
-"$bin/stepcal-client" --lcm-url "$url" --ping "$count" --json >"$out/ping.json"
+rate_args=()
+[[ -n ${RATE_HZ:-} ]] && rate_args=(--rate "$RATE_HZ")
+"$bin/stepcal-client" --lcm-url "$url" --ping "$count" "${rate_args[@]}" --json >"$out/ping.json"
 echo "$count $mode requests (stepcal-client --campaign $campaign ↔ stepcal-runtime) ..."
-request_args=(--lcm-url "$url" --campaign "$campaign" --mode "$mode" --count "$count" --json)
+request_args=(--lcm-url "$url" --campaign "$campaign" --mode "$mode" --count "$count" --json
+  "${rate_args[@]}")
 # Inverse answers are checked against the twin's truth when the campaign was simulated.
 [[ $mode == inverse && -f $campaign/truth.json ]] && request_args+=(--truth "$campaign/truth.json")
 "$bin/stepcal-client" "${request_args[@]}" >"$out/requests.json"

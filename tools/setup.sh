@@ -9,6 +9,9 @@ packages=(
   libeigen3-dev libgtest-dev libbenchmark-dev
   liburdfdom-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev liblbfgspp-dev
   liblcm-dev liblcm-bin jq
+  # The bench's side-by-side with KDL (stepcal-bench --compare-kdl) and the machine's own
+  # latency baseline (cyclictest, docs/runtime.md).
+  liborocos-kdl-dev rt-tests
   # CAN tests without vcan in the host kernel: tools/vcan_run.sh boots a qemu VM (docs/vcan.md).
   qemu-system-x86 busybox-static can-utils kmod xz-utils iproute2
 )

@@ -7,6 +7,21 @@
 #include "stepcal/common/lie.hpp"
 
 namespace stepcal {
+namespace {
+
+// 0, 1 or 2 when the twist is a pure rotation about ±x, ±y or ±z of its frame (exactly), else −1.
+int coordinateAxisOf(const Vec6& twist) noexcept {
+  if (!twist.head<3>().isZero(0.0)) return -1;
+  for (int a = 0; a < 3; ++a) {
+    if (std::abs(twist(3 + a)) == 1.0 && twist(3 + (a + 1) % 3) == 0.0 &&
+        twist(3 + (a + 2) % 3) == 0.0) {
+      return a;
+    }
+  }
+  return -1;
+}
+
+}  // namespace
 
 KinematicChain::KinematicChain(std::vector<ChainJoint> joints, std::vector<Pose> initial_poses,
                                std::vector<AttachedFrame> frames)
@@ -22,6 +37,7 @@ KinematicChain::KinematicChain(std::vector<ChainJoint> joints, std::vector<Pose>
   for (const AttachedFrame& f : frames_) {
     STEPCAL_INVARIANT(f.parent >= 0 && f.parent <= dof(), "attached frame parent out of range");
   }
+  for (const ChainJoint& j : joints_) axis_.push_back(coordinateAxisOf(j.twist_Local));
 }
 
 int KinematicChain::findFrame(const std::string& name) const noexcept {
@@ -57,22 +73,11 @@ KinematicChain KinematicChain::rerooted(const Pose& X_NewRootOldRoot) const {
 
 namespace {
 
-// Initial pose k as evaluated: its translation scaled, then the weighted correction applied.
-Pose evaluatedInitialPose(const KinematicChain& chain, int k, double scale,
-                          const InitialPoseCorrection& correction) noexcept {
-  Pose T = chain.initialPose(k);
-  T.translation() *= scale;
-  if (correction.delta != nullptr && correction.weight != 0.0) {
-    const Vec6 delta = correction.weight * Eigen::Map<const Vec6>(correction.delta + 6 * k);
-    T = T * lie::expSE3(delta);
-  }
-  return T;
-}
-
-}  // namespace
-
-bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainWorkspace& ws,
-                       double link_length_scale, const InitialPoseCorrection& correction) noexcept {
+// X_0,i for every frame, with initial pose k given by initial(k) (a Pose) and, when trig is
+// given, the joint angles' sin and cos from it.
+template <typename InitialPoseOf>
+bool evaluateFrames(const KinematicChain& chain, const JointVector& q, ChainWorkspace& ws,
+                    const InitialPoseOf& initial, const JointTrig* trig = nullptr) noexcept {
   const int n = chain.dof();
   if (q.size() != n) return false;
   ws.dof = n;
@@ -80,15 +85,27 @@ bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainW
   for (int i = 1; i <= n; ++i) {
     const Vec6& s = chain.joints()[static_cast<size_t>(i - 1)].twist_Local;
     const Pose& X_prev = ws.X_RootFrame[static_cast<size_t>(i - 1)];
-    const Pose T = evaluatedInitialPose(chain, i - 1, i == 1 ? 1.0 : link_length_scale, correction);
+    const Pose T = initial(i - 1);
     Pose& X = ws.X_RootFrame[static_cast<size_t>(i)];
     // X_0,i = X_0,i-1 · T · exp(ŝ q), composed as rotation and translation (no 4×4 products).
     const Mat3 R_prevT = X_prev.linear() * T.linear();
     const Vec3 p_prevT = X_prev.linear() * T.translation() + X_prev.translation();
-    if (s.head<3>().isZero(0.0)) {
+    const int axis = chain.coordinateAxis(i - 1);
+    if (axis >= 0) {
+      // About ±x, ±y or ±z of its frame (as URDF axes mostly are): the rotation mixes two
+      // columns of R_prevT only.
+      const double c = trig ? trig->cos(i - 1) : std::cos(q(i - 1));
+      const double sn = s(3 + axis) * (trig ? trig->sin(i - 1) : std::sin(q(i - 1)));
+      const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+      X.linear().col(axis) = R_prevT.col(axis);
+      X.linear().col(u) = c * R_prevT.col(u) + sn * R_prevT.col(w);
+      X.linear().col(w) = c * R_prevT.col(w) - sn * R_prevT.col(u);
+      X.translation() = p_prevT;
+    } else if (s.head<3>().isZero(0.0)) {
       // A revolute axis through the frame origin: Rodrigues' formula for the unit axis a.
       const Vec3 a = s.tail<3>();
-      const double angle = q(i - 1), c = std::cos(angle), sn = std::sin(angle);
+      const double c = trig ? trig->cos(i - 1) : std::cos(q(i - 1));
+      const double sn = trig ? trig->sin(i - 1) : std::sin(q(i - 1));
       const Mat3 R_joint =
           c * Mat3::Identity() + sn * lie::hat(a) + (1.0 - c) * (a * a.transpose());
       X.linear() = R_prevT * R_joint;
@@ -100,11 +117,71 @@ bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainW
     }
   }
   const Pose& X_n = ws.X_RootFrame[static_cast<size_t>(n)];
-  const Pose T_tip = evaluatedInitialPose(chain, n, link_length_scale, correction);
+  const Pose T_tip = initial(n);
   Pose& X_tip = ws.X_RootFrame[static_cast<size_t>(n + 1)];
   X_tip.linear() = X_n.linear() * T_tip.linear();
   X_tip.translation() = X_n.linear() * T_tip.translation() + X_n.translation();
   return true;
+}
+
+// Initial pose k with its translation scaled (k ≥ 1: the robot's own links).
+Pose scaledInitialPose(const KinematicChain& chain, int k, double link_length_scale) noexcept {
+  Pose T = chain.initialPose(k);
+  if (k > 0) T.translation() *= link_length_scale;
+  return T;
+}
+
+}  // namespace
+
+bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainWorkspace& ws,
+                       double link_length_scale) noexcept {
+  return evaluateFrames(chain, q, ws, [&](int k) {
+    return scaledInitialPose(chain, k, link_length_scale);
+  });
+}
+
+void evaluateInitialPoses(const KinematicChain& chain, double link_length_scale,
+                          const double* delta, InitialPoses& initial) noexcept {
+  for (int k = 0; k <= chain.dof(); ++k) {
+    Pose& T = initial[static_cast<size_t>(k)];
+    T = scaledInitialPose(chain, k, link_length_scale);
+    if (delta != nullptr) T = T * lie::expSE3(Eigen::Map<const Vec6>(delta + 6 * k));
+  }
+}
+
+bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainWorkspace& ws,
+                       const InitialPoses& initial, const JointTrig* trig) noexcept {
+  return evaluateFrames(
+      chain, q, ws, [&](int k) -> const Pose& { return initial[static_cast<size_t>(k)]; }, trig);
+}
+
+void jointTrig(const JointVector& q_rad, JointTrig& trig) noexcept {
+  trig.sin.resize(q_rad.size());
+  trig.cos.resize(q_rad.size());
+  for (Eigen::Index i = 0; i < q_rad.size(); ++i) {
+    trig.sin(i) = std::sin(q_rad(i));
+    trig.cos(i) = std::cos(q_rad(i));
+  }
+}
+
+void shiftedJointTrig(const JointTrig& trig, const JointVector& q_rad, const JointVector& delta_rad,
+                      JointTrig& shifted) noexcept {
+  shifted.sin.resize(q_rad.size());
+  shifted.cos.resize(q_rad.size());
+  for (Eigen::Index i = 0; i < q_rad.size(); ++i) {
+    const double d = delta_rad(i);
+    if (std::abs(d) > 0.01) {
+      shifted.sin(i) = std::sin(q_rad(i) + d);
+      shifted.cos(i) = std::cos(q_rad(i) + d);
+      continue;
+    }
+    // Taylor to d⁵ / d⁶: the next terms are below 1e-18 of 1 for |d| ≤ 0.01.
+    const double d2 = d * d;
+    const double sin_d = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
+    const double cos_d = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0));
+    shifted.sin(i) = trig.sin(i) * cos_d + trig.cos(i) * sin_d;
+    shifted.cos(i) = trig.cos(i) * cos_d - trig.sin(i) * sin_d;
+  }
 }
 
 Pose framePose(const KinematicChain& chain, const ChainWorkspace& ws, int frame_index) noexcept {
@@ -112,13 +189,24 @@ Pose framePose(const KinematicChain& chain, const ChainWorkspace& ws, int frame_
   return ws.X_RootFrame[static_cast<size_t>(f.parent)] * f.X_ParentFrame;
 }
 
+Vec6 jointTwistInRoot(const KinematicChain& chain, const ChainWorkspace& ws, int joint) noexcept {
+  const Pose& X = ws.X_RootFrame[static_cast<size_t>(joint)];
+  const Vec6& s = chain.joints()[static_cast<size_t>(joint - 1)].twist_Local;
+  const int axis = chain.coordinateAxis(joint - 1);
+  if (axis < 0) return lie::adjointTimes(X, s);
+  // A rotation about ±e_axis: Ad_X s = (p × ω, ω) with ω the rotated axis.
+  const Vec3 omega = s(3 + axis) * X.linear().col(axis);
+  const Vec3 p = X.translation();
+  Vec6 out;
+  out.head<3>() = p.cross(omega);
+  out.tail<3>() = omega;
+  return out;
+}
+
 void spatialJacobian(const KinematicChain& chain, const ChainWorkspace& ws, Jacobian& J) noexcept {
   const int n = chain.dof();
   J.resize(6, n);
-  for (int i = 1; i <= n; ++i) {
-    J.col(i - 1) = lie::adjoint(ws.X_RootFrame[static_cast<size_t>(i)]) *
-                   chain.joints()[static_cast<size_t>(i - 1)].twist_Local;
-  }
+  for (int i = 1; i <= n; ++i) J.col(i - 1) = jointTwistInRoot(chain, ws, i);
 }
 
 void bodyJacobian(const KinematicChain& chain, const ChainWorkspace& ws, Jacobian& J) noexcept {

@@ -48,7 +48,16 @@ void kernelColumnOf(const Inputs& Z, const Point& z, double signal_variance, Col
 /// Latent predictive std, standardised units (eq. 31): √max(0, σ_f² − vᵀv) with v = L⁻¹ k*,
 /// solved in place of k.
 double latentStd(const Eigen::MatrixXd& L, double signal_variance, Eigen::VectorXd& k) noexcept {
-  L.triangularView<Eigen::Lower>().solveInPlace(k);
+  // v = L⁻¹ k in place by column-oriented forward substitution: each step an axpy down one
+  // contiguous column of L (vectorised), where row-wise substitution waits on every product.
+  const Eigen::Index n = k.size();
+  double* v = k.data();
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const double* column = L.data() + j * L.rows();
+    const double v_j = v[j] / column[j];
+    v[j] = v_j;
+    for (Eigen::Index i = j + 1; i < n; ++i) v[i] -= v_j * column[i];
+  }
   return std::sqrt(std::max(0.0, signal_variance - k.squaredNorm()));
 }
 
@@ -115,9 +124,8 @@ GprPredictor GprPredictor::factorised(GprParameters parameters) {
   predictor.parameters_ = std::move(parameters);
   const GprParameters& p = predictor.parameters_;
   predictor.inverse_length_scales_ = p.length_scales.cwiseInverse();
-  predictor.scaled_inputs_ = p.inputs_normalised * predictor.inverse_length_scales_.asDiagonal();
+  const Eigen::MatrixXd Z = p.inputs_normalised * predictor.inverse_length_scales_.asDiagonal();
   // Lower triangle of K + σ_n² I, column by column with the kernel predictions use.
-  const Eigen::MatrixXd& Z = predictor.scaled_inputs_;
   Eigen::MatrixXd& L = predictor.cholesky_lower_;
   L.setZero(m, m);
   for (Eigen::Index j = 0; j < m; ++j) {
@@ -132,7 +140,19 @@ GprPredictor GprPredictor::factorised(GprParameters parameters) {
         "GPR kernel matrix K + σ_n² I is not positive definite for these inputs and "
         "hyperparameters");
   }
-  predictor.scaled_input_norms_ = Z.rowwise().squaredNorm();
+  // Predictions keep the inputs that vary over the training set; one every training point shares
+  // (a wrench that is always zero without an F/T sensor) adds the same (z_d − x_d)² to every
+  // squared distance, computed once per query.
+  for (Eigen::Index d = 0; d < D; ++d) {
+    if ((Z.col(d).array() == Z(0, d)).all()) {
+      predictor.constant_dims_.push_back(static_cast<int>(d));
+      predictor.constant_values_.push_back(Z(0, d));
+    } else {
+      predictor.varying_dims_.push_back(static_cast<int>(d));
+    }
+  }
+  predictor.scaled_inputs_ = Z(Eigen::all, predictor.varying_dims_);
+  predictor.scaled_input_norms_ = predictor.scaled_inputs_.rowwise().squaredNorm();
   // The subset behind the std bound, factorised with the same kernel code as the full matrix
   // (a principal submatrix of K + σ_n² I: equal to it, bit for bit, when r = m).
   const Eigen::Index r = std::min<Eigen::Index>(m, kMaxBoundSubset);
@@ -168,6 +188,7 @@ int GprPredictor::trainingSize() const noexcept {
 GprPredictor::Workspace GprPredictor::makeWorkspace() const {
   Workspace workspace;
   workspace.normalised_input.setZero(inputDim());
+  workspace.varying_input.setZero(static_cast<Eigen::Index>(varying_dims_.size()));
   workspace.kernel_column.setZero(trainingSize());
   workspace.subset_column.setZero(boundSubsetSize());
   return workspace;
@@ -179,9 +200,18 @@ void GprPredictor::kernelColumn(const double* x_raw, Workspace& workspace) const
   for (Eigen::Index d = 0; d < z.size(); ++d) {
     z(d) = (x_raw[d] - g.input_offset(d)) / g.input_scale(d) * inverse_length_scales_(d);
   }
+  double z_norm = 0.0;  // ‖z_v‖² over the varying inputs, plus Σ (z_c − x_c)² over the others
+  for (size_t v = 0; v < varying_dims_.size(); ++v) {
+    const double z_v = z(varying_dims_[v]);
+    workspace.varying_input(static_cast<Eigen::Index>(v)) = z_v;
+    z_norm += z_v * z_v;
+  }
+  for (size_t c = 0; c < constant_dims_.size(); ++c) {
+    const double d = z(constant_dims_[c]) - constant_values_[c];
+    z_norm += d * d;
+  }
   Eigen::VectorXd& k = workspace.kernel_column;
-  k.noalias() = scaled_inputs_ * z;
-  const double z_norm = z.squaredNorm();
+  k.noalias() = scaled_inputs_ * workspace.varying_input;
   k.array() = (g.signal_sigma * g.signal_sigma) *
               (-0.5 * (scaled_input_norms_.array() + z_norm - 2.0 * k.array()).max(0.0)).exp();
 }

@@ -90,13 +90,27 @@ Vec3 logSO3(const Mat3& R) noexcept {
 }
 
 Pose expSE3(const Vec6& xi) noexcept {
-  const Vec3 w = xi.tail<3>();
-  const Coefficients k = rodrigues(w.norm());
-  const Mat3 W = hat(w);
-  const Mat3 W2 = W * W;
-  Pose T = Pose::Identity();
-  T.linear() = Mat3::Identity() + k.a * W + k.b * W2;
-  T.translation() = (Mat3::Identity() + k.b * W + k.c * W2) * xi.head<3>();
+  // R = I + a ŵ + b ŵ² and V v = v + b w × v + c w × (w × v), with ŵ² = w wᵀ − θ² I spelled
+  // out rather than as 3 × 3 products.
+  const Vec3 w = xi.tail<3>(), v = xi.head<3>();
+  const double t2 = w.squaredNorm();
+  const Coefficients k = rodrigues(std::sqrt(t2));
+  Pose T;
+  auto R = T.linear();
+  const double diagonal = 1.0 - k.b * t2;
+  const Vec3 aw = k.a * w, bw = k.b * w;
+  R(0, 0) = diagonal + bw.x() * w.x();
+  R(1, 1) = diagonal + bw.y() * w.y();
+  R(2, 2) = diagonal + bw.z() * w.z();
+  R(0, 1) = bw.x() * w.y() - aw.z();
+  R(1, 0) = bw.x() * w.y() + aw.z();
+  R(0, 2) = bw.x() * w.z() + aw.y();
+  R(2, 0) = bw.x() * w.z() - aw.y();
+  R(1, 2) = bw.y() * w.z() - aw.x();
+  R(2, 1) = bw.y() * w.z() + aw.x();
+  const Vec3 wxv = w.cross(v);
+  T.translation() = v + k.b * wxv + k.c * w.cross(wxv);
+  T.makeAffine();
   return T;
 }
 

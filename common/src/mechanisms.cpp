@@ -123,23 +123,65 @@ std::string coverageProblem(const AngleCoverage& coverage) {
   return {};
 }
 
-double transmissionOffset(const Mechanism& m, double q_rad, double* derivative) noexcept {
-  // sin(kq), cos(kq) by the recurrence e^{i(k+1)q} = e^{ikq} e^{iq}: one sin/cos per profile.
+namespace {
+
+// Σ_k a_k sin(k q) + b_k cos(k q) of a profile, ungated, and its derivative by q when slope is
+// given. sin(kq), cos(kq) by rotations e^{i(k+4)q} = e^{ikq} e^{4iq}: one sin/cos per profile,
+// and four independent chains (k ≡ 1, 2, 3, 4 mod 4, one vector register) instead of one long
+// dependency chain.
+double profileSum(const Mechanism& m, double q_rad, double* slope_out) noexcept {
+  constexpr int kChains = 4;
   const double s1 = std::sin(q_rad), c1 = std::cos(q_rad);
-  double s = s1, c = c1, value = 0.0, slope = 0.0;
-  for (int k = 1; k <= m.order; ++k) {
-    const double a = m.parameters[static_cast<size_t>(2 * (k - 1))];
-    const double b = m.parameters[static_cast<size_t>(2 * (k - 1) + 1)];
-    value += a * s + b * c;
-    slope += k * (a * c - b * s);
-    const double s_next = s * c1 + c * s1;
-    c = c * c1 - s * s1;
-    s = s_next;
+  double s[kChains], c[kChains], value[kChains] = {}, slope[kChains] = {}, k[kChains];
+  s[0] = s1;
+  c[0] = c1;
+  for (int j = 1; j < kChains; ++j) {
+    s[j] = s[j - 1] * c1 + c[j - 1] * s1;
+    c[j] = c[j - 1] * c1 - s[j - 1] * s1;
   }
+  for (int j = 0; j < kChains; ++j) k[j] = j + 1;
+  const double s4 = s[kChains - 1], c4 = c[kChains - 1];
+  const double* p = m.parameters.data();
+  const int blocks = m.order / kChains;
+  for (int block = 0; block < blocks; ++block, p += 2 * kChains) {
+    for (int j = 0; j < kChains; ++j) {
+      const double a = p[2 * j], b = p[2 * j + 1];
+      value[j] += a * s[j] + b * c[j];
+      slope[j] += k[j] * (a * c[j] - b * s[j]);
+      const double s_next = s[j] * c4 + c[j] * s4;
+      c[j] = c[j] * c4 - s[j] * s4;
+      s[j] = s_next;
+      k[j] += kChains;
+    }
+  }
+  for (int j = 0; j < m.order - blocks * kChains; ++j) {
+    const double a = p[2 * j], b = p[2 * j + 1];
+    value[j] += a * s[j] + b * c[j];
+    slope[j] += k[j] * (a * c[j] - b * s[j]);
+  }
+  if (slope_out) *slope_out = (slope[0] + slope[1]) + (slope[2] + slope[3]);
+  return (value[0] + value[1]) + (value[2] + value[3]);
+}
+
+// The gated offset from a gate and its slope (coverageGate): gate · sum, and its derivative.
+double gatedOffset(const Mechanism& m, double q_rad, double gate, double gate_slope,
+                   double* derivative) noexcept {
+  if (gate == 0.0) {  // outside the coverage, and so is the slope (the gate is C¹)
+    if (derivative) *derivative = 0.0;
+    return 0.0;
+  }
+  double slope = 0.0;
+  const double sum = profileSum(m, q_rad, derivative ? &slope : nullptr);
+  if (derivative) *derivative = gate * slope + gate_slope * sum;
+  return gate * sum;
+}
+
+}  // namespace
+
+double transmissionOffset(const Mechanism& m, double q_rad, double* derivative) noexcept {
   double gate_slope = 0.0;
   const double gate = coverageGate(m.coverage, q_rad, derivative ? &gate_slope : nullptr);
-  if (derivative) *derivative = gate * slope + gate_slope * value;
-  return gate * value;
+  return gatedOffset(m, q_rad, gate, gate_slope, derivative);
 }
 
 std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof, int order) {
@@ -268,28 +310,6 @@ bool PhysicalModel::has(MechanismKind kind) const noexcept {
   return false;
 }
 
-const Mechanism* transmissionOf(const PhysicalModel& model, int joint) noexcept {
-  for (const Mechanism& m : model.mechanisms) {
-    if (m.kind == MechanismKind::kTransmissionError && m.joint == joint) return &m;
-  }
-  return nullptr;
-}
-
-bool profileGeometryDelta(const PhysicalModel& model, const JointVector& q_rad,
-                          double* delta) noexcept {
-  bool any = false;
-  for (const Mechanism& m : model.mechanisms) {
-    if (m.kind != MechanismKind::kProfileGeometry || m.joint >= q_rad.size()) continue;
-    const Mechanism* profile = transmissionOf(model, m.joint);
-    const double gate = profile ? coverageGate(profile->coverage, q_rad(m.joint)) : 0.0;
-    if (!any) std::fill(delta, delta + m.parameters.size(), 0.0);
-    any = true;
-    if (gate == 0.0) continue;
-    for (size_t i = 0; i < m.parameters.size(); ++i) delta[i] += gate * m.parameters[i];
-  }
-  return any;
-}
-
 uint32_t jointsOutsideCoverage(const PhysicalModel& model, const JointVector& q_rad) noexcept {
   uint32_t outside = 0;
   for (const Mechanism& m : model.mechanisms) {
@@ -317,14 +337,14 @@ void selfWeightTorques(const KinematicChain& chain, const ChainWorkspace& ws,
     const Vec3 first_moment_Root = X.linear() * h + mass * X.translation();
     W_distal.head<3>() += mass * gravity_Root;
     W_distal.tail<3>() += first_moment_Root.cross(gravity_Root);
-    const Vec6& s = chain.joints()[static_cast<size_t>(k - 1)].twist_Local;
-    tau_nm(k - 1) = (lie::adjoint(X) * s).dot(W_distal);
+    tau_nm(k - 1) = jointTwistInRoot(chain, ws, k).dot(W_distal);
   }
 }
 
 bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
                         const Vec6& wrench_Sensor, double temp_c, ChainWorkspace& ws,
-                        JointVector& theta_rad, JointVector& tau_nm) noexcept {
+                        JointVector& theta_rad, JointVector& tau_nm,
+                        JointVector* profile_slope) noexcept {
   const KinematicChain& chain = model.chain_Tracker;
   const int n = chain.dof();
   const bool has_sensor =
@@ -332,44 +352,50 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
   if (q_rad.size() != n || model.compliance_rad_per_nm.size() != n) return false;
 
   JointVector theta0 = q_rad;
+  if (profile_slope) profile_slope->setZero(n);
   Vec6 wrench = wrench_Sensor;
   const Mechanism* self_weight = nullptr;
-  std::array<double, 6 * (kMaxJoints + 1)> delta;
-  InitialPoseCorrection geometry;
-  if (profileGeometryDelta(model, q_rad, delta.data())) geometry = {delta.data(), 1.0};
+  // Each profile's gate once: it switches the profile and its share of the geometry.
+  std::array<double, kMaxJoints> gate{};
   for (const Mechanism& m : model.mechanisms) {
     const auto p = [&m](size_t i) { return m.parameters[i]; };
     if (m.kind == MechanismKind::kJointCoupling) {
       theta0(m.joint) += p(0) * q_rad(m.source_joint);
     } else if (m.kind == MechanismKind::kTransmissionError) {
-      theta0(m.joint) += transmissionOffset(m, q_rad(m.joint));
+      const double q = q_rad(m.joint);
+      double gate_slope = 0.0, slope = 0.0;
+      gate[static_cast<size_t>(m.joint)] =
+          coverageGate(m.coverage, q, profile_slope ? &gate_slope : nullptr);
+      theta0(m.joint) += gatedOffset(m, q, gate[static_cast<size_t>(m.joint)], gate_slope,
+                                     profile_slope ? &slope : nullptr);
+      if (profile_slope) (*profile_slope)(m.joint) += slope;
     } else if (m.kind == MechanismKind::kSensorBias) {
       for (int i = 0; i < 6; ++i) wrench(i) -= p(static_cast<size_t>(i));
     } else if (m.kind == MechanismKind::kSelfWeight) {
       self_weight = &m;
     }
   }
-  const double scale = model.linkLengthScale(temp_c);
+  // Σ_j g_j δ_j of the profiles' geometry (mechanisms.hpp; a joint without a profile has g 0).
+  std::array<double, 6 * (kMaxJoints + 1)> delta{};
+  bool corrected = false;
+  for (const Mechanism& m : model.mechanisms) {
+    const double g = m.kind == MechanismKind::kProfileGeometry ? gate[static_cast<size_t>(m.joint)] : 0.0;
+    if (g == 0.0) continue;
+    for (size_t i = 0; i < m.parameters.size(); ++i) delta[i] += g * m.parameters[i];
+    corrected = true;
+  }
+  // The initial poses once per call: the thermal scale and the profiles' geometry hold for
+  // every pass of the fixed point.
+  InitialPoses initial;
+  evaluateInitialPoses(chain, model.linkLengthScale(temp_c), corrected ? delta.data() : nullptr,
+                       initial);
   Jacobian J;
   JointVector tau_self;
-  theta_rad = theta0;
-  tau_nm.setZero(n);
-  // Without a wrench or self weight every torque is zero and θ = θ₀: no passes.
-  const int passes = has_sensor || self_weight != nullptr ? kFixedPointPasses : 0;
-  for (int pass = 0; pass < passes; ++pass) {
-    forwardKinematics(chain, theta_rad, ws, scale, geometry);
-    spatialJacobian(chain, ws, J);
-    tau_nm.setZero(n);
-    if (has_sensor) {
-      tau_nm = jointTorques(J, wrenchInRoot(framePose(chain, ws, model.sensor_frame), wrench));
-    }
-    if (self_weight != nullptr) {
-      selfWeightTorques(chain, ws, model.gravity_Tracker, self_weight->parameters, tau_self);
-      tau_nm += tau_self;
-    }
-    theta_rad = theta0 + model.compliance_rad_per_nm.cwiseProduct(tau_nm);
+  // θ = θ₀ + Δθ(τ): the compliance, plus each backlash's and nonlinear stiffness' deflection.
+  const auto deflect = [&](const JointVector& tau) {
+    theta_rad = theta0 + model.compliance_rad_per_nm.cwiseProduct(tau);
     for (const Mechanism& m : model.mechanisms) {
-      const double t = m.joint >= 0 ? tau_nm(m.joint) : 0.0;
+      const double t = m.joint >= 0 ? tau(m.joint) : 0.0;
       if (m.kind == MechanismKind::kBacklash) {
         theta_rad(m.joint) += m.parameters[0] * std::tanh(t / m.parameters[1]);
       } else if (m.kind == MechanismKind::kNonlinearStiffness) {
@@ -377,8 +403,36 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
         theta_rad(m.joint) += c * t * t0 / (t0 + std::abs(t));
       }
     }
+  };
+  // Without a wrench or self weight every torque is zero and θ = θ₀: no passes. The passes move
+  // θ by the deflection only (~1e-3 rad): sin and cos of θ₀ once, then by the angle sum.
+  const int passes = has_sensor || self_weight != nullptr ? kFixedPointPasses : 0;
+  theta_rad = theta0;
+  tau_nm.setZero(n);
+  JointTrig trig0, trig;
+  jointTrig(theta0, trig0);
+  const auto evaluate = [&] {
+    if (theta_rad == theta0) {
+      forwardKinematics(chain, theta_rad, ws, initial, &trig0);
+    } else {
+      shiftedJointTrig(trig0, theta0, theta_rad - theta0, trig);
+      forwardKinematics(chain, theta_rad, ws, initial, &trig);
+    }
+  };
+  for (int pass = 0; pass < passes; ++pass) {
+    evaluate();
+    tau_nm.setZero(n);
+    if (has_sensor) {
+      spatialJacobian(chain, ws, J);
+      tau_nm = jointTorques(J, wrenchInRoot(framePose(chain, ws, model.sensor_frame), wrench));
+    }
+    if (self_weight != nullptr) {
+      selfWeightTorques(chain, ws, model.gravity_Tracker, self_weight->parameters, tau_self);
+      tau_nm += tau_self;
+    }
+    deflect(tau_nm);
   }
-  forwardKinematics(chain, theta_rad, ws, scale, geometry);
+  evaluate();
   return true;
 }
 

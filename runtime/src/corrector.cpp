@@ -11,6 +11,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 
+#include "stepcal/common/compliance.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/mechanisms.hpp"
@@ -28,6 +29,10 @@ constexpr double kReachMargin = 1.05;
 /// Share of the prior variance explained at the least-covered training input that a query must
 /// keep to be in the GPR's domain.
 constexpr double kDomainVarianceShare = 0.25;
+/// An iterate farther than this (any joint) from where the GPR's twist was last evaluated
+/// evaluates it again, rad (3°: a seed from the previous cycle, or a few degrees off, is
+/// closer; the GPR's length scales over the joint angles are tens of degrees).
+constexpr double kFrozenTwistDistance_rad = 0.05;
 
 /// FNV-1a 64 of a byte range.
 uint64_t fnv1a64(const std::vector<uint8_t>& bytes) noexcept {
@@ -69,22 +74,41 @@ std::pair<Vec3, double> reachSphere(const KinematicChain& chain) {
   return {chain.initialPose(0).translation(), kReachMargin * radius_m};
 }
 
-/// The corrected tip T_C2 at q (METHOD.md eq. 32): FK at the link angles of the physical model
-/// (every mechanism, the thermal length scale at temp_c), then exp(ξ̂) of the GPR mean at
-/// (q, measured wrench); with_std also writes the GPR's std bound (the subset GP's,
-/// GprPredictor::predictMeanAndBoundInto) to ws.gpr_std. Leaves ws.chain evaluated at the link
-/// angles, ws.link_rad and ws.torque_nm set. Sizes must have been checked.
-Pose correctedTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                  const Vec6& wrench_Sensor, double temp_c, bool with_std) noexcept {
+/// The physical model's tip at q: FK at its link angles (every mechanism, the thermal length
+/// scale at temp_c). Leaves ws.chain evaluated there, ws.link_rad, ws.torque_nm and, with_slopes
+/// (for a Jacobian there), ws.profile_slope set. Sizes must have been checked.
+Pose physicalTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                 const Vec6& wrench_Sensor, double temp_c, bool with_slopes) noexcept {
   const bool sized = physicalLinkAngles(model.physical, q_rad, wrench_Sensor, temp_c, ws.chain,
-                                        ws.link_rad, ws.torque_nm);
+                                        ws.link_rad, ws.torque_nm,
+                                        with_slopes ? &ws.profile_slope : nullptr);
   STEPCAL_INVARIANT(sized, "the physical model and q were checked to have the chain's size");
-  if (!model.file.gpr) return tipPose(ws.chain);
+  return tipPose(ws.chain);
+}
+
+/// The GPR's residual twist ξ at (q, measured wrench) into ws.gpr_mean (zero without a GPR);
+/// with_std also writes its std bound (the subset GP's, GprPredictor::predictMeanAndBoundInto)
+/// to ws.gpr_std.
+const Vec6& residualTwist(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                          const Vec6& wrench_Sensor, bool with_std) noexcept {
+  if (!model.file.gpr) {
+    ws.gpr_mean.setZero();
+    return ws.gpr_mean;
+  }
   ws.gpr_input.head(q_rad.size()) = q_rad;
   ws.gpr_input.tail<6>() = wrench_Sensor;
   model.gpr.predictMeanAndBoundInto(ws.gpr_input.data(), ws.gpr_mean.data(),
                                     with_std ? ws.gpr_std.data() : nullptr, ws.gpr);
-  return Pose(tipPose(ws.chain) * lie::expSE3(ws.gpr_mean));
+  return ws.gpr_mean;
+}
+
+/// The corrected tip T_C2 at q (METHOD.md eq. 32): the physical tip, then exp(ξ̂) of the GPR mean
+/// at (q, measured wrench), with its std bound in ws.gpr_std.
+Pose correctedTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                  const Vec6& wrench_Sensor, double temp_c) noexcept {
+  const Pose X_physical = physicalTip(model, ws, q_rad, wrench_Sensor, temp_c, false);
+  if (!model.file.gpr) return X_physical;
+  return Pose(X_physical * lie::expSE3(residualTwist(model, ws, q_rad, wrench_Sensor, true)));
 }
 
 /// σ/σ_f from the per-output std bound (raw units) that predictMeanAndBoundInto wrote: the
@@ -120,10 +144,11 @@ bool clampToLimits(const KinematicChain& chain, JointVector& q_rad) noexcept {
 }
 
 /// Gram matrix of J on its smaller side, min(6, n) square: J Jᵀ when n ≥ 6, else Jᵀ J. Its
-/// eigenvalues are the squared singular values of J (thin SVD).
+/// eigenvalues are the squared singular values of J (thin SVD). Fixed 6 × 6 for six joints.
 using GramMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
 
-void gramMatrix(const Jacobian& J, GramMatrix& G) noexcept {
+template <typename Gram>
+void gramMatrix(const Jacobian& J, Gram& G) noexcept {
   if (J.cols() >= 6) {
     G.noalias() = J * J.transpose();
   } else {
@@ -133,35 +158,33 @@ void gramMatrix(const Jacobian& J, GramMatrix& G) noexcept {
 
 /// Smallest singular value of J from its Gram matrix G, or `floor` when it is above floor (the
 /// common case, decided by a Cholesky factorisation of G − floor² I rather than eigenvalues).
-double smallestSingularValueOrFloor(const GramMatrix& G, double floor) noexcept {
-  GramMatrix shifted = G;
+template <typename Gram>
+double smallestSingularValueOrFloor(const Gram& G, double floor) noexcept {
+  Gram shifted = G;
   shifted.diagonal().array() -= floor * floor;
-  if (Eigen::LLT<GramMatrix>(shifted).info() == Eigen::Success) return floor;
-  const Eigen::SelfAdjointEigenSolver<GramMatrix> eigen(G, Eigen::EigenvaluesOnly);
+  if (Eigen::LLT<Gram>(shifted).info() == Eigen::Success) return floor;
+  const Eigen::SelfAdjointEigenSolver<Gram> eigen(G, Eigen::EigenvaluesOnly);
   return std::sqrt(std::max(0.0, eigen.eigenvalues()(0)));
 }
 
-/// Damped least-squares step Δq = Σ_i σ_i / (σ_i² + λ²) v_i u_iᵀ e, rad, with λ² rising from 0
-/// at σ_min ≥ singular_value_threshold to options.damping at σ_min = 0 (Levenberg–Marquardt).
-/// Solved as Jᵀ (J Jᵀ + λ² I)⁻¹ e (n ≥ 6) or (Jᵀ J + λ² I)⁻¹ Jᵀ e (n < 6), the same sum, by
-/// Cholesky; by the SVD only when that matrix is singular (σ_i = 0 terms are left out).
-void dampedStep(const Jacobian& J, const Vec6& e, const InverseOptions& options,
-                  JointVector& dq_rad) noexcept {
-  GramMatrix G;
+template <typename Gram>
+double dampedStepWith(const Jacobian& J, const Vec6& e, const InverseOptions& options,
+                      JointVector& dq_rad) noexcept {
+  Gram G;
   gramMatrix(J, G);
   // Only σ_min < threshold matters (ratio < 1); above it ratio = 1 gives the same λ² = 0.
   const double sigma_min = smallestSingularValueOrFloor(G, options.singular_value_threshold);
   const double ratio = sigma_min / options.singular_value_threshold;
   const double lambda2 = ratio < 1.0 ? options.damping * (1.0 - ratio * ratio) : 0.0;
   G.diagonal().array() += lambda2;
-  const Eigen::LLT<GramMatrix> llt(G);
+  const Eigen::LLT<Gram> llt(G);
   if (llt.info() == Eigen::Success) {
     if (J.cols() >= 6) {
       dq_rad.noalias() = J.transpose() * llt.solve(e);
     } else {
       dq_rad = llt.solve(J.transpose() * e);
     }
-    if (dq_rad.allFinite()) return;
+    if (dq_rad.allFinite()) return sigma_min;
   }
   const Eigen::JacobiSVD<Jacobian> svd(J, Eigen::ComputeThinU | Eigen::ComputeThinV);
   const auto& sigma = svd.singularValues();
@@ -172,13 +195,39 @@ void dampedStep(const Jacobian& J, const Vec6& e, const InverseOptions& options,
       dq_rad += (sigma(i) / denominator * svd.matrixU().col(i).dot(e)) * svd.matrixV().col(i);
     }
   }
+  return sigma_min;
 }
 
-/// Lie bracket [ξ, η] = ad_ξ η of two twists (v, ω).
-Vec6 bracket(const Vec6& xi, const Vec6& eta) noexcept {
+/// Damped least-squares step Δq = Σ_i σ_i / (σ_i² + λ²) v_i u_iᵀ e, rad, with λ² rising from 0
+/// at σ_min ≥ singular_value_threshold to options.damping at σ_min = 0 (Levenberg–Marquardt).
+/// Solved as Jᵀ (J Jᵀ + λ² I)⁻¹ e (n ≥ 6) or (Jᵀ J + λ² I)⁻¹ Jᵀ e (n < 6), the same sum, by
+/// Cholesky; by the SVD only when that matrix is singular (σ_i = 0 terms are left out).
+/// Returns σ_min of J, or singular_value_threshold when it is above that.
+double dampedStep(const Jacobian& J, const Vec6& e, const InverseOptions& options,
+                  JointVector& dq_rad) noexcept {
+  if (J.cols() == 6) return dampedStepWith<Mat6>(J, e, options, dq_rad);
+  return dampedStepWith<GramMatrix>(J, e, options, dq_rad);
+}
+
+/// σ_min of J, or `floor` when it is above floor (smallestSingularValueOrFloor).
+double smallestSingularValueOfJacobianOrFloor(const Jacobian& J, double floor) noexcept {
+  if (J.cols() == 6) {
+    Mat6 G;
+    gramMatrix(J, G);
+    return smallestSingularValueOrFloor(G, floor);
+  }
+  GramMatrix G;
+  gramMatrix(J, G);
+  return smallestSingularValueOrFloor(G, floor);
+}
+
+/// ad_ξᵀ w of a twist ξ = (v, ω) and a wrench w = (f, m): (f × ω, f × v + m × ω), so that
+/// wᵀ [ξ, η] = (ad_ξᵀ w)ᵀ η for every twist η.
+Vec6 coadjointTimes(const Vec6& xi, const Vec6& w) noexcept {
+  const Vec3 f = w.head<3>(), m = w.tail<3>(), v = xi.head<3>(), omega = xi.tail<3>();
   Vec6 out;
-  out.head<3>() = xi.tail<3>().cross(eta.head<3>()) + xi.head<3>().cross(eta.tail<3>());
-  out.tail<3>() = xi.tail<3>().cross(eta.tail<3>());
+  out.head<3>() = f.cross(omega);
+  out.tail<3>() = f.cross(v) + m.cross(omega);
   return out;
 }
 
@@ -195,9 +244,9 @@ Vec6 unbiasedWrench(const PhysicalModel& model, const Vec6& wrench_Sensor) noexc
 
 /// dθ₀/dq of the commanded-angle mechanisms (mechanisms.hpp): identity, plus c at (j, i) for a
 /// joint_coupling of joint j to joint i, plus the gated profile's derivative at (j, j) for a
-/// transmission_error of joint j (transmissionOffset). Exact. True when it differs from the
-/// identity.
-bool commandedAngleDerivative(const PhysicalModel& model, const JointVector& q_rad,
+/// transmission_error of joint j (profile_slope, from physicalLinkAngles at the same q). Exact.
+/// True when it differs from the identity.
+bool commandedAngleDerivative(const PhysicalModel& model, const JointVector& profile_slope,
                               JointMatrix& dtheta0_dq) noexcept {
   const int n = model.chain_Tracker.dof();
   dtheta0_dq = JointMatrix::Identity(n, n);
@@ -207,12 +256,10 @@ bool commandedAngleDerivative(const PhysicalModel& model, const JointVector& q_r
       dtheta0_dq(m.joint, m.source_joint) += m.parameters[0];
       changed = true;
     } else if (m.kind == MechanismKind::kTransmissionError) {
-      double slope = 0.0;
-      transmissionOffset(m, q_rad(m.joint), &slope);
-      dtheta0_dq(m.joint, m.joint) += slope;
       changed = true;
     }
   }
+  if (changed) dtheta0_dq.diagonal() += profile_slope;
   return changed;
 }
 
@@ -234,44 +281,42 @@ bool torqueCompliance(const PhysicalModel& model, const JointVector& tau_nm,
   return !dtheta_dtau.isZero(0.0);
 }
 
-/// Derivative of the link angles by the commanded ones, dθ/dq = (I + M + M² + M³) dθ₀/dq with
-/// M = diag(∂θ/∂τ) ∂τ/∂θ (the three fixed-point passes of physicalLinkAngles, linearised), at
-/// the link angles in ws.chain and the torques in ws.torque_nm (METHOD.md eq. 13, 15). ∂τ/∂θ is
+/// Derivative of the link angles by the commanded ones, dθ/dq ≈ (I + M) dθ₀/dq with
+/// M = diag(∂θ/∂τ) ∂τ/∂θ (the fixed point of physicalLinkAngles, linearised to first order), at
+/// the link angles in ws.chain, the torques in ws.torque_nm and the profile slopes in
+/// ws.profile_slope, all of the last physicalTip (METHOD.md eq. 13, 15). ∂τ/∂θ is
 /// that of the measured wrench less the sensor bias, held in sensor axes: τ_k = ξ_kᵀ w with ξ_k
 /// joint k's twist in sensor axes, so ∂τ_k/∂θ_j = ([j ≤ k] − [j ≤ p]) wᵀ [ξ_j, ξ_k], p the
 /// sensor's parent joint. The self_weight torques' derivative is left out (solveInverse).
-void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws, const JointVector& q_rad,
+void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws,
                          const Vec6& wrench_Sensor, JointMatrix& dtheta_dq) noexcept {
   const PhysicalModel& physical = model.physical;
   const KinematicChain& chain = physical.chain_Tracker;
   const int n = chain.dof();
   JointMatrix dtheta0_dq;
-  const bool commanded = commandedAngleDerivative(physical, q_rad, dtheta0_dq);
+  const bool commanded = commandedAngleDerivative(physical, ws.profile_slope, dtheta0_dq);
   JointVector dtheta_dtau;
   const bool has_sensor = physical.sensor_frame >= 0;
   if (!has_sensor || !torqueCompliance(physical, ws.torque_nm, dtheta_dtau)) {
     dtheta_dq = dtheta0_dq;
     return;
   }
-  const Vec6 wrench = unbiasedWrench(physical, wrench_Sensor);
+  // In root axes: brackets commute with the adjoint, so wᵀ [ξ_j, ξ_k] is the same there.
+  const Vec6 wrench_Root = wrenchInRoot(framePose(chain, ws.chain, physical.sensor_frame),
+                                        unbiasedWrench(physical, wrench_Sensor));
   const int p = chain.frames()[static_cast<size_t>(physical.sensor_frame)].parent;
-  Jacobian twists_Sensor;
-  spatialJacobian(chain, ws.chain, twists_Sensor);
-  const Mat6 Ad_SensorRoot =
-      lie::adjoint(framePose(chain, ws.chain, physical.sensor_frame).inverse());
-  for (int k = 0; k < n; ++k) twists_Sensor.col(k) = Ad_SensorRoot * twists_Sensor.col(k);
+  Jacobian twists_Root;
+  spatialJacobian(chain, ws.chain, twists_Root);
   JointMatrix M = JointMatrix::Zero(n, n);
-  for (int k = 0; k < n; ++k) {
-    for (int j = 0; j < n; ++j) {
+  for (int j = 0; j < n; ++j) {
+    const Vec6 u = coadjointTimes(twists_Root.col(j), wrench_Root);  // wᵀ [ξ_j, ·] = uᵀ
+    for (int k = 0; k < n; ++k) {
       const int c = (j <= k) - (j < p);  // 0-based j: joint j+1 ≤ p ⇔ j < p
-      if (c != 0) {
-        M(k, j) = dtheta_dtau(k) * c *
-                  wrench.dot(bracket(twists_Sensor.col(j), twists_Sensor.col(k)));
-      }
+      if (c != 0) M(k, j) = dtheta_dtau(k) * c * u.dot(twists_Root.col(k));
     }
   }
-  const JointMatrix M2 = M * M;
-  const JointMatrix series = JointMatrix::Identity(n, n) + M + M2 + M2 * M;
+  // M ~ C ∂τ/∂θ ≈ 1e-3: I + M leaves out M² ~ 1e-6 of dθ/dq, far below what changes a step.
+  const JointMatrix series = JointMatrix::Identity(n, n) + M;
   if (commanded) {
     dtheta_dq.noalias() = series * dtheta0_dq;
   } else {
@@ -279,14 +324,15 @@ void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws, const J
   }
 }
 
-/// Jacobian of the corrected tip by the commanded joints into ws.J: the tip point Jacobian at
-/// the link angles in ws.chain times dθ/dq (linkAngleDerivative). The GPR's own derivative is
-/// left out (it is small: a quasi-Newton Jacobian; the residual is always the full model's).
-void correctedJacobian(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+/// Jacobian of the corrected tip by the commanded joints into ws.J, at the q of the last
+/// physicalTip: the tip point Jacobian at the link angles in ws.chain times dθ/dq
+/// (linkAngleDerivative). The GPR's own derivative is left out (it is small: a quasi-Newton
+/// Jacobian; convergence is always judged on the full model).
+void correctedJacobian(const RuntimeModel& model, Workspace& ws,
                        const Vec6& wrench_Sensor) noexcept {
   tipPointJacobian(model.physical.chain_Tracker, ws.chain, ws.J);
   JointMatrix dtheta_dq;
-  linkAngleDerivative(model, ws, q_rad, wrench_Sensor, dtheta_dq);
+  linkAngleDerivative(model, ws, wrench_Sensor, dtheta_dq);
   const Jacobian J_link = ws.J;
   ws.J.noalias() = J_link * dtheta_dq;
 }
@@ -394,6 +440,7 @@ Workspace makeWorkspace(const RuntimeModel& model) {
   const int n = model.file.chain_Tracker.dof();
   ws.link_rad.setZero(n);
   ws.torque_nm.setZero(n);
+  ws.profile_slope.setZero(n);
   ws.J.setZero(6, n);
   if (model.file.gpr) {
     ws.gpr = model.gpr.makeWorkspace();
@@ -406,6 +453,7 @@ bool workspaceFits(const RuntimeModel& model, const Workspace& ws) noexcept {
   if (!model.file.gpr) return true;
   return ws.gpr_input.size() == model.gpr.inputDim() &&
          ws.gpr.normalised_input.size() == model.gpr.inputDim() &&
+         ws.gpr.varying_input.size() == model.gpr.varyingInputs() &&
          ws.gpr.kernel_column.size() == model.gpr.trainingSize() &&
          ws.gpr.subset_column.size() == model.gpr.boundSubsetSize();
 }
@@ -417,7 +465,7 @@ ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const Joi
       !wrench_Sensor.allFinite() || !validTemperature(temp_c) || !workspaceFits(model, ws)) {
     return result;
   }
-  result.X_TrackerTip = correctedTip(model, ws, q_rad, wrench_Sensor, temp_c, true);
+  result.X_TrackerTip = correctedTip(model, ws, q_rad, wrench_Sensor, temp_c);
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
   result.status = outOfDomain(model, result.gpr_std) ? Status::kOutOfDomain : Status::kOk;
   result.uncovered_joints = jointsOutsideCoverage(model.physical, q_rad);
@@ -447,26 +495,52 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   bool converged = false, held_at_limit = false;
   double best_cost = std::numeric_limits<double>::infinity();
   JointVector dq_rad;
-  // The corrected tip (and std bound, in ws.gpr_std) of the last evaluation: at convergence it
-  // is the answer's, and ws.chain is still evaluated there.
-  Pose X_TrackerTip_last = Pose::Identity();
+  double sigma_min_last_step = 0.0;  // σ_min of the last step's Jacobian (dampedStep)
+  // The GPR's residual twist varies slowly with q: the Newton steps hold it frozen where it was
+  // last evaluated (after the first step, again when the iterate has moved farther than
+  // kFrozenTwistDistance_rad), and evaluate it with its std bound where the frozen model has
+  // converged. There the full model decides: converged, or the steps go on with that twist. Two
+  // GPR evaluations per call instead of one per step.
+  Vec6 xi_frozen = Vec6::Zero();
+  bool have_twist = false;
+  JointVector q_twist_rad = q_rad;  // where xi_frozen was evaluated
+  Pose X_TrackerTip_last = Pose::Identity();  // the full model's at q_best_rad when converged
   while (!beyond_reach) {
-    X_TrackerTip_last = correctedTip(model, ws, q_rad, wrench_Sensor, temp_c, true);
-    const Vec6 e = poseResidual(X_TrackerTip_desired, X_TrackerTip_last);
+    const Pose X_physical = physicalTip(model, ws, q_rad, wrench_Sensor, temp_c, true);
+    // The seed's own twist would serve one step only (the first step is the long one): the
+    // first step goes without, the twist is evaluated after it, and again after long moves.
+    if ((!have_twist && result.iterations > 0) ||
+        (have_twist && (q_rad - q_twist_rad).cwiseAbs().maxCoeff() > kFrozenTwistDistance_rad)) {
+      xi_frozen = residualTwist(model, ws, q_rad, wrench_Sensor, false);
+      q_twist_rad = q_rad;
+      have_twist = true;
+    }
+    Vec6 e = poseResidual(X_TrackerTip_desired, Pose(X_physical * lie::expSE3(xi_frozen)));
+    const auto within = [&](const Vec6& r) {
+      return r.head<3>().norm() <= options.position_tolerance_m &&
+             r.tail<3>().norm() <= options.orientation_tolerance_rad;
+    };
+    if (within(e)) {
+      // The full model here: the twist at q_rad with its std (kept in ws.gpr_std).
+      xi_frozen = residualTwist(model, ws, q_rad, wrench_Sensor, true);
+      q_twist_rad = q_rad;
+      have_twist = true;
+      X_TrackerTip_last = Pose(X_physical * lie::expSE3(xi_frozen));
+      e = poseResidual(X_TrackerTip_desired, X_TrackerTip_last);
+      if (within(e)) {
+        converged = true;
+        q_best_rad = q_rad;
+        break;
+      }
+    }
     const double cost = e.squaredNorm();
     if (cost < best_cost) {
       best_cost = cost;
       q_best_rad = q_rad;
     }
-    if (e.head<3>().norm() <= options.position_tolerance_m &&
-        e.tail<3>().norm() <= options.orientation_tolerance_rad) {
-      converged = true;
-      q_best_rad = q_rad;
-      break;
-    }
     if (result.iterations >= options.max_iterations || Clock::now() >= deadline) break;
-    correctedJacobian(model, ws, q_rad, wrench_Sensor);
-    dampedStep(ws.J, e, options, dq_rad);
+    correctedJacobian(model, ws, wrench_Sensor);
+    sigma_min_last_step = dampedStep(ws.J, e, options, dq_rad);
     const double largest_rad = dq_rad.cwiseAbs().maxCoeff();
     if (largest_rad > options.max_step_rad) dq_rad *= options.max_step_rad / largest_rad;
     q_rad += dq_rad;
@@ -475,10 +549,8 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   }
 
   result.q_target_rad = q_best_rad;
-  result.X_TrackerTip_predicted = converged
-                                      ? X_TrackerTip_last
-                                      : correctedTip(model, ws, q_best_rad, wrench_Sensor, temp_c,
-                                                     true);
+  result.X_TrackerTip_predicted =
+      converged ? X_TrackerTip_last : correctedTip(model, ws, q_best_rad, wrench_Sensor, temp_c);
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
   result.uncovered_joints = jointsOutsideCoverage(model.physical, q_best_rad);
   const Vec6 e = poseResidual(X_TrackerTip_desired, result.X_TrackerTip_predicted);
@@ -487,11 +559,14 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   if (!converged) {
     result.status = beyond_reach || held_at_limit ? Status::kUnreachable : Status::kNotConverged;
   } else {
-    correctedJacobian(model, ws, q_best_rad, wrench_Sensor);
-    GramMatrix G;
-    gramMatrix(ws.J, G);
-    if (smallestSingularValueOrFloor(G, options.singular_value_threshold) <
-        options.singular_value_threshold) {
+    // On the last step's Jacobian, taken within the tolerance of the answer (a fresh one only
+    // when the seed itself was the answer).
+    if (result.iterations == 0) {
+      correctedJacobian(model, ws, wrench_Sensor);
+      sigma_min_last_step =
+          smallestSingularValueOfJacobianOrFloor(ws.J, options.singular_value_threshold);
+    }
+    if (sigma_min_last_step < options.singular_value_threshold) {
       result.status = Status::kNearSingular;
     } else {
       result.status = outOfDomain(model, result.gpr_std) ? Status::kOutOfDomain : Status::kOk;

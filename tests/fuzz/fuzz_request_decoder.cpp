@@ -1,4 +1,4 @@
-// libFuzzer target for stepcal::service::decodeRequest (tools/runtime): no input may crash it,
+// libFuzzer target for stepcal::service::decodeRequest (runtime/service): no input may crash it,
 // read out of bounds, trip a sanitizer or throw; what it accepts must be a well-formed request.
 // Not part of the CMake build (that uses g++); build and run with tools/fuzz_request_decoder.sh.
 //

@@ -56,10 +56,15 @@ class KinematicChain {
   /// Returns a copy whose root frame is moved: T_{0,1}(0) ← X_NewRootOldRoot · T_{0,1}(0).
   KinematicChain rerooted(const Pose& X_NewRootOldRoot) const;
 
+  /// Per joint, 0, 1 or 2 when its twist is a pure rotation about ±x, ±y or ±z of its frame
+  /// (most URDF axes: forward kinematics then mixes two columns only), else −1.
+  int coordinateAxis(int joint) const noexcept { return axis_[static_cast<size_t>(joint)]; }
+
  private:
   std::vector<ChainJoint> joints_;
   std::vector<Pose> initial_;
   std::vector<AttachedFrame> frames_;
+  std::vector<int> axis_;
 };
 
 /// Scratch space for one chain: poses of every chain frame at the last evaluated q.
@@ -69,26 +74,44 @@ struct ChainWorkspace {
   int dof = 0;
 };
 
-/// Corrections of the initial poses for one evaluation: T_{k,k+1}(0) · exp(weight · δ̂_k)
-/// (METHOD.md eq. 9 applied with a weight); delta holds 6(n+1) entries (δ_0 … δ_n, each (v, ω)).
-struct InitialPoseCorrection {
-  const double* delta = nullptr;  ///< null or weight 0: no correction
-  double weight = 0.0;
-};
-
 /// Evaluates every chain frame at q (rad). Allocation-free. Returns false on a size mismatch.
 /// link_length_scale multiplies the translations of T_{1,2}(0) … T_{n,n+1}(0), the robot's own
 /// links (thermal expansion, mechanisms.hpp); T_{0,1}(0), the root's offset, is never scaled.
-/// correction, if given, moves each initial pose after its scaling.
 bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainWorkspace& ws,
-                       double link_length_scale = 1.0,
-                       const InitialPoseCorrection& correction = {}) noexcept;
+                       double link_length_scale = 1.0) noexcept;
+
+/// The initial poses T_{k,k+1}(0), k = 0..n, as one evaluation uses them.
+using InitialPoses = std::array<Pose, kMaxJoints + 1>;
+/// The chain's initial poses with the translations scaled as forwardKinematics scales them, then
+/// each moved to T_{k,k+1}(0) · exp(δ̂_k) when delta is given (6(n+1) entries: δ_0 … δ_n, each
+/// (v m, ω rad); METHOD.md eq. 9). Allocation-free.
+void evaluateInitialPoses(const KinematicChain& chain, double link_length_scale,
+                          const double* delta, InitialPoses& initial) noexcept;
+/// sin and cos of each joint angle of one evaluation.
+struct JointTrig {
+  JointVector sin, cos;
+};
+/// sin and cos of every entry of q. Allocation-free.
+void jointTrig(const JointVector& q_rad, JointTrig& trig) noexcept;
+/// sin and cos of q + δ from those of q: by the angle sum with a series for sin δ and cos δ
+/// where |δ| ≤ 0.01 rad (exact to rounding there), directly elsewhere. Allocation-free.
+void shiftedJointTrig(const JointTrig& trig, const JointVector& q_rad, const JointVector& delta_rad,
+                      JointTrig& shifted) noexcept;
+/// forwardKinematics with initial poses evaluated once (evaluateInitialPoses), for a model that
+/// evaluates the chain several times at one scale and correction, and, when given, the joint
+/// angles' sin and cos (jointTrig of q).
+bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainWorkspace& ws,
+                       const InitialPoses& initial, const JointTrig* trig = nullptr) noexcept;
 /// Tip pose X_0,n+1 from a workspace filled by forwardKinematics.
 inline const Pose& tipPose(const ChainWorkspace& ws) noexcept {
   return ws.X_RootFrame[static_cast<size_t>(ws.dof + 1)];
 }
 /// Pose of an attached frame in the root frame.
 Pose framePose(const KinematicChain& chain, const ChainWorkspace& ws, int frame_index) noexcept;
+
+/// Joint i's twist (1-based) in the root frame at the root origin, Ad_{X_0,i} s_i (v m/rad,
+/// ω 1/rad), of the chain evaluated in ws: spatialJacobian's column i.
+Vec6 jointTwistInRoot(const KinematicChain& chain, const ChainWorkspace& ws, int joint) noexcept;
 
 /// Spatial Jacobian J_s (6×n): column i = Ad_{X_0,i} s_i; maps q̇ to the twist of the moving
 /// body expressed in the root frame at the root origin.

@@ -5,6 +5,8 @@
 // a Workspace sized once, allocate nothing and throw nothing.
 #pragma once
 
+#include <vector>
+
 #include "stepcal/common/model_file.hpp"
 
 namespace stepcal {
@@ -14,6 +16,7 @@ class GprPredictor {
   /// Scratch space for one prediction, sized by makeWorkspace().
   struct Workspace {
     Eigen::VectorXd normalised_input;  ///< D: the query normalised, then divided by ℓ
+    Eigen::VectorXd varying_input;     ///< its entries the training inputs vary in
     Eigen::VectorXd kernel_column;     ///< m: k(X, x*), then L⁻¹ k(X, x*)
     Eigen::VectorXd subset_column;     ///< boundSubsetSize(): k(X_S, x*), then L_S⁻¹ k(X_S, x*)
   };
@@ -34,6 +37,8 @@ class GprPredictor {
   int inputDim() const noexcept;
   int outputDim() const noexcept;
   int trainingSize() const noexcept;
+  /// Inputs that vary over the training set (the others enter every distance alike).
+  int varyingInputs() const noexcept { return static_cast<int>(varying_dims_.size()); }
   const GprParameters& parameters() const noexcept { return parameters_; }
   /// L with L Lᵀ = K + σ_n² I, m × m, lower triangular (strict upper triangle zero).
   const Eigen::MatrixXd& choleskyLower() const noexcept { return cholesky_lower_; }
@@ -74,7 +79,8 @@ class GprPredictor {
   /// Checks everything but α and factorises K + σ_n² I.
   static GprPredictor factorised(GprParameters parameters);
   /// k* = k(X, x*) into workspace.kernel_column, x* in raw input units: squared distances
-  /// ‖z̃_i‖² + ‖z̃‖² − 2 z̃_iᵀz̃ (clamped at 0) by one matrix–vector product, then exp.
+  /// ‖z̃_i‖² + ‖z̃‖² − 2 z̃_iᵀz̃ (clamped at 0) over the inputs that vary in training by one
+  /// matrix–vector product, plus the others' shared (z̃_d − x̃_d)², then exp.
   void kernelColumn(const double* x_raw, Workspace& workspace) const noexcept;
   /// Predictive mean from the kernel column in workspace (raw output units).
   void meanFromColumn(const Workspace& workspace, double* mean_out) const noexcept;
@@ -82,7 +88,9 @@ class GprPredictor {
   double subsetLatentStd(Workspace& workspace) const noexcept;
 
   GprParameters parameters_;
-  Eigen::MatrixXd scaled_inputs_;          // m × D: normalised inputs / ℓ_d
+  std::vector<int> varying_dims_, constant_dims_;  // inputs that vary over the training set, not
+  std::vector<double> constant_values_;             // the latter's shared value / ℓ_d
+  Eigen::MatrixXd scaled_inputs_;          // m × varying: normalised inputs / ℓ_d
   Eigen::MatrixXd cholesky_lower_;         // m × m
   Eigen::VectorXd inverse_length_scales_;  // D
   Eigen::VectorXd scaled_input_norms_;     // m: ‖row i of scaled_inputs_‖²

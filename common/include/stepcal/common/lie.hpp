@@ -29,6 +29,14 @@ Vec6 logSE3(const Pose& T) noexcept;
 
 /// Adjoint Ad_T = [R p̂R; 0 R] mapping twists in frame B to frame A for T = X_AB.
 Mat6 adjoint(const Pose& T) noexcept;
+/// Ad_T ξ without forming Ad_T: (R v + p × R ω, R ω) for ξ = (v, ω).
+inline Vec6 adjointTimes(const Pose& T, const Vec6& xi) noexcept {
+  const Vec3 w = T.linear() * xi.tail<3>();
+  Vec6 out;
+  out.head<3>() = T.linear() * xi.head<3>() + T.translation().cross(w);
+  out.tail<3>() = w;
+  return out;
+}
 
 /// Left Jacobian of SO(3): d/dε exp(w + ε) = exp(Jl(w) ε) exp(w) to first order.
 Mat3 leftJacobianSO3(const Vec3& w) noexcept;

@@ -129,20 +129,13 @@ struct PhysicalModel {
 
 /// Link angles θ [rad] and joint torques τ [N·m] of the physical model at commanded angles q,
 /// a measured wrench (sensor axes; zero when unloaded or no sensor) and a temperature (NaN:
-/// unknown). Leaves ws evaluated at θ (with the thermal length scale). Allocation-free; false
-/// when sizes disagree.
+/// unknown). Leaves ws evaluated at θ (with the thermal length scale). profile_slope, when
+/// given, gets per joint the derivative of its transmission profile's offset (gate included) by
+/// its commanded angle, 0 without one. Allocation-free; false when sizes disagree.
 bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
                         const Vec6& wrench_Sensor, double temp_c, ChainWorkspace& ws,
-                        JointVector& theta_rad, JointVector& tau_nm) noexcept;
-
-/// Initial-pose corrections of every profile_geometry at commanded angles q, each weighted by its
-/// profile's gate, summed into delta (6(n+1) entries, δ_0 … δ_n). False (delta untouched) when
-/// the model has none. Allocation-free.
-bool profileGeometryDelta(const PhysicalModel& model, const JointVector& q_rad,
-                          double* delta) noexcept;
-
-/// The transmission_error of joint j, or null.
-const Mechanism* transmissionOf(const PhysicalModel& model, int joint) noexcept;
+                        JointVector& theta_rad, JointVector& tau_nm,
+                        JointVector* profile_slope = nullptr) noexcept;
 
 /// Joints whose commanded angle lies (partly, within the fade) outside the coverage of their
 /// transmission profile: bit j set for joint j (0-based). There the profile's correction is

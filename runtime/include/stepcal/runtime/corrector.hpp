@@ -85,6 +85,7 @@ struct Workspace {
   ChainWorkspace chain;
   JointVector link_rad;   ///< link angles θ of the last evaluation, rad
   JointVector torque_nm;  ///< joint torques τ of its last fixed-point pass, N·m
+  JointVector profile_slope;  ///< d(profile offset)/dq per joint at its commanded angles
   Jacobian J;
   GprPredictor::Workspace gpr;
   Eigen::VectorXd gpr_input;  ///< n + 6
@@ -145,16 +146,20 @@ struct InverseResult {
 /// Joint targets that make the real robot (the full corrected model, as correctForward) reach
 /// X_TrackerTip_desired under wrench_Sensor at temp_c [°C; NaN: not measured], by damped Newton
 /// steps from q_seed_rad (clamped into the joint limits), staying within the limits. Residual
-/// (p_desired − p, log(R_desired Rᵀ)) of the full model, tracker axes. Jacobian (quasi-Newton):
-/// the tip point Jacobian at the link angles θ (thermal length scale included) times dθ/dq =
-/// (I + M + M² + M³) dθ₀/dq, the three fixed-point passes of physicalLinkAngles linearised with
-/// M = diag(∂θ/∂τ) ∂τ_W/∂θ: dθ₀/dq exact (joint_coupling, transmission_error), ∂θ/∂τ exact per
-/// joint (compliance, backlash, nonlinear_stiffness at the pass's torques), ∂τ_W/∂θ the measured
-/// wrench's (bias removed) torques. Left out: the self_weight torques' change with the pose
-/// (C ∂τ_self/∂θ, ~1e-3: steps converge at that linear rate near the answer), the changes of
-/// ∂θ/∂τ and ∂τ/∂θ between passes, and the GPR's own derivative (small). Stops at the
-/// tolerances, the iteration cap or the deadline (checked before every step: never more than
-/// one step past it), returning its best answer. Status: BAD_REQUEST (sizes, NaN/inf, a
+/// (p_desired − p, log(R_desired Rᵀ)), tracker axes, of the physical model times the GPR's
+/// twist held frozen where it was last evaluated (none for the first step; after it, and again
+/// after a move of more than 3°); where that converges the GPR is evaluated there, and the full
+/// model decides: converged, or the steps go on with the new twist. Jacobian (quasi-Newton): the tip point Jacobian at the
+/// link angles θ (thermal length scale and the profiles' geometry included) times
+/// dθ/dq ≈ (I + M) dθ₀/dq, the fixed point of physicalLinkAngles linearised to first order with
+/// M = diag(∂θ/∂τ) ∂τ_W/∂θ (~1e-3): dθ₀/dq exact (joint_coupling, transmission_error with its
+/// gate), ∂θ/∂τ exact per joint (compliance, backlash, nonlinear_stiffness), ∂τ_W/∂θ the measured
+/// wrench's (bias removed) torques. Left out: M² and beyond (~1e-6), the self_weight torques'
+/// change with the pose (C ∂τ_self/∂θ, ~1e-3: steps converge at that linear rate near the
+/// answer), the profiles' geometry's change with the gates, and the GPR's own derivative. Stops
+/// at the tolerances (the full model's), the iteration cap or the deadline (checked before
+/// every step: never more than one step past it), returning its best answer. NEAR_SINGULAR is
+/// judged on the last step's Jacobian. Status: BAD_REQUEST (sizes, NaN/inf, a
 /// temperature validTemperature refuses, not a rotation, bad options); UNREACHABLE (tip beyond
 /// the reach sphere, or not converged with a joint held at its limit); NOT_CONVERGED; else,
 /// converged: NEAR_SINGULAR, OUT_OF_DOMAIN or OK, in that order. Allocation-free; never throws.

@@ -1,6 +1,6 @@
 // stepcal-bench: time of the runtime's two real-time calls on a model file.
 //
-//   build/bin/stepcal-bench --model MODEL [--calls N] [--temp-c T] [--json]
+//   build/bin/stepcal-bench --model MODEL [--calls N] [--temp-c T] [--compare-kdl] [--json]
 //
 // Poses: the model's GPR training inputs de-normalised (joints q and wrench), so every call lies
 // in the model's workspace; every call at the structure temperature --temp-c (°C; default NaN,
@@ -8,6 +8,9 @@
 // correction of the same (q, wrench) from a seed 2° off on every joint (alternating sign), with a
 // deadline far away so that the solver's own tolerances end it. Each call is timed alone with
 // std::chrono::steady_clock after a warm-up; heap allocations are counted over the timed calls.
+// --compare-kdl (built with Debian's liborocos-kdl-dev) times KDL's ChainIkSolverPos_NR_JL in
+// the same run on the model's nominal chain (uncorrected, base frame): the nominal pose at each
+// bench pose's q, from the same seed, at the same tolerance (1e-6), and prints the ratios.
 #include <CLI/CLI.hpp>
 
 #include <cmath>
@@ -19,6 +22,9 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/latency.hpp"
+#ifdef STEPCAL_BENCH_WITH_KDL
+#include "kdl_compare.hpp"
+#endif
 // Last: it defines malloc & co., which must follow every system header's declarations.
 #include "allocation_counter.hpp"  // tests/support; interposes malloc (this TU only)
 
@@ -68,14 +74,18 @@ std::vector<BenchPose> workspacePoses(const runtime::RuntimeModel& model,
 struct CallStats {
   std::vector<double> latency_us;
   long status_counts[kStatusCount] = {};
-  double iterations_sum = 0;
+  std::vector<long> iterations;  ///< inverse: calls per Newton step count
 };
 
-nlohmann::json toJson(CallStats& stats, bool inverse) {
+nlohmann::json latencyJson(std::vector<double> latency_us) {  // a copy: summarizing sorts it
   const service::LatencySummary s =
-      service::summarizeLatencies(stats.latency_us.data(), stats.latency_us.size());
-  nlohmann::json j = {{"calls", s.samples}, {"p50_us", s.p50_us}, {"p99_us", s.p99_us},
-                      {"p999_us", s.p999_us}, {"max_us", s.max_us}};
+      service::summarizeLatencies(latency_us.data(), latency_us.size());
+  return {{"calls", s.samples}, {"p50_us", s.p50_us}, {"p99_us", s.p99_us},
+          {"p999_us", s.p999_us}, {"max_us", s.max_us}};
+}
+
+nlohmann::json toJson(CallStats& stats, bool inverse) {
+  nlohmann::json j = latencyJson(stats.latency_us);
   nlohmann::json statuses = nlohmann::json::object();
   for (int k = 0; k < kStatusCount; ++k) {
     if (stats.status_counts[k]) {
@@ -83,12 +93,51 @@ nlohmann::json toJson(CallStats& stats, bool inverse) {
     }
   }
   j["statuses"] = statuses;
-  if (inverse) j["mean_iterations"] = stats.iterations_sum / double(s.samples);
+  if (inverse) {
+    long calls = 0, sum = 0;
+    nlohmann::json histogram = nlohmann::json::object();
+    for (size_t k = 0; k < stats.iterations.size(); ++k) {
+      if (stats.iterations[k] == 0) continue;
+      histogram[std::to_string(k)] = stats.iterations[k];
+      calls += stats.iterations[k];
+      sum += static_cast<long>(k) * stats.iterations[k];
+    }
+    j["mean_iterations"] = double(sum) / double(std::max(1L, calls));
+    j["iterations"] = histogram;
+  }
   return j;
 }
 
 double microsecondsBetween(runtime::Clock::time_point a, runtime::Clock::time_point b) {
   return std::chrono::duration<double, std::micro>(b - a).count();
+}
+
+/// KDL on the nominal chain at the bench poses (kdl_compare.hpp), with the ratios of its p50 and
+/// p99 to the corrected inverse's; throws InputError when the bench was built without KDL.
+nlohmann::json compareKdl(const runtime::RuntimeModel& model, const std::vector<BenchPose>& poses,
+                          int calls, const CallStats& inverse) {
+#ifdef STEPCAL_BENCH_WITH_KDL
+  constexpr double kEps = 1e-6;  // the inverse's own tolerances (InverseOptions)
+  std::vector<bench::KdlTarget> targets;
+  ChainWorkspace ws;
+  for (const BenchPose& p : poses) {
+    forwardKinematics(model.file.nominal_Base, p.q_rad, ws);
+    targets.push_back({tipPose(ws), p.seed_q_rad});
+  }
+  const bench::KdlTimes times = bench::timeKdlInverse(model.file.nominal_Base, targets, calls, kEps);
+  nlohmann::json j = latencyJson(times.latency_us);
+  j["eps"] = kEps;
+  j["failures"] = times.failures;
+  j["chain_mismatch_m"] = bench::kdlChainMismatch_m(model.file.nominal_Base, targets);
+  const nlohmann::json ours = latencyJson(inverse.latency_us);
+  j["ratio_p50"] = j["p50_us"].get<double>() / ours["p50_us"].get<double>();
+  j["ratio_p99"] = j["p99_us"].get<double>() / ours["p99_us"].get<double>();
+  return j;
+#else
+  (void)model, (void)poses, (void)calls, (void)inverse;
+  throw InputError("--compare-kdl: this stepcal-bench was built without KDL (install "
+                   "liborocos-kdl-dev and build again)");
+#endif
 }
 
 }  // namespace
@@ -105,6 +154,10 @@ int main(int argc, char** argv) {
   app.add_option("--calls", calls, "timed calls of each function after the warm-up")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  bool compare_kdl = false;
+  app.add_flag("--compare-kdl", compare_kdl,
+               "also time KDL's ChainIkSolverPos_NR_JL on the nominal chain (same poses, seeds, "
+               "tolerance)");
   app.add_flag("--json", json, "print JSON");
   CLI11_PARSE(app, argc, argv);
 
@@ -125,6 +178,7 @@ int main(int argc, char** argv) {
     CallStats forward, inverse;
     forward.latency_us.resize(static_cast<size_t>(calls));
     inverse.latency_us.resize(static_cast<size_t>(calls));
+    inverse.iterations.resize(static_cast<size_t>(runtime::InverseOptions{}.max_iterations) + 1);
     const auto runForward = [&](int call) {
       const BenchPose& p = pose(call);
       return runtime::correctForward(*model, ws, p.q_rad, p.wrench_Sensor, temp_c).status;
@@ -157,18 +211,21 @@ int main(int argc, char** argv) {
         const runtime::Status status = runInverse(call, iterations);
         inverse.latency_us[size_t(call)] = microsecondsBetween(start, runtime::Clock::now());
         ++inverse.status_counts[static_cast<int>(status)];
-        inverse.iterations_sum += iterations;
+        ++inverse.iterations[size_t(iterations)];
       }
       allocations = counter.count();
     }
+    nlohmann::json kdl;
+    if (compare_kdl) kdl = compareKdl(*model, poses, calls, inverse);
 
-    const nlohmann::json report = {{"model", model_path},
+    nlohmann::json report = {{"model", model_path},
                                    {"poses", poses.size()},
                                    {"temp_c", std::isnan(temp_c) ? nlohmann::json(nullptr)
                                                                  : nlohmann::json(temp_c)},
                                    {"forward", toJson(forward, false)},
                                    {"inverse", toJson(inverse, true)},
                                    {"allocations", allocations}};
+    if (!kdl.is_null()) report["kdl"] = kdl;
     if (json) {
       std::cout << report.dump(2) << "\n";
     } else {
@@ -183,6 +240,14 @@ int main(int argc, char** argv) {
         std::cout << ", statuses " << r["statuses"].dump() << "\n";
       }
       std::cout << "allocations during the timed calls: " << allocations << "\n";
+      if (!kdl.is_null()) {
+        std::cout << "KDL ChainIkSolverPos_NR_JL, nominal chain, eps " << kdl["eps"].get<double>()
+                  << ": p50 " << kdl["p50_us"].get<double>() << " us, p99 "
+                  << kdl["p99_us"].get<double>() << " us, max " << kdl["max_us"].get<double>()
+                  << " us, failures " << kdl["failures"] << "; KDL / stepcal inverse: p50 "
+                  << kdl["ratio_p50"].get<double>() << "x, p99 " << kdl["ratio_p99"].get<double>()
+                  << "x\n";
+      }
     }
   } catch (const InputError& e) {
     std::cerr << "stepcal-bench: error: " << e.what() << "\n";

@@ -115,7 +115,7 @@ TEST(Lie, ExpSE3AgreesWithExpSO3AndTheSeriesOfV) {
     Vec6 xi;
     xi << v, w;
     const Pose T = expSE3(xi);
-    EXPECT_LT((T.linear() - expSO3(w)).norm(), 1e-15) << w.transpose();
+    EXPECT_LT((T.linear() - expSO3(w)).norm(), 1e-14) << w.transpose();
     Mat3 V = Mat3::Identity(), term = Mat3::Identity();
     for (int k = 1; k < 60; ++k) {
       term = term * hat(w) / (k + 1);

@@ -227,5 +227,34 @@ TEST(Urdf, RefusesBadDescriptions) {
   expectUrdfError(twoJoint("1", "revolute"), "b", "b", "no revolute joint");
 }
 
+// Found by tests/fuzz/fuzz_urdf.cpp: the UR10 with wrist_3_joint's parent turned into its child
+// (wrist_3_link → wrist_3_link). urdfdom accepts it; walking up from tool0 never ended.
+TEST(Urdf, RefusesAJointWhoseChildIsItsParent) {
+  const std::string input = readTextFile(std::string(STEPCAL_TEST_DATA_DIR) +
+                                         "/fuzz/urdf/self-loop-timeout-44d68b63");
+  const size_t newline = input.find('\n');
+  ASSERT_EQ(input.substr(0, newline), "base_link tool0");
+  expectUrdfError(input.substr(newline + 1), "base_link", "tool0",
+                  "the joints above link 'tool0' form a loop");
+}
+
+// Loops urdfdom accepts beside that one: a link taken as child by a second joint (the later
+// joint becomes its parent) and a ring of links away from the root.
+TEST(Urdf, RefusesLoopsOfJoints) {
+  std::string second_parent = twoJoint("1", "revolute");
+  second_parent.insert(second_parent.find("</robot>"),
+                       "<joint name=\"back\" type=\"fixed\"><parent link=\"c\"/>"
+                       "<child link=\"b\"/></joint>\n");
+  expectUrdfError(second_parent, "a", "c", "link 'b' is the child of joints");
+  std::string ring = twoJoint("1", "revolute");
+  ring.insert(ring.find("</robot>"),
+              "<link name=\"x\"/><link name=\"y\"/>\n"
+              "<joint name=\"xy\" type=\"fixed\"><parent link=\"x\"/>"
+              "<child link=\"y\"/></joint>\n"
+              "<joint name=\"yx\" type=\"fixed\"><parent link=\"y\"/>"
+              "<child link=\"x\"/></joint>\n");
+  expectUrdfError(ring, "a", "c", "the joints above link 'x' form a loop");
+}
+
 }  // namespace
 }  // namespace stepcal

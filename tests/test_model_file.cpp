@@ -3,6 +3,7 @@
 // checksum, atomic writes.
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -392,6 +393,36 @@ TEST_F(ModelFileTest, FileRoundTripReplacesAtomicallyAndLeavesNoTemporary) {
   writeModelFile(other, path);
   expectSameModel(other, readModelFile(path));
   EXPECT_EQ(folder.entries(), std::vector<std::string>{"irb4400.stepcal"});
+}
+
+// A write past the file size limit raises SIGXFSZ, which ends a process by default; the writer
+// holds it back, reports the EFBIG and leaves the previous file alone.
+TEST_F(ModelFileTest, WritePastTheFileSizeLimitLeavesThePreviousFile) {
+  const ScratchFolder folder;
+  const std::string path = (folder.path() / "irb4400.stepcal").string();
+  writeModelFile(model(), path);
+  rlimit previous{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &previous), 0);
+  rlimit small = previous;
+  small.rlim_cur = 4096;
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &small), 0);
+  std::string message;
+  try {
+    writeModelFile(model(), path);
+  } catch (const InputError& e) {
+    message = e.what();
+  }
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &previous), 0);
+  EXPECT_NE(message.find(path + ": cannot write the model: writing " + path + ".tmp-"),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("(File too large); the previous file, if any, is unchanged"),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("hint: raise the file size limit (ulimit -f)"), std::string::npos)
+      << message;
+  EXPECT_EQ(folder.entries(), std::vector<std::string>{"irb4400.stepcal"});
+  expectSameModel(model(), readModelFile(path));
 }
 
 TEST_F(ModelFileTest, WriteRefusesMissingFolderAndReadRefusesMissingFile) {

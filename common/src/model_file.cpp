@@ -16,12 +16,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <limits>
 #include <new>
 #include <system_error>
 #include <utility>
 
+#include "stepcal/common/atomic_file.hpp"
 #include "stepcal/common/error.hpp"
 
 namespace stepcal {
@@ -797,32 +797,6 @@ CalibratedModel parseChecked(const uint8_t* data, size_t size, const std::string
 
 std::string systemMessage(int error) { return std::system_category().message(error); }
 
-/// Owns a temporary file: closes it, and removes it unless it was renamed into place.
-class TemporaryFile {
- public:
-  TemporaryFile(std::string path, int fd) : path_(std::move(path)), fd_(fd) {}
-  TemporaryFile(const TemporaryFile&) = delete;
-  TemporaryFile& operator=(const TemporaryFile&) = delete;
-  ~TemporaryFile() {
-    if (fd_ >= 0) ::close(fd_);
-    if (!renamed_) ::unlink(path_.c_str());
-  }
-  int fd() const { return fd_; }
-  const std::string& path() const { return path_; }
-  /// Closes the descriptor; returns 0 or the errno.
-  int close() {
-    const int rc = ::close(fd_);
-    fd_ = -1;
-    return rc == 0 ? 0 : errno;
-  }
-  void markRenamed() { renamed_ = true; }
-
- private:
-  std::string path_;
-  int fd_;
-  bool renamed_ = false;
-};
-
 }  // namespace
 
 uint32_t crc32Ieee(const uint8_t* data, size_t size) noexcept {
@@ -945,39 +919,7 @@ CalibratedModel parseModel(const uint8_t* data, size_t size, const std::string& 
 
 void writeModelFile(const CalibratedModel& model, const std::string& path) {
   const std::vector<uint8_t> bytes = serializeModel(model);
-  std::string pattern = path + ".tmp-XXXXXX";
-  const int fd = ::mkstemp(pattern.data());
-  if (fd < 0) {
-    throw InputError("cannot create a temporary file beside it (" + systemMessage(errno) +
-                         "); expected an existing, writable folder",
-                     path);
-  }
-  TemporaryFile tmp(pattern, fd);
-  const auto fail = [&](const std::string& what, int error) {
-    throw InputError(what + " " + tmp.path() + " failed (" + systemMessage(error) + ")", path);
-  };
-  // mkstemp creates 0600; a model is meant to be read by the runtime's user too.
-  if (::fchmod(tmp.fd(), 0644) != 0) fail("fchmod", errno);
-  size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(tmp.fd(), bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) fail("writing", errno);
-    done += size_t(n);
-  }
-  if (::fsync(tmp.fd()) != 0) fail("fsync of", errno);
-  if (const int error = tmp.close(); error != 0) fail("closing", error);
-  if (::rename(tmp.path().c_str(), path.c_str()) != 0) fail("renaming", errno);
-  tmp.markRenamed();
-  // The rename itself is durable only once the folder is synced.
-  std::string folder = std::filesystem::path(path).parent_path().string();
-  if (folder.empty()) folder = ".";
-  const int dir = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY);
-  if (dir < 0) fail("opening the folder of", errno);
-  const int rc = ::fsync(dir);
-  const int error = errno;
-  ::close(dir);
-  if (rc != 0) fail("fsync of the folder of", error);
+  writeFileAtomically(path, bytes.data(), bytes.size(), "model");
 }
 
 CalibratedModel readModelFile(const std::string& path) {

@@ -67,6 +67,32 @@ bool isRevolute(const urdf::Joint& j) {
   return j.type == urdf::Joint::REVOLUTE || j.type == urdf::Joint::CONTINUOUS;
 }
 
+// urdfdom accepts loops of joints away from the root: a joint whose child is its parent, a link
+// taken as child by a second joint (the later one becomes its parent), a ring of links. Walking
+// up or down one never ends. Empty when the joints form a tree, else which link closes a loop.
+std::string loopProblem(const urdf::ModelInterface& model) {
+  for (const auto& [name, joint] : model.joints_) {
+    const urdf::LinkConstSharedPtr child = model.getLink(joint->child_link_name);
+    if (child && child->parent_joint != joint) {
+      return "link '" + joint->child_link_name + "' is the child of joints '" + name + "' and '" +
+             (child->parent_joint ? child->parent_joint->name : std::string("?")) +
+             "'; expected one parent joint per link (a tree)";
+    }
+  }
+  for (const auto& [name, link] : model.links_) {
+    urdf::LinkConstSharedPtr current = link;
+    // In a tree every link reaches the root within as many steps as there are joints.
+    for (size_t steps = 0; current && current->parent_joint; ++steps) {
+      if (steps > model.joints_.size()) {
+        return "the joints above link '" + name +
+               "' form a loop (they never reach the root link); expected a tree";
+      }
+      current = model.getLink(current->parent_joint->parent_link_name);
+    }
+  }
+  return {};
+}
+
 urdf::ModelInterfaceSharedPtr parseOrThrow(const std::string& urdf_xml, const std::string& source) {
   CapturingHandler handler;
   console_bridge::useOutputHandler(&handler);
@@ -76,6 +102,15 @@ urdf::ModelInterfaceSharedPtr parseOrThrow(const std::string& urdf_xml, const st
     throw InputError("not a valid URDF robot description: " +
                          (handler.messages.empty() ? std::string("parse failed") : handler.messages),
                      source);
+  }
+  const std::string loop = loopProblem(*model);
+  if (!loop.empty()) {
+    // The loop's links own each other through child_links; unlinked, the refused model is freed.
+    for (const auto& [name, link] : model->links_) {
+      link->child_links.clear();
+      link->child_joints.clear();
+    }
+    throw InputError(loop, source);
   }
   return model;
 }

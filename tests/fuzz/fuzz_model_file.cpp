@@ -1,11 +1,12 @@
 // libFuzzer target for parseModel: no input may crash it, read out of bounds, trip a sanitizer or
 // throw anything but InputError. Not part of the CMake build (that uses g++); build and run with
-// tools/fuzz_model_file.sh, or by hand from the repository root:
+// `tools/fuzz.sh model_file SECONDS`, or by hand from the repository root:
 //
 //   clang++ -std=c++17 -O2 -g -Icommon/include $(pkg-config --cflags eigen3) \
 //     -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
 //     tests/fuzz/fuzz_model_file.cpp \
-//     common/src/{error,lie,chain,compliance,mechanisms,model_file}.cpp -o fuzz_model_file
+//     common/src/{error,lie,chain,compliance,mechanisms,model_file,atomic_file}.cpp \
+//     -o fuzz_model_file
 //
 // Each input is parsed twice: as given (the checksum refuses nearly every mutation), then with
 // its size field and CRC re-stamped, so the fuzzer reaches the structural and semantic checks.

@@ -1,17 +1,25 @@
 // stepcal: the offline command line. Every subcommand reads and writes campaign folders
 // (campaign-format.md); errors in the user's input end with exit status 2 and one clear line.
 #include <CLI/CLI.hpp>
+#include <signal.h>
+#include <unistd.h>
 
-#include <cstdio>
-#include <fstream>
-#include <iostream>
-#include <optional>
-
+#include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <deque>
+#include <iostream>
+#include <initializer_list>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "diagnosis_report.hpp"
 #include "report.hpp"
 #include "report_html.hpp"
+#include "stepcal/common/atomic_file.hpp"
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/model_file.hpp"
@@ -66,24 +74,97 @@ void runSimulate(const SimulateArgs& a) {
   twin::writeSimulation(options, a.out);
 }
 
-void writeTextFile(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out << text;
-  out.close();
-  if (!out) throw InputError("cannot write the report file", path);
+// SIGINT and SIGTERM end a calibration or diagnosis at once (the trainer has no point to stop
+// at) by the signal, after one line on stderr saying which output files are as they were. Files
+// are written with the signals held (SignalsHeldForWriting) until the line is updated, so it is
+// always true: an output is either untouched or completely replaced.
+class InterruptNotice {
+ public:
+  explicit InterruptNotice(std::vector<std::string> outputs) : unchanged_(std::move(outputs)) {
+    publish();
+    struct sigaction action {};
+    action.sa_handler = onSignal;
+    action.sa_flags = SA_RESETHAND;  // the raise in onSignal then ends the process
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, nullptr);
+    sigaction(SIGTERM, &action, nullptr);
+  }
+  ~InterruptNotice() {
+    ::signal(SIGINT, SIG_DFL);
+    ::signal(SIGTERM, SIG_DFL);
+    line_.store("");
+  }
+  InterruptNotice(const InterruptNotice&) = delete;
+  InterruptNotice& operator=(const InterruptNotice&) = delete;
+
+  /// Writes one output with the signals held, and the line then counts it as written.
+  template <typename Write>
+  void write(const std::string& path, const std::string& what, Write&& write_file) {
+    const SignalsHeldForWriting held;
+    write_file();
+    std::cerr << "wrote " << what << " " << path << "\n";
+    unchanged_.erase(std::find(unchanged_.begin(), unchanged_.end(), path));
+    written_.push_back(path);
+    publish();
+  }
+
+ private:
+  static std::string listed(const std::vector<std::string>& paths) {
+    std::string out;
+    for (size_t i = 0; i < paths.size(); ++i) {
+      out += (i == 0 ? "" : i + 1 == paths.size() ? " and " : ", ") + paths[i];
+    }
+    return out;
+  }
+
+  void publish() {
+    std::string line = "stepcal: interrupted";
+    if (!written_.empty()) line += "; wrote " + listed(written_);
+    if (!unchanged_.empty()) line += "; " + listed(unchanged_) + " unchanged";
+    // Every line stays alive: the handler may be printing the previous one.
+    lines_.push_back(line + "\n");
+    line_.store(lines_.back().c_str());
+  }
+
+  static void onSignal(int signal) {
+    const char* line = line_.load();
+    const ssize_t ignored = ::write(STDERR_FILENO, line, std::strlen(line));
+    (void)ignored;  // nothing left to tell if stderr is gone
+    ::raise(signal);
+  }
+
+  static inline std::atomic<const char*> line_{""};
+  std::vector<std::string> unchanged_;
+  std::vector<std::string> written_;
+  std::deque<std::string> lines_;
+};
+
+/// The output files given (the empty ones are not asked for).
+std::vector<std::string> outputs(std::initializer_list<std::string> paths) {
+  std::vector<std::string> out;
+  for (const std::string& path : paths) {
+    if (!path.empty()) out.push_back(path);
+  }
+  return out;
+}
+
+void writeReport(const std::string& path, const std::string& html) {
+  writeFileAtomically(path, html.data(), html.size(), "report");
 }
 
 void runCalibrate(const std::string& dir, const std::string& model_out,
                   const std::string& report_out, bool json) {
+  InterruptNotice notice(outputs({report_out, model_out}));
   const Campaign campaign = readCampaign(dir);
   const trainer::CalibrationOutcome outcome = trainer::calibrateCampaign(campaign);
   if (!report_out.empty()) {
-    writeTextFile(report_out, cli::htmlReport(campaign, outcome));
-    std::cerr << "wrote report " << report_out << "\n";
+    notice.write(report_out, "report",
+                 [&] { writeReport(report_out, cli::htmlReport(campaign, outcome)); });
   }
   if (!model_out.empty()) {
-    writeModelFile(trainer::modelFromOutcome(campaign, outcome), model_out);
-    std::cerr << "wrote model " << model_out << "\n";
+    notice.write(model_out, "model", [&] {
+      writeModelFile(trainer::modelFromOutcome(campaign, outcome), model_out);
+    });
   }
   if (json) {
     std::cout << cli::reportJson(campaign, outcome).dump(2) << "\n";
@@ -127,6 +208,7 @@ void runValidate(const std::string& model_path, const std::string& dir, bool ref
 // model file): the named causes, the extended model (written with --out) and its gain.
 void runDiagnose(const std::string& dir, const std::string& model_path,
                  const std::string& model_out, const std::string& report_out, bool json) {
+  InterruptNotice notice(outputs({report_out, model_out}));
   const Campaign campaign = readCampaign(dir);
   const auto start = std::chrono::steady_clock::now();
   CalibratedModel model;
@@ -139,12 +221,11 @@ void runDiagnose(const std::string& dir, const std::string& model_path,
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const trainer::Diagnosis diagnosis = trainer::diagnose(campaign, model);
   if (!report_out.empty()) {
-    writeTextFile(report_out, cli::diagnosisHtml(campaign, diagnosis));
-    std::cerr << "wrote report " << report_out << "\n";
+    notice.write(report_out, "report",
+                 [&] { writeReport(report_out, cli::diagnosisHtml(campaign, diagnosis)); });
   }
   if (!model_out.empty()) {
-    writeModelFile(diagnosis.extended_model, model_out);
-    std::cerr << "wrote model " << model_out << "\n";
+    notice.write(model_out, "model", [&] { writeModelFile(diagnosis.extended_model, model_out); });
   }
   if (json) {
     std::cout << cli::diagnosisJson(diagnosis, seconds_calibrate).dump(2) << "\n";

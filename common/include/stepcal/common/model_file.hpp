@@ -124,8 +124,9 @@ std::vector<uint8_t> serializeModel(const CalibratedModel& model);
 /// expected. Never crashes and never reads out of bounds, on any input.
 CalibratedModel parseModel(const uint8_t* data, size_t size, const std::string& source);
 
-/// Writes atomically (temporary file in the same folder, fsync, rename), so a crash never
-/// leaves half a model. Throws InputError.
+/// Writes atomically (writeFileAtomically: temporary file in the same folder, fsync, rename,
+/// signals held meanwhile), so a crash, a full disk or an interruption never leaves half a model
+/// and a failure leaves the previous file as it was. Throws InputError.
 void writeModelFile(const CalibratedModel& model, const std::string& path);
 
 /// Reads and parses a model file. Throws InputError.

@@ -14,6 +14,8 @@ packages=(
   liborocos-kdl-dev rt-tests
   # CAN tests without vcan in the host kernel: tools/vcan_run.sh boots a qemu VM (docs/vcan.md).
   qemu-system-x86 busybox-static can-utils kmod xz-utils iproute2
+  # The HTML reports opened in a real browser (ctest label browser, tools/check_report_in_browser.sh).
+  chromium
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -185,5 +185,18 @@ TEST(Lie, RpyRoundTripAndConvention) {
   }
 }
 
+TEST(Lie, RpyGivesTheRotationBackToRoundingNearGimbalLock) {
+  // Where cos(pitch) is tiny, yaw and roll each come from small entries; the rotation they give
+  // back must not lose what rounding there costs (1e-16 / cos(pitch) rad).
+  for (const double from_lock : {1e-4, 1e-7, 1e-9, 1e-11, 0.0}) {
+    for (const double pitch : {M_PI / 2 - from_lock, -M_PI / 2 + from_lock}) {
+      const Mat3 R = rotationFromRpy(0.3, pitch, -1.2);
+      const Vec3 back = rpyFromRotation(R);
+      EXPECT_LT((rotationFromRpy(back.x(), back.y(), back.z()) - R).norm(), 1e-15)
+          << "pitch " << pitch;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace stepcal::lie

@@ -1,7 +1,11 @@
-// The HTML report: a simulated paper campaign, calibrated, rendered and checked for structure
-// (balanced tags, entities, finite coordinates), content (a figure per validation load, every
-// method, the noise floor), escaping of the campaign path and size.
+// The HTML reports: a simulated paper campaign, calibrated, rendered and checked for structure
+// (balanced tags, entities, finite coordinates, every chart drawing data, nothing external),
+// content (a figure per validation load, every method, the noise floor, the error's
+// distribution, workspace and coverage), escaping of the campaign path and size; a diagnosis of a
+// hidden backlash with its signature and the chosen candidates marked.
 #include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cctype>
@@ -13,6 +17,7 @@
 #include <vector>
 
 #include "report_html.hpp"
+#include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
 
@@ -116,6 +121,31 @@ std::string nonFiniteText(const std::string& html) {
   return "";
 }
 
+// The first reference to anything outside the page, empty when none: a src attribute, a URL other
+// than the SVG namespace, a url() other than a fragment, an @import.
+std::string externalReference(const std::string& html) {
+  static const std::regex kExternal(
+      R"((src\s*=|https?://(?!www\.w3\.org/2000/svg")|url\((?!#)|@import))", std::regex::icase);
+  std::smatch match;
+  return std::regex_search(html, match, kExternal)
+             ? html.substr(static_cast<size_t>(std::max<long>(match.position(0) - 30, 0)), 80)
+             : "";
+}
+
+// Titles of the charts (svg class="chart") that draw no data mark.
+std::vector<std::string> chartsWithoutData(const std::string& html) {
+  std::vector<std::string> empty;
+  const std::string open = "<svg class=\"chart\"";
+  for (size_t at = html.find(open); at != std::string::npos; at = html.find(open, at + 1)) {
+    const std::string chart = html.substr(at, html.find("</svg>", at) - at);
+    if (!std::regex_search(chart, std::regex(R"(class="[^"]*\bmark\b)"))) {
+      const size_t label = chart.find("aria-label=\"");
+      empty.push_back(chart.substr(label + 12, chart.find('"', label + 12) - label - 12));
+    }
+  }
+  return empty;
+}
+
 TEST(StructuralChecker, FindsUnbalancedTagsAndBareCharacters) {
   EXPECT_EQ(structuralProblem("<html><body><p>a &amp; b</p><br><svg><path d=\"M0 0\"/></svg></body></html>"), "");
   EXPECT_NE(structuralProblem("<svg><g></svg></g>"), "");
@@ -127,13 +157,45 @@ TEST(StructuralChecker, FindsUnbalancedTagsAndBareCharacters) {
   EXPECT_EQ(nonFiniteText("information, infinite, financial"), "");
 }
 
+TEST(StructuralChecker, FindsExternalReferencesAndChartsWithoutData) {
+  EXPECT_EQ(externalReference("<svg xmlns=\"http://www.w3.org/2000/svg\"><path marker-mid=\"url(#m0)\"/></svg>"), "");
+  EXPECT_NE(externalReference("<img src=\"plot.png\">"), "");
+  EXPECT_NE(externalReference("<a href=\"https://example.com\">"), "");
+  EXPECT_NE(externalReference("<style>body{background:url(x.png)}</style>"), "");
+  EXPECT_TRUE(chartsWithoutData("<svg class=\"chart\" aria-label=\"a\"><rect class=\"box mark\"/></svg>").empty());
+  EXPECT_EQ(chartsWithoutData("<svg class=\"chart\" aria-label=\"b\"><rect class=\"frame\"/></svg>"),
+            std::vector<std::string>{"b"});
+}
+
 TEST(HtmlReport, PaperCampaignIsWellFormed) {
   const std::string& html = paperReport().html;
   EXPECT_EQ(html.rfind("<!DOCTYPE html>", 0), 0u);
   EXPECT_EQ(structuralProblem(html), "");
-  EXPECT_EQ(html.find("<script"), std::string::npos);
-  EXPECT_EQ(html.find("http://", 0), html.find("http://www.w3.org/2000/svg"));  // no external files
+  EXPECT_EQ(count(html, "<script>"), 1u);  // the inline check of the charts, nothing loaded
+  EXPECT_EQ(externalReference(html), "");
   EXPECT_EQ(nonFiniteText(html), "");
+  EXPECT_EQ(chartsWithoutData(html), std::vector<std::string>{});
+}
+
+TEST(HtmlReport, ShowsTheErrorsDistributionWorkspaceAndCoverage) {
+  const Rendered& r = paperReport();
+  for (const char* section : {"id=\"distribution\"", "id=\"workspace\"", "id=\"coverage\""}) {
+    const size_t at = r.html.find(section);
+    ASSERT_NE(at, std::string::npos) << section;
+    const std::string body = r.html.substr(at, r.html.find("<h2", at) - at);
+    EXPECT_GE(count(body, "<svg class=\"chart\""), 1u) << section;
+  }
+  // A box per load and calibrated method, in position and orientation.
+  EXPECT_EQ(count(r.html, "class=\"box mark\""), 2u * 5u * 4u);
+  // Two views per map, a dot per row in each: the whole hierarchy on every validation row, poe on
+  // the unloaded ones.
+  size_t validation_rows = 0, unloaded_rows = 0;
+  for (const Measurement& m : r.campaign.rows) {
+    validation_rows += m.set == RowSet::kValidation;
+    unloaded_rows += m.set == RowSet::kValidation && m.load_kg == 0.0;
+  }
+  EXPECT_EQ(count(r.html, "class=\"dot mark\""), 2u * validation_rows + 2u * unloaded_rows);
+  EXPECT_NE(r.html.find("validation loads no fit row has (extrapolation): 55 kg"), std::string::npos);
 }
 
 TEST(HtmlReport, HasOneFigurePerValidationLoad) {
@@ -210,6 +272,91 @@ TEST(HtmlReport, GeometryOnlyCampaignSaysWhatWasSkipped) {
   EXPECT_NE(r.html.find("Skipped: the campaign has no loaded/unloaded stiffness pairs"), std::string::npos);
   EXPECT_NE(r.html.find("fewer than two loads"), std::string::npos);
   EXPECT_EQ(r.html.find(std::string(">") + trainer::kMethodPoeStiffnessGpr + "<"), std::string::npos);
+}
+
+struct RenderedDiagnosis {
+  Campaign campaign;
+  trainer::Diagnosis diagnosis;
+  std::string html;
+};
+
+// The paper campaign of seed 3 hiding a backlash of joint 2 (docs/diagnosis.md), diagnosed once.
+const RenderedDiagnosis& backlashDiagnosis() {
+  static const RenderedDiagnosis rendered = [] {
+    twin::TwinOptions options;
+    options.seed = 3;
+    options.hidden_effects = {{{"name", "backlash"}, {"joint", 2}, {"lost_motion_rad", 2e-4}}};
+    RenderedDiagnosis r;
+    r.campaign = twin::simulateCampaign(options, nullptr);
+    r.campaign.directory = "/campaigns/backlash";
+    r.diagnosis = trainer::diagnose(
+        r.campaign, trainer::modelFromOutcome(r.campaign, trainer::calibrateCampaign(r.campaign)));
+    r.html = cli::diagnosisHtml(r.campaign, r.diagnosis);
+    return r;
+  }();
+  return rendered;
+}
+
+const trainer::EffectSignature* findSignature(const std::vector<trainer::EffectSignature>& signatures,
+                                              MechanismKind kind, int joint) {
+  for (const trainer::EffectSignature& s : signatures) {
+    if (s.mechanism.kind == kind && s.joint == joint) return &s;
+  }
+  return nullptr;
+}
+
+// Least-squares slope of the partial residuals on the fitted effect.
+double slopeOnEffect(const trainer::EffectSignature& s) {
+  double pe = 0.0, ee = 0.0;
+  for (size_t i = 0; i < s.effect.size(); ++i) {
+    pe += s.partial_residual[i] * s.effect[i];
+    ee += s.effect[i] * s.effect[i];
+  }
+  return pe / ee;
+}
+
+TEST(DiagnosisHtml, IsWellFormedSelfContainedAndEveryChartDrawsData) {
+  const std::string& html = backlashDiagnosis().html;
+  EXPECT_EQ(structuralProblem(html), "");
+  EXPECT_EQ(nonFiniteText(html), "");
+  EXPECT_EQ(externalReference(html), "");
+  EXPECT_EQ(chartsWithoutData(html), std::vector<std::string>{});
+}
+
+TEST(DiagnosisHtml, MarksTheChosenCandidateOfEveryRoundAndShowsTheSignature) {
+  const RenderedDiagnosis& r = backlashDiagnosis();
+  std::set<int> rounds_with_a_choice;
+  for (const trainer::CandidateScore& c : r.diagnosis.candidates) {
+    if (c.chosen) rounds_with_a_choice.insert(c.round);
+  }
+  ASSERT_FALSE(rounds_with_a_choice.empty());
+  EXPECT_EQ(count(r.html, "\u25c0 chosen"), rounds_with_a_choice.size());
+  EXPECT_NE(r.html.find("aria-label=\"backlash (joint 2)\""), std::string::npos);
+  EXPECT_NE(r.html.find("joint 2 link-angle offset (µrad)"), std::string::npos);
+}
+
+// The partial residuals hold what the model leaves along the effect: with the extended model they
+// scatter about its curve (slope 1 on it); with its backlash halved, the residual holds the other
+// half and the points come out at the whole backlash (slope 2).
+TEST(EffectSignatures, PartialResidualsRecoverTheBacklash) {
+  const RenderedDiagnosis& r = backlashDiagnosis();
+  const auto signatures = trainer::effectSignatures(r.campaign, r.diagnosis);
+  const trainer::EffectSignature* s = findSignature(signatures, MechanismKind::kBacklash, 1);
+  ASSERT_NE(s, nullptr);
+  EXPECT_EQ(s->variable, trainer::SignatureVariable::kJointTorque);
+  EXPECT_GT(s->x.size(), 0.9 * r.diagnosis.fit_rows);
+  EXPECT_NEAR(slopeOnEffect(*s), 1.0, 0.05);
+  EXPECT_FALSE(s->curve_x.empty());
+  EXPECT_TRUE(std::is_sorted(s->curve_x.begin(), s->curve_x.end()));
+
+  trainer::Diagnosis halved = r.diagnosis;
+  for (Mechanism& m : halved.extended_model.mechanisms) {
+    if (m.kind == MechanismKind::kBacklash) m.parameters[0] *= 0.5;
+  }
+  const auto halved_signatures = trainer::effectSignatures(r.campaign, halved);
+  const trainer::EffectSignature* h = findSignature(halved_signatures, MechanismKind::kBacklash, 1);
+  ASSERT_NE(h, nullptr);
+  EXPECT_NEAR(slopeOnEffect(*h), 2.0, 0.1);
 }
 
 }  // namespace

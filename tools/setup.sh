@@ -7,13 +7,17 @@ cd "$(dirname "$0")/.."
 packages=(
   build-essential cmake pkg-config git clang libclang-rt-14-dev
   libeigen3-dev libgtest-dev libbenchmark-dev
-  liburdfdom-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev liblbfgspp-dev
+  liburdfdom-dev libtinyxml-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev liblbfgspp-dev
   liblcm-dev liblcm-bin jq
+  # check_urdf, which the calibrated URDF export's test runs on its output.
+  liburdfdom-tools
   # The bench's side-by-side with KDL (stepcal-bench --compare-kdl) and the machine's own
   # latency baseline (cyclictest, docs/runtime.md).
   liborocos-kdl-dev rt-tests
   # CAN tests without vcan in the host kernel: tools/vcan_run.sh boots a qemu VM (docs/vcan.md).
   qemu-system-x86 busybox-static can-utils kmod xz-utils iproute2
+  # The HTML reports opened in a real browser (ctest label browser, tools/check_report_in_browser.sh).
+  chromium
 )
 missing=()
 for p in "${packages[@]}"; do

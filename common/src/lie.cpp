@@ -171,12 +171,13 @@ Mat3 rotationFromRpy(double roll, double pitch, double yaw) noexcept {
 
 Vec3 rpyFromRotation(const Mat3& R) noexcept {
   const double pitch = std::atan2(-R(2, 0), std::hypot(R(0, 0), R(1, 0)));
-  if (std::abs(std::abs(pitch) - M_PI / 2.0) < 1e-9) {
-    // Gimbal lock: only roll ∓ yaw is defined; put it all in roll.
-    const double sign = pitch > 0.0 ? 1.0 : -1.0;
-    return {std::atan2(sign * R(0, 1), R(1, 1)), pitch, 0.0};
-  }
-  return {std::atan2(R(2, 1), R(2, 2)), pitch, std::atan2(R(1, 0), R(0, 0))};
+  // Near gimbal lock the yaw is ill-conditioned; the roll taken from Rz(yaw)ᵀ R = Ry(pitch)
+  // Rx(roll), whose middle row is (0, cos roll, −sin roll), absorbs its error, so the angles
+  // give R back to rounding at every pitch.
+  const double yaw = std::atan2(R(1, 0), R(0, 0));
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  const double roll = std::atan2(-(c * R(1, 2) - s * R(0, 2)), c * R(1, 1) - s * R(0, 1));
+  return {roll, pitch, yaw};
 }
 
 }  // namespace stepcal::lie

@@ -9,6 +9,9 @@
 #include <sstream>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/lie.hpp"
+#include "stepcal/common/text_number.hpp"
+#include "urdf_model.hpp"
 
 namespace stepcal {
 namespace {
@@ -25,46 +28,39 @@ class CapturingHandler : public console_bridge::OutputHandler {
   std::string messages;
 };
 
-Pose toPose(const urdf::Pose& p) {
-  Pose X = Pose::Identity();
-  X.translation() = Vec3(p.position.x, p.position.y, p.position.z);
-  X.linear() =
-      Eigen::Quaterniond(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z)
-          .normalized()
-          .toRotationMatrix();
-  return X;
-}
-
-// Joints from base_link down to link, in chain order; throws if link is not below base.
-std::vector<urdf::JointConstSharedPtr> pathFromBase(const urdf::ModelInterface& model,
-                                                     const std::string& base,
-                                                     const std::string& link,
-                                                     const std::string& source,
-                                                     const std::string& role) {
-  std::vector<urdf::JointConstSharedPtr> path;
-  urdf::LinkConstSharedPtr current = model.getLink(link);
-  if (!current) {
-    std::string names;
-    for (const auto& [name, l] : model.links_) names += (names.empty() ? "" : ", ") + name;
-    throw InputError(role + " '" + link + "' is not a link of the robot description (links: " +
-                         names + ")",
-                     source);
-  }
-  while (current->name != base) {
-    const urdf::JointConstSharedPtr joint = current->parent_joint;
-    if (!joint) {
-      throw InputError(role + " '" + link + "' is not below base_link '" + base +
-                           "' in the robot description; hint: check base_link and the joint tree",
-                       source);
-    }
-    path.insert(path.begin(), joint);
-    current = model.getLink(joint->parent_link_name);
-  }
-  return path;
-}
-
 bool isRevolute(const urdf::Joint& j) {
   return j.type == urdf::Joint::REVOLUTE || j.type == urdf::Joint::CONTINUOUS;
+}
+
+// Adds the inertials of link and every link hanging from it by fixed joints (X_BodyLink: the
+// link's pose in the body frame) to mass and first moment; true when any had an <inertial>.
+bool addRigidInertials(const urdf::ModelInterface& model, const urdf::Link& link,
+                       const Pose& X_BodyLink, double& mass, Vec3& first_moment,
+                       const std::string& source) {
+  bool found = false;
+  if (link.inertial) {
+    const double m = link.inertial->mass;
+    if (!(std::isfinite(m) && m >= 0.0)) {
+      throw InputError("link '" + link.name + "' has <mass value=\"" + std::to_string(m) +
+                           "\">; expected a finite mass >= 0 kg",
+                       source);
+    }
+    const Pose X_BodyCom = X_BodyLink * poseFromUrdf(link.inertial->origin);
+    mass += link.inertial->mass;
+    first_moment += link.inertial->mass * X_BodyCom.translation();
+    found = true;
+  }
+  for (const urdf::JointSharedPtr& j : link.child_joints) {
+    if (j->type != urdf::Joint::FIXED) continue;
+    const urdf::LinkConstSharedPtr child = model.getLink(j->child_link_name);
+    if (child) {
+      found = addRigidInertials(model, *child,
+                                X_BodyLink * poseFromUrdf(j->parent_to_joint_origin_transform),
+                                mass, first_moment, source) ||
+              found;
+    }
+  }
+  return found;
 }
 
 // urdfdom accepts loops of joints away from the root: a joint whose child is its parent, a link
@@ -93,7 +89,47 @@ std::string loopProblem(const urdf::ModelInterface& model) {
   return {};
 }
 
-urdf::ModelInterfaceSharedPtr parseOrThrow(const std::string& urdf_xml, const std::string& source) {
+}  // namespace
+
+Pose poseFromUrdf(const urdf::Pose& p) {
+  Pose X = Pose::Identity();
+  X.translation() = Vec3(p.position.x, p.position.y, p.position.z);
+  X.linear() =
+      Eigen::Quaterniond(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z)
+          .normalized()
+          .toRotationMatrix();
+  return X;
+}
+
+std::vector<urdf::JointConstSharedPtr> urdfPathFromBase(const urdf::ModelInterface& model,
+                                                         const std::string& base,
+                                                         const std::string& link,
+                                                         const std::string& source,
+                                                         const std::string& role) {
+  std::vector<urdf::JointConstSharedPtr> path;
+  urdf::LinkConstSharedPtr current = model.getLink(link);
+  if (!current) {
+    std::string names;
+    for (const auto& [name, l] : model.links_) names += (names.empty() ? "" : ", ") + name;
+    throw InputError(role + " '" + link + "' is not a link of the robot description (links: " +
+                         names + ")",
+                     source);
+  }
+  while (current->name != base) {
+    const urdf::JointConstSharedPtr joint = current->parent_joint;
+    if (!joint) {
+      throw InputError(role + " '" + link + "' is not below base_link '" + base +
+                           "' in the robot description; hint: check base_link and the joint tree",
+                       source);
+    }
+    path.insert(path.begin(), joint);
+    current = model.getLink(joint->parent_link_name);
+  }
+  return path;
+}
+
+urdf::ModelInterfaceSharedPtr parseUrdfOrThrow(const std::string& urdf_xml,
+                                               const std::string& source) {
   CapturingHandler handler;
   console_bridge::useOutputHandler(&handler);
   urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(urdf_xml);
@@ -115,44 +151,11 @@ urdf::ModelInterfaceSharedPtr parseOrThrow(const std::string& urdf_xml, const st
   return model;
 }
 
-// Adds the inertials of link and every link hanging from it by fixed joints (X_BodyLink: the
-// link's pose in the body frame) to mass and first moment; true when any had an <inertial>.
-bool addRigidInertials(const urdf::ModelInterface& model, const urdf::Link& link,
-                       const Pose& X_BodyLink, double& mass, Vec3& first_moment,
-                       const std::string& source) {
-  bool found = false;
-  if (link.inertial) {
-    const double m = link.inertial->mass;
-    if (!(std::isfinite(m) && m >= 0.0)) {
-      throw InputError("link '" + link.name + "' has <mass value=\"" + std::to_string(m) +
-                           "\">; expected a finite mass >= 0 kg",
-                       source);
-    }
-    const Pose X_BodyCom = X_BodyLink * toPose(link.inertial->origin);
-    mass += link.inertial->mass;
-    first_moment += link.inertial->mass * X_BodyCom.translation();
-    found = true;
-  }
-  for (const urdf::JointSharedPtr& j : link.child_joints) {
-    if (j->type != urdf::Joint::FIXED) continue;
-    const urdf::LinkConstSharedPtr child = model.getLink(j->child_link_name);
-    if (child) {
-      found = addRigidInertials(model, *child,
-                                X_BodyLink * toPose(j->parent_to_joint_origin_transform), mass,
-                                first_moment, source) ||
-              found;
-    }
-  }
-  return found;
-}
-
-}  // namespace
-
 KinematicChain chainFromUrdf(const std::string& urdf_xml, const std::string& base_link,
                              const std::string& tip_link,
                              const std::vector<std::string>& attached_links,
                              const std::string& source) {
-  const urdf::ModelInterfaceSharedPtr model = parseOrThrow(urdf_xml, source);
+  const urdf::ModelInterfaceSharedPtr model = parseUrdfOrThrow(urdf_xml, source);
   if (!model->getLink(base_link)) {
     throw InputError("base_link '" + base_link + "' is not a link of the robot description",
                      source);
@@ -161,9 +164,9 @@ KinematicChain chainFromUrdf(const std::string& urdf_xml, const std::string& bas
   std::vector<ChainJoint> joints;
   std::vector<Pose> initial;
   Pose X_accumulated = Pose::Identity();
-  for (const urdf::JointConstSharedPtr& j : pathFromBase(*model, base_link, tip_link, source,
-                                                         "tip_link")) {
-    X_accumulated = X_accumulated * toPose(j->parent_to_joint_origin_transform);
+  for (const urdf::JointConstSharedPtr& j :
+       urdfPathFromBase(*model, base_link, tip_link, source, "tip_link")) {
+    X_accumulated = X_accumulated * poseFromUrdf(j->parent_to_joint_origin_transform);
     if (j->type == urdf::Joint::FIXED) continue;
     if (!isRevolute(*j)) {
       throw InputError("joint '" + j->name +
@@ -207,9 +210,9 @@ KinematicChain chainFromUrdf(const std::string& urdf_xml, const std::string& bas
     f.name = name;
     f.X_ParentFrame = Pose::Identity();
     for (const urdf::JointConstSharedPtr& j :
-         pathFromBase(*model, base_link, name, source, "link")) {
+         urdfPathFromBase(*model, base_link, name, source, "link")) {
       if (j->type == urdf::Joint::FIXED) {
-        f.X_ParentFrame = f.X_ParentFrame * toPose(j->parent_to_joint_origin_transform);
+        f.X_ParentFrame = f.X_ParentFrame * poseFromUrdf(j->parent_to_joint_origin_transform);
         continue;
       }
       if (f.parent >= static_cast<int>(joints.size()) ||
@@ -232,11 +235,11 @@ std::optional<std::vector<double>> bodyMassesFromUrdf(const std::string& urdf_xm
                                                       const std::string& tip_link,
                                                       const std::string& source) {
   const KinematicChain chain = chainFromUrdf(urdf_xml, base_link, tip_link, {}, source);
-  const urdf::ModelInterfaceSharedPtr model = parseOrThrow(urdf_xml, source);
+  const urdf::ModelInterfaceSharedPtr model = parseUrdfOrThrow(urdf_xml, source);
   std::vector<double> parameters;
   bool found = false;
-  for (const urdf::JointConstSharedPtr& j : pathFromBase(*model, base_link, tip_link, source,
-                                                         "tip_link")) {
+  for (const urdf::JointConstSharedPtr& j :
+       urdfPathFromBase(*model, base_link, tip_link, source, "tip_link")) {
     if (j->type == urdf::Joint::FIXED) continue;
     // Body k: joint k's child link (its frame is frame k) and what hangs from it rigidly.
     double mass = 0.0;
@@ -251,6 +254,13 @@ std::optional<std::vector<double>> bodyMassesFromUrdf(const std::string& urdf_xm
                     "one body per revolute joint");
   if (!found) return std::nullopt;
   return parameters;
+}
+
+UrdfOrigin urdfOriginOf(const Pose& X) {
+  const auto triple = [](const Vec3& v) {
+    return formatShortest(v.x()) + " " + formatShortest(v.y()) + " " + formatShortest(v.z());
+  };
+  return {triple(X.translation()), triple(lie::rpyFromRotation(X.linear()))};
 }
 
 std::string readTextFile(const std::string& path) {

@@ -100,6 +100,24 @@ std::string statisticsText(const char* title, const trainer::ResidualStatistics&
 
 }  // namespace
 
+std::string effectParameterText(const trainer::FoundEffect& e) {
+  if (!e.compliance_joints.empty()) {  // self weight with the URDF's masses
+    std::string masses = "link masses from the URDF (kg:";
+    for (size_t k = 0; k < e.mechanism.parameters.size(); k += 4) {
+      masses += format(" %.3g", e.mechanism.parameters[k]);
+    }
+    return masses + ")";
+  }
+  return e.harmonics_separable ? parameterText(e.mechanism)
+                               : "harmonics not separable on its angles; " + coverageText(e.mechanism);
+}
+
+std::string selfWeightComplianceText(const trainer::Diagnosis& d, int joint) {
+  return format("joint %d compliance %.3g rad/(N·m) ± %.2g, from the arm's own weight", joint + 1,
+                d.extended_model.compliance_rad_per_nm(joint),
+                d.extended_model.compliance_sigma_rad_per_nm(joint));
+}
+
 std::string transmissionSummary(const Mechanism& m) {
   std::string out = "strongest";
   const std::vector<int> top = strongestHarmonics(m, 3);
@@ -172,23 +190,9 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
     if (e.mechanism.kind == MechanismKind::kTransmissionError) {
       out += format("RMS %.0f urad over the fit rows, ", 1e6 * e.rms_rad);
     }
-    std::string parameters =
-        e.harmonics_separable ? parameterText(e.mechanism)
-                              : "harmonics not separable on its angles; " + coverageText(e.mechanism);
-    if (!e.compliance_joints.empty()) {  // self weight with the URDF's masses
-      parameters = "link masses from the URDF (kg:";
-      for (size_t k = 0; k < e.mechanism.parameters.size(); k += 4) {
-        parameters += format(" %.3g", e.mechanism.parameters[k]);
-      }
-      parameters += ")";
-    }
-    out += format("%s (held-out gain %.4f mm, z %.1f)\n", parameters.c_str(), e.cv_gain_mm,
+    out += format("%s (held-out gain %.4f mm, z %.1f)\n", effectParameterText(e).c_str(), e.cv_gain_mm,
                   e.z_statistic);
-    const JointVector& c = d.extended_model.compliance_rad_per_nm;
-    for (int j : e.compliance_joints) {
-      out += format("    joint %d compliance %.3g rad/(N·m) ± %.2g, from the arm's own weight\n",
-                    j + 1, c(j), d.extended_model.compliance_sigma_rad_per_nm(j));
-    }
+    for (int j : e.compliance_joints) out += "    " + selfWeightComplianceText(d, j) + "\n";
   }
   for (const std::string& line : d.identifiability) out += "  identifiability: " + line + "\n";
   if (!d.unexplained_trend.empty()) {

@@ -28,6 +28,15 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& diagnosis, double seconds
 /// A mechanism's parameters as a JSON object keyed by their names (SI, units in the names).
 nlohmann::json parametersJson(const Mechanism& mechanism, const std::vector<double>& values);
 
+/// A found effect's parameters in one line: "name = value ± σ" each (SI); a profile by
+/// transmissionSummary, or by its coverage when its harmonics are not separable; self weight with
+/// the URDF's masses by those masses.
+std::string effectParameterText(const trainer::FoundEffect& effect);
+
+/// The compliance self weight identifies for a joint (0-based), e.g. "joint 2 compliance
+/// 1.69e-05 rad/(N·m) ± 1e-06, from the arm's own weight".
+std::string selfWeightComplianceText(const trainer::Diagnosis& diagnosis, int joint);
+
 /// A transmission profile in one line: its strongest harmonics (amplitude √(a² + b²), µrad) and
 /// the joint angles it covers (deg), e.g. "strongest h8 212, h2 95, h7 60 urad; covers 52..180 deg".
 std::string transmissionSummary(const Mechanism& profile);

@@ -200,11 +200,13 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
     out << "\n";
   }
   out << "validation figures at training time (mean / max position mm, mean orientation deg):\n";
-  for (const ValidationFigure& v : prov.validation) {
-    out << format("  %-20s %5.1f kg %4d rows  %8.4f / %8.4f  %.4f\n", v.method.c_str(), v.load_kg, v.rows,
-                         v.mean_position_m * kMm, v.max_position_m * kMm, v.mean_orientation_rad * kDeg);
-  }
+  for (const ValidationFigure& v : prov.validation) out << formatValidationFigure(v);
   return out.str();
+}
+
+std::string formatValidationFigure(const ValidationFigure& v) {
+  return format("  %-20s %5.1f kg %4d rows  %8.4f / %8.4f  %.4f\n", v.method.c_str(), v.load_kg, v.rows,
+                v.mean_position_m * kMm, v.max_position_m * kMm, v.mean_orientation_rad * kDeg);
 }
 
 std::string formatAccuracyTable(const std::vector<trainer::AccuracySummary>& summaries) {

@@ -23,6 +23,10 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
 /// What a model file holds, for people: chain, registration, compliances, GPR, provenance.
 std::string formatModel(const CalibratedModel& model, size_t file_bytes);
 
+/// One line of a model's validation figures: method, load, rows, mean / max position (mm) and
+/// mean orientation (deg), indented, with its newline.
+std::string formatValidationFigure(const ValidationFigure& figure);
+
 /// Accuracy table (rows = set and load, columns = methods) as text.
 std::string formatAccuracyTable(const std::vector<trainer::AccuracySummary>& summaries);
 

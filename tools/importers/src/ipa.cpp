@@ -164,8 +164,7 @@ std::string withTmacLink(const std::string& urdf, const Pose& X_FlangeTmac,
   if (end == std::string::npos) {
     throw InputError("expected a URDF robot description ending with </robot>", source);
   }
-  const Vec3 p = X_FlangeTmac.translation();
-  const Vec3 rpy = lie::rpyFromRotation(X_FlangeTmac.linear());
+  const UrdfOrigin origin = urdfOriginOf(X_FlangeTmac);
   const std::string block =
       "  <!-- Added by the IPA importer: the Leica T-Mac frame the tracker measures, from " +
       std::string(kTrafoFile) +
@@ -173,11 +172,7 @@ std::string withTmacLink(const std::string& urdf, const Pose& X_FlangeTmac,
       "  <link name=\"tmac\"/>\n"
       "  <joint name=\"tool0-tmac\" type=\"fixed\">\n"
       "    <parent link=\"tool0\"/><child link=\"tmac\"/>\n"
-      "    <origin xyz=\"" +
-      formatShortest(p.x()) + " " + formatShortest(p.y()) + " " + formatShortest(p.z()) +
-      "\" rpy=\"" + formatShortest(rpy.x()) + " " + formatShortest(rpy.y()) + " " +
-      formatShortest(rpy.z()) +
-      "\"/>\n"
+      "    <origin xyz=\"" + origin.xyz + "\" rpy=\"" + origin.rpy + "\"/>\n"
       "  </joint>\n";
   return urdf.substr(0, end) + block + urdf.substr(end);
 }

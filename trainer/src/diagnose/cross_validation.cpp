@@ -119,10 +119,14 @@ Eigen::VectorXd CrossValidation::solveStage1(int f, const std::vector<Eigen::Ind
   const Eigen::Index m = static_cast<Eigen::Index>(columns.size());
   Eigen::MatrixXd G = trainingGram(f, columns, columns);
   const Eigen::VectorXd b = trainingRhs(f, columns);
+  // Normalised with the ridge in: a prior on a column the rows barely see (a lumped mass that
+  // loads no compliant joint) would otherwise dwarf the largest eigenvalue, and the cutoff
+  // relative to it would drop directions the rows determine well (thermal expansion with self
+  // weight came out exactly zero).
   Eigen::VectorXd s(m);
   for (Eigen::Index a = 0; a < m; ++a) {
     G(a, a) += ridge_(columns[static_cast<size_t>(a)]);
-    s(a) = grams_.scale(columns[static_cast<size_t>(a)]);
+    s(a) = G(a, a) > 0.0 ? std::sqrt(G(a, a)) : 1.0;
   }
   const Eigen::MatrixXd Gs = s.cwiseInverse().asDiagonal() * G * s.cwiseInverse().asDiagonal();
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Gs);

@@ -287,8 +287,6 @@ void addFamily(DiagnosisModel& model, const Scored& chosen) {
   }
 }
 
-// Whether a found mechanism's sign-constrained parameter (lost motion, extra compliance) is
-// negative.
 // Index in d.effects of the k-th global cause found (effects other than profiles are the global
 // mechanisms found, in the same order).
 long globalEffect(const Diagnosis& d, size_t k) {
@@ -301,6 +299,21 @@ long globalEffect(const Diagnosis& d, size_t k) {
   return -1;
 }
 
+// Alternations of the global refit and the profiles' fit once every cause is named.
+constexpr int kJointFitPasses = 3;
+
+// Whether a fitted mechanism has a size: one of its fitted parameters at least one σ from zero
+// (self weight under the URDF's masses fits none: its size is the compliance it frees).
+bool hasSize(const Mechanism& m, bool masses_from_urdf) {
+  const std::vector<int> fitted = freeParameters(m, masses_from_urdf);
+  if (m.kind == MechanismKind::kSelfWeight && fitted.empty()) return true;
+  return std::any_of(fitted.begin(), fitted.end(), [&m](int i) {
+    return std::abs(m.parameters[static_cast<size_t>(i)]) > m.sigma[static_cast<size_t>(i)];
+  });
+}
+
+// Whether a found mechanism's sign-constrained parameter (lost motion, extra compliance) is
+// negative.
 bool wrongSign(const Mechanism& m) {
   return (m.kind == MechanismKind::kBacklash || m.kind == MechanismKind::kNonlinearStiffness) &&
          m.parameters[0] < 0.0;
@@ -311,9 +324,10 @@ bool wrongSign(const Mechanism& m) {
 // negative once refitted with the rest is dropped (with its effect), and the refit repeats.
 // Says what it did in identifiability.
 void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOptions& options,
-                   size_t base_globals, JointVector& compliance_sigma, Diagnosis& d) {
+                   size_t base_globals, JointVector& compliance_sigma, Diagnosis& d,
+                   bool hold_profiles = false) {
   for (;;) {
-    refitGlobal(model, fit, options.refit_iterations, compliance_sigma);
+    refitGlobal(model, fit, options.refit_iterations, compliance_sigma, hold_profiles);
     JointVector& c = model.global.compliance_rad_per_nm;
     Eigen::Index joint = -1;
     for (Eigen::Index j = 0; j < c.size(); ++j) {
@@ -615,6 +629,19 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
     fitProfiles(dm, fit);
     grams.reset();
   }
+  // The global causes found and the profiles fitted jointly: each was fitted on what the other
+  // left when it was chosen, so a weakly determined global one (a sensor's moment bias) kept a
+  // part of a profile's signal, and the profile the opposite. Alternating the two fits converges
+  // to their joint least squares.
+  if (!dm.profiles.empty() && dm.global.mechanisms.size() > base_globals) {
+    clock = std::chrono::steady_clock::now();
+    for (int pass = 0; pass < kJointFitPasses; ++pass) {
+      refitPhysical(dm, fit, options, base_globals, compliance_sigma, d, true);
+      fitProfiles(dm, fit);
+    }
+    grams.reset();
+    d.seconds_refit += secondsSince(clock);
+  }
 
   // Each profile's order and ridge chosen again with every other cause in the model: when it
   // was chosen, the profiles found after it were not there to explain their part.
@@ -663,6 +690,10 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
       } else {
         e.mechanism = dm.global.mechanisms[next_global++];
       }
+      STEPCAL_INVARIANT(hasSize(e.mechanism, dm.masses_from_urdf),
+                        (describe(e.mechanism) +
+                         " was named, yet every parameter fitted for it lies within one σ of zero")
+                            .c_str());
     }
   }
   const PhysicalModel extended_physical = dm.combined();

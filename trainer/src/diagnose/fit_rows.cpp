@@ -1,6 +1,7 @@
 #include "fit_rows.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <map>
 #include <random>
 #include <string>
@@ -16,6 +17,10 @@ namespace {
 constexpr uint64_t kFoldSeed = 20240521;
 // Rows per task of the parallel loops: each row is independent (own workspace, own equations).
 constexpr size_t kRowsPerTask = 256;
+
+// A temperature for which physicalLinkAngles scales no link length (PhysicalModel's
+// linkLengthScale is 1 at NaN).
+constexpr double kUnscaledLinks = std::numeric_limits<double>::quiet_NaN();
 
 // Calls row_body(i, ws) for every row, in blocks over the cores.
 template <typename Body>
@@ -115,7 +120,11 @@ Linearisation linearise(const PhysicalModel& model, const FitRows& fit, const Ei
     Eigen::Matrix<double, 6, Eigen::Dynamic> P(6, 6 * (n + 1));
     JointVector theta, tau;
     Jacobian J;
-    physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta, tau);
+    // Links unscaled: a link scale that varies by row (thermal expansion) makes
+    // the geometry's gauge directions observable at α·ΔT ≈ 1e-4 of the others, and fits then
+    // step along them (a refit stalled, profiles took up noise); the Jacobian it leaves out is
+    // that small.
+    physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), kUnscaledLinks, ws, theta, tau);
     parameterJacobian(chain, ws, P);
     spatialJacobian(chain, ws, J);
     const Mat3 p_hat = lie::hat(tipPose(ws).translation());

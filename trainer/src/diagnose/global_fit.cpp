@@ -142,8 +142,9 @@ Eigen::VectorXd parameterColumn(const PhysicalModel& model, const FitRows& fit,
 }
 
 GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
-                      JointVector& compliance_sigma) {
-  PhysicalModel& global = model.global;
+                      JointVector& compliance_sigma, bool hold_profiles) {
+  // The global mechanisms come first in combined(), so the parameters index both alike.
+  PhysicalModel global = hold_profiles ? model.combined() : model.global;
   GlobalFit out;
   out.r = residuals(global, fit);
   out.cost = out.r.squaredNorm() + priorCost(model, global);
@@ -191,6 +192,8 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
       global.mechanisms[static_cast<size_t>(p.mechanism)].sigma[static_cast<size_t>(p.index)] = sigma;
     }
   }
+  global.mechanisms.resize(model.global.mechanisms.size());
+  model.global = std::move(global);
   return out;
 }
 

@@ -78,9 +78,10 @@ struct GlobalFit {
 };
 
 /// Joint Gauss–Newton refit of the global model on every fit row (geometry δ, free compliances,
-/// mechanisms; truncated SVD; priors on lumped masses), profiles left out. Fills the global
-/// mechanisms' σ and compliance_sigma (n entries) from the final linearisation.
+/// mechanisms; truncated SVD; priors on lumped masses), the profiles left out or (hold_profiles)
+/// held at their values. Fills the global mechanisms' σ and compliance_sigma (n entries) from
+/// the final linearisation.
 GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
-                      JointVector& compliance_sigma);
+                      JointVector& compliance_sigma, bool hold_profiles = false);
 
 }  // namespace stepcal::trainer::diagnosis

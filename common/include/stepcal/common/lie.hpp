@@ -55,7 +55,8 @@ Mat3 projectToSO3(const Mat3& M) noexcept;
 
 /// Rotation from URDF roll-pitch-yaw: R = Rz(yaw) · Ry(pitch) · Rx(roll), rad.
 Mat3 rotationFromRpy(double roll, double pitch, double yaw) noexcept;
-/// Inverse of rotationFromRpy, pitch in [−π/2, π/2].
+/// Inverse of rotationFromRpy, pitch in [−π/2, π/2]; the angles give R back to rounding, near
+/// gimbal lock too (there roll and yaw share what only their sum or difference fixes).
 Vec3 rpyFromRotation(const Mat3& R) noexcept;
 
 }  // namespace stepcal::lie

@@ -37,6 +37,13 @@ KinematicChain chainFromUrdfFile(const std::string& path, const std::string& bas
                                  const std::string& tip_link,
                                  const std::vector<std::string>& attached_links = {});
 
+/// A pose as the attribute values of a URDF <origin>: xyz (m) and rpy (rad, R = Rz(yaw) ·
+/// Ry(pitch) · Rx(roll)), each number the shortest text that reads back to it exactly.
+struct UrdfOrigin {
+  std::string xyz, rpy;
+};
+UrdfOrigin urdfOriginOf(const Pose& X);
+
 /// Reads a whole text file; throws InputError naming the path when it cannot.
 std::string readTextFile(const std::string& path);
 

@@ -155,6 +155,45 @@ struct Diagnosis {
          seconds_gpr = 0.0, seconds_evaluation = 0.0;  ///< wall time of each part
 };
 
+/// What a found effect's signature is plotted against.
+enum class SignatureVariable {
+  kJointAngle,   ///< a joint's commanded angle, rad
+  kJointTorque,  ///< a joint's torque in the model, N·m (self_weight: the links' gravity torque)
+  kTemperature,  ///< the row's temp_c, °C
+};
+
+/// What a signature's values are: the joint's link-angle offset, rad, or the links' length scale
+/// change (thermal expansion), dimensionless.
+enum class SignatureResponse { kLinkAngle, kLengthScale };
+
+/// A found effect against its own variable on the fit rows: a partial-residual plot. At each row
+/// the fitted effect, and the effect plus what the extended model leaves there along the
+/// effect's direction (the weighted least-squares projection of the row's residual on the tip's
+/// motion per unit of the effect). Points spread evenly about the curve say the effect's form
+/// describes the data; structure left about it says it does not.
+struct EffectSignature {
+  Mechanism mechanism;
+  int joint = -1;  ///< kLinkAngle: the joint whose link angle it moves (0-based)
+  SignatureVariable variable = SignatureVariable::kJointAngle;
+  int variable_joint = -1;  ///< kJointAngle, kJointTorque: the variable's joint (0-based)
+  SignatureResponse response = SignatureResponse::kLinkAngle;
+  /// Per fit row kept: the variable, the fitted effect and the partial residual (SI).
+  std::vector<double> x, effect, partial_residual;
+  /// Fit rows left out: there the effect barely moves the tip (its direction's weighted norm
+  /// below a quarter of the median), so the projection would be mostly noise.
+  int rows_left_out = 0;
+  /// The fitted effect along the variable over the rows' range (a profile sampled densely, so
+  /// that it shows its fade outside the coverage; other effects at the rows, by x).
+  std::vector<double> curve_x, curve_y;
+};
+
+/// Signatures of the extended model's mechanisms on the campaign's fit rows: a profile, backlash
+/// or nonlinear stiffness, a coupling, and per joint the self weight identifies a compliance
+/// for, thermal expansion. Sensor bias (six constants, no single variable) and profile geometry
+/// (shown with its profile) have none.
+std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Diagnosis& diagnosis,
+                                              const DiagnoseOptions& options = {});
+
 /// Diagnoses a campaign against a calibrated model (its chain, compliance and mechanisms are
 /// the starting point; its GPR, if any, is the reference of the gain table). Link masses come
 /// from the campaign's URDF <inertial> elements when it has them. Throws InputError when the

@@ -1,480 +1,23 @@
-#include "report_html.hpp"
-
+// The calibration report (htmlReport): the paper's figures, the error's distribution, where in
+// the workspace it lives, what the model covers, and the tables.
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <iterator>
 #include <map>
+#include <set>
 #include <sstream>
-#include <string_view>
 #include <vector>
 
+#include "charts.hpp"
+#include "page.hpp"
+#include "report_html.hpp"
 #include "stepcal/common/error.hpp"
 #include "text_format.hpp"
 
 namespace stepcal::cli {
 namespace {
 
-constexpr double kMm = 1e3;
-constexpr double kDeg = 180.0 / 3.14159265358979323846;
-
-/// Text made safe for HTML element content and attribute values.
-std::string escape(std::string_view text) {
-  std::string out;
-  out.reserve(text.size());
-  for (const char c : text) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&#39;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
-
-/// A number for a table cell; "–" when it is not finite (no orientation measured).
-std::string cell(const char* fmt, double value) {
-  return std::isfinite(value) ? format(fmt, value) : "&#8211;";
-}
-
-std::string loadLabel(double load_kg) { return format("%g kg", load_kg); }
-
-// ------------------------------------------------------------------------------------------
-// Plotting: hand-written SVG panels (line/marker plots and grouped bars) with axes, ticks,
-// grid and a legend. Coordinates are SVG pixels; one panel is kPanelWidth wide.
-
-constexpr double kPanelWidth = 660.0;  ///< px
-constexpr double kPlotHeight = 250.0;  ///< height of the data area, px
-constexpr double kMarginLeft = 64.0, kMarginRight = 18.0, kMarginBottom = 42.0;  ///< px
-constexpr double kTitleHeight = 22.0, kLegendLineHeight = 16.0;                  ///< px
-
-enum class Scale { kLinear, kLog };
-
-/// The marker drawn at every point of a series, so that series that overlap stay apart.
-enum class MarkerShape { kCircle, kSquare, kTriangle, kDiamond };
-
-/// How a series looks: the same for a method in every figure.
-struct SeriesStyle {
-  std::string colour;
-  MarkerShape marker = MarkerShape::kCircle;
-};
-
-/// A polyline through (x, y) with a marker at every point; points the axes cannot show (not
-/// finite, or ≤ 0 on a log axis) break the line.
-struct Series {
-  std::string label;
-  SeriesStyle style;
-  std::vector<double> x, y;
-  bool connected = true;  ///< false: markers only (a scatter plot)
-};
-
-/// A dashed horizontal line across the panel, e.g. the noise floor.
-struct ReferenceLine {
-  std::string label;
-  double y = 0.0;
-};
-
-/// A line/marker plot: linear x, linear or log y.
-struct Panel {
-  std::string title;
-  std::string x_label, y_label;
-  Scale y_scale = Scale::kLinear;
-  bool integer_x = false;  ///< x ticks at whole numbers only (point index, iteration)
-  std::vector<Series> series;
-  std::vector<ReferenceLine> references;
-};
-
-/// One bar per category, in one colour.
-struct BarSeries {
-  std::string label;
-  std::string colour;
-  std::vector<double> values;
-};
-
-/// Bars grouped by category on a linear axis from zero.
-struct BarChart {
-  std::string title, x_label, y_label;
-  std::vector<std::string> categories;
-  std::vector<BarSeries> bars;
-};
-
-/// Whether an axis of this scale can show v.
-bool showable(Scale scale, double v) { return std::isfinite(v) && (scale == Scale::kLinear || v > 0.0); }
-
-/// A data range mapped onto pixels, with its labelled and unlabelled tick values.
-struct Axis {
-  Scale scale = Scale::kLinear;
-  double lo = 0.0, hi = 1.0;        ///< data units
-  std::vector<double> ticks;        ///< labelled, with a grid line
-  std::vector<double> minor_ticks;  ///< grid line only (2..9 × 10^k on a log axis)
-  double pixel_lo = 0.0, pixel_hi = 1.0;  ///< px where lo and hi go
-
-  bool shows(double v) const { return showable(scale, v); }
-  double toPixel(double v) const {
-    const double t = scale == Scale::kLog
-                         ? (std::log10(v) - std::log10(lo)) / (std::log10(hi) - std::log10(lo))
-                         : (v - lo) / (hi - lo);
-    return pixel_lo + t * (pixel_hi - pixel_lo);
-  }
-};
-
-/// 1, 2 or 5 × 10^k nearest above raw.
-double niceStep(double raw) {
-  const double magnitude = std::pow(10.0, std::floor(std::log10(raw)));
-  const double f = raw / magnitude;
-  return (f <= 1.0 ? 1.0 : f <= 2.0 ? 2.0 : f <= 5.0 ? 5.0 : 10.0) * magnitude;
-}
-
-/// An axis covering [min, max] (NaN when there are no data) with rounded ends.
-Axis makeAxis(Scale scale, double min, double max, bool integer_step) {
-  Axis axis;
-  axis.scale = scale;
-  if (scale == Scale::kLog) {
-    if (!(min > 0.0 && max >= min)) min = max = 1.0;
-    const int lo_exp = static_cast<int>(std::floor(std::log10(min) + 1e-9));
-    int hi_exp = static_cast<int>(std::ceil(std::log10(max) - 1e-9));
-    if (hi_exp <= lo_exp) hi_exp = lo_exp + 1;
-    axis.lo = std::pow(10.0, lo_exp);
-    axis.hi = std::pow(10.0, hi_exp);
-    for (int e = lo_exp; e <= hi_exp; ++e) {
-      const double decade = std::pow(10.0, e);
-      axis.ticks.push_back(decade);
-      if (e == hi_exp) break;
-      for (int k = 2; k <= 9; ++k) {
-        const bool labelled = hi_exp - lo_exp == 1 && (k == 2 || k == 5);
-        (labelled ? axis.ticks : axis.minor_ticks).push_back(k * decade);
-      }
-    }
-    std::sort(axis.ticks.begin(), axis.ticks.end());
-    return axis;
-  }
-  if (!(max >= min)) min = 0.0, max = 1.0;
-  if (max == min) {
-    const double pad = min == 0.0 ? 1.0 : 0.1 * std::abs(min);
-    max += pad;
-    if (min != 0.0) min -= pad;
-  }
-  double step = niceStep((max - min) / 5.0);
-  if (integer_step) step = std::max(step, 1.0);
-  axis.lo = std::floor(min / step + 1e-9) * step;
-  axis.hi = std::ceil(max / step - 1e-9) * step;
-  const int intervals = static_cast<int>(std::lround((axis.hi - axis.lo) / step));
-  for (int i = 0; i <= intervals; ++i) {
-    const double v = axis.lo + i * step;
-    axis.ticks.push_back(std::abs(v) < 1e-9 * step ? 0.0 : v);
-  }
-  return axis;
-}
-
-/// Rough width of 11 px sans-serif text (UTF-8 continuation bytes do not count).
-double textWidth(std::string_view text) {
-  double characters = 0.0;
-  for (const char c : text) characters += (static_cast<unsigned char>(c) & 0xC0) != 0x80;
-  return 6.2 * characters;
-}
-
-enum class LegendSymbol { kLineAndMarker, kDashedLine, kBox };
-
-struct LegendEntry {
-  std::string label;
-  std::string colour;
-  LegendSymbol symbol = LegendSymbol::kLineAndMarker;
-  std::string marker_id;  ///< kLineAndMarker: the series' marker
-};
-
-/// An SVG marker of the given shape in the style's colour, about 6 px across; squares are hollow so
-/// that a marker drawn over one leaves its outline visible.
-std::string markerDefinition(const std::string& id, const SeriesStyle& style) {
-  const std::string fill = " fill=\"" + escape(style.colour) + "\"/>";
-  std::string shape;
-  switch (style.marker) {
-    case MarkerShape::kCircle: shape = "<circle r=\"2.5\"" + fill; break;
-    case MarkerShape::kSquare:
-      shape = "<rect x=\"-3\" y=\"-3\" width=\"6\" height=\"6\" fill=\"none\" stroke-width=\"1.2\" stroke=\"" +
-              escape(style.colour) + "\"/>";
-      break;
-    case MarkerShape::kTriangle: shape = "<path d=\"M0 -3.2L3 2.2H-3Z\"" + fill; break;
-    case MarkerShape::kDiamond: shape = "<path d=\"M0 -3.3L3 0L0 3.3L-3 0Z\"" + fill; break;
-  }
-  return "<marker id=\"" + id +
-         "\" viewBox=\"-4 -4 8 8\" markerWidth=\"8\" markerHeight=\"8\" "
-         "markerUnits=\"userSpaceOnUse\">" + shape + "</marker>";
-}
-
-/// Legend entries placed left to right, wrapping before kPanelWidth.
-struct LegendLayout {
-  std::vector<std::pair<double, int>> x_and_line;  ///< per entry: left edge and line number
-  int lines = 0;
-};
-
-LegendLayout layoutLegend(const std::vector<LegendEntry>& entries) {
-  LegendLayout layout;
-  double x = kMarginLeft;
-  int line = 0;
-  for (const LegendEntry& e : entries) {
-    const double width = 22.0 + textWidth(e.label) + 12.0;
-    if (x + width > kPanelWidth - kMarginRight && x > kMarginLeft) {
-      x = kMarginLeft;
-      ++line;
-    }
-    layout.x_and_line.emplace_back(x, line);
-    x += width;
-  }
-  layout.lines = entries.empty() ? 0 : line + 1;
-  return layout;
-}
-
-/// The frame of a panel: svg element, title, legend, grid, ticks and axis labels. Data are
-/// drawn between construction and end(), in the rectangle [left, right] × [top, bottom] (px).
-class SvgFrame {
- public:
-  SvgFrame(std::ostringstream& out, const std::string& title, const std::vector<LegendEntry>& legend)
-      : out_(out) {
-    const LegendLayout layout = layoutLegend(legend);
-    top_ = kTitleHeight + layout.lines * kLegendLineHeight + 10.0;
-    bottom_ = top_ + kPlotHeight;
-    height_ = bottom_ + kMarginBottom;
-    out_ << format("<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" height=\"%.0f\" "
-                   "viewBox=\"0 0 %.0f %.0f\" role=\"img\" aria-label=\"",
-                   kPanelWidth, height_, kPanelWidth, height_)
-         << escape(title) << "\">\n";
-    out_ << format("<text class=\"title\" x=\"%.1f\" y=\"15\">", kMarginLeft) << escape(title)
-         << "</text>\n";
-    for (size_t i = 0; i < legend.size(); ++i) {
-      const LegendEntry& e = legend[i];
-      const double x = layout.x_and_line[i].first;
-      const double y = kTitleHeight + 8.0 + layout.x_and_line[i].second * kLegendLineHeight;
-      const std::string colour = escape(e.colour);
-      switch (e.symbol) {
-        case LegendSymbol::kLineAndMarker:
-          out_ << format("<path d=\"M%.1f %.1fh9h9\" stroke=\"", x, y) << colour
-               << "\" stroke-width=\"1.5\" marker-mid=\"url(#" << e.marker_id << ")\"/>";
-          break;
-        case LegendSymbol::kDashedLine:
-          out_ << format("<path class=\"ref\" d=\"M%.1f %.1fh18\"/>", x, y);
-          break;
-        case LegendSymbol::kBox:
-          out_ << format("<rect x=\"%.1f\" y=\"%.1f\" width=\"14\" height=\"10\" fill=\"", x + 2.0,
-                         y - 5.0)
-               << colour << "\"/>";
-          break;
-      }
-      out_ << format("<text x=\"%.1f\" y=\"%.1f\">", x + 22.0, y + 4.0) << escape(e.label)
-           << "</text>\n";
-    }
-  }
-
-  double left() const { return kMarginLeft; }
-  double right() const { return kPanelWidth - kMarginRight; }
-  double top() const { return top_; }
-  double bottom() const { return bottom_; }
-
-  /// Grid lines, tick labels and the y axis title for a value axis along y.
-  void drawYAxis(const Axis& y, const std::string& label) {
-    out_ << "<path class=\"minor\" d=\"";
-    for (const double v : y.minor_ticks) out_ << format("M%.1f %.1fH%.1f", left(), y.toPixel(v), right());
-    out_ << "\"/>\n<path class=\"grid\" d=\"";
-    for (const double v : y.ticks) out_ << format("M%.1f %.1fH%.1f", left(), y.toPixel(v), right());
-    out_ << "\"/>\n<g class=\"ty\">";
-    for (const double v : y.ticks) {
-      out_ << format("<text x=\"%.1f\" y=\"%.1f\">%g</text>", left() - 5.0, y.toPixel(v) + 4.0, v);
-    }
-    out_ << "</g>\n";
-    out_ << format("<text class=\"axis\" transform=\"translate(14 %.1f) rotate(-90)\">",
-                   0.5 * (top() + bottom()))
-         << escape(label) << "</text>\n";
-  }
-
-  /// Grid lines, tick labels and the x axis title for a value axis along x.
-  void drawXAxis(const Axis& x, const std::string& label) {
-    out_ << "<path class=\"grid\" d=\"";
-    for (const double v : x.ticks) out_ << format("M%.1f %.1fV%.1f", x.toPixel(v), top(), bottom());
-    out_ << "\"/>\n<g class=\"tx\">";
-    for (const double v : x.ticks) {
-      out_ << format("<text x=\"%.1f\" y=\"%.1f\">%g</text>", x.toPixel(v), bottom() + 15.0, v);
-    }
-    out_ << "</g>\n";
-    drawXTitle(label);
-  }
-
-  void drawXTitle(const std::string& label) {
-    out_ << format("<text class=\"axis\" x=\"%.1f\" y=\"%.1f\">", 0.5 * (left() + right()),
-                   height_ - 8.0)
-         << escape(label) << "</text>\n";
-  }
-
-  /// The plot area's border and the closing tag.
-  void end() {
-    out_ << format("<rect class=\"frame\" x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\"/>\n",
-                   left(), top(), right() - left(), bottom() - top());
-    out_ << "</svg>\n";
-  }
-
-  /// A note in the middle of an empty plot area.
-  void drawNote(const std::string& note) {
-    out_ << format("<text class=\"note\" x=\"%.1f\" y=\"%.1f\">", 0.5 * (left() + right()),
-                   0.5 * (top() + bottom()))
-         << escape(note) << "</text>\n";
-  }
-
- private:
-  std::ostringstream& out_;
-  double top_ = 0.0, bottom_ = 0.0, height_ = 0.0;
-};
-
-/// The page's head and the opening of its body, with the report's style sheet.
-std::string pageHead(const std::string& title) {
-  std::ostringstream out;
-  out << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>"
-      << escape(title) << "</title>\n<style>\n"
-      << "body{font:14px/1.45 system-ui,-apple-system,'Segoe UI',sans-serif;color:#222;max-width:1360px;"
-            "margin:20px auto;padding:0 16px}\n"
-            "h1{font-size:22px;margin:0 0 8px}h2{font-size:18px;margin:30px 0 8px;padding-bottom:3px;"
-            "border-bottom:1px solid #ddd}\n"
-            "nav a{margin-right:12px}p{max-width:1000px}\n"
-            "table{border-collapse:collapse;font-variant-numeric:tabular-nums;margin:6px 0}\n"
-            "th,td{padding:3px 9px;border-bottom:1px solid #eee;text-align:right}"
-            "th{background:#f5f5f5;font-weight:600}.l{text-align:left}\n"
-            "table.dense{font-size:12.5px}.dense th,.dense td{padding:2px 5px}.dense td{white-space:nowrap}"
-            ".dense .g{border-left:1px solid #ddd}"
-            ".dense tr.validation td{background:#f4f8fc}\n"
-            ".muted{color:#999}.item{white-space:nowrap}.sw{display:inline-block;width:10px;height:10px;border-radius:2px;"
-            "margin-right:4px}\n"
-            "figure{margin:10px 0 18px}figcaption{color:#555;font-size:13px;max-width:1320px}\n"
-            ".panels{display:flex;flex-wrap:wrap;gap:10px;align-items:flex-start}.bars{margin:0;max-width:660px}\n"
-            "svg{font:11px sans-serif;background:#fff}svg .title{font-size:13px;font-weight:600}\n"
-            "svg .grid{stroke:#e2e2e2;fill:none}svg .minor{stroke:#f3f3f3;fill:none}"
-            "svg .frame{fill:none;stroke:#444}\n"
-            "svg .ty text{text-anchor:end}svg .tx,svg .tx text,svg .axis,svg .note{text-anchor:middle}"
-            "svg .axis{font-size:12px}svg .note{fill:#999}\n"
-            "svg .ref{stroke:#333;stroke-width:1.2;stroke-dasharray:5 4;fill:none}"
-            "svg .series{fill:none;stroke-width:1.1;stroke-opacity:.85}\n"
-      << "</style>\n</head>\n<body>\n";
-  return out.str();
-}
-
-/// Renders a line/marker panel. Its markers get ids marker_id + series index: marker_id must
-/// be a prefix unique in the page.
-std::string renderPanel(const Panel& panel, const std::string& marker_id) {
-  double x_min = NAN, x_max = NAN, y_min = NAN, y_max = NAN;
-  auto extend = [](double& lo, double& hi, double v) {
-    lo = std::isnan(lo) ? v : std::min(lo, v);
-    hi = std::isnan(hi) ? v : std::max(hi, v);
-  };
-  bool has_data = false;
-  for (const Series& s : panel.series) {
-    for (size_t i = 0; i < s.x.size(); ++i) {
-      if (!std::isfinite(s.x[i]) || !showable(panel.y_scale, s.y[i])) continue;
-      extend(x_min, x_max, s.x[i]);
-      extend(y_min, y_max, s.y[i]);
-      has_data = true;
-    }
-  }
-  std::vector<LegendEntry> legend;
-  for (size_t k = 0; k < panel.series.size(); ++k) {
-    const Series& s = panel.series[k];
-    legend.push_back({s.label, s.style.colour, LegendSymbol::kLineAndMarker, marker_id + std::to_string(k)});
-  }
-  std::vector<const ReferenceLine*> references;
-  for (const ReferenceLine& r : panel.references) {
-    if (!showable(panel.y_scale, r.y)) continue;
-    references.push_back(&r);
-    legend.push_back({r.label, "", LegendSymbol::kDashedLine, ""});
-    if (has_data) extend(y_min, y_max, r.y);
-  }
-
-  std::ostringstream out;
-  SvgFrame frame(out, panel.title, legend);
-  out << "<defs>";
-  for (size_t k = 0; k < panel.series.size(); ++k) {
-    out << markerDefinition(marker_id + std::to_string(k), panel.series[k].style);
-  }
-  out << "</defs>\n";
-  if (!has_data) {
-    frame.drawXTitle(panel.x_label);
-    frame.drawNote("no data");
-    frame.end();
-    return out.str();
-  }
-  Axis x = makeAxis(Scale::kLinear, x_min, x_max, panel.integer_x);
-  x.pixel_lo = frame.left();
-  x.pixel_hi = frame.right();
-  Axis y = makeAxis(panel.y_scale, y_min, y_max, false);
-  y.pixel_lo = frame.bottom();
-  y.pixel_hi = frame.top();
-  frame.drawYAxis(y, panel.y_label);
-  frame.drawXAxis(x, panel.x_label);
-
-  for (const ReferenceLine* r : references) {
-    out << format("<path class=\"ref\" d=\"M%.1f %.1fH%.1f\"/>\n", frame.left(), y.toPixel(r->y),
-                  frame.right());
-  }
-  for (size_t k = 0; k < panel.series.size(); ++k) {
-    const Series& s = panel.series[k];
-    const std::string marker = "url(#" + marker_id + std::to_string(k) + ")";
-    out << "<g class=\"series\" stroke=\"" << escape(s.style.colour) << "\" marker-start=\"" << marker
-        << "\" marker-mid=\"" << marker << "\" marker-end=\"" << marker << "\">";
-    bool open = false;
-    for (size_t i = 0; i < s.x.size(); ++i) {
-      if (!std::isfinite(s.x[i]) || !y.shows(s.y[i])) {
-        if (open) out << "\"/>";
-        open = false;
-        continue;
-      }
-      out << (open ? " " : "<polyline points=\"")
-          << format("%.1f,%.1f", x.toPixel(s.x[i]), y.toPixel(s.y[i]));
-      open = s.connected;
-      if (!open) out << "\"/>";
-    }
-    if (open) out << "\"/>";
-    out << "</g>\n";
-  }
-  frame.end();
-  return out.str();
-}
-
-/// Renders grouped bars (one group per category) on a linear axis from zero, values on top.
-std::string renderBars(const BarChart& chart) {
-  std::vector<LegendEntry> legend;
-  double y_max = 0.0;
-  for (const BarSeries& b : chart.bars) {
-    legend.push_back({b.label, b.colour, LegendSymbol::kBox, ""});
-    for (const double v : b.values) {
-      if (std::isfinite(v)) y_max = std::max(y_max, v);
-    }
-  }
-  std::ostringstream out;
-  SvgFrame frame(out, chart.title, legend);
-  Axis y = makeAxis(Scale::kLinear, 0.0, y_max * 1.12, false);
-  y.pixel_lo = frame.bottom();
-  y.pixel_hi = frame.top();
-  frame.drawYAxis(y, chart.y_label);
-  frame.drawXTitle(chart.x_label);
-  const double group_width = (frame.right() - frame.left()) / std::max<size_t>(chart.categories.size(), 1);
-  const double bar_width =
-      std::min(36.0, 0.7 * group_width / std::max<size_t>(chart.bars.size(), 1));
-  for (size_t c = 0; c < chart.categories.size(); ++c) {
-    const double centre = frame.left() + (c + 0.5) * group_width;
-    out << format("<text class=\"tx\" x=\"%.1f\" y=\"%.1f\">", centre, frame.bottom() + 15.0)
-        << escape(chart.categories[c]) << "</text>\n";
-    for (size_t b = 0; b < chart.bars.size(); ++b) {
-      const double v = chart.bars[b].values[c];
-      if (!std::isfinite(v)) continue;
-      const double x = centre + (b - 0.5 * chart.bars.size()) * bar_width;
-      const double top = y.toPixel(v);
-      out << format("<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"", x + 1.0,
-                    top, bar_width - 2.0, frame.bottom() - top)
-          << escape(chart.bars[b].colour) << "\"/>"
-          << format("<text class=\"tx\" x=\"%.1f\" y=\"%.1f\">%.1f</text>\n", x + 0.5 * bar_width,
-                    top - 4.0, v);
-    }
-  }
-  frame.end();
-  return out.str();
-}
+using namespace html;
 
 // ------------------------------------------------------------------------------------------
 // The report's content.
@@ -519,6 +62,7 @@ class PageWriter {
     }
     for (size_t i = 0; i < campaign.rows.size(); ++i) {
       if (campaign.rows[i].set == RowSet::kValidation) validation_by_load_[campaign.rows[i].load_kg].push_back(i);
+      has_orientation_ = has_orientation_ || campaign.rows[i].has_orientation;
     }
   }
 
@@ -529,16 +73,17 @@ class PageWriter {
     writeGeometricValidation();
     writeLoadedValidation();
     writeErrorAgainstLoad();
+    writeErrorDistribution();
+    writeWorkspaceMap();
+    writeCoverage();
     writeStiffness();
     writeGpr();
     writeAccuracyTable();
-    out_ << "</body>\n</html>\n";
+    out_ << pageEnd();
     return out_.str();
   }
 
  private:
-  std::string nextMarkerId() { return "m" + std::to_string(marker_ids_++) + "-"; }
-
   const std::vector<trainer::RowError>* errorsOf(const std::string& method) const {
     for (const auto& [name, errors] : outcome_.row_errors) {
       if (name == method) return &errors;
@@ -595,11 +140,17 @@ class PageWriter {
                            const std::string& caption) {
     Panel position{title + ": position error", "validation point", "position error (mm)",
                    Scale::kLog, true, perPointSeries(methods, rows, false), positionFloor()};
-    Panel orientation{title + ": orientation error", "validation point", "orientation error (°)",
-                      Scale::kLog, true, perPointSeries(methods, rows, true), orientationFloor()};
     out_ << "<figure " << figure_attributes << "><div class=\"panels\">\n"
-         << renderPanel(position, nextMarkerId()) << renderPanel(orientation, nextMarkerId())
-         << "</div><figcaption>" << caption << "</figcaption></figure>\n";
+         << renderPanel(position, marker_ids_.next());
+    const bool any_orientation = std::any_of(rows.begin(), rows.end(),
+                                             [&](size_t i) { return campaign_.rows[i].has_orientation; });
+    if (any_orientation) {
+      Panel orientation{title + ": orientation error", "validation point", "orientation error (°)",
+                        Scale::kLog, true, perPointSeries(methods, rows, true), orientationFloor()};
+      out_ << renderPanel(orientation, marker_ids_.next());
+    }
+    out_ << "</div><figcaption>" << caption << (any_orientation ? "" : " Position-only rows: no orientation error.")
+         << "</figcaption></figure>\n";
   }
 
   /// "poe 0.4300 mm / 0.0160°, …": mean validation errors of methods at one load.
@@ -626,6 +177,8 @@ class PageWriter {
     out_ << "<h1>stepcal calibration report</h1>\n<nav><a href=\"#overview\">overview</a>"
             "<a href=\"#convergence\">step 1 convergence</a><a href=\"#geometry\">geometric errors</a>"
             "<a href=\"#loads\">errors per load</a><a href=\"#against-load\">error vs load</a>"
+            "<a href=\"#distribution\">error distribution</a><a href=\"#workspace\">error in the workspace</a>"
+            "<a href=\"#coverage\">coverage</a>"
             "<a href=\"#stiffness\">stiffness</a><a href=\"#gpr\">GPR</a>"
             "<a href=\"#accuracy\">accuracy table</a></nav>\n";
   }
@@ -703,8 +256,8 @@ class PageWriter {
                                "rms position error (mm)", Scale::kLog, true, {position}, {}};
     const Panel orientation_panel{"Step 1: rms orientation error per iteration", "iteration",
                                   "rms orientation error (°)", Scale::kLog, true, {orientation}, {}};
-    out_ << "<figure><div class=\"panels\">\n" << renderPanel(position_panel, nextMarkerId())
-         << renderPanel(orientation_panel, nextMarkerId())
+    out_ << "<figure><div class=\"panels\">\n" << renderPanel(position_panel, marker_ids_.next())
+         << (has_orientation_ ? renderPanel(orientation_panel, marker_ids_.next()) : "")
          << "</div><figcaption>Iteration 0 is the nominal chain with the tracker registered; the "
             "last point is the final state.</figcaption></figure>\n";
     if (!poe.observability.unobservable.empty()) {
@@ -786,11 +339,156 @@ class PageWriter {
     const Panel orientation_panel{"Mean orientation error vs load", "payload (kg)",
                                   "mean orientation error (°)", Scale::kLog, false, orientation,
                                   orientationFloor()};
-    out_ << "<figure><div class=\"panels\">\n" << renderPanel(position_panel, nextMarkerId())
-         << renderPanel(orientation_panel, nextMarkerId())
+    out_ << "<figure><div class=\"panels\">\n" << renderPanel(position_panel, marker_ids_.next())
+         << (has_orientation_ ? renderPanel(orientation_panel, marker_ids_.next()) : "")
          << "</div><figcaption>The paper's claim: poe+gpr degrades as the load grows, while taking the "
             "deflection out with the stiffness model first (poe+stiffness+gpr) keeps the error flat. "
             "Loads outside the training range (e.g. 55 kg) test extrapolation.</figcaption></figure>\n";
+  }
+
+  /// Box plots of the validation rows' errors, a group per load and a row per calibrated method.
+  BoxPlot errorDistribution(bool orientation) const {
+    BoxPlot plot{orientation ? "Orientation error of the validation rows" : "Position error of the validation rows",
+                 orientation ? "orientation error (°, log scale)" : "position error (mm, log scale)",
+                 Scale::kLog, {}, {}, orientation ? orientationFloor() : positionFloor()};
+    for (const auto& [load, rows] : validation_by_load_) {
+      BoxGroup group{format("%s: %zu rows", loadLabel(load).c_str(), rows.size()), {}};
+      for (const Series& s : perPointSeries(calibratedMethods(), rows, orientation)) {
+        group.rows.push_back({s.label, s.style.colour, s.y});
+      }
+      plot.groups.push_back(std::move(group));
+    }
+    return plot;
+  }
+
+  void writeErrorDistribution() {
+    out_ << "<h2 id=\"distribution\">Distribution of the error per load and method</h2>\n";
+    if (validation_by_load_.empty()) {
+      out_ << "<p class=\"muted\">The campaign has no validation rows.</p>\n";
+      return;
+    }
+    out_ << "<figure><div class=\"panels\">\n" << renderBoxPlot(errorDistribution(false))
+         << (has_orientation_ ? renderBoxPlot(errorDistribution(true)) : "")
+         << "</div><figcaption>Every validation row (never fitted) of each load. Box: the middle half of the "
+            "rows; black bar: the median; whiskers: 5th to 95th percentile; dot: the largest error; dashed: "
+            "the noise floor.</figcaption></figure>\n";
+  }
+
+  /// The last calibrated method with row errors: the whole hierarchy where the campaign has all steps.
+  std::string finalMethod() const {
+    const std::vector<std::string> methods = calibratedMethods();
+    for (const char* method : {trainer::kMethodPoeStiffnessGpr, trainer::kMethodPoeGpr, trainer::kMethodPoeStiffness}) {
+      if (std::find(methods.begin(), methods.end(), method) != methods.end()) return method;
+    }
+    return methods.empty() ? "" : methods.back();
+  }
+
+  /// Top and side view of the tips of some rows, coloured by a method's position error; the colour
+  /// scale's top (mm) is appended to `scales`.
+  void writeWorkspaceViews(const std::string& method, const std::string& rows_label,
+                           const std::vector<size_t>& rows, std::string& scales) {
+    const std::vector<trainer::RowError>* errors = errorsOf(method);
+    if (!errors || rows.empty()) return;
+    // Tip positions from the nominal chain: the robot's own base frame, good to millimetres.
+    std::vector<double> x_mm, y_mm, z_mm, radius_mm, error_mm;
+    ChainWorkspace ws;
+    for (const size_t i : rows) {
+      forwardKinematics(outcome_.nominal_Base, campaign_.rows[i].q_rad, ws);
+      const Vec3 p = tipPose(ws).translation() * kMm;
+      x_mm.push_back(p.x());
+      y_mm.push_back(p.y());
+      z_mm.push_back(p.z());
+      radius_mm.push_back(std::hypot(p.x(), p.y()));
+      error_mm.push_back((*errors)[i].position_m * kMm);
+    }
+    // The colour scale tops out at the 95th percentile, so that a few large errors do not wash out
+    // where the rest lie.
+    std::vector<double> sorted = error_mm;
+    std::sort(sorted.begin(), sorted.end());
+    const double top = sorted[static_cast<size_t>(0.95 * static_cast<double>(sorted.size() - 1))];
+    const double value_max = top > 0.0 ? top : 1.0;
+    scales += format("%s<b>%s</b> %.3f mm", scales.empty() ? "" : ", ", escape(method).c_str(), value_max);
+    const std::string title = method + ", " + rows_label;
+    out_ << renderColourScatter({title + ": top view", "x (mm), base frame", "y (mm), base frame",
+                                 "position error (mm)", x_mm, y_mm, error_mm, value_max})
+         << renderColourScatter({title + ": side view", "distance from the base's z axis (mm)", "z (mm), base frame",
+                                 "position error (mm)", radius_mm, z_mm, error_mm, value_max});
+  }
+
+  void writeWorkspaceMap() {
+    out_ << "<h2 id=\"workspace\">Where in the workspace the error lives</h2>\n";
+    std::vector<size_t> rows;
+    for (const auto& [load, at_load] : validation_by_load_) rows.insert(rows.end(), at_load.begin(), at_load.end());
+    if (rows.empty()) {
+      out_ << "<p class=\"muted\">The campaign has no validation rows.</p>\n";
+      return;
+    }
+    // The geometric model on the unloaded rows only: under load its error is the deflection,
+    // which would hide where the geometry is wrong.
+    const auto unloaded = validation_by_load_.find(0.0);
+    std::string scales;
+    out_ << "<figure><div class=\"panels\">\n";
+    if (finalMethod() != trainer::kMethodPoe) {
+      const std::string loads =
+          validation_by_load_.size() > 1 ? "every load" : loadLabel(validation_by_load_.begin()->first);
+      writeWorkspaceViews(finalMethod(), loads, rows, scales);
+    }
+    if (unloaded != validation_by_load_.end()) {
+      writeWorkspaceViews(trainer::kMethodPoe, loadLabel(0.0), unloaded->second, scales);
+    }
+    out_ << "</div><figcaption>Each dot is a validation row at its tip position, coloured by its position error; "
+            "the largest are drawn on top. The colour scale tops out at the 95th percentile of each map ("
+         << scales << "); larger errors get the top colour. Tip positions from the nominal chain in the robot's "
+            "base frame, on axes of equal scale.</figcaption></figure>\n";
+  }
+
+  void writeCoverage() {
+    out_ << "<h2 id=\"coverage\">What the model covers</h2>\n";
+    constexpr double kCoveredWithinDeg = 5.0;
+    StripChart chart{"Joint angles of the fit rows and of the validation rows", "joint angle (deg)", 2, {}};
+    const int joints = outcome_.nominal_Base.dof();
+    std::set<double> fit_loads, uncovered_loads;
+    int uncovered_rows = 0, validation_rows = 0;
+    std::vector<bool> uncovered(campaign_.rows.size(), false);
+    for (const Measurement& m : campaign_.rows) {
+      if (m.set != RowSet::kValidation) fit_loads.insert(m.load_kg);
+    }
+    for (int j = 0; j < joints; ++j) {
+      StripSeries fit{"fit rows", "#7f7f7f", 0, {}}, inside{"validation rows", "#1f77b4", 1, {}},
+          outside{format("validation rows farther than %g° from every fit row", kCoveredWithinDeg), "#d62728", 1, {}};
+      for (const Measurement& m : campaign_.rows) {
+        if (m.set != RowSet::kValidation) fit.values.push_back(m.q_rad(j) * kDeg);
+      }
+      std::sort(fit.values.begin(), fit.values.end());
+      for (size_t i = 0; i < campaign_.rows.size(); ++i) {
+        const Measurement& m = campaign_.rows[i];
+        if (m.set != RowSet::kValidation) continue;
+        const double q_deg = m.q_rad(j) * kDeg;
+        const auto above = std::lower_bound(fit.values.begin(), fit.values.end(), q_deg);
+        const bool covered = (above != fit.values.end() && *above - q_deg <= kCoveredWithinDeg) ||
+                             (above != fit.values.begin() && q_deg - *std::prev(above) <= kCoveredWithinDeg);
+        (covered ? inside : outside).values.push_back(q_deg);
+        uncovered[i] = uncovered[i] || !covered;
+      }
+      chart.rows.push_back({format("joint %d", j + 1), {fit, inside, outside}});
+    }
+    for (size_t i = 0; i < campaign_.rows.size(); ++i) {
+      const Measurement& m = campaign_.rows[i];
+      if (m.set != RowSet::kValidation) continue;
+      ++validation_rows;
+      uncovered_rows += uncovered[i];
+      if (!fit_loads.count(m.load_kg)) uncovered_loads.insert(m.load_kg);
+    }
+    std::string loads;
+    for (const double load : uncovered_loads) loads += (loads.empty() ? "" : ", ") + loadLabel(load);
+    out_ << "<figure>" << renderStrips(chart)
+         << format("<figcaption>Each tick is one row's angle: top lane the rows the model was fitted on (every "
+                   "set but validation), bottom lane the validation rows, red where no fit row lies within %g°. "
+                   "%d of %d validation rows have a joint outside the fit rows' angles",
+                   kCoveredWithinDeg, uncovered_rows, validation_rows)
+         << (loads.empty() ? std::string("; every validation load was fitted.")
+                           : "; validation loads no fit row has (extrapolation): " + loads + ".")
+         << "</figcaption></figure>\n";
   }
 
   void writeStiffness() {
@@ -955,105 +653,15 @@ class PageWriter {
   const trainer::CalibrationOutcome& outcome_;
   MethodStyles styles_;
   std::map<double, std::vector<size_t>> validation_by_load_;  ///< indices into campaign.rows
+  bool has_orientation_ = false;  ///< some row measured the tip's orientation
   std::ostringstream out_;
-  int marker_ids_ = 0;
+  MarkerIds marker_ids_;
 };
 
 }  // namespace
 
 std::string htmlReport(const Campaign& campaign, const trainer::CalibrationOutcome& outcome) {
   return PageWriter(campaign, outcome).write();
-}
-
-std::string diagnosisHtml(const Campaign& campaign, const trainer::Diagnosis& d) {
-  const std::string name =
-      campaign.directory.empty() ? "(campaign built in memory)" : campaign.directory;
-  std::ostringstream out;
-  out << pageHead("stepcal diagnosis: " + name);
-  out << "<h1>stepcal diagnosis</h1>\n<p>" << escape(name) << ": " << d.fit_rows
-      << " fit rows, " << d.validation_rows << " validation rows. Verdict: <b>"
-      << toString(d.verdict) << "</b>";
-  for (const trainer::FoundEffect& e : d.effects) out << "; " << escape(describe(e.mechanism));
-  out << ".</p>\n";
-  if (!d.unexplained_trend.empty()) {
-    out << "<p>Structure no catalogued mechanism explains: " << escape(d.unexplained_trend)
-        << "</p>\n";
-  }
-
-  // The telling variables: significant trends before the extension, else the strongest three.
-  std::vector<std::string> telling;
-  for (const trainer::TrendScore& t : d.before.trends) {
-    if (t.significant || telling.size() < 3) telling.push_back(t.variable);
-    if (telling.size() == 4) break;
-  }
-  out << "<h2>Residual of the physical model against the telling variables</h2>\n"
-         "<p>Position error of every fit row (mm) before and after the extension; the trends are "
-         "ranked by their cross-validated t statistic.</p>\n<div class=\"panels\">";
-  const SeriesStyle before{"#d62728", MarkerShape::kCircle}, after{"#1f77b4", MarkerShape::kSquare};
-  for (const std::string& variable : telling) {
-    const auto it = std::find(d.variable_names.begin(), d.variable_names.end(), variable);
-    if (it == d.variable_names.end()) continue;
-    const std::vector<double>& x = d.variable_values[static_cast<size_t>(it - d.variable_names.begin())];
-    Panel panel;
-    panel.title = "position error against " + variable;
-    panel.x_label = variable;
-    panel.y_label = "mm";
-    auto mm = [](const std::vector<double>& v) {
-      std::vector<double> out;
-      for (double e : v) out.push_back(e * kMm);
-      return out;
-    };
-    panel.series.push_back({"physical model", before, x, mm(d.before.position_error_m), false});
-    if (!d.effects.empty()) {
-      panel.series.push_back({"extended", after, x, mm(d.after.position_error_m), false});
-    }
-    panel.references.push_back({"noise floor", d.floor_position_m * kMm});
-    out << "<figure>" << renderPanel(panel, "m" + std::to_string(&variable - telling.data()))
-        << "</figure>";
-  }
-  out << "</div>\n";
-
-  out << "<h2>Candidates</h2>\n<div class=\"panels\">";
-  int rounds = 0;
-  for (const trainer::CandidateScore& c : d.candidates) rounds = std::max(rounds, c.round);
-  for (int round = 1; round <= rounds; ++round) {
-    std::vector<const trainer::CandidateScore*> in_round;
-    for (const trainer::CandidateScore& c : d.candidates) {
-      if (c.round == round) in_round.push_back(&c);
-    }
-    std::sort(in_round.begin(), in_round.end(),
-              [](const auto* a, const auto* b) { return a->z_statistic > b->z_statistic; });
-    BarChart chart;
-    chart.title = format("round %d: the ten best of %zu candidates", round, in_round.size());
-    chart.x_label = "candidate";
-    chart.y_label = "held-out signed-rank z";
-    BarSeries bars{"z (chosen one first among equals)", "#1f77b4", {}};
-    for (size_t i = 0; i < in_round.size() && i < 10; ++i) {
-      chart.categories.push_back(describe(in_round[i]->mechanism) +
-                                 (in_round[i]->chosen ? " *" : ""));
-      bars.values.push_back(in_round[i]->z_statistic);
-    }
-    chart.bars.push_back(bars);
-    out << "<figure class=\"bars\">" << renderBars(chart) << "</figure>";
-  }
-  out << "</div>\n<p class=\"muted\">* chosen in that round.</p>\n";
-
-  if (!d.gain.empty()) {
-    out << "<h2>Gain on validation rows</h2>\n<table><tr><th>load</th><th>rows</th>"
-           "<th>before mean mm</th><th>after mean mm</th><th>"
-        << escape(d.gpr_method.empty() ? "(no GPR)" : d.gpr_method)
-        << " mean mm</th><th>extended+gpr mean mm</th></tr>\n";
-    for (const trainer::GainRow& g : d.gain) {
-      out << "<tr><td>" << loadLabel(g.load_kg) << "</td><td>" << g.rows << "</td><td>"
-          << cell("%.4f", g.before.mean_position_m * kMm) << "</td><td>"
-          << cell("%.4f", g.after.mean_position_m * kMm) << "</td><td>"
-          << (g.gpr.rows > 0 ? cell("%.4f", g.gpr.mean_position_m * kMm) : "&#8211;")
-          << "</td><td>" << cell("%.4f", g.after_gpr.mean_position_m * kMm) << "</td></tr>\n";
-    }
-    out << "</table>\n";
-  }
-  out << "</body>\n</html>\n";
-  return out.str();
 }
 
 }  // namespace stepcal::cli

@@ -347,7 +347,8 @@ TEST(UrdfExportCli, BadInputEndsWithAnErrorNamingTheFile) {
   r = test::run(kStepcal + " export urdf " + model_path + " --campaign " + moved + " --out " +
                 unwritable);
   EXPECT_EQ(r.status, 2);
-  EXPECT_NE(r.out.find(unwritable + ": cannot write the file"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(unwritable + ": cannot write the URDF"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("the previous file, if any, is unchanged"), std::string::npos) << r.out;
   r = test::run(kStepcal + " export urdf " + model_path + " --campaign " + moved + " --out " +
                 urdf_path);
   EXPECT_EQ(r.status, 0) << r.out;

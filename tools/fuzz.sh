@@ -63,7 +63,7 @@ case $target in
     done
     ;;
   urdf)
-    sources=(common/src/{error,lie,chain,urdf}.cpp)
+    sources=(common/src/{error,text_number,lie,chain,urdf}.cpp)
     # shellcheck disable=SC2207
     libs=($(pkg-config --libs urdfdom))
     # The robots' descriptions after a line with the names their chains are read with.

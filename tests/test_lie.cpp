@@ -113,7 +113,8 @@ TEST(Lie, ExpSE3AgreesWithExpSO3AndTheSeriesOfV) {
   for (const Vec3& w : rotationVectors()) {
     const Vec3 v(u(rng), u(rng), u(rng));
     Vec6 xi;
-    xi << v, w;
+    xi.head<3>() = v;
+    xi.tail<3>() = w;
     const Pose T = expSE3(xi);
     EXPECT_LT((T.linear() - expSO3(w)).norm(), 1e-14) << w.transpose();
     Mat3 V = Mat3::Identity(), term = Mat3::Identity();

@@ -165,8 +165,9 @@ inline twin::TwinOptions paperOptions(uint64_t seed, std::vector<nlohmann::json>
   return options;
 }
 
-inline Diagnosis diagnoseSimulation(const twin::TwinOptions& options, Campaign* campaign_out = nullptr) {
-  const Campaign campaign = twin::simulateCampaign(options, nullptr);
+inline Diagnosis diagnoseSimulation(const twin::TwinOptions& options, Campaign* campaign_out = nullptr,
+                                    nlohmann::json* truth_out = nullptr) {
+  const Campaign campaign = twin::simulateCampaign(options, truth_out);
   const CalibratedModel model = modelFromOutcome(campaign, calibrateCampaign(campaign));
   if (campaign_out) *campaign_out = campaign;
   return diagnose(campaign, model);

@@ -283,6 +283,7 @@ inline void expectParametersFound(const FoundEffect& found, const Hidden& h, con
                 100.0 * (fit.at_k - truth).norm() / truth.norm(),
                 100.0 * fit.rest_rms_rad / (truth.norm() / std::sqrt(2.0)));
     EXPECT_LT(fit.rest_rms_rad, 0.5 * truth.norm() / std::sqrt(2.0));
+    EXPECT_TRUE(e->harmonics_separable) << "a single harmonic held by cancelling amplitudes";
   } else {
     const double fitted = e->mechanism.parameters[h.primary];
     EXPECT_NEAR(fitted, h.truth, 0.2 * std::abs(h.truth));

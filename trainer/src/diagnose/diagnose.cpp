@@ -105,6 +105,22 @@ void pruneNegativeCompliance(Family& family, const CrossValidation& cv, size_t s
   }
 }
 
+// A profile's largest harmonic amplitude, rad.
+double largestAmplitude(const Mechanism& profile) {
+  double largest = 0.0;
+  for (int k = 0; k < profile.order; ++k) {
+    largest = std::max(largest, std::hypot(profile.parameters[static_cast<size_t>(2 * k)],
+                                           profile.parameters[static_cast<size_t>(2 * k + 1)]));
+  }
+  return largest;
+}
+
+// Whether a profile's single harmonics mean anything: not when its largest amplitude exceeds 3×
+// its RMS over the fit rows (rms_rad), where neighbouring harmonics cancel each other.
+bool harmonicsSeparable(const Mechanism& profile, double rms_rad) {
+  return largestAmplitude(profile) <= 3.0 * rms_rad;
+}
+
 // A profile family over the grid of orders and ridges, the simplest configuration the held-out
 // poses do not show to be worse than the best: the best ridge per order by held-out squared
 // error; the lowest order whose best is not significantly worse than the best order's (signed-rank
@@ -113,7 +129,7 @@ void pruneNegativeCompliance(Family& family, const CrossValidation& cv, size_t s
 // small changes of the data; the simplest configuration on the flat part does not.
 Scored scoreProfile(const Family& family, const CrossValidation& cv,
                     const CrossValidation::Outcome& base, const FoldGrams& grams,
-                    const DiagnoseOptions& options) {
+                    const DiagnoseOptions& options, const FitRows& fit) {
   const CrossValidation::ProfileCandidate prepared = cv.prepareProfile(family.columns);
   double mean_diag = 0.0;
   for (Eigen::Index c : family.columns) mean_diag += grams.scale(c) * grams.scale(c);
@@ -149,15 +165,30 @@ Scored scoreProfile(const Family& family, const CrossValidation& cv,
     if (bestOf(o).correction.sse < bestOf(top).correction.sse) top = o;
   }
   const CrossValidation::Outcome top_outcome = cv.heldOut(bestOf(top).correction);
+  // Of the orders not significantly worse, the lowest whose harmonics are separable on these
+  // angles if any is: a lower order can hold a faster harmonic on a narrow arc only by
+  // cancelling amplitudes many times its RMS, and what it then misses other profiles take up.
+  const auto separable = [&](const Configuration& c) {
+    Mechanism m = family.mechanism;
+    m.order = c.order;
+    const Eigen::VectorXd& x = c.correction.x.back();
+    m.parameters.assign(x.data() + x.size() - 2 * c.order, x.data() + x.size());
+    return harmonicsSeparable(m, profileRms(m, fit));
+  };
   size_t order_index = top;
   CrossValidation::Outcome order_outcome = top_outcome;
-  for (size_t o = 0; o < top; ++o) {
-    CrossValidation::Outcome outcome = cv.heldOut(bestOf(o).correction);
-    if (signedRankZ(outcome.pose_sse, top_outcome.pose_sse) < 2.0) {
-      order_index = o;
-      order_outcome = std::move(outcome);
-      break;
+  for (const bool need_separable : {true, false}) {
+    bool found = false;
+    for (size_t o = 0; o < top && !found; ++o) {
+      if (need_separable && !separable(bestOf(o))) continue;
+      CrossValidation::Outcome outcome = cv.heldOut(bestOf(o).correction);
+      if (signedRankZ(outcome.pose_sse, top_outcome.pose_sse) < 2.0) {
+        order_index = o;
+        order_outcome = std::move(outcome);
+        found = true;
+      }
     }
+    if (found || (need_separable && separable(bestOf(top)))) break;
   }
   size_t ridge_index = best_ridge[order_index];
   CrossValidation::Outcome chosen_outcome = order_outcome;
@@ -547,7 +578,7 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
       const Family& family = sc.families[k];
       scored[k] = family.stage == Stage::kGlobal
                       ? scoreGlobal(family, cv, base, sc.stage1.size())
-                      : scoreProfile(family, cv, base, *grams, options);
+                      : scoreProfile(family, cv, base, *grams, options, fit);
     });
     if (!d.effects.empty()) namePreviousAlternatives(scored, options, rivals, d.effects.back());
     int configurations = 0;
@@ -663,7 +694,7 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
       const CrossValidation cv(*grams, start.global.r, fit, others.stage1, others.stage2,
                                others.ridge);
       const Scored again =
-          scoreProfile(sc.profiled[i], cv, cv.heldOut(cv.base()), *grams, options);
+          scoreProfile(sc.profiled[i], cv, cv.heldOut(cv.base()), *grams, options, fit);
       Profile& p = dm.profiles[i];
       p.mechanism.order = again.score.mechanism.order;
       p.mechanism.parameters.assign(static_cast<size_t>(2 * p.mechanism.order), 0.0);
@@ -715,12 +746,8 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
       const Mechanism& m = f.mechanism;
       if (m.kind == MechanismKind::kTransmissionError) {
         f.rms_rad = profileRms(m, fit);
-        double largest = 0.0;
-        for (int k = 0; k < m.order; ++k) {
-          largest = std::max(largest, std::hypot(m.parameters[static_cast<size_t>(2 * k)],
-                                                 m.parameters[static_cast<size_t>(2 * k + 1)]));
-        }
-        f.harmonics_separable = largest <= 3.0 * f.rms_rad;
+        const double largest = largestAmplitude(m);
+        f.harmonics_separable = harmonicsSeparable(m, f.rms_rad);
         if (!f.harmonics_separable) {
           char line[300];
           std::snprintf(line, sizeof line,

@@ -54,7 +54,7 @@ done
 [[ -f $model ]] || { echo "can_faults: $model: no such model file" >&2; exit 2; }
 
 wrench=(0 0 -300 5 -8 2)          # N, N·m on the sensor
-joints=(0 -1.2 1.5 0 0.5 0)       # rad, far from singular
+joints=(0 0 0 0 0.5 0)           # rad: OK with this wrench (inside the GPR's domain)
 sensor=("$bin/stepcal-ftsim" --iface "$iface" --wrench "${wrench[@]}" --force-sigma-n 0
         --moment-sigma-nm 0)
 : >"$out/faults.txt"
@@ -62,7 +62,7 @@ fault() { echo "$1 $2 $3 $4" >>"$out/faults.txt"; }  # name kind start end (Unix
 # The Unix time stepcal-ftsim logged for an event (its log line "… EVENT at T s (unix U)").
 logged() { sed -n "s/^stepcal-ftsim: $2 .*(unix \([0-9.]*\)).*/\1/p" "$1" | head -1; }
 
-"${sensor[@]}" 2>"$out/ftsim-1.log" &
+"${sensor[@]}" --json >"$out/ftsim-1.json" 2>"$out/ftsim-1.log" &
 sensor_pid=$!
 pids+=("$sensor_pid")
 sleep 0.2  # the sensor answers from its first frame on; the daemon reads it at start-up
@@ -84,13 +84,15 @@ client_pid=$!
 pids+=("$client_pid")
 sleep "$healthy_s"
 
-start=$EPOCHREALTIME
+# A fault begins once it took effect (a process start or exit takes a while in the VM): the
+# sensor has exited, the link is down.
 kill -TERM "$sensor_pid"
 wait "$sensor_pid" || true
+start=$EPOCHREALTIME
 sleep "$fault_s"
 "${sensor[@]}" --calibration-gain 1.25 --stall-at-s "$stall_at" --stall-for-s "$fault_s" \
   --bus-off-at-s "$bus_off_at" --bus-off-for-s "$fault_s" --status-word 0x8002 \
-  --faults-at-s "$critical_at" --faults-for-s "$fault_s" 2>"$out/ftsim-2.log" &
+  --faults-at-s "$critical_at" --faults-for-s "$fault_s" --json >"$out/ftsim-2.json" 2>"$out/ftsim-2.log" &
 pids+=($!)
 until grep -q "sensor base id" "$out/ftsim-2.log"; do sleep 0.05; done
 sensor_start=$(logged "$out/ftsim-2.log" "sensor base id")
@@ -101,8 +103,8 @@ fault bus-off sensor "$(logged "$out/ftsim-2.log" bus-off)" "$(logged "$out/ftsi
 fault critical sensor "$(logged "$out/ftsim-2.log" "reading faults on")" \
   "$(logged "$out/ftsim-2.log" "reading faults off")"
 
-start=$EPOCHREALTIME
 ip link set "$iface" down
+start=$EPOCHREALTIME
 sleep "$fault_s"
 ip link set "$iface" up
 fault link-down sensor "$start" "$EPOCHREALTIME"

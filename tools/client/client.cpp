@@ -5,7 +5,8 @@
 //   stepcal-client --forward q1 … q6 --count N --rate HZ [--json]
 //                                                        the same request N times at HZ (live
 //                                                        wrench unless --wrench): each reply's
-//                                                        send time, status and wrench age
+//                                                        send time, status and wrench age;
+//                                                        SIGINT/SIGTERM stops it early
 //   stepcal-client --inverse x y z qw qx qy qz [--seed q1 … q6] [--wrench …] [--temp-c T]
 //                                                        m, unit quaternion
 //   stepcal-client --campaign DIR [--set validation] [--mode forward|inverse] [--count N]
@@ -38,6 +39,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <csignal>
 #include <cstring>
 #include <fstream>
 #include <functional>
@@ -153,6 +155,10 @@ void onAnswerMessage(const lcm_recv_buf_t* rbuf, const char*, void* user) {
   static_cast<Exchange*>(user)->onAnswer(rbuf);
 }
 
+/// Set by SIGINT/SIGTERM where runRepeated installs onStopSignal: no further requests leave.
+volatile std::sig_atomic_t stop_requested = 0;
+void onStopSignal(int) { stop_requested = 1; }
+
 /// Waits up to `until` for LCM traffic and dispatches it.
 void handleUntil(lcm_t* lcm, Clock::time_point until) {
   const auto wait = std::max(Clock::duration::zero(), until - Clock::now());
@@ -179,7 +185,7 @@ void runExchange(lcm_t* lcm, const char* answer_channel, int count, double rate_
                        std::chrono::duration<double>(double(i) / rate_hz));
   };
   int next = 0;
-  while (next < count) {
+  while (next < count && !stop_requested) {
     Clock::time_point due = Clock::now();
     if (rate_hz > 0.0) {
       due = scheduled(next);
@@ -408,8 +414,11 @@ int64_t receivedNs(const Exchange& exchange, size_t i) {
 
 /// The forward request of the command line, args.count times at args.rate_hz: per request when it
 /// left and when its reply came (Unix time, to line up with faults logged elsewhere), its status,
-/// the age of the live wrench it used on arrival and the predicted position. Exit status 1 when no reply came.
+/// the age of the live wrench it used on arrival and the predicted position. SIGINT/SIGTERM end it
+/// early: the requests sent so far are reported. Exit status 1 when no reply came.
 int runRepeated(const Args& args, const correction_request_t& msg) {
+  std::signal(SIGINT, onStopSignal);
+  std::signal(SIGTERM, onStopSignal);
   const Lcm lcm(args.lcm_url);
   Exchange exchange;
   const Clock::time_point steady_origin = Clock::now();
@@ -418,7 +427,8 @@ int runRepeated(const Args& args, const correction_request_t& msg) {
       lcm.get(), args, std::vector<correction_request_t>(size_t(args.count), msg), exchange);
   nlohmann::json rows = nlohmann::json::array();
   long status_counts[kStatusCount] = {};
-  for (size_t i = 0; i < replies.size(); ++i) {
+  int sent = 0;
+  for (size_t i = 0; i < replies.size() && exchange.sent[i] != Clock::time_point{}; ++i, ++sent) {
     const double sent_unix_s =
         unix_origin_s + std::chrono::duration<double>(exchange.sent[i] - steady_origin).count();
     nlohmann::json& row = rows.emplace_back(nlohmann::json{
@@ -435,14 +445,14 @@ int runRepeated(const Args& args, const correction_request_t& msg) {
   for (int k = 0; k < kStatusCount; ++k) {
     if (status_counts[k]) statuses[runtime::toString(static_cast<runtime::Status>(k))] = status_counts[k];
   }
-  const nlohmann::json report = {{"requests", args.count},   {"replies", exchange.answered},
-                                 {"lost", args.count - exchange.answered},
+  const nlohmann::json report = {{"requests", sent},   {"replies", exchange.answered},
+                                 {"lost", sent - exchange.answered},
                                  {"rate_hz", args.rate_hz},  {"statuses", statuses},
                                  {"rows", rows}};
   if (args.json) {
     std::cout << report.dump(1) << "\n";
   } else {
-    std::cout << args.count << " forward requests at " << args.rate_hz << " Hz: "
+    std::cout << sent << " forward requests at " << args.rate_hz << " Hz: "
               << exchange.answered << " replies, statuses " << statuses.dump() << "\n";
   }
   return exchange.answered > 0 ? 0 : 1;

@@ -404,6 +404,15 @@ void printReply(const correction_reply_t& r, double round_trip_us, bool inverse)
   }
 }
 
+/// The replies per status, by name (statuses never seen left out).
+nlohmann::json statusesJson(const long (&status_counts)[kStatusCount]) {
+  nlohmann::json statuses = nlohmann::json::object();
+  for (int k = 0; k < kStatusCount; ++k) {
+    if (status_counts[k]) statuses[runtime::toString(static_cast<runtime::Status>(k))] = status_counts[k];
+  }
+  return statuses;
+}
+
 /// When reply i arrived, CLOCK_MONOTONIC ns of this host (the daemon stamps wrenches on it too:
 /// the two run side by side).
 int64_t receivedNs(const Exchange& exchange, size_t i) {
@@ -438,13 +447,13 @@ int runRepeated(const Args& args, const correction_request_t& msg) {
     if (r.status >= 0 && r.status < kStatusCount) ++status_counts[r.status];
     row["received_unix_s"] = sent_unix_s + exchange.round_trip_us[i] * 1e-6;
     row["status"] = runtime::toString(static_cast<runtime::Status>(r.status));
-    if (r.wrench_stamp_ns > 0) row["wrench_age_ms"] = double(receivedNs(exchange, i) - r.wrench_stamp_ns) * 1e-6;
-    row["predicted_position_m"] = std::vector<double>(r.predicted_position_m, r.predicted_position_m + 3);
+    if (r.wrench_stamp_ns > 0) {
+      row["wrench_age_ms"] = double(receivedNs(exchange, i) - r.wrench_stamp_ns) * 1e-6;
+    }
+    row["predicted_position_m"] =
+        std::vector<double>(r.predicted_position_m, r.predicted_position_m + 3);
   }
-  nlohmann::json statuses = nlohmann::json::object();
-  for (int k = 0; k < kStatusCount; ++k) {
-    if (status_counts[k]) statuses[runtime::toString(static_cast<runtime::Status>(k))] = status_counts[k];
-  }
+  const nlohmann::json statuses = statusesJson(status_counts);
   const nlohmann::json report = {{"requests", sent},   {"replies", exchange.answered},
                                  {"lost", sent - exchange.answered},
                                  {"rate_hz", args.rate_hz},  {"statuses", statuses},
@@ -667,10 +676,7 @@ int runCampaign(Args args) {
     }
   }
 
-  nlohmann::json statuses = nlohmann::json::object();
-  for (int k = 0; k < kStatusCount; ++k) {
-    if (status_counts[k]) statuses[runtime::toString(static_cast<runtime::Status>(k))] = status_counts[k];
-  }
+  const nlohmann::json statuses = statusesJson(status_counts);
   nlohmann::json report = {
       {"mode", args.mode},
       {"requests", args.count},

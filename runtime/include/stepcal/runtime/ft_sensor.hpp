@@ -19,7 +19,8 @@
 //                                     bus_off_probe_ns); a changed calibration voids the bias
 //   frames of other ids, wrong lengths, unknown opcodes, late or unpaired halves
 //                                   → ignored and counted
-// The poll loop allocates nothing, locks nothing and throws nothing.
+// The poll loop allocates nothing, locks nothing and throws nothing (the reads of the identity
+// after a reset or a silence do allocate: no wrench is delivered then).
 #pragma once
 
 

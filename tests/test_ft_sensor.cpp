@@ -423,6 +423,49 @@ TEST_P(DriverTest, AStalledSensorTimesOutAndTheWrenchGoesStale) {
   EXPECT_EQ(wrenchFor(sink_.slot, latest().stamp_ns + 1'000'000, kMaxAgeNs, wrench), Status::kOk);
 }
 
+TEST_P(DriverTest, ASensorBackFromASilenceIsReadAgainBeforeItsGaugesCount) {
+  startSensor();
+  FtSensorOptions options;
+  options.poll_hz = 500.0;
+  options.bias_samples = 1;
+  options.resync_after_silence_ns = 50'000'000;
+  options.bus_off_probe_ns = 20'000'000;
+  FtSensorDriver* const driver = makeDriver(options);
+  simulator_->setWrench(kPayloadWrench);
+  driver->requestBias();
+  runDriver(*driver);
+  ASSERT_TRUE(waitFor([&] { return driver->biased(); }));
+
+  // The same sensor silent for a while: read again, nothing changed, the tare stays.
+  ftsim::Faults stall;
+  stall.stalled = true;
+  simulator_->setFaults(stall);
+  // The driver measures the silence on the clock: 200 ms is past 50 ms however it is scheduled.
+  std::this_thread::sleep_for(milliseconds(200));
+  simulator_->setFaults({});
+  ASSERT_TRUE(waitFor([&] { return driver->counters().resyncs == 1; }));
+  EXPECT_TRUE(driver->biased());
+
+  // Restarted with another calibration: after the silence the new matrix decodes its gauges
+  // (the old one would read the wrench 1/1.25 too small) and the tare is gone.
+  stop_sensor_.store(true);
+  sensor_thread_.join();
+  ftsim::SimulatorOptions recalibrated;
+  for (float& entry : recalibrated.calibration.matrix) entry *= 1.25f;
+  simulator_ = std::make_unique<ftsim::SensorSimulator>(recalibrated);
+  simulator_->setWrench(kPayloadWrench);
+  std::this_thread::sleep_for(milliseconds(200));
+  stop_sensor_.store(false);
+  sensor_thread_ = std::thread([this] { simulator_->serve(bus_->sensor_end, stop_sensor_); });
+  ASSERT_TRUE(waitFor([&] { return driver->counters().resyncs == 2; }));
+  EXPECT_FALSE(driver->biased());
+  ASSERT_TRUE(waitSamples(3));
+  EXPECT_EQ(driver->identity().calibration.matrix, recalibrated.calibration.matrix);
+  const Vec6 error = latest().wrench_Sensor - kPayloadWrench;
+  EXPECT_LT(error.head<3>().cwiseAbs().maxCoeff(), 0.2);   // N: a few gauge counts
+  EXPECT_LT(error.tail<3>().cwiseAbs().maxCoeff(), 0.02);  // N·m
+}
+
 TEST_P(DriverTest, DroppedAndCorruptRepliesNeverGiveAWrongWrench) {
   startSensor();
   FtSensorDriver* const driver = makeDriver();

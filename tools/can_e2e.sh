@@ -34,9 +34,7 @@ campaign=$(realpath "$1")
 model=$(realpath "$2")
 out=${3:-$(mktemp -d /tmp/can_e2e.XXXXXX)}
 mkdir -p "$out"
-bin=$(realpath "${STEPCAL_BIN_DIR:-$root/build/bin}")
-iface=${STEPCAL_CAN_IFACE:-vcan0}
-url=${LCM_URL:-udpm://239.255.76.67:7667?ttl=0}
+source "$root/tools/can_lib.sh"
 if [[ ${STEPCAL_IN_VCAN_VM:-0} == 1 ]]; then
   rate_hz=${STEPCAL_E2E_RATE_HZ:-250}
   max_age_ms=${STEPCAL_E2E_MAX_WRENCH_AGE_MS:-10000}
@@ -51,37 +49,12 @@ command -v jq >/dev/null || { echo "can_e2e: needs jq (apt-get install jq)" >&2;
 [[ -f $campaign/truth.json ]] || { echo "can_e2e: $campaign/truth.json: not a simulated campaign" >&2; exit 2; }
 [[ -f $model ]] || { echo "can_e2e: $model: no such model file" >&2; exit 2; }
 
-pids=()
-cleanup() {
-  for pid in "${pids[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
-  for pid in "${pids[@]}"; do wait "$pid" 2>/dev/null || true; done
-}
-trap cleanup EXIT
-
 "$bin/stepcal-ftsim" --iface "$iface" --truth "$campaign/truth.json" --lcm-url "$url" --json \
   >"$out/ftsim.json" 2>"$out/ftsim.log" &
 pids+=($!)
 sleep 0.2  # the sensor answers from its first frame on; the daemon reads it at start-up
-"$bin/stepcal-runtime" --model "$model" --lcm-url "$url" --sensor "can:$iface" \
-  --sensor-rate-hz "$rate_hz" --max-wrench-age-ms "$max_age_ms" --budget-us "$budget_us" \
-  --sensor-republish STEPCAL_WRENCH 2>"$out/daemon.log" &
-pids+=($!)
-
-# Ready when a forward request with the live wrench is answered OK (within seconds; the bound of
-# about 3 min is for a starved VM).
-for _ in $(seq 600); do
-  if "$bin/stepcal-client" --lcm-url "$url" --forward 0 0 0 0 0.5 0 --timeout-ms 200 --json \
-      2>/dev/null | jq -e '.status == "OK"' >/dev/null; then
-    ready=1
-    break
-  fi
-  sleep 0.1
-done
-if [[ -z ${ready:-} ]]; then
-  echo "can_e2e: the daemon does not answer OK with the live sensor" >&2
-  cat "$out"/*.log >&2
-  exit 1
-fi
+can_start_daemon "$model" "$out/daemon.log" "$rate_hz" "$max_age_ms" "$budget_us"
+can_wait_ok can_e2e "$out"/*.log
 grep -h "stepcal-runtime:" "$out/daemon.log" | head -1
 echo "settings: $rate_hz Hz sensor polls, max wrench age $max_age_ms ms, budget $budget_us us"
 

@@ -94,6 +94,7 @@ FtSensorDriver::FtSensorDriver(CanSocket socket, FtSensorOptions options)
   } catch (const InputError& e) {
     throw InputError(where + ": " + e.what());
   }
+  last_reading_ns_ = steadyNowNs();
 }
 
 bool FtSensorDriver::ask(Opcode opcode, const uint8_t* data, uint8_t length, int replies,
@@ -269,6 +270,7 @@ PollResult FtSensorDriver::pollOnce(Clock::time_point deadline, WrenchSink& sink
         out.stamp_ns = received.stamp_ns;
         out.sensor_status = critical ? reading.status_word : 0u;
         out.sequence = ++sequence_;
+        last_reading_ns_ = received.stamp_ns;
         if (critical) bump(counters_.critical_status);
         bump(counters_.samples);
         sink.publish(out);
@@ -311,6 +313,32 @@ void FtSensorDriver::doReset() noexcept {
   counters_.state.store(FtSensorState::kFault, std::memory_order_relaxed);
 }
 
+bool FtSensorDriver::resync() noexcept {
+  try {
+    const FtSensorIdentity before = identity_;
+    if (!readIdentity().empty()) return false;
+    const netcan::Calibration& now = identity_.calibration;
+    const netcan::Calibration& was = before.calibration;
+    const bool same = identity_.serial == before.serial && now.matrix == was.matrix &&
+                      now.counts_per_force == was.counts_per_force &&
+                      now.counts_per_torque == was.counts_per_torque &&
+                      now.force_unit == was.force_unit && now.torque_unit == was.torque_unit;
+    if (!same) {
+      // Another sensor or calibration: its gauges mean something else, and the tare is void.
+      converter_ = netcan::WrenchConverter(identity_.calibration);
+      bias_gauges_.setZero();
+      bias_pending_ = 0;
+      biased_.store(false, std::memory_order_relaxed);
+    }
+  } catch (const std::exception&) {
+    // An unusable calibration: the silence goes on, and so do the attempts.
+    return false;
+  }
+  bump(counters_.resyncs);
+  last_reading_ns_ = steadyNowNs();
+  return true;
+}
+
 void FtSensorDriver::run(WrenchSink& sink) noexcept {
   const auto period = std::chrono::nanoseconds(int64_t(std::llround(1e9 / options_.poll_hz)));
   const auto probe_period = std::chrono::nanoseconds(options_.bus_off_probe_ns);
@@ -329,7 +357,13 @@ void FtSensorDriver::run(WrenchSink& sink) noexcept {
     if (next < now) next = now + period;  // missed polls are skipped, not caught up
     switch (counters_.state.load(std::memory_order_relaxed)) {
       case FtSensorState::kRunning:
-        pollOnce(next, sink, sample);
+        if (steadyNowNs() - last_reading_ns_ < options_.resync_after_silence_ns) {
+          pollOnce(next, sink, sample);
+        } else if (now - last_probe >= probe_period) {
+          // Silent long enough to have restarted: its gauges count again once it is read anew.
+          last_probe = now;
+          resync();
+        }
         sleepUntil(next);
         break;
       case FtSensorState::kBusOff:
@@ -380,6 +414,7 @@ FtSensorCounters FtSensorDriver::counters() const noexcept {
   c.restarts = get(counters_.restarts);
   c.send_failures = get(counters_.send_failures);
   c.resets = get(counters_.resets);
+  c.resyncs = get(counters_.resyncs);
   c.last_status_word = counters_.last_status_word.load(std::memory_order_relaxed);
   c.state = counters_.state.load(std::memory_order_relaxed);
   return c;

@@ -2,6 +2,11 @@
 //
 //   stepcal-client --forward q1 … q6 [--wrench fx fy fz mx my mz] [--temp-c T]
 //                                                        one request, rad / N, N·m / °C
+//   stepcal-client --forward q1 … q6 --count N --rate HZ [--json]
+//                                                        the same request N times at HZ (live
+//                                                        wrench unless --wrench): each reply's
+//                                                        send time, status and wrench age;
+//                                                        SIGINT/SIGTERM stops it early
 //   stepcal-client --inverse x y z qw qx qy qz [--seed q1 … q6] [--wrench …] [--temp-c T]
 //                                                        m, unit quaternion
 //   stepcal-client --campaign DIR [--set validation] [--mode forward|inverse] [--count N]
@@ -34,6 +39,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <csignal>
 #include <cstring>
 #include <fstream>
 #include <functional>
@@ -149,6 +155,10 @@ void onAnswerMessage(const lcm_recv_buf_t* rbuf, const char*, void* user) {
   static_cast<Exchange*>(user)->onAnswer(rbuf);
 }
 
+/// Set by SIGINT/SIGTERM where runRepeated installs onStopSignal: no further requests leave.
+volatile std::sig_atomic_t stop_requested = 0;
+void onStopSignal(int) { stop_requested = 1; }
+
 /// Waits up to `until` for LCM traffic and dispatches it.
 void handleUntil(lcm_t* lcm, Clock::time_point until) {
   const auto wait = std::max(Clock::duration::zero(), until - Clock::now());
@@ -175,7 +185,7 @@ void runExchange(lcm_t* lcm, const char* answer_channel, int count, double rate_
                        std::chrono::duration<double>(double(i) / rate_hz));
   };
   int next = 0;
-  while (next < count) {
+  while (next < count && !stop_requested) {
     Clock::time_point due = Clock::now();
     if (rate_hz > 0.0) {
       due = scheduled(next);
@@ -394,6 +404,69 @@ void printReply(const correction_reply_t& r, double round_trip_us, bool inverse)
   }
 }
 
+/// The replies per status, by name (statuses never seen left out).
+nlohmann::json statusesJson(const long (&status_counts)[kStatusCount]) {
+  nlohmann::json statuses = nlohmann::json::object();
+  for (int k = 0; k < kStatusCount; ++k) {
+    if (status_counts[k]) statuses[runtime::toString(static_cast<runtime::Status>(k))] = status_counts[k];
+  }
+  return statuses;
+}
+
+/// When reply i arrived, CLOCK_MONOTONIC ns of this host (the daemon stamps wrenches on it too:
+/// the two run side by side).
+int64_t receivedNs(const Exchange& exchange, size_t i) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(exchange.sent[i].time_since_epoch())
+             .count() +
+         int64_t(exchange.round_trip_us[i] * 1e3);
+}
+
+/// The forward request of the command line, args.count times at args.rate_hz: per request when it
+/// left and when its reply came (Unix time, to line up with faults logged elsewhere), its status,
+/// the age of the live wrench it used on arrival and the predicted position. SIGINT/SIGTERM end it
+/// early: the requests sent so far are reported. Exit status 1 when no reply came.
+int runRepeated(const Args& args, const correction_request_t& msg) {
+  std::signal(SIGINT, onStopSignal);
+  std::signal(SIGTERM, onStopSignal);
+  const Lcm lcm(args.lcm_url);
+  Exchange exchange;
+  const Clock::time_point steady_origin = Clock::now();
+  const double unix_origin_s = double(unixMicroseconds()) * 1e-6;
+  const std::vector<correction_reply_t> replies = sendRequests(
+      lcm.get(), args, std::vector<correction_request_t>(size_t(args.count), msg), exchange);
+  nlohmann::json rows = nlohmann::json::array();
+  long status_counts[kStatusCount] = {};
+  int sent = 0;
+  for (size_t i = 0; i < replies.size() && exchange.sent[i] != Clock::time_point{}; ++i, ++sent) {
+    const double sent_unix_s =
+        unix_origin_s + std::chrono::duration<double>(exchange.sent[i] - steady_origin).count();
+    nlohmann::json& row = rows.emplace_back(nlohmann::json{
+        {"sent_unix_s", sent_unix_s}, {"status", nullptr}, {"wrench_age_ms", nullptr}});
+    if (std::isnan(exchange.round_trip_us[i])) continue;
+    const correction_reply_t& r = replies[i];
+    if (r.status >= 0 && r.status < kStatusCount) ++status_counts[r.status];
+    row["received_unix_s"] = sent_unix_s + exchange.round_trip_us[i] * 1e-6;
+    row["status"] = runtime::toString(static_cast<runtime::Status>(r.status));
+    if (r.wrench_stamp_ns > 0) {
+      row["wrench_age_ms"] = double(receivedNs(exchange, i) - r.wrench_stamp_ns) * 1e-6;
+    }
+    row["predicted_position_m"] =
+        std::vector<double>(r.predicted_position_m, r.predicted_position_m + 3);
+  }
+  const nlohmann::json statuses = statusesJson(status_counts);
+  const nlohmann::json report = {{"requests", sent},   {"replies", exchange.answered},
+                                 {"lost", sent - exchange.answered},
+                                 {"rate_hz", args.rate_hz},  {"statuses", statuses},
+                                 {"rows", rows}};
+  if (args.json) {
+    std::cout << report.dump(1) << "\n";
+  } else {
+    std::cout << sent << " forward requests at " << args.rate_hz << " Hz: "
+              << exchange.answered << " replies, statuses " << statuses.dump() << "\n";
+  }
+  return exchange.answered > 0 ? 0 : 1;
+}
+
 /// One request from the command line; exit status 1 when no reply came.
 int runSingle(const Args& args) {
   const bool inverse = !args.inverse_pose.empty();
@@ -408,6 +481,7 @@ int runSingle(const Args& args) {
   } else {
     msg.mode = correction_request_t::MODE_FORWARD;
     std::copy(args.forward_q_rad.begin(), args.forward_q_rad.end(), msg.q_rad);
+    if (args.count > 0) return runRepeated(args, msg);
   }
   const Lcm lcm(args.lcm_url);
   Exchange exchange;
@@ -576,12 +650,7 @@ int runCampaign(Args args) {
     compute_us.push_back(double(r.compute_ns) * 1e-3);
     model_id = r.model_id;
     if (r.wrench_stamp_ns > 0) {
-      // Both stamps are CLOCK_MONOTONIC of this host: the daemon and the client run side by side.
-      const int64_t received_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                      exchange.sent[i].time_since_epoch())
-                                      .count() +
-                                  int64_t(exchange.round_trip_us[i] * 1e3);
-      frame_to_reply_us.push_back(double(received_ns - r.wrench_stamp_ns) * 1e-3);
+      frame_to_reply_us.push_back(double(receivedNs(exchange, i) - r.wrench_stamp_ns) * 1e-3);
     }
     if (r.status != int8_t(runtime::Status::kOk)) continue;  // accuracy of plain answers
     const Measurement& row = *row_of[i];
@@ -607,10 +676,7 @@ int runCampaign(Args args) {
     }
   }
 
-  nlohmann::json statuses = nlohmann::json::object();
-  for (int k = 0; k < kStatusCount; ++k) {
-    if (status_counts[k]) statuses[runtime::toString(static_cast<runtime::Status>(k))] = status_counts[k];
-  }
+  const nlohmann::json statuses = statusesJson(status_counts);
   nlohmann::json report = {
       {"mode", args.mode},
       {"requests", args.count},
@@ -755,7 +821,9 @@ int main(int argc, char** argv) {
   app.add_option("--set", args.set, "campaign rows: geometry | stiffness | residual | validation")
       ->capture_default_str();
   app.add_option("--mode", args.mode, "campaign requests: forward | inverse")->capture_default_str();
-  app.add_option("--count", args.count, "campaign requests to send (rows cycle; default: one per row)");
+  app.add_option("--count", args.count,
+                 "campaign requests to send (rows cycle; default: one per row); with --forward: "
+                 "send it this many times (with --rate)");
   app.add_option("--rate", args.rate_hz, "requests per second (default: one in flight at a time)");
   app.add_option("--truth", args.truth_path, "the twin's truth.json to check answers against");
   app.add_flag("--live-wrench", args.live_wrench,
@@ -781,6 +849,10 @@ int main(int argc, char** argv) {
     }
     if (!(args.timeout_ms > 0.0)) throw InputError("--timeout-ms must be > 0");
     if (!(args.rate_hz >= 0.0)) throw InputError("--rate must be ≥ 0");
+    if (args.count > 0 && args.campaign_dir.empty() &&
+        (args.forward_q_rad.empty() || !(args.rate_hz > 0.0))) {
+      throw InputError("--count goes with --campaign, or with --forward and --rate");
+    }
     if (!args.seed_q_rad.empty() && args.inverse_pose.empty()) {
       throw InputError("--seed goes with --inverse");
     }

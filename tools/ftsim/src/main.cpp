@@ -5,14 +5,18 @@
 //                 [--truth truth.json [--lcm-url URL]] [--force-sigma-n S] [--moment-sigma-nm S]
 //                 [--offset fx fy fz mx my mz] [--seed N] [--drop P] [--corrupt P]
 //                 [--status-word W] [--garbage-per-poll N] [--stall-at-s T --stall-for-s D]
-//                 [--bus-off-at-s T --bus-off-for-s D] [--duration-s S] [--json]
+//                 [--bus-off-at-s T --bus-off-for-s D] [--faults-at-s T --faults-for-s D]
+//                 [--calibration-gain G] [--duration-s S] [--json]
 //
 // The wrench it feels: --wrench (N, N·m, sensor axes), or with --truth the payload wrench of the
 // twin (stepcal simulate's truth.json) at the pose and payload of each robot_state_t received on
 // STEPCAL_ROBOT_STATE (echoed on STEPCAL_ROBOT_STATE_APPLIED once felt); noise defaults to the twin's F/T noise then. Faults: per-frame drop and
 // corruption probabilities, a status word in every reading, garbage frames, a stall and a bus-off
-// (error frames CAN_ERR_BUSOFF, then CAN_ERR_RESTARTED) at given times. Stops on SIGINT/SIGTERM or
-// after --duration-s, printing its counters.
+// (error frames CAN_ERR_BUSOFF, then CAN_ERR_RESTARTED) at given times; --faults-at-s/-for-s
+// confine the per-reading faults to a window. Each transition is logged with its Unix time, so
+// a test can line it up with the replies it saw. --calibration-gain scales the calibration
+// matrix: another calibration of the sensor (what a restart with another one active presents).
+// Stops on SIGINT/SIGTERM or after --duration-s, printing its counters.
 #include <CLI/CLI.hpp>
 #include <poll.h>
 #include <signal.h>
@@ -53,6 +57,8 @@ struct Args {
   int garbage_per_poll = 0;
   double stall_at_s = -1.0, stall_for_s = 0.0;
   double bus_off_at_s = -1.0, bus_off_for_s = 0.0;
+  double faults_at_s = 0.0, faults_for_s = -1.0;  ///< negative duration: to the end
+  double calibration_gain = 1.0;
   double duration_s = 0.0;
   bool json = false;
 };
@@ -95,6 +101,19 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
+double unixSeconds() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+/// Whether t lies in [at, at + length); a negative length lasts to the end.
+bool inWindow(double t, double at, double length) {
+  return t >= at && (length < 0.0 || t < at + length);
+}
+
+void logTransition(const char* what, double t) {
+  std::fprintf(stderr, "stepcal-ftsim: %s at %.3f s (unix %.6f)\n", what, t, unixSeconds());
+}
+
 int run(const Args& args) {
   ftsim::SimulatorOptions options;
   options.base_id = args.base_id;
@@ -113,13 +132,18 @@ int run(const Args& args) {
   if (args.force_sigma_n) options.force_sigma_n = *args.force_sigma_n;
   if (args.moment_sigma_nm) options.moment_sigma_nm = *args.moment_sigma_nm;
   if (!args.offset.empty()) options.offset_Sensor = Vec6(args.offset.data());
+  for (float& entry : options.calibration.matrix) entry = float(entry * args.calibration_gain);
   ftsim::SensorSimulator simulator(options);
   if (!args.wrench.empty()) simulator.setWrench(Vec6(args.wrench.data()));
   ftsim::Faults faults;
-  faults.drop_probability = args.drop;
-  faults.corrupt_probability = args.corrupt;
-  faults.status_word = uint16_t(args.status_word);
-  faults.garbage_per_poll = args.garbage_per_poll;
+  const auto setReadingFaults = [&](bool on) {
+    faults.drop_probability = on ? args.drop : 0.0;
+    faults.corrupt_probability = on ? args.corrupt : 0.0;
+    faults.status_word = on ? uint16_t(args.status_word) : uint16_t(0);
+    faults.garbage_per_poll = on ? args.garbage_per_poll : 0;
+  };
+  bool reading_faults = inWindow(0.0, args.faults_at_s, args.faults_for_s);
+  setReadingFaults(reading_faults);
   simulator.setFaults(faults);
 
   // The sensor answers only its own ids; error frames are injected on a socket of their own.
@@ -146,8 +170,8 @@ int run(const Args& args) {
 
   std::atomic<bool> stop{false};
   std::thread server([&] { simulator.serve(socket, stop); });
-  std::fprintf(stderr, "stepcal-ftsim: sensor base id 0x%02X on %s, %s\n", args.base_id,
-               args.iface.c_str(),
+  std::fprintf(stderr, "stepcal-ftsim: sensor base id 0x%02X on %s (unix %.6f), %s\n",
+               args.base_id, args.iface.c_str(), unixSeconds(),
                truth ? ("payload wrench of " + args.truth_path + " at " +
                         service::kRobotStateChannel + " poses").c_str()
                      : "a fixed wrench");
@@ -166,7 +190,14 @@ int run(const Args& args) {
       stalled = stall_now;
       faults.stalled = stalled;
       simulator.setFaults(faults);
-      std::fprintf(stderr, "stepcal-ftsim: %s at %.3f s\n", stalled ? "stalled" : "answering again", t);
+      logTransition(stalled ? "stalled" : "answering again", t);
+    }
+    const bool reading_faults_now = inWindow(t, args.faults_at_s, args.faults_for_s);
+    if (reading_faults_now != reading_faults) {
+      reading_faults = reading_faults_now;
+      setReadingFaults(reading_faults);
+      simulator.setFaults(faults);
+      logTransition(reading_faults ? "reading faults on" : "reading faults off", t);
     }
     const bool off_now = args.bus_off_at_s >= 0.0 && t >= args.bus_off_at_s && t < args.bus_off_at_s + args.bus_off_for_s;
     if (off_now != bus_off) {
@@ -175,7 +206,7 @@ int run(const Args& args) {
       ++injected_errors;
       faults.stalled = bus_off || stalled;  // a bus-off node hears nothing
       simulator.setFaults(faults);
-      std::fprintf(stderr, "stepcal-ftsim: %s at %.3f s\n", bus_off ? "bus-off" : "bus restarted", t);
+      logTransition(bus_off ? "bus-off" : "bus restarted", t);
     }
   }
   stop.store(true);
@@ -223,6 +254,15 @@ int main(int argc, char** argv) {
   app.add_option("--stall-for-s", args.stall_for_s, "for this long, s");
   app.add_option("--bus-off-at-s", args.bus_off_at_s, "report bus-off at this time, s");
   app.add_option("--bus-off-for-s", args.bus_off_for_s, "then restart after this long, s");
+  app.add_option("--faults-at-s", args.faults_at_s,
+                 "--drop, --corrupt, --status-word, --garbage-per-poll from this time on, s")
+      ->capture_default_str();
+  app.add_option("--faults-for-s", args.faults_for_s, "for this long (negative: to the end), s")
+      ->capture_default_str();
+  app.add_option("--calibration-gain", args.calibration_gain,
+                 "calibration matrix = the default one times this: another calibration")
+      ->check(CLI::Range(0.01, 100.0))
+      ->capture_default_str();
   app.add_option("--duration-s", args.duration_s, "stop after this long (0: on a signal), s");
   app.add_flag("--json", args.json, "counters as JSON");
   CLI11_PARSE(app, argc, argv);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <thread>
 
 #include "stepcal/common/error.hpp"
 
@@ -206,6 +207,11 @@ void SensorSimulator::serve(runtime::CanSocket& socket, const std::atomic<bool>&
     const CanIo io = socket.receive(received, runtime::Clock::now() + std::chrono::milliseconds(10));
     if (io == CanIo::kTimeout) continue;
     if (io == CanIo::kClosed) return;  // the driver's end of a socketpair went away
+    if (io == CanIo::kDown) {
+      // The interface is down (ip link set … down): a sensor on the wire waits for the bus.
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      continue;
+    }
     if (io != CanIo::kOk) {
       throw InputError("simulated sensor on " + socket.name() + ": receive failed: " +
                        std::strerror(socket.lastErrno()));

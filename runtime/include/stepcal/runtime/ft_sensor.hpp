@@ -12,9 +12,15 @@
 //                                     once); polling stops until the controller reports its
 //                                     restart (CAN_ERR_RESTARTED, e.g. `ip link set can0 type can
 //                                     restart-ms 100`) or a probe every bus_off_probe_ns answers
+//   no reading for resync_after_silence_ns
+//                                   → the sensor may have restarted (power cycle, another
+//                                     calibration active): no gauge polls until its identity
+//                                     and calibration were read again (tried every
+//                                     bus_off_probe_ns); a changed calibration voids the bias
 //   frames of other ids, wrong lengths, unknown opcodes, late or unpaired halves
 //                                   → ignored and counted
-// The poll loop allocates nothing, locks nothing and throws nothing.
+// The poll loop allocates nothing, locks nothing and throws nothing (the reads of the identity
+// after a reset or a silence do allocate: no wrench is delivered then).
 #pragma once
 
 
@@ -42,6 +48,7 @@ struct FtSensorOptions {
   int startup_attempts = 3;                  ///< tries per start-up request
   int64_t bus_off_probe_ns = 200'000'000;    ///< poll attempt while bus-off without restart, ns
   int64_t reset_silence_ns = 300'000'000;    ///< wait after a reset before reading again, ns
+  int64_t resync_after_silence_ns = 500'000'000;  ///< no reading this long: read identity again, ns
 };
 
 /// What the sensor reported at start-up.
@@ -80,6 +87,7 @@ struct FtSensorCounters {
   int64_t restarts = 0;        ///< recoveries from bus-off
   int64_t send_failures = 0;   ///< requests the socket refused
   int64_t resets = 0;          ///< sensor resets done
+  int64_t resyncs = 0;         ///< identity and calibration read again after a silence
   uint16_t last_status_word = 0;  ///< of the latest reading
   FtSensorState state = FtSensorState::kRunning;
 };
@@ -133,6 +141,8 @@ class FtSensorDriver {
   void publishFault(uint32_t status, WrenchSink& sink) noexcept;
   void applyCommands() noexcept;
   void doReset() noexcept;
+  /// After a silence: reads identity and calibration again; true when the sensor answered.
+  bool resync() noexcept;
 
   CanSocket socket_;
   FtSensorOptions options_;
@@ -145,6 +155,7 @@ class FtSensorDriver {
   int bias_pending_ = 0;  ///< readings still to average into a requested bias
   uint64_t sequence_ = 0;
   int64_t bus_off_since_ns_ = 0;
+  int64_t last_reading_ns_ = 0;  ///< kernel receive time of the latest reading
 
   std::atomic<bool> stop_{false};
   std::atomic<bool> bias_requested_{false};
@@ -155,7 +166,7 @@ class FtSensorDriver {
   struct AtomicCounters {
     std::atomic<int64_t> polls{0}, samples{0}, timeouts{0}, critical_status{0}, foreign_id{0},
         bad_length{0}, unknown_opcode{0}, unpaired{0}, late{0}, unexpected_reply{0},
-        error_frames{0}, bus_off{0}, restarts{0}, send_failures{0}, resets{0};
+        error_frames{0}, bus_off{0}, restarts{0}, send_failures{0}, resets{0}, resyncs{0};
     std::atomic<uint16_t> last_status_word{0};
     std::atomic<FtSensorState> state{FtSensorState::kRunning};
   } counters_;

@@ -72,7 +72,7 @@ class SensorSimulator {
   std::array<int16_t, runtime::netcan::kGauges> gaugesFor(const Vec6& wrench_Sensor) const;
 
   /// Answers frames on socket until stop is set (checked every 10 ms) or an adopted socket's peer
-  /// closes it. Throws InputError when the socket fails.
+  /// closes it; waits while the interface is down. Throws InputError when the socket fails.
   void serve(runtime::CanSocket& socket, const std::atomic<bool>& stop);
 
  private:

@@ -58,6 +58,10 @@ struct TwinOptions {
   std::string protocol = "paper";
   /// Seeds every random draw; same seed, same campaign.
   uint64_t seed = 1;
+  /// A planned campaign (readPoseList): when not empty, these are the fit rows, measured in
+  /// their order (unloaded rows set=geometry, loaded rows set=stiffness under the same pose_id),
+  /// followed by the protocol's validation rows at the same poses as without them.
+  std::vector<PlannedMeasurement> planned_fit_rows;
 
   /// Tracker position noise per axis, 1-σ, m.
   double tracker_position_sigma_m = 10e-6;
@@ -205,7 +209,9 @@ class TwinRobot {
 ///   stf  stiffness  80 × 0,20,30,40   stfv validation  30 × 0,20,30,40
 ///   res  residual  100 × 20,30,40     resv validation  50 × 20,30,40
 ///   ext  validation 50 × 55 (load extrapolation)
-/// Within a block every pose is measured at one load before the payload changes. "geometry" is
+/// Within a block every pose is measured at one load before the payload changes. With
+/// planned_fit_rows, those rows come first and replace the geo, stf and res blocks; the
+/// validation blocks keep their poses (every block's poses are still drawn, in order). "geometry" is
 /// the first two blocks. Every row has a wrench: the sensor stays mounted and tared unloaded, so
 /// unloaded rows read its noise around zero (around the bias with sensor_bias). Each row is
 /// measured at its true temperature T(seq) (TwinOptions::temperature_c); temp_c is T(seq) plus

@@ -67,15 +67,20 @@ Visibility visibility(const ChainWorkspace& ws, const PlanOptions& o) {
 
 Eigen::MatrixXd identificationBlock(const KinematicChain& chain, int sensor_frame,
                                     const ChainWorkspace& ws, const std::vector<double>& payloads_kg,
-                                    const Vec3& gravity) {
+                                    const PlanOptions& o) {
   const int n = chain.dof();
   const int geometry_columns = 6 * (n + 1);
-  Eigen::MatrixXd block = Eigen::MatrixXd::Zero(3 * (1 + static_cast<int>(payloads_kg.size())),
-                                                geometry_columns + n);
+  // Rows in units of the tracker's noise: position, then rotation when it is measured.
+  const bool rotation = o.orientation_sigma_rad > 0.0;
+  const int rows = rotation ? 6 : 3;
+  Eigen::MatrixXd block =
+      Eigen::MatrixXd::Zero(rows * (1 + static_cast<int>(payloads_kg.size())), geometry_columns + n);
   Eigen::Matrix<double, 6, Eigen::Dynamic> A(6, geometry_columns);
   parameterJacobian(chain, ws, A);
   const Vec3 p_TipInBase = tipPose(ws).translation();
-  block.topLeftCorner(3, geometry_columns) = A.topRows<3>() - lie::hat(p_TipInBase) * A.bottomRows<3>();
+  block.topLeftCorner(3, geometry_columns) =
+      (A.topRows<3>() - lie::hat(p_TipInBase) * A.bottomRows<3>()) / o.position_sigma_m;
+  if (rotation) block.block(3, 0, 3, geometry_columns) = A.bottomRows<3>() / o.orientation_sigma_rad;
 
   Jacobian J_tip(6, n), J_s(6, n);
   tipPointJacobian(chain, ws, J_tip);
@@ -83,10 +88,16 @@ Eigen::MatrixXd identificationBlock(const KinematicChain& chain, int sensor_fram
   const Pose X_BaseSensor = framePose(chain, ws, sensor_frame);
   for (size_t l = 0; l < payloads_kg.size(); ++l) {
     Vec6 wrench_Sensor = Vec6::Zero();  // the payload's weight at the sensor origin
-    wrench_Sensor.head<3>() = X_BaseSensor.linear().transpose() * (payloads_kg[l] * gravity);
+    wrench_Sensor.head<3>() =
+        X_BaseSensor.linear().transpose() * (payloads_kg[l] * o.gravity_in_base_m_per_s2);
     const JointVector tau_nm = jointTorques(J_s, wrenchInRoot(X_BaseSensor, wrench_Sensor));
-    block.block(3 * (1 + static_cast<int>(l)), geometry_columns, 3, n) =
-        J_tip.topRows<3>() * tau_nm.asDiagonal();
+    const int first = rows * (1 + static_cast<int>(l));
+    block.block(first, geometry_columns, 3, n) =
+        J_tip.topRows<3>() * tau_nm.asDiagonal() / o.position_sigma_m;
+    if (rotation) {
+      block.block(first + 3, geometry_columns, 3, n) =
+          J_tip.bottomRows<3>() * tau_nm.asDiagonal() / o.orientation_sigma_rad;
+    }
   }
   return block;
 }
@@ -126,6 +137,12 @@ void validate(const KinematicChain& chain, int sensor_frame, const PlanOptions& 
     fail("line-of-sight clearance " + formatShortest(o.line_of_sight_clearance_m) +
              " m, tip exclusion " + formatShortest(o.tip_exclusion_m) + " m",
          "finite values >= 0", "0.15 m and 0.3 m");
+  }
+  if (!(o.position_sigma_m > 0.0 && o.orientation_sigma_rad >= 0.0 &&
+        std::isfinite(o.position_sigma_m) && std::isfinite(o.orientation_sigma_rad))) {
+    fail("tracker noise " + formatShortest(o.position_sigma_m) + " m, " +
+             formatShortest(o.orientation_sigma_rad) + " rad",
+         "position > 0 and orientation >= 0, finite", "0 orientation for a position-only tracker");
   }
   if (!o.p_TrackerInBase_m.allFinite()) fail("tracker position", "finite", "e.g. 4,0,1.2 m");
   if (!(o.ridge > 0.0 && o.spread_weight >= 0.0 && o.spread_bins >= 1)) {
@@ -197,8 +214,7 @@ CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
       case Visibility::kLineOfSight: ++plan.rejected_line_of_sight; continue;
       case Visibility::kVisible: break;
     }
-    candidates.push_back({q, identificationBlock(nominal_Base, sensor_frame, ws, payloads_kg,
-                                                 options.gravity_in_base_m_per_s2)});
+    candidates.push_back({q, identificationBlock(nominal_Base, sensor_frame, ws, payloads_kg, options)});
   }
   if (static_cast<int>(candidates.size()) < options.poses) {
     throw InputError(std::to_string(candidates.size()) + " of " +

@@ -146,11 +146,13 @@ Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out)
     const double temp_c = trueTemperature_c(options, seq);
     const Pose X_TrackerTip = robot.X_TrackerTip(q, load_kg, temp_c);
     // Every noise draw happens whatever its sigma, so sigmas do not shift the stream.
-    const Vec3 dp = noise_rng.normal3(options.tracker_position_sigma_m);
-    const Vec3 dr = noise_rng.normal3(options.tracker_orientation_sigma_rad);
-    const Vec3 df = noise_rng.normal3(options.ft_force_sigma_n);
-    const Vec3 dm = noise_rng.normal3(options.ft_moment_sigma_nm);
-    const double dtemp = options.temperature_sigma_c * noise_rng.normal();
+    const double noise =
+        options.noiseless_validation && row.set == RowSet::kValidation ? 0.0 : 1.0;
+    const Vec3 dp = noise * noise_rng.normal3(options.tracker_position_sigma_m);
+    const Vec3 dr = noise * noise_rng.normal3(options.tracker_orientation_sigma_rad);
+    const Vec3 df = noise * noise_rng.normal3(options.ft_force_sigma_n);
+    const Vec3 dm = noise * noise_rng.normal3(options.ft_moment_sigma_nm);
+    const double dtemp = noise * options.temperature_sigma_c * noise_rng.normal();
 
     Measurement m;
     m.seq = seq++;
@@ -175,6 +177,31 @@ Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out)
   }
   if (truth_out != nullptr) *truth_out = robot.truthJson();
   return campaign;
+}
+
+std::vector<PlannedMeasurement> randomPoseList(const TwinOptions& options, int poses,
+                                               const std::vector<double>& loads_kg) {
+  if (poses < 1 || std::count(loads_kg.begin(), loads_kg.end(), 0.0) != 1) {
+    throw InputError("a random pose list of " + std::to_string(poses) + " poses at " +
+                     std::to_string(loads_kg.size()) +
+                     " loads; expected at least one pose and the loads with 0 once (hint: every "
+                     "pose is measured unloaded, e.g. loads 0, 20, 40)");
+  }
+  const std::string path = resolvedUrdfPath(options);
+  const KinematicChain nominal = nominalChain(readTextFile(path), options, path);
+  validateOptions(options, nominal);
+  Rng rng(options.seed, Stream::kRandomPoseList);
+  std::vector<JointVector> drawn;
+  for (int i = 0; i < poses; ++i) drawn.push_back(drawPose(rng, nominal, options));
+  std::vector<double> loads = loads_kg;
+  std::sort(loads.begin(), loads.end());
+  std::vector<PlannedMeasurement> rows;
+  for (const double load_kg : loads) {
+    for (int i = 0; i < poses; ++i) {
+      rows.push_back({poseId("rand", i), load_kg, drawn[static_cast<size_t>(i)], 0});
+    }
+  }
+  return rows;
 }
 
 void writeSimulation(const TwinOptions& options, const std::string& out_dir) {

@@ -9,10 +9,10 @@
 // closer than line_of_sight_clearance_m to the polyline.
 //
 // Each candidate pose is measured unloaded and at every payload of loads_kg. Its identification
-// block stacks what steps 1 and 2 fit: the unloaded row's tip position against the 6(n+1) initial
-// pose parameters (parameterJacobian, position rows ṗ = v − p̂ω), and per payload the deflection
-// against the n compliances (tip point Jacobian · diag(τ), τ = J_sᵀ W with the payload's weight
-// at the sensor frame). Columns are normalised over the candidates (so that millimetres and
+// block stacks what steps 1 and 2 fit, each row divided by the tracker's noise: the unloaded
+// row's tip position and rotation against the 6(n+1) initial pose parameters (parameterJacobian;
+// position rows ṗ = v − p̂ω), and per payload the deflection against the n compliances (tip point
+// Jacobian · diag(τ), τ = J_sᵀ W with the payload's weight at the sensor frame). Columns are normalised over the candidates (so that millimetres and
 // compliances weigh alike) and selection is greedy D-optimal: the pose that most increases
 // log det(M + ridge I), M the selected poses' information. The ridge gives the geometry's 2n
 // structural redundancies (rank 30 of 42 for six joints) the same constant share whatever is
@@ -50,8 +50,11 @@ struct PlanOptions {
   uint64_t seed = 1;                       ///< same seed, same candidates and random choice
   PoseSelection selection = PoseSelection::kDOptimal;
   Vec3 gravity_in_base_m_per_s2 = Vec3(0.0, 0.0, -9.80665);  ///< m/s², base_link axes
+  double position_sigma_m = 10e-6;  ///< tracker position noise per axis, 1-σ, m
+  /// Tracker orientation noise per axis, 1-σ, rad; 0: a position-only tracker (3D reflector).
+  double orientation_sigma_rad = 8.726646259971648e-5;
   double ridge = 1e-3;         ///< added to the normalised information's diagonal
-  double spread_weight = 0.5;  ///< weight of new coverage against information
+  double spread_weight = 0.2;  ///< weight of new coverage against information
   int spread_bins = 8;         ///< bins per joint range for the coverage
 };
 

@@ -62,6 +62,9 @@ struct TwinOptions {
   /// their order (unloaded rows set=geometry, loaded rows set=stiffness under the same pose_id),
   /// followed by the protocol's validation rows at the same poses as without them.
   std::vector<PlannedMeasurement> planned_fit_rows;
+  /// Validation rows measured without noise (tracker, sensor, temperature; the draws still
+  /// happen, so every other row stays): a model's error on them is its error against the truth.
+  bool noiseless_validation = false;
 
   /// Tracker position noise per axis, 1-σ, m.
   double tracker_position_sigma_m = 10e-6;
@@ -217,6 +220,13 @@ class TwinRobot {
 /// measured at its true temperature T(seq) (TwinOptions::temperature_c); temp_c is T(seq) plus
 /// the reading's noise.
 Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out);
+
+/// A pose list (readPoseList's rows) of `poses` commanded poses drawn as the protocol draws its
+/// own (pose_ranges, tip in front of the robot), from a stream of their own so that they are not
+/// the protocol's poses, each measured at every load of loads_kg (which holds 0): the random
+/// campaign a planned one is compared with. Throws InputError.
+std::vector<PlannedMeasurement> randomPoseList(const TwinOptions& options, int poses,
+                                               const std::vector<double>& loads_kg);
 
 /// Writes the simulated campaign into out_dir (writeCampaign) and truth.json beside it.
 void writeSimulation(const TwinOptions& options, const std::string& out_dir);

@@ -360,7 +360,7 @@ int main(int argc, char** argv) {
 
   PlanArgs plan_args;
   CLI::App* plan = app.add_subcommand(
-      "plan", "choose the poses (and their loads) of a campaign: D-optimal for geometry and "
+      "plan", "choose the poses of a campaign, each measured at the given loads: D-optimal for geometry and "
               "compliance, spread over every joint's range, visible to the tracker");
   plan->add_option("--robot", plan_args.urdf, "robot description (URDF)")->capture_default_str();
   plan->add_option("--base-link", plan_args.base_link, "root of the chain")->capture_default_str();

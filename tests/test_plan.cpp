@@ -141,7 +141,7 @@ double errorOverSeeds(const std::function<std::vector<PlannedMeasurement>(const 
 
 // The comparison at a small N (10 poses, 30 rows): over five seeds the planned campaigns' error
 // against the truth is well below that of as many random poses, drawn as the paper protocol
-// draws its own or among the planner's visible candidates. Measured: 0.61 and 0.64 of them
+// draws its own or among the planner's visible candidates. Measured: 0.61 and 0.63 of them
 // (README, "Planning a campaign"); the bound 0.8 leaves that margin.
 TEST(Plan, PlannedPosesCalibrateBetterThanRandomOnes) {
   const KinematicChain chain = irb4400();

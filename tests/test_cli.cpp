@@ -230,6 +230,43 @@ TEST(Cli, BadInputEndsWithAClearErrorAndStatusTwo) {
   EXPECT_NE(unknown.out.find("unknown effect 'gear_wobble'; expected one of"), std::string::npos) << unknown.out;
 }
 
+// README, "From plan to URDF": plan → simulate --poses → calibrate → export urdf, as written there
+// (fewer poses), and a bad pose list ends with its file, line, column and value.
+TEST(Cli, FromPlanToUrdf) {
+  const fs::path dir = scratch("plan");
+  fs::create_directories(dir);
+  const std::string poses = (dir / "poses.csv").string();
+  const CommandResult plan = run(kStepcal + " plan --robot " + STEPCAL_ROBOTS_DIR +
+                                 "/irb4400.urdf --poses 20 --loads 0,20,40 --tracker 4,0,1.2 --out " +
+                                 poses);
+  ASSERT_EQ(plan.status, 0) << plan.out;
+  EXPECT_NE(plan.out.find("20 poses (D-optimal) x 3 loads = 60 rows"), std::string::npos) << plan.out;
+  const fs::path campaign = dir / "planned";
+  ASSERT_EQ(run(kStepcal + " simulate --robot irb4400 --poses " + poses + " --seed 1 --out " +
+                campaign.string()).status, 0);
+  const Campaign read = readCampaign(campaign.string());
+  EXPECT_EQ(read.rowsIn(RowSet::kGeometry).size(), 20u);
+  EXPECT_EQ(read.rowsIn(RowSet::kStiffness).size(), 40u);
+  const nlohmann::json report = calibrateJson(campaign, dir / "planned.stepcal");
+  // Compliance identified from the planned pairs: the loaded validation rows near the floor.
+  EXPECT_LT(validationRow(report, "poe+stiffness", 40.0)["mean_position_mm"].get<double>(), 0.03);
+  const CommandResult urdf = run(kStepcal + " export urdf " + (dir / "planned.stepcal").string() +
+                                 " --out " + (dir / "robot_calibrated.urdf").string());
+  EXPECT_EQ(urdf.status, 0) << urdf.out;
+  EXPECT_TRUE(fs::exists(dir / "robot_calibrated.urdf"));
+
+  std::string text = readTextFile(poses);
+  text.replace(text.find('\n', text.find('\n') + 1) + 1, 0, "plan-999,0,1,2,3,4,x,6\n");
+  FILE* f = fopen(poses.c_str(), "w");
+  fwrite(text.data(), 1, text.size(), f);
+  fclose(f);
+  const CommandResult bad = run(kStepcal + " simulate --poses " + poses + " --out " +
+                                (dir / "bad").string());
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.out.find("poses.csv:3: column 'q5_deg': expected a joint angle (deg), got 'x'"),
+            std::string::npos) << bad.out;
+}
+
 TEST(Cli, SimulateWritesHiddenEffectsIntoTheTruth) {
   const fs::path dir = scratch("hidden");
   const CommandResult r = run(kStepcal + " simulate --protocol geometry --seed 2 --out " + dir.string() +

@@ -5,6 +5,7 @@
 #   TARGET: model_file       parseModel (the model file)
 #           request_decoder  the runtime's decodeRequest
 #           campaign         readCampaign (campaign.yaml + measurements.csv) and writeCampaign
+#           pose_list        readPoseList (poses.csv) and writePoseList
 #           ipa_import       importIpaSeries (the IPA UR10 series CSV + Trafo_TM_F_init.txt)
 #           urdf             chainFromUrdf and bodyMassesFromUrdf
 # Work folder: $STEPCAL_FUZZ_DIR, default build-fuzz-TARGET/ in the repository. The growing
@@ -13,8 +14,8 @@
 set -euo pipefail
 
 if (($# < 1)); then
-  echo "usage: $0 TARGET [SECONDS]; TARGET: model_file, request_decoder, campaign, ipa_import," \
-    "urdf" >&2
+  echo "usage: $0 TARGET [SECONDS]; TARGET: model_file, request_decoder, campaign, pose_list," \
+    "ipa_import, urdf" >&2
   exit 2
 fi
 target=$1
@@ -50,6 +51,12 @@ case $target in
     libs=($(pkg-config --libs yaml-cpp))
     cp "$root"/tests/fuzz/seeds/campaign/* "$out/seeds/"
     ;;
+  pose_list)
+    sources=(common/src/{error,text_number,campaign}.cpp)
+    # shellcheck disable=SC2207
+    libs=($(pkg-config --libs yaml-cpp))
+    cp "$root"/tests/fuzz/seeds/pose_list/* "$out/seeds/"
+    ;;
   ipa_import)
     flags+=(-I"$root/tools/importers/include" -DSTEPCAL_ROBOTS_DIR="\"$root/robots\"")
     headers+=("$root/tools/importers/include")
@@ -73,7 +80,7 @@ case $target in
     ;;
   *)
     echo "unknown fuzz target '$target'; expected model_file, request_decoder, campaign," \
-      "ipa_import or urdf" >&2
+      "pose_list, ipa_import or urdf" >&2
     exit 2
     ;;
 esac

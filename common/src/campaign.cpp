@@ -972,4 +972,121 @@ void writeCampaign(const Campaign& campaign, const std::string& directory) {
   writeFile(dir / "campaign.yaml", yaml);
 }
 
+
+// ---------------------------------------------------------------------------------------------
+// poses.csv
+
+std::vector<PlannedMeasurement> readPoseList(const std::string& path, int joint_count) {
+  const std::string text = readReferredFile(path, "pose list", "", 0);
+  auto fail = [&](int line, const std::string& column, const std::string& message) {
+    throw InputError(message, path, line, column);
+  };
+  const std::vector<std::string_view> lines = splitLines(text);
+  if (lines.empty() || lines[0].empty()) {
+    fail(1, "", "the header line is empty; expected pose_id,load_kg,q1_deg,…,q" +
+                    std::to_string(joint_count) + "_deg");
+  }
+  std::vector<std::string> expected = {"pose_id", "load_kg"};
+  for (int k = 1; k <= joint_count; ++k) expected.push_back(jointColumn(k));
+  const std::vector<std::string_view> names = splitFields(lines[0]);
+  std::map<std::string, int> position;  // column name → field index
+  for (size_t i = 0; i < names.size(); ++i) {
+    const std::string name(names[i]);
+    if (std::find(expected.begin(), expected.end(), name) == expected.end()) {
+      fail(1, name,
+           "unknown column " + inQuotes(name) + "; expected only " + joined(expected) +
+               " (hint: a pose list holds the commanded poses, the robot has " +
+               std::to_string(joint_count) + " joints)");
+    }
+    if (!position.emplace(name, static_cast<int>(i)).second) {
+      fail(1, name, "column " + inQuotes(name) + " appears twice; expected each column once");
+    }
+  }
+  for (const std::string& name : expected) {
+    if (position.count(name) == 0) {
+      fail(1, name, "required column " + inQuotes(name) + " is missing; expected " +
+                        joined(expected));
+    }
+  }
+  if (lines.size() == 1) fail(1, "", "the file has a header but no rows; expected one row per measurement");
+
+  std::vector<PlannedMeasurement> rows;
+  std::map<std::string, size_t> unloaded_of;  // pose_id → index of its unloaded row
+  std::map<std::pair<std::string, double>, int> line_of;  // (pose_id, load) → line
+  for (size_t i = 1; i < lines.size(); ++i) {
+    const int line = static_cast<int>(i) + 1;
+    const std::vector<std::string_view> fields = splitFields(lines[i]);
+    if (fields.size() != names.size()) {
+      fail(line, "", "row has " + std::to_string(fields.size()) + " fields; expected " +
+                         std::to_string(names.size()) + " as in the header (hint: the decimal "
+                         "point is '.', columns are separated by ',')");
+    }
+    auto field = [&](const std::string& name) { return fields[static_cast<size_t>(position[name])]; };
+    PlannedMeasurement row;
+    row.source_line = line;
+    row.pose_id = std::string(field("pose_id"));
+    if (row.pose_id.empty() || row.pose_id.find('"') != std::string::npos) {
+      fail(line, "pose_id", "expected a pose id (non-empty text without quotes), got " +
+                                inQuotes(row.pose_id));
+    }
+    const std::optional<double> load = parseFinite(field("load_kg"));
+    if (!load || *load < 0.0) {
+      fail(line, "load_kg", "expected a payload mass >= 0 (kg), got " + inQuotes(field("load_kg")) +
+                                numberHint(field("load_kg")));
+    }
+    row.load_kg = *load;
+    row.q_rad.resize(joint_count);
+    for (int k = 1; k <= joint_count; ++k) {
+      const std::string name = jointColumn(k);
+      const std::optional<double> q = parseDegreesAsRadians(field(name));
+      if (!q) {
+        fail(line, name, "expected a joint angle (deg), got " + inQuotes(field(name)) +
+                             numberHint(field(name)));
+      }
+      row.q_rad(k - 1) = *q;
+    }
+    const auto [it, inserted] = line_of.emplace(std::make_pair(row.pose_id, row.load_kg), line);
+    if (!inserted) {
+      fail(line, "load_kg", "pose_id " + inQuotes(row.pose_id) + " at " +
+                                formatShortest(row.load_kg) + " kg already appears on line " +
+                                std::to_string(it->second) + "; expected each load once per pose");
+    }
+    if (row.load_kg == 0.0) unloaded_of[row.pose_id] = rows.size();
+    rows.push_back(std::move(row));
+  }
+  for (const PlannedMeasurement& row : rows) {
+    const auto unloaded = unloaded_of.find(row.pose_id);
+    if (unloaded == unloaded_of.end()) {
+      fail(row.source_line, "pose_id",
+           "pose_id " + inQuotes(row.pose_id) + " has no unloaded row; expected one at load_kg 0 "
+           "(step 2 measures a load's deflection against it)");
+    }
+    const PlannedMeasurement& reference = rows[unloaded->second];
+    for (int k = 0; k < joint_count; ++k) {
+      if (row.q_rad(k) != reference.q_rad(k)) {
+        fail(row.source_line, jointColumn(k + 1),
+             "value " + inQuotes(formatRadiansAsDegrees(row.q_rad(k))) + " differs from the unloaded row's " +
+                 inQuotes(formatRadiansAsDegrees(reference.q_rad(k))) + " (line " +
+                 std::to_string(reference.source_line) +
+                 "); expected the same commanded angles for every load of a pose_id");
+      }
+    }
+  }
+  return rows;
+}
+
+void writePoseList(const std::vector<PlannedMeasurement>& rows, const std::string& path) {
+  std::string text = "pose_id,load_kg";
+  const int joint_count = rows.empty() ? 0 : static_cast<int>(rows.front().q_rad.size());
+  for (int k = 1; k <= joint_count; ++k) text += "," + jointColumn(k);
+  text += "\n";
+  for (const PlannedMeasurement& row : rows) {
+    STEPCAL_INVARIANT(row.q_rad.size() == joint_count, "pose list rows of different joint counts");
+    text += row.pose_id + "," + formatShortest(row.load_kg);
+    for (int k = 0; k < joint_count; ++k) text += "," + formatRadiansAsDegrees(row.q_rad(k));
+    text += "\n";
+  }
+  writeFile(path, text);
+}
+
 }  // namespace stepcal

@@ -32,6 +32,7 @@
 #include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/validate.hpp"
 #include "stepcal/trainer/pipeline.hpp"
+#include "stepcal/trainer/plan.hpp"
 #include "stepcal/twin/twin.hpp"
 
 namespace {
@@ -48,6 +49,7 @@ struct SimulateArgs {
   double position_sigma_mm = 0.010;
   double orientation_sigma_deg = 0.005;
   std::vector<std::string> effects;  ///< --effect: hidden mechanisms as JSON objects
+  std::string poses;  ///< --poses: a pose list (poses.csv) to measure as the fit rows
 };
 
 std::string robotUrdf(const std::string& robot) {
@@ -75,7 +77,44 @@ void runSimulate(const SimulateArgs& a) {
                        "\"lost_motion_rad\": 2e-4}'");
     }
   }
+  if (!a.poses.empty()) {
+    const int joint_count =
+        chainFromUrdfFile(options.urdf_path, options.base_link, options.tip_link).dof();
+    options.planned_fit_rows = readPoseList(a.poses, joint_count);
+  }
   twin::writeSimulation(options, a.out);
+}
+
+struct PlanArgs {
+  std::string urdf = robotUrdf("irb4400");
+  std::string base_link = "base_link", tip_link = "tmac", sensor_link = "ft_sensor";
+  std::string selection = "d-optimal";
+  std::vector<double> tracker_m = {4.0, 0.0, 1.2};
+  std::string out;
+  trainer::PlanOptions options;
+};
+
+// Plans a campaign (trainer/plan.hpp), writes its pose list and says what was found.
+void runPlan(PlanArgs a) {
+  if (a.selection == "random") {
+    a.options.selection = trainer::PoseSelection::kRandom;
+  } else if (a.selection != "d-optimal") {
+    throw InputError("--selection '" + a.selection +
+                     "'; expected 'd-optimal' or 'random' (hint: random is the baseline a plan is "
+                     "compared with)");
+  }
+  if (a.tracker_m.size() != 3) {
+    throw InputError("--tracker has " + std::to_string(a.tracker_m.size()) +
+                     " values; expected x,y,z of the tracker head in base_link, m (hint: "
+                     "--tracker 4,0,1.2)");
+  }
+  a.options.p_TrackerInBase_m = Vec3(a.tracker_m[0], a.tracker_m[1], a.tracker_m[2]);
+  const KinematicChain chain =
+      chainFromUrdfFile(a.urdf, a.base_link, a.tip_link, {a.sensor_link});
+  const trainer::CampaignPlan plan = trainer::planCampaign(chain, 0, a.options);
+  writePoseList(plan.rows, a.out);
+  std::cerr << "wrote " << a.out << "\n";
+  std::cout << cli::formatPlan(plan, a.options);
 }
 
 // SIGINT and SIGTERM end a calibration or diagnosis at once (the trainer has no point to stop
@@ -314,7 +353,38 @@ int main(int argc, char** argv) {
                        "{joints: [from, to], ratio}, self_weight {links: [{link, mass_kg, com_m}]}, "
                        "thermal_expansion {expansion_per_k, reference_temp_c}, sensor_bias "
                        "{force_n, moment_nm}; joints and links 1 … 6");
+  simulate->add_option("--poses", sim.poses,
+                       "pose list (poses.csv, e.g. from stepcal plan) measured as the fit rows; "
+                       "the protocol's validation rows stay");
   simulate->add_option("--out", sim.out, "campaign folder to write")->required();
+
+  PlanArgs plan_args;
+  CLI::App* plan = app.add_subcommand(
+      "plan", "choose the poses of a campaign, each measured at the given loads: D-optimal for geometry and "
+              "compliance, spread over every joint's range, visible to the tracker");
+  plan->add_option("--robot", plan_args.urdf, "robot description (URDF)")->capture_default_str();
+  plan->add_option("--base-link", plan_args.base_link, "root of the chain")->capture_default_str();
+  plan->add_option("--tip-link", plan_args.tip_link, "frame the tracker measures")->capture_default_str();
+  plan->add_option("--sensor-link", plan_args.sensor_link, "F/T sensor the payload hangs from")
+      ->capture_default_str();
+  plan->add_option("--poses", plan_args.options.poses, "number of poses N")->required();
+  plan->add_option("--loads", plan_args.options.loads_kg,
+                   "payloads every pose is measured at, kg, with 0")
+      ->delimiter(',')->capture_default_str();
+  plan->add_option("--tracker", plan_args.tracker_m, "tracker head in base_link: x,y,z, m")
+      ->delimiter(',')->capture_default_str();
+  plan->add_option("--min-range-m", plan_args.options.min_range_m, "nearest tip distance, m")
+      ->capture_default_str();
+  plan->add_option("--max-range-m", plan_args.options.max_range_m, "farthest tip distance, m")
+      ->capture_default_str();
+  plan->add_option("--clearance-m", plan_args.options.line_of_sight_clearance_m,
+                   "line of sight to the arm's link polyline, at least, m")->capture_default_str();
+  plan->add_option("--candidates", plan_args.options.candidates, "candidate poses drawn")
+      ->capture_default_str();
+  plan->add_option("--seed", plan_args.options.seed, "random seed of the candidates")
+      ->capture_default_str();
+  plan->add_option("--selection", plan_args.selection, "d-optimal | random")->capture_default_str();
+  plan->add_option("--out", plan_args.out, "pose list to write (poses.csv)")->required();
 
   CLI::App* import = app.add_subcommand("import", "convert foreign measurements into a campaign");
   import->require_subcommand(1);
@@ -392,6 +462,8 @@ int main(int argc, char** argv) {
     if (*simulate) {
       runSimulate(sim);
       std::cerr << "wrote " << sim.out << " (campaign + truth.json)\n";
+    } else if (*plan) {
+      runPlan(plan_args);
     } else if (*ipa) {
       writeCampaign(importers::importIpaSeries(ipa_csv, validation_from_row, ipa_urdf), ipa_out);
       std::cerr << "wrote " << ipa_out << "\n";

@@ -320,4 +320,24 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
           {"fit", fit}};
 }
 
+std::string formatPlan(const trainer::CampaignPlan& plan, const trainer::PlanOptions& options) {
+  std::ostringstream out;
+  const int visible = plan.candidates_drawn - plan.rejected_range - plan.rejected_floor -
+                      plan.rejected_line_of_sight;
+  out << format("%d poses (%s) x %zu loads = %zu rows, from %d visible of %d candidates "
+                "(%d out of range, %d below the floor, %d with the arm in the line of sight)\n",
+                options.poses,
+                options.selection == trainer::PoseSelection::kRandom ? "random" : "D-optimal",
+                options.loads_kg.size(), plan.rows.size(), visible, plan.candidates_drawn,
+                plan.rejected_range, plan.rejected_floor, plan.rejected_line_of_sight);
+  out << format("log det of the normalised information (geometry + compliance, ridge %g): %.2f\n",
+                options.ridge, plan.log_det_information);
+  out << format("joint range covered (share of %d bins):", options.spread_bins);
+  for (size_t i = 0; i < plan.joint_coverage.size(); ++i) {
+    out << format(" q%zu %.2f", i + 1, plan.joint_coverage[i]);
+  }
+  out << "\n";
+  return out.str();
+}
+
 }  // namespace stepcal::cli

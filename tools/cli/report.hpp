@@ -8,6 +8,7 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/trainer/pipeline.hpp"
+#include "stepcal/trainer/plan.hpp"
 
 namespace stepcal::cli {
 
@@ -32,5 +33,9 @@ std::string formatAccuracyTable(const std::vector<trainer::AccuracySummary>& sum
 
 /// Accuracy summaries as a JSON list.
 nlohmann::json accuracyJson(const std::vector<trainer::AccuracySummary>& summaries);
+
+/// What a plan found: candidates kept and why others were not, its information and the
+/// selected poses' coverage of every joint's range.
+std::string formatPlan(const trainer::CampaignPlan& plan, const trainer::PlanOptions& options);
 
 }  // namespace stepcal::cli

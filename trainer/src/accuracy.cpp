@@ -65,6 +65,18 @@ std::vector<AccuracySummary> summarize(const std::string& method,
   return out;
 }
 
+double pooledMeanPosition(const std::vector<AccuracySummary>& summaries, const std::string& method,
+                          RowSet set) {
+  double sum_m = 0.0;
+  int rows = 0;
+  for (const AccuracySummary& s : summaries) {
+    if (s.method != method || s.set != set) continue;
+    sum_m += s.mean_position_m * s.rows;
+    rows += s.rows;
+  }
+  return rows > 0 ? sum_m / rows : std::numeric_limits<double>::quiet_NaN();
+}
+
 double noiseFloorMean(double sigma_per_axis) {
   return sigma_per_axis * 2.0 * std::sqrt(2.0 / M_PI);
 }

@@ -5,6 +5,8 @@
 #include <ctime>
 #include <limits>
 #include <memory>
+#include <set>
+#include <string>
 
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/lie.hpp"
@@ -108,6 +110,22 @@ Eigen::VectorXd gprInput(const Measurement& row) {
   return x;
 }
 
+namespace {
+
+// The stiffness rows and the unloaded geometry rows of their poses: a planned campaign
+// (readPoseList) measures each pose once unloaded, for step 1 and as the loads' reference.
+std::vector<const Measurement*> stiffnessPairRows(const Campaign& campaign) {
+  std::vector<const Measurement*> rows = campaign.rowsIn(RowSet::kStiffness);
+  std::set<std::string> loaded_poses;
+  for (const Measurement* row : rows) loaded_poses.insert(row->pose_id);
+  for (const Measurement* row : campaign.rowsIn(RowSet::kGeometry)) {
+    if (row->load_kg == 0.0 && loaded_poses.count(row->pose_id) > 0) rows.push_back(row);
+  }
+  return rows;
+}
+
+}  // namespace
+
 CalibrationOutcome calibrateCampaign(const Campaign& campaign, const CalibrationOptions& options) {
   CalibrationOutcome out;
   auto clock = std::chrono::steady_clock::now();
@@ -129,8 +147,7 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
   // Step 2 where the campaign has loaded/unloaded pairs and a sensor.
   clock = std::chrono::steady_clock::now();
   const KinematicChain& chain = out.poe.chain_Tracker;
-  const std::vector<DeflectionPair> stiffness_pairs =
-      deflectionPairs(campaign.rowsIn(RowSet::kStiffness));
+  const std::vector<DeflectionPair> stiffness_pairs = deflectionPairs(stiffnessPairRows(campaign));
   JointVector compliance = JointVector::Zero(chain.dof());
   if (!stiffness_pairs.empty() && out.sensor_frame >= 0) {
     out.stiffness = identifyCompliance(chain, out.sensor_frame, stiffness_pairs, campaign.tracker,

@@ -149,6 +149,8 @@ nlohmann::json toJson(const TwinOptions& o) {
       {"tip_link", o.tip_link},
       {"sensor_link", o.sensor_link},
       {"protocol", o.protocol},
+      {"planned_fit_rows", o.planned_fit_rows.size()},
+      {"noiseless_validation", o.noiseless_validation},
       {"seed", o.seed},
       {"tracker_position_sigma_m", o.tracker_position_sigma_m},
       {"tracker_orientation_sigma_rad", o.tracker_orientation_sigma_rad},

@@ -105,49 +105,103 @@ Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out)
   campaign.gravity_in_base = options.gravity_in_base_m_per_s2;
   campaign.joint_count = nominal.dof();
 
+  // The rows to measure, in order: the planned fit rows (if any), then the protocol's blocks,
+  // whose poses are drawn whether or not they are measured, so that validation poses stay.
+  struct RowToMeasure {
+    std::string pose_id;
+    RowSet set;
+    double load_kg;
+    JointVector q;
+  };
+  std::vector<RowToMeasure> rows_to_measure;
+  const bool has_plan = !options.planned_fit_rows.empty();
+  for (const PlannedMeasurement& row : options.planned_fit_rows) {
+    if (row.q_rad.size() != nominal.dof()) {
+      throw InputError("a planned row has " + std::to_string(row.q_rad.size()) +
+                           " joint angles; expected " + std::to_string(nominal.dof()) +
+                           " (hint: plan with the robot the twin simulates)",
+                       "poses", row.source_line);
+    }
+    rows_to_measure.push_back({row.pose_id, row.load_kg == 0.0 ? RowSet::kGeometry : RowSet::kStiffness,
+                       row.load_kg, row.q_rad});
+  }
   Rng pose_rng(options.seed, Stream::kPoses);
-  Rng noise_rng(options.seed, Stream::kNoise);
-  int64_t seq = 1;
   for (const Block& block : protocolBlocks(options.protocol)) {
     std::vector<JointVector> poses;
     for (int i = 0; i < block.poses; ++i) poses.push_back(drawPose(pose_rng, nominal, options));
+    if (has_plan && block.set != RowSet::kValidation) continue;
     for (double load_kg : block.loads_kg) {
       for (int i = 0; i < block.poses; ++i) {
-        const JointVector& q = poses[static_cast<size_t>(i)];
-        const double temp_c = trueTemperature_c(options, seq);
-        const Pose X_TrackerTip = robot.X_TrackerTip(q, load_kg, temp_c);
-        // Every noise draw happens whatever its sigma, so sigmas do not shift the stream.
-        const Vec3 dp = noise_rng.normal3(options.tracker_position_sigma_m);
-        const Vec3 dr = noise_rng.normal3(options.tracker_orientation_sigma_rad);
-        const Vec3 df = noise_rng.normal3(options.ft_force_sigma_n);
-        const Vec3 dm = noise_rng.normal3(options.ft_moment_sigma_nm);
-        const double dtemp = options.temperature_sigma_c * noise_rng.normal();
-
-        Measurement m;
-        m.seq = seq++;
-        m.pose_id = poseId(block.pose_prefix, i);
-        m.set = block.set;
-        m.load_kg = load_kg;
-        m.q_rad = q;
-        m.p_TipInTracker_m = X_TrackerTip.translation() + dp;
-        Eigen::Quaterniond quat(lie::expSO3(dr) * X_TrackerTip.linear());
-        quat.normalize();
-        if (quat.w() < 0.0) quat.coeffs() = -quat.coeffs();
-        m.has_orientation = true;
-        m.q_TrackerTip = quat;
-        // The sensor is always mounted and tared unloaded: unloaded rows read noise (around
-        // the bias, if the tare went wrong).
-        m.has_wrench = true;
-        m.wrench_Sensor = robot.sensorReading(q, load_kg, temp_c);
-        m.wrench_Sensor.head<3>() += df;
-        m.wrench_Sensor.tail<3>() += dm;
-        m.temp_c = temp_c + dtemp;
-        campaign.rows.push_back(std::move(m));
+        rows_to_measure.push_back({poseId(block.pose_prefix, i), block.set, load_kg,
+                           poses[static_cast<size_t>(i)]});
       }
     }
   }
+
+  Rng noise_rng(options.seed, Stream::kNoise);
+  int64_t seq = 1;
+  for (const RowToMeasure& row : rows_to_measure) {
+    const JointVector& q = row.q;
+    const double load_kg = row.load_kg;
+    const double temp_c = trueTemperature_c(options, seq);
+    const Pose X_TrackerTip = robot.X_TrackerTip(q, load_kg, temp_c);
+    // Every noise draw happens whatever its sigma, so sigmas do not shift the stream.
+    const double noise =
+        options.noiseless_validation && row.set == RowSet::kValidation ? 0.0 : 1.0;
+    const Vec3 dp = noise * noise_rng.normal3(options.tracker_position_sigma_m);
+    const Vec3 dr = noise * noise_rng.normal3(options.tracker_orientation_sigma_rad);
+    const Vec3 df = noise * noise_rng.normal3(options.ft_force_sigma_n);
+    const Vec3 dm = noise * noise_rng.normal3(options.ft_moment_sigma_nm);
+    const double dtemp = noise * options.temperature_sigma_c * noise_rng.normal();
+
+    Measurement m;
+    m.seq = seq++;
+    m.pose_id = row.pose_id;
+    m.set = row.set;
+    m.load_kg = load_kg;
+    m.q_rad = q;
+    m.p_TipInTracker_m = X_TrackerTip.translation() + dp;
+    Eigen::Quaterniond quat(lie::expSO3(dr) * X_TrackerTip.linear());
+    quat.normalize();
+    if (quat.w() < 0.0) quat.coeffs() = -quat.coeffs();
+    m.has_orientation = true;
+    m.q_TrackerTip = quat;
+    // The sensor is always mounted and tared unloaded: unloaded rows read noise (around
+    // the bias, if the tare went wrong).
+    m.has_wrench = true;
+    m.wrench_Sensor = robot.sensorReading(q, load_kg, temp_c);
+    m.wrench_Sensor.head<3>() += df;
+    m.wrench_Sensor.tail<3>() += dm;
+    m.temp_c = temp_c + dtemp;
+    campaign.rows.push_back(std::move(m));
+  }
   if (truth_out != nullptr) *truth_out = robot.truthJson();
   return campaign;
+}
+
+std::vector<PlannedMeasurement> randomPoseList(const TwinOptions& options, int poses,
+                                               const std::vector<double>& loads_kg) {
+  if (poses < 1 || std::count(loads_kg.begin(), loads_kg.end(), 0.0) != 1) {
+    throw InputError("a random pose list of " + std::to_string(poses) + " poses at " +
+                     std::to_string(loads_kg.size()) +
+                     " loads; expected at least one pose and the loads with 0 once (hint: every "
+                     "pose is measured unloaded, e.g. loads 0, 20, 40)");
+  }
+  const std::string path = resolvedUrdfPath(options);
+  const KinematicChain nominal = nominalChain(readTextFile(path), options, path);
+  validateOptions(options, nominal);
+  Rng rng(options.seed, Stream::kRandomPoseList);
+  std::vector<JointVector> drawn;
+  for (int i = 0; i < poses; ++i) drawn.push_back(drawPose(rng, nominal, options));
+  std::vector<double> loads = loads_kg;
+  std::sort(loads.begin(), loads.end());
+  std::vector<PlannedMeasurement> rows;
+  for (const double load_kg : loads) {
+    for (int i = 0; i < poses; ++i) {
+      rows.push_back({poseId("rand", i), load_kg, drawn[static_cast<size_t>(i)], 0});
+    }
+  }
+  return rows;
 }
 
 void writeSimulation(const TwinOptions& options, const std::string& out_dir) {

@@ -68,6 +68,24 @@ struct Campaign {
   std::vector<const Measurement*> rowsIn(RowSet set) const;
 };
 
+/// One row of a pose list (poses.csv, the plan of a campaign): a commanded pose to measure at
+/// one payload. Joint angles rad, load kg.
+struct PlannedMeasurement {
+  std::string pose_id;  ///< rows sharing it are one pose measured at several loads
+  double load_kg = 0.0;  ///< nominal payload; 0 = unloaded
+  JointVector q_rad;     ///< commanded joint angles, URDF convention, rad
+  int source_line = 0;   ///< line in the file (1 = header), 0 when planned in memory
+};
+
+/// Reads a pose list: header `pose_id,load_kg,q1_deg,…,qN_deg` (any order, nothing else), one
+/// row per measurement, degrees in the file. Every pose_id has exactly one unloaded row (step 1
+/// fits it, step 2 pairs the loaded rows with it) and its loaded rows repeat its angles.
+/// joint_count is N. Throws InputError naming file, line, column, value and expectation.
+std::vector<PlannedMeasurement> readPoseList(const std::string& path, int joint_count);
+
+/// Writes a pose list that readPoseList reads back exactly. Throws InputError on I/O errors.
+void writePoseList(const std::vector<PlannedMeasurement>& rows, const std::string& path);
+
 /// Reads a campaign folder (or the path of its campaign.yaml). Throws InputError.
 Campaign readCampaign(const std::string& path);
 

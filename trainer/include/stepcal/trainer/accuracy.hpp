@@ -47,6 +47,11 @@ std::vector<AccuracySummary> summarize(const std::string& method,
 std::vector<AccuracySummary> summarize(const std::string& method, const PoseModel& model,
                                        const std::vector<Measurement>& rows);
 
+/// One method's mean position error over every row of a set, all loads pooled (row-weighted), m;
+/// NaN when the summaries hold no such row.
+double pooledMeanPosition(const std::vector<AccuracySummary>& summaries, const std::string& method,
+                          RowSet set);
+
 /// Mean error that measurement noise alone gives (χ with 3 dof): σ·2·√(2/π), for σ per axis.
 double noiseFloorMean(double sigma_per_axis);
 

@@ -58,6 +58,13 @@ struct TwinOptions {
   std::string protocol = "paper";
   /// Seeds every random draw; same seed, same campaign.
   uint64_t seed = 1;
+  /// A planned campaign (readPoseList): when not empty, these are the fit rows, measured in
+  /// their order (unloaded rows set=geometry, loaded rows set=stiffness under the same pose_id),
+  /// followed by the protocol's validation rows at the same poses as without them.
+  std::vector<PlannedMeasurement> planned_fit_rows;
+  /// Validation rows measured without noise (tracker, sensor, temperature; the draws still
+  /// happen, so every other row stays): a model's error on them is its error against the truth.
+  bool noiseless_validation = false;
 
   /// Tracker position noise per axis, 1-σ, m.
   double tracker_position_sigma_m = 10e-6;
@@ -205,12 +212,21 @@ class TwinRobot {
 ///   stf  stiffness  80 × 0,20,30,40   stfv validation  30 × 0,20,30,40
 ///   res  residual  100 × 20,30,40     resv validation  50 × 20,30,40
 ///   ext  validation 50 × 55 (load extrapolation)
-/// Within a block every pose is measured at one load before the payload changes. "geometry" is
+/// Within a block every pose is measured at one load before the payload changes. With
+/// planned_fit_rows, those rows come first and replace the geo, stf and res blocks; the
+/// validation blocks keep their poses (every block's poses are still drawn, in order). "geometry" is
 /// the first two blocks. Every row has a wrench: the sensor stays mounted and tared unloaded, so
 /// unloaded rows read its noise around zero (around the bias with sensor_bias). Each row is
 /// measured at its true temperature T(seq) (TwinOptions::temperature_c); temp_c is T(seq) plus
 /// the reading's noise.
 Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out);
+
+/// A pose list (readPoseList's rows) of `poses` commanded poses drawn as the protocol draws its
+/// own (pose_ranges, tip in front of the robot), from a stream of their own so that they are not
+/// the protocol's poses, each measured at every load of loads_kg (which holds 0): the random
+/// campaign a planned one is compared with. Throws InputError.
+std::vector<PlannedMeasurement> randomPoseList(const TwinOptions& options, int poses,
+                                               const std::vector<double>& loads_kg);
 
 /// Writes the simulated campaign into out_dir (writeCampaign) and truth.json beside it.
 void writeSimulation(const TwinOptions& options, const std::string& out_dir);

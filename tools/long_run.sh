@@ -27,7 +27,9 @@ requests=${1:-1000000}
 rate_hz=${RATE_HZ:-500}
 swap_s=${SWAP_S:-3}
 chunk=${CHUNK:-50000}
-url=${LCM_URL:-udpm://239.255.76.67:7667?ttl=0}
+# A 4 MB socket receive buffer (where net.core.rmem_max allows): every socket sees all traffic of
+# both clients, and a stall of the loaded machine overflows the default 208 kB.
+url=${LCM_URL:-udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304}
 out=${OUT:-$(mktemp -d /tmp/long_run.XXXXXX)}
 asan=${STEPCAL_ASAN_DIR:-$root/build-asan}
 mkdir -p "$out"
@@ -154,6 +156,8 @@ kill -TERM "$daemon"
 daemon_status=0
 wait "$daemon" || daemon_status=$?
 duration_s=$(($(date +%s) - started))
+# Datagrams the kernel dropped for full receive buffers, all sockets of the namespace.
+udp_drops=$(awk '/^Udp:/ && $2 ~ /^[0-9]+$/ {print $6}' /proc/net/snmp)
 
 # ---- the checks ------------------------------------------------------------------------------
 failures=()
@@ -165,6 +169,8 @@ checked=$(sum .check.checked)
 mismatched=$(sum .check.mismatched)
 unknown=$(sum .check.unknown_model)
 changes=$(sum .check.model_changes)
+statuses=$(jq -s -c 'map(.statuses | to_entries[]) | group_by(.key)
+  | map({(.[0].key): (map(.value) | add)}) | add' "$out"/forward-*.json "$out"/inverse-*.json)
 max_difference=$(jq -s 'map(.check.max_difference) | max' "$out"/forward-*.json "$out"/inverse-*.json)
 models_answering=$(jq -s '[.[].check.models[] | select(.replies > 0) | .path] | unique | length' \
   "$out"/forward-*.json "$out"/inverse-*.json)
@@ -199,7 +205,8 @@ growth_mb=$(((rss_last - rss_quarter) / 1024))
 
 cat <<EOF
 requests sent          $sent (forward and inverse, $rate_hz Hz per client)
-replies received       $replies
+replies received       $replies (UDP receive-buffer drops in the namespace: $udp_drops)
+statuses               $statuses
 checked against model  $checked: $mismatched differ, $unknown from an unknown model, largest difference $max_difference
 model swaps            $swaps ($reloaded reloaded, $refused refused: the corrupt file; kept model $kept)
 model changes in replies $changes, from $models_answering models

@@ -75,7 +75,7 @@ ip link set lo up
 ip route add 224.0.0.0/4 dev lo
 bin=$asan/bin
 served=$out/served.stepcal
-rm -f "$out"/*.json "$out"/*.log "$out"/rss.txt
+rm -f "$out"/*.json "$out"/*.jsonl "$out"/*.log "$out"/rss.txt
 cp "$models/model-${seeds[0]}.stepcal" "$served"
 pids=()
 cleanup() {
@@ -162,7 +162,11 @@ udp_drops=$(awk '/^Udp:/ && $2 ~ /^[0-9]+$/ {print $6}' /proc/net/snmp)
 # ---- the checks ------------------------------------------------------------------------------
 failures=()
 fail() { failures+=("$1"); }
-sum() { jq -s "map($1) | add" "$out"/forward-*.json "$out"/inverse-*.json; }
+# Each client's JSON once, without its per-row part (large).
+for f in "$out"/forward-*.json "$out"/inverse-*.json; do
+  jq -c '{requests, replies, statuses, check}' "$f"
+done >"$out/summary.jsonl"
+sum() { jq -s "map($1) | add" "$out/summary.jsonl"; }
 sent=$(sum .requests)
 replies=$(sum .replies)
 checked=$(sum .check.checked)
@@ -170,16 +174,16 @@ mismatched=$(sum .check.mismatched)
 unknown=$(sum .check.unknown_model)
 changes=$(sum .check.model_changes)
 statuses=$(jq -s -c 'map(.statuses | to_entries[]) | group_by(.key)
-  | map({(.[0].key): (map(.value) | add)}) | add' "$out"/forward-*.json "$out"/inverse-*.json)
-max_difference=$(jq -s 'map(.check.max_difference) | max' "$out"/forward-*.json "$out"/inverse-*.json)
+  | map({(.[0].key): (map(.value) | add)}) | add' "$out/summary.jsonl")
+max_difference=$(jq -s 'map(.check.max_difference) | max' "$out/summary.jsonl")
 models_answering=$(jq -s '[.[].check.models[] | select(.replies > 0) | .path] | unique | length' \
-  "$out"/forward-*.json "$out"/inverse-*.json)
+  "$out/summary.jsonl")
 swaps=$(wc -l <"$out/swaps.log")
 reloaded=$(grep -c "stepcal-runtime: reloaded" "$out/daemon.log" || true)
 refused=$(grep -c "stepcal-runtime: reload refused" "$out/daemon.log" || true)
 asan_errors=$(cat "$out"/daemon.log "$out"/forward.log "$out"/inverse.log |
   grep -c "ERROR: \(Address\|Leak\)Sanitizer" || true)
-id_of() { jq -r --arg path "$1" '.check.models[] | select(.path == $path) | .model_id' "$out/forward-0.json"; }
+id_of() { jq -r -s --arg path "$1" '.[0].check.models[] | select(.path == $path) | .model_id' "$out/summary.jsonl"; }
 # The daemon must have kept the model put in place by the first swap.
 kept_expected=$(id_of "$models/model-${seeds[1]}.stepcal")
 kept=$(sed -n 's/.*reload refused, keeping model \([0-9a-f]*\).*/\1/p' "$out/daemon.log" | head -1)

@@ -10,12 +10,14 @@
 # Environment: STEPCAL_BIN_DIR (default build/bin), LCM_URL (default
 # udpm://239.255.76.67:7667?ttl=0), MODE (forward | inverse, default forward), REALTIME=1
 # (daemon with --realtime), RATE_HZ (requests and pings on a fixed schedule at this rate; default
-# one in flight at a time), OUT (folder for the JSON results, default a temporary one).
+# one in flight at a time), TIMEOUT_MS (a reply later than this is lost, default 100), OUT
+# (folder for the JSON results, default a temporary one).
+# Exit status: 0, 1 when a request or ping got no reply, 2 usage, 77 skipped (no `unshare -n`).
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 if [[ $# -lt 1 || $# -gt 3 ]]; then
-  sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//' >&2
+  sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//' >&2
   exit 2
 fi
 model=$(realpath "$1")
@@ -26,7 +28,10 @@ url=${LCM_URL:-udpm://239.255.76.67:7667?ttl=0}
 mode=${MODE:-forward}
 
 if [[ -z ${STEPCAL_IN_NETNS:-} ]]; then
-  [[ $(id -u) -eq 0 ]] || { echo "lcm_roundtrip: needs root (unshare -n)" >&2; exit 2; }
+  if [[ $(id -u) -ne 0 ]] || ! unshare -n true 2>/dev/null; then
+    echo "lcm_roundtrip: skipped: this machine does not permit a network namespace (unshare -n; needs root or CAP_SYS_ADMIN)"
+    exit 77
+  fi
   command -v jq >/dev/null || { echo "lcm_roundtrip: needs jq (apt-get install jq)" >&2; exit 2; }
   for f in "$bin/stepcal-runtime" "$bin/stepcal-client"; do
     [[ -x $f ]] || { echo "lcm_roundtrip: $f: not built (set STEPCAL_BIN_DIR)" >&2; exit 2; }
@@ -66,8 +71,8 @@ done
 [[ -n ${ready:-} ]] || { echo "lcm_roundtrip: daemon or echo not answering" >&2; cat "$out"/*.log >&2; exit 1; }
 
 echo "$count raw pings (stepcal-client --ping ↔ --echo) on $url ..."
-rate_args=()
-[[ -n ${RATE_HZ:-} ]] && rate_args=(--rate "$RATE_HZ")
+rate_args=(--timeout-ms "${TIMEOUT_MS:-100}")
+[[ -n ${RATE_HZ:-} ]] && rate_args+=(--rate "$RATE_HZ")
 "$bin/stepcal-client" --lcm-url "$url" --ping "$count" "${rate_args[@]}" --json >"$out/ping.json"
 echo "$count $mode requests (stepcal-client --campaign $campaign ↔ stepcal-runtime) ..."
 request_args=(--lcm-url "$url" --campaign "$campaign" --mode "$mode" --count "$count" --json
@@ -95,3 +100,6 @@ jq -r -n --slurpfile ping "$out/ping.json" --slurpfile req "$out/requests.json" 
 '
 grep -h "stepcal-runtime:" "$out/daemon.log" | head -1
 echo "results: $out/ping.json $out/requests.json"
+lost=$(jq -n --slurpfile ping "$out/ping.json" --slurpfile req "$out/requests.json" \
+  '$ping[0].lost + $req[0].lost')
+[[ $lost == 0 ]] || { echo "lcm_roundtrip: $lost requests or pings got no reply" >&2; exit 1; }

@@ -32,6 +32,12 @@
 // --sensor-republish puts each sample it took): the first may still be the reading the sensor
 // made just before it applied the state. The report adds the latency from the CAN frame (the
 // reply's wrench_stamp_ns) to the reply.
+//
+// --check-model FILE (repeatable): every reply is recomputed offline with the model file whose
+// model_id it carries, through the daemon's own code (decodeRequest, the runtime's calls,
+// service::writeAnswer); an inverse reply with the iteration cap set to the iterations it took,
+// since the daemon's deadline may have cut it short. A reply whose values differ (more than
+// 1e-12) or whose model_id is none of the files' is a torn answer: exit status 1.
 #include <CLI/CLI.hpp>
 #include <poll.h>
 #include <signal.h>
@@ -91,6 +97,7 @@ struct Args {
   bool json = false;
   bool live_wrench = false;
   std::string wrench_channel = service::kWrenchChannel;
+  std::vector<std::string> check_models;
 };
 
 /// An LCM instance for the lifetime of the object.
@@ -566,6 +573,132 @@ struct FreshSamples {
   }
 };
 
+/// Recomputes replies offline with the model each names (--check-model).
+class ReplyChecker {
+ public:
+  /// Largest difference of any value from its offline recomputation. The daemon and this
+  /// client run the same library code on the same inputs, so they agree to the last bit; the
+  /// margin only forgives a client built with other flags than the daemon.
+  static constexpr double kTolerance = 1e-12;
+
+  explicit ReplyChecker(const std::vector<std::string>& model_paths) {
+    for (const std::string& path : model_paths) {
+      Known known{path, runtime::RuntimeModel::load(path), {}, 0};
+      known.workspace = runtime::makeWorkspace(*known.model);
+      models_.push_back(std::move(known));
+    }
+  }
+
+  void check(const correction_request_t& request, const correction_reply_t& reply) {
+    ++checked_;
+    if (last_model_id_ != 0 && reply.model_id != last_model_id_) ++model_changes_;
+    last_model_id_ = reply.model_id;
+    Known* known = nullptr;
+    for (Known& k : models_) {
+      if (int64_t(k.model->model_id) == reply.model_id) known = &k;
+    }
+    if (known == nullptr) {
+      ++unknown_model_;
+      noteProblem(reply, "model " + modelIdText(reply.model_id) + " is none of --check-model's");
+      return;
+    }
+    ++known->replies;
+    const correction_reply_t expected = recompute(request, reply, *known);
+    const double difference = maxDifference(expected, reply);
+    max_difference_ = std::max(max_difference_, difference);
+    if (expected.status != reply.status || expected.iterations != reply.iterations ||
+        expected.uncovered_joints != reply.uncovered_joints || !(difference <= kTolerance)) {
+      ++mismatched_;
+      char what[160];
+      std::snprintf(what, sizeof what,
+                    "status %s, %d iterations offline with model %s; the reply: %s, %d, values "
+                    "off by up to %.3g",
+                    runtime::toString(runtime::Status(expected.status)), expected.iterations,
+                    modelIdText(reply.model_id).c_str(),
+                    runtime::toString(runtime::Status(reply.status)), reply.iterations, difference);
+      noteProblem(reply, what);
+    }
+  }
+
+  bool passed() const { return mismatched_ == 0 && unknown_model_ == 0; }
+
+  nlohmann::json toJson() const {
+    nlohmann::json models = nlohmann::json::array();
+    for (const Known& k : models_) {
+      models.push_back({{"path", k.path}, {"model_id", modelIdText(int64_t(k.model->model_id))},
+                        {"replies", k.replies}});
+    }
+    return {{"checked", checked_},         {"mismatched", mismatched_},
+            {"unknown_model", unknown_model_}, {"max_difference", max_difference_},
+            {"model_changes", model_changes_}, {"models", models},
+            {"first_problem", first_problem_}};
+  }
+
+ private:
+  struct Known {
+    std::string path;
+    std::unique_ptr<const runtime::RuntimeModel> model;
+    runtime::Workspace workspace;
+    long replies = 0;
+  };
+
+  static correction_reply_t recompute(const correction_request_t& request,
+                                      const correction_reply_t& reply, Known& known) {
+    std::vector<uint8_t> bytes(size_t(request.getEncodedSize()));
+    request.encode(bytes.data(), 0, int(bytes.size()));
+    service::Request decoded;
+    correction_reply_t expected{};
+    expected.status = int8_t(service::decodeRequest(bytes.data(), int(bytes.size()), decoded));
+    if (expected.status != int8_t(runtime::Status::kOk)) return expected;
+    if (decoded.mode == service::Mode::kForward) {
+      const runtime::ForwardResult r = runtime::correctForward(
+          *known.model, known.workspace, decoded.q_rad, decoded.wrench_Sensor, decoded.temp_c);
+      expected.status = int8_t(r.status);
+      service::writeAnswer(r, expected);
+      return expected;
+    }
+    runtime::InverseOptions options;
+    options.max_iterations = reply.iterations;
+    const runtime::InverseResult r = runtime::solveInverse(
+        *known.model, known.workspace, decoded.X_TrackerTip_desired, decoded.wrench_Sensor,
+        decoded.temp_c, decoded.seed_q_rad, runtime::Clock::time_point::max(), options);
+    expected.status = int8_t(r.status);
+    service::writeAnswer(r, expected);
+    return expected;
+  }
+
+  static double maxDifference(const correction_reply_t& a, const correction_reply_t& b) {
+    double largest = 0.0;
+    const auto compare = [&](const double* x, const double* y, int n) {
+      for (int i = 0; i < n; ++i) {
+        const double d = std::abs(x[i] - y[i]);
+        largest = std::isnan(d) ? std::numeric_limits<double>::infinity() : std::max(largest, d);
+      }
+    };
+    compare(a.q_target_rad, b.q_target_rad, 6);
+    compare(a.commanded_position_m, b.commanded_position_m, 3);
+    compare(a.commanded_quaternion_wxyz, b.commanded_quaternion_wxyz, 4);
+    compare(a.predicted_position_m, b.predicted_position_m, 3);
+    compare(a.predicted_quaternion_wxyz, b.predicted_quaternion_wxyz, 4);
+    compare(a.gpr_std, b.gpr_std, 6);
+    compare(&a.residual_position_m, &b.residual_position_m, 1);
+    compare(&a.residual_orientation_rad, &b.residual_orientation_rad, 1);
+    return largest;
+  }
+
+  void noteProblem(const correction_reply_t& reply, const std::string& what) {
+    if (first_problem_.empty()) {
+      first_problem_ = "reply to request " + std::to_string(reply.request_id) + ": " + what;
+    }
+  }
+
+  std::vector<Known> models_;
+  long checked_ = 0, mismatched_ = 0, unknown_model_ = 0, model_changes_ = 0;
+  int64_t last_model_id_ = 0;
+  double max_difference_ = 0.0;
+  std::string first_problem_;
+};
+
 /// A campaign's rows as requests: latency, lost replies, statuses, accuracy.
 int runCampaign(Args args) {
   if (args.mode != "forward" && args.mode != "inverse") {
@@ -594,6 +727,11 @@ int runCampaign(Args args) {
   }
   if (args.count <= 0) args.count = int(rows.size());
   const std::optional<twin::TwinRobot> truth = readTruth(args.truth_path);
+  if (args.live_wrench && !args.check_models.empty()) {
+    throw InputError("--check-model recomputes replies from the requests' wrenches: drop --live-wrench");
+  }
+  std::optional<ReplyChecker> checker;
+  if (!args.check_models.empty()) checker.emplace(args.check_models);
 
   std::vector<const Measurement*> row_of;
   std::vector<correction_request_t> requests = campaignRequests(args, rows, row_of);
@@ -626,7 +764,7 @@ int runCampaign(Args args) {
     if (!echo.seen || fresh.count < 2) ++echo.missing;
   };
   const std::vector<correction_reply_t> replies =
-      sendRequests(lcm.get(), args, std::move(requests), exchange,
+      sendRequests(lcm.get(), args, requests, exchange,
                    args.live_wrench ? std::function<void(size_t)>(publishRobotState) : nullptr);
   lcm_unsubscribe(lcm.get(), applied);
   if (samples) lcm_unsubscribe(lcm.get(), samples);
@@ -649,6 +787,7 @@ int runCampaign(Args args) {
     if (r.status >= 0 && r.status < kStatusCount) ++status_counts[r.status];
     compute_us.push_back(double(r.compute_ns) * 1e-3);
     model_id = r.model_id;
+    if (checker) checker->check(requests[i], r);
     if (r.wrench_stamp_ns > 0) {
       frame_to_reply_us.push_back(double(receivedNs(exchange, i) - r.wrench_stamp_ns) * 1e-3);
     }
@@ -702,6 +841,7 @@ int runCampaign(Args args) {
     report["sensor_frame_to_reply_us"] = latencyJson(frame_to_reply_us);
     report["robot_states_not_applied"] = echo.missing;
   }
+  if (checker) report["check"] = checker->toJson();
   if (args.json) {
     std::cout << report.dump(2) << "\n";
   } else {
@@ -725,6 +865,17 @@ int runCampaign(Args args) {
     if (args.live_wrench) {
       std::cout << "CAN frame to reply: " << latencyText(report["sensor_frame_to_reply_us"]) << "\n";
     }
+    if (checker) {
+      const nlohmann::json& c = report["check"];
+      std::cout << "checked against their models: " << c["checked"] << " replies, "
+                << c["mismatched"] << " differ, " << c["unknown_model"]
+                << " from an unknown model, largest difference " << c["max_difference"] << "\n";
+    }
+  }
+  if (checker && !checker->passed()) {
+    std::cerr << "stepcal-client: torn answer: " << checker->toJson()["first_problem"].get<std::string>()
+              << "\n";
+    return 1;
   }
   return 0;
 }
@@ -839,6 +990,10 @@ int main(int argc, char** argv) {
   app.add_option("--timeout-ms", args.timeout_ms, "a reply later than this is lost, ms")
       ->capture_default_str();
   app.add_flag("--json", args.json, "print JSON");
+  app.add_option("--check-model", args.check_models,
+                 "campaign: recompute every reply with the model file whose id it carries; "
+                 "repeat for every model the daemon may serve")
+      ->take_all();
   CLI11_PARSE(app, argc, argv);
 
   try {

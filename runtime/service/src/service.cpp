@@ -39,6 +39,26 @@ bool carriesAnswer(Status status) noexcept {
 
 }  // namespace
 
+void writeAnswer(const runtime::ForwardResult& r, stepcal_lcm::correction_reply_t& reply) noexcept {
+  if (!carriesAnswer(r.status)) return;
+  writePose(r.X_TrackerTip, reply.predicted_position_m, reply.predicted_quaternion_wxyz);
+  writeVector(r.gpr_std, reply.gpr_std);
+  reply.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);
+}
+
+void writeAnswer(const runtime::InverseResult& r, stepcal_lcm::correction_reply_t& reply) noexcept {
+  if (!carriesAnswer(r.status)) return;
+  for (int i = 0; i < kMessageJoints; ++i) reply.q_target_rad[i] = r.q_target_rad[i];
+  writePose(r.X_BaseTip_commanded, reply.commanded_position_m, reply.commanded_quaternion_wxyz);
+  writePose(r.X_TrackerTip_predicted, reply.predicted_position_m,
+            reply.predicted_quaternion_wxyz);
+  writeVector(r.gpr_std, reply.gpr_std);
+  reply.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);
+  reply.iterations = r.iterations;
+  reply.residual_position_m = r.residual_position_m;
+  reply.residual_orientation_rad = r.residual_orientation_rad;
+}
+
 int64_t unixMicroseconds() noexcept {
   timespec now{};
   clock_gettime(CLOCK_REALTIME, &now);
@@ -124,11 +144,7 @@ Status Service::answer(const Request& request, const runtime::RuntimeModel& mode
   if (request.mode == Mode::kForward) {
     const runtime::ForwardResult r =
         runtime::correctForward(model, ws, request.q_rad, wrench_Sensor, request.temp_c);
-    if (carriesAnswer(r.status)) {
-      writePose(r.X_TrackerTip, reply_.predicted_position_m, reply_.predicted_quaternion_wxyz);
-      writeVector(r.gpr_std, reply_.gpr_std);
-      reply_.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);
-    }
+    writeAnswer(r, reply_);
     return r.status;
   }
   const int64_t request_budget_ns =
@@ -138,18 +154,7 @@ Status Service::answer(const Request& request, const runtime::RuntimeModel& mode
   const runtime::InverseResult r = runtime::solveInverse(
       model, ws, request.X_TrackerTip_desired, wrench_Sensor, request.temp_c, request.seed_q_rad,
       deadline);
-  if (carriesAnswer(r.status)) {
-    for (int i = 0; i < kMessageJoints; ++i) reply_.q_target_rad[i] = r.q_target_rad[i];
-    writePose(r.X_BaseTip_commanded, reply_.commanded_position_m,
-              reply_.commanded_quaternion_wxyz);
-    writePose(r.X_TrackerTip_predicted, reply_.predicted_position_m,
-              reply_.predicted_quaternion_wxyz);
-    writeVector(r.gpr_std, reply_.gpr_std);
-    reply_.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);
-    reply_.iterations = r.iterations;
-    reply_.residual_position_m = r.residual_position_m;
-    reply_.residual_orientation_rad = r.residual_orientation_rad;
-  }
+  writeAnswer(r, reply_);
   return r.status;
 }
 

@@ -118,6 +118,12 @@ class Service {
   stepcal_lcm::runtime_status_t status_{};
 };
 
+/// Writes a result's answer (poses, joints, GPR std, coverage, iterations) into a reply, as the
+/// daemon sends it; nothing for results without one (BAD_REQUEST, STALE_WRENCH). Offline checkers
+/// recompute replies through them. Allocation-free.
+void writeAnswer(const runtime::ForwardResult& r, stepcal_lcm::correction_reply_t& reply) noexcept;
+void writeAnswer(const runtime::InverseResult& r, stepcal_lcm::correction_reply_t& reply) noexcept;
+
 /// Now, µs since the Unix epoch (the utime fields of the messages).
 int64_t unixMicroseconds() noexcept;
 

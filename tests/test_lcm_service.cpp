@@ -8,6 +8,8 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -809,6 +811,109 @@ TEST(LcmService, ClientRefusesBadArgumentsWithExitStatus2) {
     EXPECT_EQ(r.status, 2) << args << ": " << r.out;
     EXPECT_NE(r.out.find(expected), std::string::npos) << args << ": " << r.out;
   }
+}
+
+// ---- real UDP multicast (udpm://) --------------------------------------------------------------
+
+/// Datagrams the kernel dropped for full socket receive buffers in this network namespace
+/// (RcvbufErrors of the Udp line in /proc/net/snmp), or −1 when it cannot be read.
+int64_t udpReceiveBufferErrors() {
+  std::FILE* snmp = std::fopen("/proc/net/snmp", "r");
+  if (snmp == nullptr) return -1;
+  char line[1024];
+  int column = -1;
+  int64_t errors = -1;
+  while (std::fgets(line, sizeof line, snmp) != nullptr) {
+    if (std::strncmp(line, "Udp: ", 5) != 0) continue;
+    std::vector<std::string> fields;
+    for (char* f = std::strtok(line + 5, " \n"); f != nullptr; f = std::strtok(nullptr, " \n")) {
+      fields.emplace_back(f);
+    }
+    if (column < 0) {  // the header line names the columns
+      for (size_t k = 0; k < fields.size(); ++k) {
+        if (fields[k] == "RcvbufErrors") column = int(k);
+      }
+    } else if (column < int(fields.size())) {
+      errors = std::stoll(fields[size_t(column)]);
+    }
+  }
+  std::fclose(snmp);
+  return errors;
+}
+
+/// Messages received on a channel.
+struct MessageCount {
+  int messages = 0;
+  static void on(const lcm_recv_buf_t*, const char*, void* user) {
+    ++static_cast<MessageCount*>(user)->messages;
+  }
+};
+
+/// Dispatches what an LCM instance has queued, until it has nothing for 200 ms.
+void drain(lcm_t* lcm) {
+  while (lcm_handle_timeout(lcm, 200) > 0) {
+  }
+}
+
+// Over real UDP multicast (udpm://; ctest net_lcm_queue runs this in a private network namespace
+// through tools/in_netns.sh): requests that arrive while the serving thread handles nothing (a
+// stall: the machine preempting it, slow answers under ASan) are all answered once it handles
+// again, and a client that handles nothing meanwhile still gets every reply. A subscription with
+// LCM's default queue capacity, stalled alike, keeps only 30 of them and drops the rest without
+// a word: what lost the long run's replies (docs/runtime.md).
+TEST(LcmUdpm, MessagesQueuedDuringAStallAreAllHandled) {
+  if (std::getenv("STEPCAL_NETNS") == nullptr) {
+    GTEST_SKIP() << "needs a private network namespace with multicast on its loopback "
+                    "(tools/in_netns.sh; ctest -R net_lcm_queue)";
+  }
+  // 4 MB socket buffers hold the whole burst in the kernel, whatever the receive threads' pace:
+  // what is tested is LCM's queue.
+  const std::string url = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
+  constexpr int kStalledRequests = 600;  // 0.3 s of the long run's 2 kHz; 20 × LCM's default
+  static_assert(kStalledRequests <= kSubscriptionQueueCapacity);
+  using LcmPtr = std::unique_ptr<lcm_t, void (*)(lcm_t*)>;
+  const LcmPtr daemon_lcm(lcm_create(url.c_str()), &lcm_destroy);
+  const LcmPtr client_lcm(lcm_create(url.c_str()), &lcm_destroy);
+  const LcmPtr bystander_lcm(lcm_create(url.c_str()), &lcm_destroy);
+  ASSERT_TRUE(daemon_lcm && client_lcm && bystander_lcm) << url;
+  Service service(paperModel(), "paper.stepcal", generousOptions());
+  LcmServer server(daemon_lcm.get(), service);
+  ChannelLog replies;
+  subscribeQueued(client_lcm.get(), kReplyChannel, &ChannelLog::on, &replies);
+  MessageCount with_default_queue;
+  lcm_subscribe(bystander_lcm.get(), kRequestChannel, &MessageCount::on, &with_default_queue);
+  const int64_t kernel_drops_before = udpReceiveBufferErrors();
+
+  for (int i = 0; i < kStalledRequests; ++i) {
+    const std::vector<uint8_t> bytes = encode(forwardRequest(validationRow(size_t(i)), i));
+    ASSERT_EQ(lcm_publish(client_lcm.get(), kRequestChannel, bytes.data(), unsigned(bytes.size())), 0);
+    std::this_thread::sleep_for(std::chrono::microseconds(100));  // 10 kHz: receivers keep pace
+  }
+  // LCM's receive threads take every datagram in while no thread handles them.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  drain(daemon_lcm.get());  // the serving thread runs again: a reply leaves per request
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  drain(client_lcm.get());  // and so does the client
+  drain(bystander_lcm.get());
+
+  EXPECT_EQ(udpReceiveBufferErrors(), kernel_drops_before)
+      << "the kernel dropped datagrams (socket buffers full): this test is about LCM's queue";
+  EXPECT_EQ(service.counters().requests, kStalledRequests) << "requests lost before the daemon";
+  ASSERT_EQ(int(replies.messages.size()), kStalledRequests) << "replies lost before the client";
+  std::vector<bool> answered(size_t(kStalledRequests), false);
+  for (const std::vector<uint8_t>& bytes : replies.messages) {
+    correction_reply_t reply;
+    ASSERT_EQ(reply.decode(bytes.data(), 0, int(bytes.size())), int(bytes.size()));
+    ASSERT_GE(reply.request_id, 0);
+    ASSERT_LT(reply.request_id, kStalledRequests);
+    EXPECT_FALSE(answered[size_t(reply.request_id)]) << "two replies to " << reply.request_id;
+    answered[size_t(reply.request_id)] = true;
+    EXPECT_EQ(reply.status, int8_t(Status::kOk));
+  }
+  // LCM 1.3.1 keeps one more than its stated capacity: 31 here.
+  EXPECT_NEAR(with_default_queue.messages, 30, 1)
+      << "LCM's default queue capacity (lcm.h: 30) dropped all but about 30 of the stalled "
+         "requests";
 }
 
 }  // namespace

@@ -47,11 +47,14 @@ if [[ -z ${STEPCAL_IN_NETNS:-} ]]; then
   [[ -x $stepcal ]] || { echo "long_run: $stepcal: not built (set STEPCAL_BIN_DIR)" >&2; exit 2; }
 
   echo "ASan build of stepcal-runtime and stepcal-client in $asan ..."
-  if [[ ! -f $asan/CMakeCache.txt ]]; then
-    flags="-fsanitize=address -fno-omit-frame-pointer"
-    cmake -S "$root" -B "$asan" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS="$flags" \
-      -DCMAKE_C_FLAGS="$flags" -DCMAKE_EXE_LINKER_FLAGS=-fsanitize=address >"$out/asan-configure.log"
-  fi
+  # -O1 -g1: what ASan needs (every access instrumented, line numbers in its reports) at about
+  # half the compile time of RelWithDebInfo's -O2 -g (docs/runtime.md). Configured every time, so
+  # that a folder made with other flags is brought to these; only the two executables and the
+  # libraries they link are built.
+  flags="-fsanitize=address -fno-omit-frame-pointer"
+  cmake -S "$root" -B "$asan" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS="$flags" \
+    -DCMAKE_C_FLAGS="$flags" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
+    -DCMAKE_EXE_LINKER_FLAGS=-fsanitize=address >"$out/asan-configure.log"
   cmake --build "$asan" -j"$(nproc)" --target stepcal-runtime stepcal-client >"$out/asan-build.log"
 
   mkdir -p "$models"
@@ -90,7 +93,14 @@ export ASAN_OPTIONS="detect_leaks=1:quarantine_size_mb=16:${ASAN_OPTIONS:-}"
 started=$(date +%s)
 "$bin/stepcal-runtime" --model "$served" --lcm-url "$url" 2>"$out/daemon.log" &
 daemon=$!
+# Subscribed once it says it serves; then the probe's requests reach it (it counts them too).
+for _ in $(seq 300); do
+  grep -q "stepcal-runtime: serving" "$out/daemon.log" && break
+  sleep 0.1
+done
+probes=0
 for _ in $(seq 100); do
+  probes=$((probes + 1))
   "$bin/stepcal-client" --lcm-url "$url" --forward 0 0 0 0 0.5 0 --timeout-ms 200 >/dev/null 2>&1 &&
     { ready=1; break; }
   sleep 0.1
@@ -164,7 +174,7 @@ failures=()
 fail() { failures+=("$1"); }
 # Each client's JSON once, without its per-row part (large).
 for f in "$out"/forward-*.json "$out"/inverse-*.json; do
-  jq -c '{requests, replies, statuses, check}' "$f"
+  jq -c '{mode, requests, replies, statuses, check}' "$f"
 done >"$out/summary.jsonl"
 sum() { jq -s "map($1) | add" "$out/summary.jsonl"; }
 sent=$(sum .requests)
@@ -176,8 +186,20 @@ changes=$(sum .check.model_changes)
 statuses=$(jq -s -c 'map(.statuses | to_entries[]) | group_by(.key)
   | map({(.[0].key): (map(.value) | add)}) | add' "$out/summary.jsonl")
 max_difference=$(jq -s 'map(.check.max_difference) | max' "$out/summary.jsonl")
+# Statuses per mode and model file: which model gave which answers.
+per_model=$(jq -s -c '[.[] | .mode as $mode | .check.models[]
+    | {key: "\($mode) \(.path | split("/") | last)", statuses}] | group_by(.key)
+  | map({(.[0].key): (map(.statuses | to_entries[]) | group_by(.key)
+    | map({(.[0].key): (map(.value) | add)}) | add)}) | add' "$out/summary.jsonl")
 models_answering=$(jq -s '[.[].check.models[] | select(.replies > 0) | .path] | unique | length' \
   "$out/summary.jsonl")
+# Where lost replies were lost: requests the daemon never handled were dropped on their way to
+# it; replies it sent that no client took were dropped on their way back.
+daemon_requests=$(sed -n 's/.*stopping after \([0-9]*\) requests, \([0-9]*\) replies.*/\1/p' "$out/daemon.log")
+daemon_replies=$(sed -n 's/.*stopping after \([0-9]*\) requests, \([0-9]*\) replies.*/\2/p' "$out/daemon.log")
+handled=$((${daemon_requests:-0} - probes))
+lost_to_daemon=$((sent - handled))
+lost_to_clients=$((${daemon_replies:-0} - probes - replies))
 swaps=$(wc -l <"$out/swaps.log")
 reloaded=$(grep -c "stepcal-runtime: reloaded" "$out/daemon.log" || true)
 refused=$(grep -c "stepcal-runtime: reload refused" "$out/daemon.log" || true)
@@ -210,7 +232,9 @@ growth_mb=$(((rss_last - rss_quarter) / 1024))
 cat <<EOF
 requests sent          $sent (forward and inverse, $rate_hz Hz per client)
 replies received       $replies (UDP receive-buffer drops in the namespace: $udp_drops)
+lost                   $((sent - replies)): $lost_to_daemon requests the daemon never handled, $lost_to_clients of its replies no client took (probe requests: $probes)
 statuses               $statuses
+statuses per model     $per_model
 checked against model  $checked: $mismatched differ, $unknown from an unknown model, largest difference $max_difference
 model swaps            $swaps ($reloaded reloaded, $refused refused: the corrupt file; kept model $kept)
 model changes in replies $changes, from $models_answering models

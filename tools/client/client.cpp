@@ -68,6 +68,7 @@
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/latency.hpp"
+#include "stepcal/service/lcm_server.hpp"
 #include "stepcal/service/request.hpp"
 #include "stepcal/service/service.hpp"
 #include "stepcal/twin/twin.hpp"
@@ -182,8 +183,9 @@ void runExchange(lcm_t* lcm, const char* answer_channel, int count, double rate_
   exchange.first_id = int64_t(getpid()) << 32;
   exchange.sent.assign(size_t(count), Clock::time_point{});
   exchange.round_trip_us.assign(size_t(count), std::numeric_limits<double>::quiet_NaN());
+  // Every client sees every client's replies: its queue must ride out stalls at their sum.
   lcm_subscription_t* subscription =
-      lcm_subscribe(lcm, answer_channel, &onAnswerMessage, &exchange);
+      service::subscribeQueued(lcm, answer_channel, &onAnswerMessage, &exchange);
   const auto timeout = std::chrono::duration_cast<Clock::duration>(
       std::chrono::duration<double>(exchange.timeout_s));
   const Clock::time_point start = Clock::now();
@@ -603,6 +605,7 @@ class ReplyChecker {
       return;
     }
     ++known->replies;
+    if (reply.status >= 0 && reply.status < kStatusCount) ++known->status_counts[reply.status];
     const correction_reply_t expected = recompute(request, reply, *known);
     const double difference = maxDifference(expected, reply);
     max_difference_ = std::max(max_difference_, difference);
@@ -626,7 +629,7 @@ class ReplyChecker {
     nlohmann::json models = nlohmann::json::array();
     for (const Known& k : models_) {
       models.push_back({{"path", k.path}, {"model_id", modelIdText(int64_t(k.model->model_id))},
-                        {"replies", k.replies}});
+                        {"replies", k.replies}, {"statuses", statusesJson(k.status_counts)}});
     }
     return {{"checked", checked_},         {"mismatched", mismatched_},
             {"unknown_model", unknown_model_}, {"max_difference", max_difference_},
@@ -640,6 +643,7 @@ class ReplyChecker {
     std::unique_ptr<const runtime::RuntimeModel> model;
     runtime::Workspace workspace;
     long replies = 0;
+    long status_counts[kStatusCount] = {};  ///< its replies per status
   };
 
   static correction_reply_t recompute(const correction_request_t& request,
@@ -741,10 +745,11 @@ int runCampaign(Args args) {
   StateEcho echo;
   FreshSamples fresh;
   lcm_subscription_t* applied =
-      lcm_subscribe(lcm.get(), service::kRobotStateAppliedChannel, &StateEcho::on, &echo);
+      service::subscribeQueued(lcm.get(), service::kRobotStateAppliedChannel, &StateEcho::on, &echo);
   lcm_subscription_t* samples =
       args.live_wrench
-          ? lcm_subscribe(lcm.get(), args.wrench_channel.c_str(), &FreshSamples::on, &fresh)
+          ? service::subscribeQueued(lcm.get(), args.wrench_channel.c_str(), &FreshSamples::on,
+                                     &fresh)
           : nullptr;
   const auto publishRobotState = [&](size_t i) {
     // Where the robot now is and what it carries, tagged with a fresh utime.
@@ -934,7 +939,7 @@ int runEcho(const Args& args) {
   sigprocmask(SIG_BLOCK, &stop_signals, nullptr);
   const int signal_fd = signalfd(-1, &stop_signals, SFD_CLOEXEC);
   const Lcm lcm(args.lcm_url);
-  lcm_subscribe(lcm.get(), service::kPingChannel, &onPing, lcm.get());
+  service::subscribeQueued(lcm.get(), service::kPingChannel, &onPing, lcm.get());
   std::cerr << "stepcal-client: echoing " << service::kPingChannel << " on "
             << service::kPongChannel << " (" << args.lcm_url << ")\n";
   pollfd fds[2] = {{lcm_get_fileno(lcm.get()), POLLIN, 0}, {signal_fd, POLLIN, 0}};

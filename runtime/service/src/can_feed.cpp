@@ -28,8 +28,7 @@ CanWrenchFeed::CanWrenchFeed(lcm_t* lcm, runtime::CanSocket socket,
       service_(service),
       driver_(std::move(socket), options) {
   wrench_buffer_.resize(size_t(stepcal_lcm::wrench_t{}.getEncodedSize()));
-  subscription_ = lcm_subscribe(lcm_, kSensorCommandChannel, &CanWrenchFeed::onCommand, this);
-  if (subscription_ == nullptr) throw InputError(std::string("cannot subscribe to ") + kSensorCommandChannel);
+  subscription_ = subscribeQueued(lcm_, kSensorCommandChannel, &CanWrenchFeed::onCommand, this);
   const runtime::FtSensorIdentity& identity = driver_.identity();
   status_.interface_name = iface_;
   status_.base_id = int32_t(options.base_id);

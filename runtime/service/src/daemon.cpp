@@ -202,8 +202,10 @@ int serve(const DaemonArgs& args) {
         reloader.wake();
         continue;
       }
-      logLine("%s: stopping after %lld requests", strsignal(int(info.ssi_signo)),
-              static_cast<long long>(service.counters().requests));
+      // Both counts let a test tell requests lost before the daemon from replies lost after it.
+      logLine("%s: stopping after %lld requests, %lld replies", strsignal(int(info.ssi_signo)),
+              static_cast<long long>(service.counters().requests),
+              static_cast<long long>(service.counters().replies));
       return 0;
     }
     if (fds[2].revents & POLLIN) {

@@ -23,10 +23,25 @@ Clock::time_point receivedAt(int64_t recv_utime) noexcept {
   return Clock::now() - std::chrono::microseconds(queued_us);
 }
 
+lcm_subscription_t* subscribeQueued(lcm_t* lcm, const char* channel, lcm_msg_handler_t handler,
+                                    void* user, int queue_capacity) {
+  if (queue_capacity <= 0) {
+    throw InputError(std::string("channel ") + channel + ": queue capacity " +
+                     std::to_string(queue_capacity) + " must be > 0 (a bound)");
+  }
+  lcm_subscription_t* subscription = lcm_subscribe(lcm, channel, handler, user);
+  if (subscription == nullptr) throw InputError(std::string("cannot subscribe to ") + channel);
+  if (lcm_subscription_set_queue_capacity(subscription, queue_capacity) != 0) {
+    lcm_unsubscribe(lcm, subscription);
+    throw InputError(std::string("channel ") + channel + ": LCM refused a queue capacity of " +
+                     std::to_string(queue_capacity));
+  }
+  return subscription;
+}
+
 LcmServer::LcmServer(lcm_t* lcm, Service& service)
     : lcm_(lcm), service_(service), reply_buffer_(size_t(Service::replyBytes())) {
-  subscription_ = lcm_subscribe(lcm_, kRequestChannel, &LcmServer::onRequest, this);
-  if (subscription_ == nullptr) throw InputError(std::string("cannot subscribe to ") + kRequestChannel);
+  subscription_ = subscribeQueued(lcm_, kRequestChannel, &LcmServer::onRequest, this);
 }
 
 LcmServer::~LcmServer() { lcm_unsubscribe(lcm_, subscription_); }
@@ -49,8 +64,11 @@ void LcmServer::publishStatus(bool realtime) {
 
 LcmWrenchFeed::LcmWrenchFeed(lcm_t* lcm, std::string channel, Service& service)
     : lcm_(lcm), channel_(std::move(channel)), service_(service) {
-  subscription_ = lcm_subscribe(lcm_, channel_.c_str(), &LcmWrenchFeed::onWrench, this);
-  if (subscription_ == nullptr) throw InputError("--wrench-channel '" + channel_ + "': cannot subscribe");
+  try {
+    subscription_ = subscribeQueued(lcm_, channel_.c_str(), &LcmWrenchFeed::onWrench, this);
+  } catch (const InputError& e) {
+    throw InputError("--wrench-channel '" + channel_ + "': " + e.what());
+  }
 }
 
 LcmWrenchFeed::~LcmWrenchFeed() { lcm_unsubscribe(lcm_, subscription_); }

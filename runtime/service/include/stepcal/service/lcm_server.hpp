@@ -17,6 +17,24 @@
 
 namespace stepcal::service {
 
+/// How many received messages LCM keeps for one subscription until the thread that calls
+/// lcm_handle takes them. Beyond it LCM's receive thread drops new messages without a word; its
+/// default, 30, is 15 ms of the long run's 2 kHz of requests, less than the stalls of a loaded
+/// machine (round trips up to 42 ms measured under ASan, cyclictest wake-ups up to 34 ms). Sized
+/// as the longest stall of the serving thread (or a client's) to ride out without a loss, times
+/// the highest message rate on one channel it is meant for.
+inline constexpr double kLongestStall_s = 1.0;
+inline constexpr double kMaxChannelRate_hz = 4000.0;  ///< e.g. four controllers at 1 kHz
+/// 4 000 messages; queued ones sit in LCM's ring buffer at their own size (≈ 300 bytes for a
+/// request or reply), so at most ≈ 1.2 MB.
+inline constexpr int kSubscriptionQueueCapacity = int(kLongestStall_s * kMaxChannelRate_hz);
+
+/// lcm_subscribe, then the subscription's queue capacity set to queue_capacity (> 0: a bound).
+/// Every subscription of stepcal-runtime and stepcal-client goes through it. Throws InputError
+/// naming the channel when LCM refuses either.
+lcm_subscription_t* subscribeQueued(lcm_t* lcm, const char* channel, lcm_msg_handler_t handler,
+                                    void* user, int queue_capacity = kSubscriptionQueueCapacity);
+
 /// The steady-clock time at which LCM received a message stamped recv_utime (µs since the
 /// epoch, system clock), so that time spent queued inside LCM counts against the budget.
 /// Clamped to [now − 1 s, now] against clock steps.

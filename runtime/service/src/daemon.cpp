@@ -182,10 +182,10 @@ int serve(const DaemonArgs& args) {
   timerfd_settime(timer_fd.get(), 0, &period, nullptr);
 
   logLine("serving %s (model %016llx) on %s: budget %d us, live wrench %s (max age %g ms), "
-          "real-time %s",
+          "real-time %s, receive queues %d messages",
           args.model_path.c_str(), static_cast<unsigned long long>(service.modelId()),
           args.lcm_url.c_str(), args.budget_us, feed->describe().c_str(),
-          args.max_wrench_age_ms, realtime ? "on" : "off");
+          args.max_wrench_age_ms, realtime ? "on" : "off", service::kSubscriptionQueueCapacity);
 
   pollfd fds[3] = {{lcm_get_fileno(lcm), POLLIN, 0},
                    {signal_fd.get(), POLLIN, 0},

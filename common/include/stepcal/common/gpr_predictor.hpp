@@ -92,10 +92,12 @@ class GprPredictor {
   std::vector<double> constant_values_;             // the latter's shared value / ℓ_d
   Eigen::MatrixXd scaled_inputs_;          // m × varying: normalised inputs / ℓ_d
   Eigen::MatrixXd cholesky_lower_;         // m × m
+  Eigen::VectorXd cholesky_inverse_diagonal_;  // m: 1 / L_jj
   Eigen::VectorXd inverse_length_scales_;  // D
   Eigen::VectorXd scaled_input_norms_;     // m: ‖row i of scaled_inputs_‖²
   Eigen::VectorXi subset_indices_;         // r, ascending
   Eigen::MatrixXd subset_cholesky_lower_;  // r × r: L_S
+  Eigen::VectorXd subset_cholesky_inverse_diagonal_;  // r: 1 / (L_S)_jj
 };
 
 }  // namespace stepcal

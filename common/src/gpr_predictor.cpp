@@ -206,8 +206,7 @@ GprPredictor GprPredictor::factorised(GprParameters parameters) {
   predictor.subset_indices_ = farthestPointSubset(Z, r);
   Eigen::MatrixXd Z_subset(r, D);
   for (Eigen::Index s = 0; s < r; ++s) Z_subset.row(s) = Z.row(predictor.subset_indices_(s));
-  Eigen::MatrixXd& L_S = predictor.subset_cholesky_lower_;
-  L_S.setZero(r, r);
+  Eigen::MatrixXd L_S = Eigen::MatrixXd::Zero(r, r);
   for (Eigen::Index j = 0; j < r; ++j) {
     kernelColumnOf(Z_subset.bottomRows(r - j), Z_subset.row(j), p.signal_sigma * p.signal_sigma,
                    L_S.col(j).tail(r - j));
@@ -219,7 +218,8 @@ GprPredictor GprPredictor::factorised(GprParameters parameters) {
     throw InputError(
         "GPR kernel matrix of the std bound's training subset is not positive definite");
   }
-  predictor.subset_cholesky_inverse_diagonal_ = L_S.diagonal().cwiseInverse();
+  predictor.subset_cholesky_inverse_ =
+      L_S.triangularView<Eigen::Lower>().solve(Eigen::MatrixXd::Identity(r, r));
   return predictor;
 }
 
@@ -280,9 +280,19 @@ double GprPredictor::subsetLatentStd(Workspace& workspace) const noexcept {
   for (Eigen::Index s = 0; s < k_subset.size(); ++s) {
     k_subset(s) = workspace.kernel_column(subset_indices_(s));
   }
+  // v_S = L_S⁻¹ k_S as one dense matrix–vector product (r ≤ 48: no chain of dependent steps as
+  // in a substitution), into the head of the kernel column, which the mean no longer needs.
+  auto v = workspace.kernel_column.head(k_subset.size());
+  v.noalias() = subset_cholesky_inverse_ * k_subset;
   const double signal_variance = parameters_.signal_sigma * parameters_.signal_sigma;
-  return latentStd(subset_cholesky_lower_, subset_cholesky_inverse_diagonal_, signal_variance,
-                   k_subset);
+  return std::sqrt(std::max(0.0, signal_variance - v.squaredNorm()));
+}
+
+double GprPredictor::exactLatentStd(Workspace& workspace) const noexcept {
+  if (boundSubsetSize() == trainingSize()) return subsetLatentStd(workspace);  // the same GP
+  const double signal_variance = parameters_.signal_sigma * parameters_.signal_sigma;
+  return latentStd(cholesky_lower_, cholesky_inverse_diagonal_, signal_variance,
+                   workspace.kernel_column);
 }
 
 void GprPredictor::predictInto(const double* x_raw, double* mean_out, double* std_out,
@@ -291,9 +301,7 @@ void GprPredictor::predictInto(const double* x_raw, double* mean_out, double* st
   kernelColumn(x_raw, workspace);
   meanFromColumn(workspace, mean_out);
   if (std_out == nullptr) return;
-  const double latent_std =
-      latentStd(cholesky_lower_, cholesky_inverse_diagonal_, g.signal_sigma * g.signal_sigma,
-                workspace.kernel_column);
+  const double latent_std = exactLatentStd(workspace);
   for (Eigen::Index o = 0; o < g.alpha.cols(); ++o) std_out[o] = g.output_scale(o) * latent_std;
 }
 
@@ -313,9 +321,7 @@ void GprPredictor::predictMeanAndBoundInto(const double* x_raw, double* mean_out
 double GprPredictor::relativeStd(const double* x_raw, Workspace& workspace) const noexcept {
   const GprParameters& g = parameters_;
   kernelColumn(x_raw, workspace);
-  return latentStd(cholesky_lower_, cholesky_inverse_diagonal_, g.signal_sigma * g.signal_sigma,
-                workspace.kernel_column) /
-         g.signal_sigma;
+  return exactLatentStd(workspace) / g.signal_sigma;
 }
 
 double GprPredictor::relativeStdBound(const double* x_raw, Workspace& workspace) const noexcept {

@@ -307,8 +307,11 @@ bool torqueCompliance(const PhysicalModel& model, const JointVector& tau_nm,
 /// that of the measured wrench less the sensor bias, held in sensor axes: τ_k = ξ_kᵀ w with ξ_k
 /// joint k's twist in sensor axes, so ∂τ_k/∂θ_j = ([j ≤ k] − [j ≤ p]) wᵀ [ξ_j, ξ_k], p the
 /// sensor's parent joint. The self_weight torques' derivative is left out (solveInverse).
+/// twists_Tip: the joints' twists at the link angles with the tip as reference point, root axes
+/// (tipPointJacobian's columns).
 void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws,
-                         const Vec6& wrench_Sensor, JointMatrix& dtheta_dq) noexcept {
+                         const Vec6& wrench_Sensor, const Jacobian& twists_Tip,
+                         JointMatrix& dtheta_dq) noexcept {
   const PhysicalModel& physical = model.physical;
   const KinematicChain& chain = physical.chain_Tracker;
   const int n = chain.dof();
@@ -320,18 +323,18 @@ void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws,
     dtheta_dq = dtheta0_dq;
     return;
   }
-  // In root axes: brackets commute with the adjoint, so wᵀ [ξ_j, ξ_k] is the same there.
-  const Vec6 wrench_Root = wrenchInRoot(framePose(chain, ws.chain, physical.sensor_frame),
-                                        unbiasedWrench(physical, wrench_Sensor));
+  // In root axes about the tip: brackets commute with the adjoint, so wᵀ [ξ_j, ξ_k] is the same
+  // there, with the wrench's moment taken about the tip too.
+  Vec6 wrench_Tip = wrenchInRoot(framePose(chain, ws.chain, physical.sensor_frame),
+                                 unbiasedWrench(physical, wrench_Sensor));
+  wrench_Tip.tail<3>() -= tipPose(ws.chain).translation().cross(wrench_Tip.head<3>());
   const int p = chain.frames()[static_cast<size_t>(physical.sensor_frame)].parent;
-  Jacobian twists_Root;
-  spatialJacobian(chain, ws.chain, twists_Root);
   JointMatrix M = JointMatrix::Zero(n, n);
   for (int j = 0; j < n; ++j) {
-    const Vec6 u = coadjointTimes(twists_Root.col(j), wrench_Root);  // wᵀ [ξ_j, ·] = uᵀ
+    const Vec6 u = coadjointTimes(twists_Tip.col(j), wrench_Tip);  // wᵀ [ξ_j, ·] = uᵀ
     for (int k = 0; k < n; ++k) {
       const int c = (j <= k) - (j < p);  // 0-based j: joint j+1 ≤ p ⇔ j < p
-      if (c != 0) M(k, j) = dtheta_dtau(k) * c * u.dot(twists_Root.col(k));
+      if (c != 0) M(k, j) = dtheta_dtau(k) * c * u.dot(twists_Tip.col(k));
     }
   }
   // M ~ C ∂τ/∂θ ≈ 1e-3: I + M leaves out M² ~ 1e-6 of dθ/dq, far below what changes a step.
@@ -349,10 +352,10 @@ void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws,
 /// Jacobian; convergence is always judged on the full model).
 void correctedJacobian(const RuntimeModel& model, Workspace& ws,
                        const Vec6& wrench_Sensor) noexcept {
-  tipPointJacobian(model.physical.chain_Tracker, ws.chain, ws.J);
+  Jacobian J_link;
+  tipPointJacobian(model.physical.chain_Tracker, ws.chain, J_link);
   JointMatrix dtheta_dq;
-  linkAngleDerivative(model, ws, wrench_Sensor, dtheta_dq);
-  const Jacobian J_link = ws.J;
+  linkAngleDerivative(model, ws, wrench_Sensor, J_link, dtheta_dq);
   ws.J.noalias() = J_link * dtheta_dq;
 }
 

@@ -149,6 +149,15 @@ void evaluateInitialPoses(const KinematicChain& chain, double link_length_scale,
   }
 }
 
+void evaluateInitialPoses(const KinematicChain& chain, double link_length_scale,
+                          const InitialPoses* exp_delta, InitialPoses& initial) noexcept {
+  for (int k = 0; k <= chain.dof(); ++k) {
+    Pose& T = initial[static_cast<size_t>(k)];
+    T = scaledInitialPose(chain, k, link_length_scale);
+    if (exp_delta != nullptr) T = T * (*exp_delta)[static_cast<size_t>(k)];
+  }
+}
+
 bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainWorkspace& ws,
                        const InitialPoses& initial, const JointTrig* trig) noexcept {
   return evaluateFrames(

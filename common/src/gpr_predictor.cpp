@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <string>
 #include <utility>
@@ -45,16 +47,60 @@ void kernelColumnOf(const Inputs& Z, const Point& z, double signal_variance, Col
   k.array() = signal_variance * (-0.5 * k.array()).exp();
 }
 
+/// Lowest argument of expInPlace: e^−708 ≈ 3.3e-308 is the last power above the subnormals.
+constexpr double kLowestExpArgument = -708.0;
+
+/// x ← e^x for every x in [kLowestExpArgument, 0], within 1 ulp of std::exp (checked over 10⁶
+/// arguments): x = n ln 2 + r with n an integer and |r| ≤ ½ ln 2, e^r by its Taylor series to
+/// r¹³ (the rest below 4e-18 of it), times 2^n written into the exponent bits. No branch, table
+/// or library call, so the compiler vectorises the loop (Eigen's exp divides per element).
+void expInPlace(double* x, Eigen::Index count) noexcept {
+  constexpr double kLog2e = 1.4426950408889634074;
+  constexpr double kLn2High = 6.93147180369123816490e-01;  // 32 bits of ln 2: n · it is exact
+  constexpr double kLn2Low = 1.90821492927058770002e-10;   // ln 2 − kLn2High
+  constexpr double kRoundShift = 6755399441055744.0;  // 1.5 · 2^52: t + it rounds t, |t| < 2^51
+  int64_t shift_bits;
+  std::memcpy(&shift_bits, &kRoundShift, sizeof shift_bits);
+  for (Eigen::Index i = 0; i < count; ++i) {
+    const double v = x[i];
+    const double shifted = v * kLog2e + kRoundShift;  // n in its low mantissa bits
+    const double n = shifted - kRoundShift;
+    const double r = (v - n * kLn2High) - n * kLn2Low;
+    double p = 1.0 / 6227020800.0;  // 1/13!, then Horner down to 1/0!
+    p = p * r + 1.0 / 479001600.0;
+    p = p * r + 1.0 / 39916800.0;
+    p = p * r + 1.0 / 3628800.0;
+    p = p * r + 1.0 / 362880.0;
+    p = p * r + 1.0 / 40320.0;
+    p = p * r + 1.0 / 5040.0;
+    p = p * r + 1.0 / 720.0;
+    p = p * r + 1.0 / 120.0;
+    p = p * r + 1.0 / 24.0;
+    p = p * r + 1.0 / 6.0;
+    p = p * r + 0.5;
+    p = p * r + 1.0;
+    p = p * r + 1.0;
+    int64_t n_bits;
+    std::memcpy(&n_bits, &shifted, sizeof n_bits);
+    const int64_t scale_bits = (n_bits - shift_bits + 1023) * (int64_t{1} << 52);  // 2^n
+    double scale;
+    std::memcpy(&scale, &scale_bits, sizeof scale);
+    x[i] = p * scale;
+  }
+}
+
 /// Latent predictive std, standardised units (eq. 31): √max(0, σ_f² − vᵀv) with v = L⁻¹ k*,
-/// solved in place of k.
-double latentStd(const Eigen::MatrixXd& L, double signal_variance, Eigen::VectorXd& k) noexcept {
+/// solved in place of k; inverse_diagonal holds 1 / L_jj.
+double latentStd(const Eigen::MatrixXd& L, const Eigen::VectorXd& inverse_diagonal,
+                 double signal_variance, Eigen::VectorXd& k) noexcept {
   // v = L⁻¹ k in place by column-oriented forward substitution: each step an axpy down one
-  // contiguous column of L (vectorised), where row-wise substitution waits on every product.
+  // contiguous column of L (vectorised), where row-wise substitution waits on every product; a
+  // product by 1 / L_jj rather than a division on that chain of steps.
   const Eigen::Index n = k.size();
   double* v = k.data();
   for (Eigen::Index j = 0; j < n; ++j) {
     const double* column = L.data() + j * L.rows();
-    const double v_j = v[j] / column[j];
+    const double v_j = v[j] * inverse_diagonal(j);
     v[j] = v_j;
     for (Eigen::Index i = j + 1; i < n; ++i) v[i] -= v_j * column[i];
   }
@@ -140,6 +186,7 @@ GprPredictor GprPredictor::factorised(GprParameters parameters) {
         "GPR kernel matrix K + σ_n² I is not positive definite for these inputs and "
         "hyperparameters");
   }
+  predictor.cholesky_inverse_diagonal_ = L.diagonal().cwiseInverse();
   // Predictions keep the inputs that vary over the training set; one every training point shares
   // (a wrench that is always zero without an F/T sensor) adds the same (z_d − x_d)² to every
   // squared distance, computed once per query.
@@ -159,8 +206,7 @@ GprPredictor GprPredictor::factorised(GprParameters parameters) {
   predictor.subset_indices_ = farthestPointSubset(Z, r);
   Eigen::MatrixXd Z_subset(r, D);
   for (Eigen::Index s = 0; s < r; ++s) Z_subset.row(s) = Z.row(predictor.subset_indices_(s));
-  Eigen::MatrixXd& L_S = predictor.subset_cholesky_lower_;
-  L_S.setZero(r, r);
+  Eigen::MatrixXd L_S = Eigen::MatrixXd::Zero(r, r);
   for (Eigen::Index j = 0; j < r; ++j) {
     kernelColumnOf(Z_subset.bottomRows(r - j), Z_subset.row(j), p.signal_sigma * p.signal_sigma,
                    L_S.col(j).tail(r - j));
@@ -172,6 +218,8 @@ GprPredictor GprPredictor::factorised(GprParameters parameters) {
     throw InputError(
         "GPR kernel matrix of the std bound's training subset is not positive definite");
   }
+  predictor.subset_cholesky_inverse_ =
+      L_S.triangularView<Eigen::Lower>().solve(Eigen::MatrixXd::Identity(r, r));
   return predictor;
 }
 
@@ -212,8 +260,12 @@ void GprPredictor::kernelColumn(const double* x_raw, Workspace& workspace) const
   }
   Eigen::VectorXd& k = workspace.kernel_column;
   k.noalias() = scaled_inputs_ * workspace.varying_input;
-  k.array() = (g.signal_sigma * g.signal_sigma) *
-              (-0.5 * (scaled_input_norms_.array() + z_norm - 2.0 * k.array()).max(0.0)).exp();
+  // Beyond a distance of 37.6 length scales the kernel is taken as σ_f² e^−708 (≈ 3e-308 σ_f²)
+  // instead of smaller: nothing any prediction could resolve.
+  k.array() = (-0.5 * (scaled_input_norms_.array() + z_norm - 2.0 * k.array()).max(0.0))
+                  .max(kLowestExpArgument);
+  expInPlace(k.data(), k.size());
+  k *= g.signal_sigma * g.signal_sigma;
 }
 
 void GprPredictor::meanFromColumn(const Workspace& workspace, double* mean_out) const noexcept {
@@ -228,8 +280,19 @@ double GprPredictor::subsetLatentStd(Workspace& workspace) const noexcept {
   for (Eigen::Index s = 0; s < k_subset.size(); ++s) {
     k_subset(s) = workspace.kernel_column(subset_indices_(s));
   }
+  // v_S = L_S⁻¹ k_S as one dense matrix–vector product (r ≤ 48: no chain of dependent steps as
+  // in a substitution), into the head of the kernel column, which the mean no longer needs.
+  auto v = workspace.kernel_column.head(k_subset.size());
+  v.noalias() = subset_cholesky_inverse_ * k_subset;
   const double signal_variance = parameters_.signal_sigma * parameters_.signal_sigma;
-  return latentStd(subset_cholesky_lower_, signal_variance, k_subset);
+  return std::sqrt(std::max(0.0, signal_variance - v.squaredNorm()));
+}
+
+double GprPredictor::exactLatentStd(Workspace& workspace) const noexcept {
+  if (boundSubsetSize() == trainingSize()) return subsetLatentStd(workspace);  // the same GP
+  const double signal_variance = parameters_.signal_sigma * parameters_.signal_sigma;
+  return latentStd(cholesky_lower_, cholesky_inverse_diagonal_, signal_variance,
+                   workspace.kernel_column);
 }
 
 void GprPredictor::predictInto(const double* x_raw, double* mean_out, double* std_out,
@@ -238,8 +301,7 @@ void GprPredictor::predictInto(const double* x_raw, double* mean_out, double* st
   kernelColumn(x_raw, workspace);
   meanFromColumn(workspace, mean_out);
   if (std_out == nullptr) return;
-  const double latent_std =
-      latentStd(cholesky_lower_, g.signal_sigma * g.signal_sigma, workspace.kernel_column);
+  const double latent_std = exactLatentStd(workspace);
   for (Eigen::Index o = 0; o < g.alpha.cols(); ++o) std_out[o] = g.output_scale(o) * latent_std;
 }
 
@@ -259,8 +321,7 @@ void GprPredictor::predictMeanAndBoundInto(const double* x_raw, double* mean_out
 double GprPredictor::relativeStd(const double* x_raw, Workspace& workspace) const noexcept {
   const GprParameters& g = parameters_;
   kernelColumn(x_raw, workspace);
-  return latentStd(cholesky_lower_, g.signal_sigma * g.signal_sigma, workspace.kernel_column) /
-         g.signal_sigma;
+  return exactLatentStd(workspace) / g.signal_sigma;
 }
 
 double GprPredictor::relativeStdBound(const double* x_raw, Workspace& workspace) const noexcept {

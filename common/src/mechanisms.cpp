@@ -17,10 +17,6 @@ constexpr MechanismKind kAllKinds[] = {
     MechanismKind::kThermalExpansion,   MechanismKind::kSensorBias,
     MechanismKind::kJointCoupling,      MechanismKind::kProfileGeometry};
 
-// The fixed point θ = θ₀ + Δθ(τ(θ)) contracts by ~C·m·g·r ≈ 1e-3 per pass; three passes leave
-// an error far below a nanoradian (METHOD.md eq. 24 uses two for compliance alone).
-constexpr int kFixedPointPasses = 3;
-
 constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
 
 bool usesJoint(MechanismKind kind) {
@@ -341,10 +337,49 @@ void selfWeightTorques(const KinematicChain& chain, const ChainWorkspace& ws,
   }
 }
 
+namespace {
+
+/// δ = Σ_j g_j δ_j of the profiles' geometry (6(n+1) entries; mechanisms.hpp) at the gates g per
+/// joint (a joint without a profile has g 0); false when no profile moves the poses.
+bool profileGeometryDelta(const PhysicalModel& model, const std::array<double, kMaxJoints>& gate,
+                          std::array<double, 6 * (kMaxJoints + 1)>& delta) noexcept {
+  delta.fill(0.0);
+  bool corrected = false;
+  for (const Mechanism& m : model.mechanisms) {
+    const double g = m.kind == MechanismKind::kProfileGeometry ? gate[static_cast<size_t>(m.joint)] : 0.0;
+    if (g == 0.0) continue;
+    for (size_t i = 0; i < m.parameters.size(); ++i) delta[i] += g * m.parameters[i];
+    corrected = true;
+  }
+  return corrected;
+}
+
+}  // namespace
+
+PhysicalConstants physicalConstants(const PhysicalModel& model) noexcept {
+  PhysicalConstants constants;
+  std::array<double, kMaxJoints> open_gate{};
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kTransmissionError) open_gate[static_cast<size_t>(m.joint)] = 1.0;
+  }
+  std::array<double, 6 * (kMaxJoints + 1)> delta;
+  constants.has_open_geometry = profileGeometryDelta(model, open_gate, delta);
+  for (int k = 0; k <= model.chain_Tracker.dof(); ++k) {
+    constants.exp_open_geometry[static_cast<size_t>(k)] =
+        constants.has_open_geometry ? lie::expSE3(Eigen::Map<const Vec6>(delta.data() + 6 * k))
+                                    : Pose::Identity();
+  }
+  evaluateInitialPoses(model.chain_Tracker, 1.0,
+                       constants.has_open_geometry ? &constants.exp_open_geometry : nullptr,
+                       constants.initial_open);
+  return constants;
+}
+
 bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
                         const Vec6& wrench_Sensor, double temp_c, ChainWorkspace& ws,
                         JointVector& theta_rad, JointVector& tau_nm,
-                        JointVector* profile_slope) noexcept {
+                        JointVector* profile_slope, const PhysicalConstants* constants,
+                        const FixedPointStart* start) noexcept {
   const KinematicChain& chain = model.chain_Tracker;
   const int n = chain.dof();
   const bool has_sensor =
@@ -357,6 +392,7 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
   const Mechanism* self_weight = nullptr;
   // Each profile's gate once: it switches the profile and its share of the geometry.
   std::array<double, kMaxJoints> gate{};
+  bool gates_open = true;  // every transmission_error's gate is 1
   for (const Mechanism& m : model.mechanisms) {
     const auto p = [&m](size_t i) { return m.parameters[i]; };
     if (m.kind == MechanismKind::kJointCoupling) {
@@ -366,6 +402,7 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
       double gate_slope = 0.0, slope = 0.0;
       gate[static_cast<size_t>(m.joint)] =
           coverageGate(m.coverage, q, profile_slope ? &gate_slope : nullptr);
+      gates_open = gates_open && gate[static_cast<size_t>(m.joint)] == 1.0;
       theta0(m.joint) += gatedOffset(m, q, gate[static_cast<size_t>(m.joint)], gate_slope,
                                      profile_slope ? &slope : nullptr);
       if (profile_slope) (*profile_slope)(m.joint) += slope;
@@ -375,20 +412,25 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
       self_weight = &m;
     }
   }
-  // Σ_j g_j δ_j of the profiles' geometry (mechanisms.hpp; a joint without a profile has g 0).
-  std::array<double, 6 * (kMaxJoints + 1)> delta{};
-  bool corrected = false;
-  for (const Mechanism& m : model.mechanisms) {
-    const double g = m.kind == MechanismKind::kProfileGeometry ? gate[static_cast<size_t>(m.joint)] : 0.0;
-    if (g == 0.0) continue;
-    for (size_t i = 0; i < m.parameters.size(); ++i) delta[i] += g * m.parameters[i];
-    corrected = true;
-  }
   // The initial poses once per call: the thermal scale and the profiles' geometry hold for
-  // every pass of the fixed point.
-  InitialPoses initial;
-  evaluateInitialPoses(chain, model.linkLengthScale(temp_c), corrected ? delta.data() : nullptr,
-                       initial);
+  // every pass of the fixed point. With every gate open, from the constants.
+  const double link_length_scale = model.linkLengthScale(temp_c);
+  InitialPoses initial_here;
+  const InitialPoses* initial = &initial_here;
+  if (constants != nullptr && gates_open) {
+    if (link_length_scale == 1.0) {
+      initial = &constants->initial_open;
+    } else {
+      evaluateInitialPoses(chain, link_length_scale,
+                           constants->has_open_geometry ? &constants->exp_open_geometry : nullptr,
+                           initial_here);
+    }
+  } else {
+    std::array<double, 6 * (kMaxJoints + 1)> delta;
+    const bool corrected = profileGeometryDelta(model, gate, delta);
+    evaluateInitialPoses(chain, link_length_scale, corrected ? delta.data() : nullptr,
+                         initial_here);
+  }
   Jacobian J;
   JointVector tau_self;
   // θ = θ₀ + Δθ(τ): the compliance, plus each backlash's and nonlinear stiffness' deflection.
@@ -406,17 +448,21 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
   };
   // Without a wrench or self weight every torque is zero and θ = θ₀: no passes. The passes move
   // θ by the deflection only (~1e-3 rad): sin and cos of θ₀ once, then by the angle sum.
-  const int passes = has_sensor || self_weight != nullptr ? kFixedPointPasses : 0;
+  const bool loaded = has_sensor || self_weight != nullptr;
+  const int passes = !loaded ? 0 : start != nullptr ? start->passes : kFixedPointPasses;
   theta_rad = theta0;
+  if (passes > 0 && start != nullptr && start->deflection_rad != nullptr) {
+    theta_rad += *start->deflection_rad;
+  }
   tau_nm.setZero(n);
   JointTrig trig0, trig;
   jointTrig(theta0, trig0);
   const auto evaluate = [&] {
     if (theta_rad == theta0) {
-      forwardKinematics(chain, theta_rad, ws, initial, &trig0);
+      forwardKinematics(chain, theta_rad, ws, *initial, &trig0);
     } else {
       shiftedJointTrig(trig0, theta0, theta_rad - theta0, trig);
-      forwardKinematics(chain, theta_rad, ws, initial, &trig);
+      forwardKinematics(chain, theta_rad, ws, *initial, &trig);
     }
   };
   for (int pass = 0; pass < passes; ++pass) {
@@ -433,6 +479,9 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
     deflect(tau_nm);
   }
   evaluate();
+  if (start != nullptr && start->deflection_out_rad != nullptr) {
+    *start->deflection_out_rad = theta_rad - theta0;
+  }
   return true;
 }
 

@@ -33,6 +33,11 @@ constexpr double kDomainVarianceShare = 0.25;
 /// evaluates it again, rad (3°: a seed from the previous cycle, or a few degrees off, is
 /// closer; the GPR's length scales over the joint angles are tens of degrees).
 constexpr double kFrozenTwistDistance_rad = 0.05;
+/// A Newton step whose largest joint change is at most this, rad, leads to an iterate that is
+/// evaluated with the full model rather than its approximation: the approximation is off by
+/// ~1e-6 of the step, which after the long first steps is far below what the next steps correct,
+/// but near the answer would compete with tight tolerances (1e-10) and cost steps.
+constexpr double kFullModelStep_rad = 1e-2;
 
 /// FNV-1a 64 of a byte range.
 uint64_t fnv1a64(const std::vector<uint8_t>& bytes) noexcept {
@@ -74,14 +79,28 @@ std::pair<Vec3, double> reachSphere(const KinematicChain& chain) {
   return {chain.initialPose(0).translation(), kReachMargin * radius_m};
 }
 
+/// Passes of physicalTip's approximation: one, from the deflection of the last evaluation.
+constexpr int kApproximatePasses = 1;
+
 /// The physical model's tip at q: FK at its link angles (every mechanism, the thermal length
-/// scale at temp_c). Leaves ws.chain evaluated there, ws.link_rad, ws.torque_nm and, with_slopes
-/// (for a Jacobian there), ws.profile_slope set. Sizes must have been checked.
+/// scale at temp_c). Leaves ws.chain evaluated there, ws.link_rad, ws.torque_nm,
+/// ws.deflection_rad and, with_slopes (for a Jacobian there), ws.profile_slope set. approximate:
+/// the fixed point's one pass from ws.deflection_rad (FixedPointStart; within ~1e-3 of the
+/// deflection's change since, for a solver's intermediate iterates), else the model itself.
+/// Sizes must have been checked.
 Pose physicalTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                 const Vec6& wrench_Sensor, double temp_c, bool with_slopes) noexcept {
+                 const Vec6& wrench_Sensor, double temp_c, bool with_slopes,
+                 bool approximate = false) noexcept {
+  FixedPointStart start;
+  start.deflection_out_rad = &ws.deflection_rad;
+  if (approximate) {
+    start.passes = kApproximatePasses;
+    start.deflection_rad = &ws.deflection_rad;
+  }
   const bool sized = physicalLinkAngles(model.physical, q_rad, wrench_Sensor, temp_c, ws.chain,
                                         ws.link_rad, ws.torque_nm,
-                                        with_slopes ? &ws.profile_slope : nullptr);
+                                        with_slopes ? &ws.profile_slope : nullptr,
+                                        &model.physical_constants, &start);
   STEPCAL_INVARIANT(sized, "the physical model and q were checked to have the chain's size");
   return tipPose(ws.chain);
 }
@@ -288,8 +307,11 @@ bool torqueCompliance(const PhysicalModel& model, const JointVector& tau_nm,
 /// that of the measured wrench less the sensor bias, held in sensor axes: τ_k = ξ_kᵀ w with ξ_k
 /// joint k's twist in sensor axes, so ∂τ_k/∂θ_j = ([j ≤ k] − [j ≤ p]) wᵀ [ξ_j, ξ_k], p the
 /// sensor's parent joint. The self_weight torques' derivative is left out (solveInverse).
+/// twists_Tip: the joints' twists at the link angles with the tip as reference point, root axes
+/// (tipPointJacobian's columns).
 void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws,
-                         const Vec6& wrench_Sensor, JointMatrix& dtheta_dq) noexcept {
+                         const Vec6& wrench_Sensor, const Jacobian& twists_Tip,
+                         JointMatrix& dtheta_dq) noexcept {
   const PhysicalModel& physical = model.physical;
   const KinematicChain& chain = physical.chain_Tracker;
   const int n = chain.dof();
@@ -301,18 +323,18 @@ void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws,
     dtheta_dq = dtheta0_dq;
     return;
   }
-  // In root axes: brackets commute with the adjoint, so wᵀ [ξ_j, ξ_k] is the same there.
-  const Vec6 wrench_Root = wrenchInRoot(framePose(chain, ws.chain, physical.sensor_frame),
-                                        unbiasedWrench(physical, wrench_Sensor));
+  // In root axes about the tip: brackets commute with the adjoint, so wᵀ [ξ_j, ξ_k] is the same
+  // there, with the wrench's moment taken about the tip too.
+  Vec6 wrench_Tip = wrenchInRoot(framePose(chain, ws.chain, physical.sensor_frame),
+                                 unbiasedWrench(physical, wrench_Sensor));
+  wrench_Tip.tail<3>() -= tipPose(ws.chain).translation().cross(wrench_Tip.head<3>());
   const int p = chain.frames()[static_cast<size_t>(physical.sensor_frame)].parent;
-  Jacobian twists_Root;
-  spatialJacobian(chain, ws.chain, twists_Root);
   JointMatrix M = JointMatrix::Zero(n, n);
   for (int j = 0; j < n; ++j) {
-    const Vec6 u = coadjointTimes(twists_Root.col(j), wrench_Root);  // wᵀ [ξ_j, ·] = uᵀ
+    const Vec6 u = coadjointTimes(twists_Tip.col(j), wrench_Tip);  // wᵀ [ξ_j, ·] = uᵀ
     for (int k = 0; k < n; ++k) {
       const int c = (j <= k) - (j < p);  // 0-based j: joint j+1 ≤ p ⇔ j < p
-      if (c != 0) M(k, j) = dtheta_dtau(k) * c * u.dot(twists_Root.col(k));
+      if (c != 0) M(k, j) = dtheta_dtau(k) * c * u.dot(twists_Tip.col(k));
     }
   }
   // M ~ C ∂τ/∂θ ≈ 1e-3: I + M leaves out M² ~ 1e-6 of dθ/dq, far below what changes a step.
@@ -330,10 +352,10 @@ void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws,
 /// Jacobian; convergence is always judged on the full model).
 void correctedJacobian(const RuntimeModel& model, Workspace& ws,
                        const Vec6& wrench_Sensor) noexcept {
-  tipPointJacobian(model.physical.chain_Tracker, ws.chain, ws.J);
+  Jacobian J_link;
+  tipPointJacobian(model.physical.chain_Tracker, ws.chain, J_link);
   JointMatrix dtheta_dq;
-  linkAngleDerivative(model, ws, wrench_Sensor, dtheta_dq);
-  const Jacobian J_link = ws.J;
+  linkAngleDerivative(model, ws, wrench_Sensor, J_link, dtheta_dq);
   ws.J.noalias() = J_link * dtheta_dq;
 }
 
@@ -390,6 +412,7 @@ std::unique_ptr<const RuntimeModel> build(CalibratedModel file, uint64_t model_i
     }
   }
   model->physical = physicalModelOf(file);
+  model->physical_constants = physicalConstants(model->physical);
   if (file.gpr) {
     model->gpr = GprPredictor::fromParameters(*file.gpr);
     if (model->gpr.inputDim() != n + 6 || model->gpr.outputDim() != 6) {
@@ -441,6 +464,7 @@ Workspace makeWorkspace(const RuntimeModel& model) {
   ws.link_rad.setZero(n);
   ws.torque_nm.setZero(n);
   ws.profile_slope.setZero(n);
+  ws.deflection_rad.setZero(n);
   ws.J.setZero(6, n);
   if (model.file.gpr) {
     ws.gpr = model.gpr.makeWorkspace();
@@ -505,8 +529,15 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   bool have_twist = false;
   JointVector q_twist_rad = q_rad;  // where xi_frozen was evaluated
   Pose X_TrackerTip_last = Pose::Identity();  // the full model's at q_best_rad when converged
+  // The iterates are evaluated with the physical model's one-pass approximation (physicalTip),
+  // started from the deflection of the iterate before (the seed's from θ₀); where that is within
+  // the tolerances, or after a short step, with the full model, which alone decides convergence.
+  ws.deflection_rad.setZero(chain.dof());
+  bool full_model_next = false;
   while (!beyond_reach) {
-    const Pose X_physical = physicalTip(model, ws, q_rad, wrench_Sensor, temp_c, true);
+    bool full_model = full_model_next;
+    Pose X_physical =
+        physicalTip(model, ws, q_rad, wrench_Sensor, temp_c, true, !full_model);
     // The seed's own twist would serve one step only (the first step is the long one): the
     // first step goes without, the twist is evaluated after it, and again after long moves.
     if ((!have_twist && result.iterations > 0) ||
@@ -515,12 +546,18 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
       q_twist_rad = q_rad;
       have_twist = true;
     }
-    Vec6 e = poseResidual(X_TrackerTip_desired, Pose(X_physical * lie::expSE3(xi_frozen)));
+    const Pose exp_frozen = lie::expSE3(xi_frozen);
+    Vec6 e = poseResidual(X_TrackerTip_desired, Pose(X_physical * exp_frozen));
     const auto within = [&](const Vec6& r) {
       return r.head<3>().norm() <= options.position_tolerance_m &&
              r.tail<3>().norm() <= options.orientation_tolerance_rad;
     };
-    if (within(e)) {
+    if (!full_model && within(e)) {
+      X_physical = physicalTip(model, ws, q_rad, wrench_Sensor, temp_c, true);
+      full_model = true;
+      e = poseResidual(X_TrackerTip_desired, Pose(X_physical * exp_frozen));
+    }
+    if (within(e)) {  // the full model's physical tip here
       // The full model here: the twist at q_rad with its std (kept in ws.gpr_std).
       xi_frozen = residualTwist(model, ws, q_rad, wrench_Sensor, true);
       q_twist_rad = q_rad;
@@ -545,6 +582,7 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
     if (largest_rad > options.max_step_rad) dq_rad *= options.max_step_rad / largest_rad;
     q_rad += dq_rad;
     held_at_limit = clampToLimits(chain, q_rad);
+    full_model_next = largest_rad <= kFullModelStep_rad;
     ++result.iterations;
   }
 

@@ -1,6 +1,7 @@
 // stepcal-bench: time of the runtime's two real-time calls on a model file.
 //
 //   build/bin/stepcal-bench --model MODEL [--calls N] [--temp-c T] [--compare-kdl] [--json]
+//                           [--answers CSV]
 //
 // Poses: the model's GPR training inputs de-normalised (joints q and wrench), so every call lies
 // in the model's workspace; every call at the structure temperature --temp-c (°C; default NaN,
@@ -11,9 +12,13 @@
 // --compare-kdl (built with Debian's liborocos-kdl-dev) times KDL's ChainIkSolverPos_NR_JL in
 // the same run on the model's nominal chain (uncorrected, base frame): the nominal pose at each
 // bench pose's q, from the same seed, at the same tolerance (1e-6), and prints the ratios.
+// --answers writes every bench pose's answers (forward pose, inverse status and joint targets)
+// at full precision, untimed, so that two builds' answers can be compared (tools/bench/compare_answers.sh).
 #include <CLI/CLI.hpp>
 
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <iostream>
 #include <vector>
 
@@ -140,6 +145,44 @@ nlohmann::json compareKdl(const runtime::RuntimeModel& model, const std::vector<
 #endif
 }
 
+
+/// One CSV line per bench pose: its index, the forward status and corrected pose (translation m,
+/// then the rotation's 9 entries column-major), the inverse's status, iterations, joint targets
+/// (rad) and residuals (m, rad); every number with 17 significant digits.
+void writeAnswers(const runtime::RuntimeModel& model, runtime::Workspace& ws,
+                  const std::vector<BenchPose>& poses, double temp_c, const std::string& path) {
+  std::ofstream out(path);
+  if (!out) throw InputError("cannot write the answers file", path);
+  const int dof = model.file.chain_Tracker.dof();
+  out << "pose,forward_status,x_m,y_m,z_m";
+  for (int i = 0; i < 9; ++i) out << ",r" << i;
+  out << ",inverse_status,iterations";
+  for (int i = 0; i < dof; ++i) out << ",q" << i + 1 << "_rad";
+  out << ",residual_position_m,residual_orientation_rad\n";
+  char number[32];
+  const auto put = [&](double v) {
+    std::snprintf(number, sizeof number, ",%.17g", v);
+    out << number;
+  };
+  for (size_t k = 0; k < poses.size(); ++k) {
+    const BenchPose& p = poses[k];
+    const runtime::ForwardResult f =
+        runtime::correctForward(model, ws, p.q_rad, p.wrench_Sensor, temp_c);
+    out << k << "," << runtime::toString(f.status);
+    for (int i = 0; i < 3; ++i) put(f.X_TrackerTip.translation()(i));
+    for (int i = 0; i < 9; ++i) put(f.X_TrackerTip.linear()(i % 3, i / 3));
+    const runtime::InverseResult r =
+        runtime::solveInverse(model, ws, p.X_TrackerTip_target, p.wrench_Sensor, temp_c,
+                              p.seed_q_rad, runtime::Clock::now() + std::chrono::seconds(1));
+    out << "," << runtime::toString(r.status) << "," << r.iterations;
+    for (int i = 0; i < dof; ++i) put(r.q_target_rad.size() == dof ? r.q_target_rad(i) : NAN);
+    put(r.residual_position_m);
+    put(r.residual_orientation_rad);
+    out << "\n";
+  }
+  if (!out) throw InputError("cannot write the answers file", path);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -159,6 +202,9 @@ int main(int argc, char** argv) {
                "also time KDL's ChainIkSolverPos_NR_JL on the nominal chain (same poses, seeds, "
                "tolerance)");
   app.add_flag("--json", json, "print JSON");
+  std::string answers_path;
+  app.add_option("--answers", answers_path,
+                 "also write every bench pose's answers to this CSV file (untimed)");
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -215,6 +261,7 @@ int main(int argc, char** argv) {
       }
       allocations = counter.count();
     }
+    if (!answers_path.empty()) writeAnswers(*model, ws, poses, temp_c, answers_path);
     nlohmann::json kdl;
     if (compare_kdl) kdl = compareKdl(*model, poses, calls, inverse);
 

@@ -87,6 +87,10 @@ using InitialPoses = std::array<Pose, kMaxJoints + 1>;
 /// (v m, ω rad); METHOD.md eq. 9). Allocation-free.
 void evaluateInitialPoses(const KinematicChain& chain, double link_length_scale,
                           const double* delta, InitialPoses& initial) noexcept;
+/// As evaluateInitialPoses with exp(δ̂_k) given instead of δ (k = 0..n; null: none), the same
+/// products, so the same poses bit for bit when exp_delta holds expSE3 of that δ.
+void evaluateInitialPoses(const KinematicChain& chain, double link_length_scale,
+                          const InitialPoses* exp_delta, InitialPoses& initial) noexcept;
 /// sin and cos of each joint angle of one evaluation.
 struct JointTrig {
   JointVector sin, cos;

@@ -17,8 +17,8 @@ class GprPredictor {
   struct Workspace {
     Eigen::VectorXd normalised_input;  ///< D: the query normalised, then divided by ℓ
     Eigen::VectorXd varying_input;     ///< its entries the training inputs vary in
-    Eigen::VectorXd kernel_column;     ///< m: k(X, x*), then L⁻¹ k(X, x*)
-    Eigen::VectorXd subset_column;     ///< boundSubsetSize(): k(X_S, x*), then L_S⁻¹ k(X_S, x*)
+    Eigen::VectorXd kernel_column;     ///< m: k(X, x*), then L⁻¹ k(X, x*) or, in its head, L_S⁻¹ k(X_S, x*)
+    Eigen::VectorXd subset_column;     ///< boundSubsetSize(): k(X_S, x*)
   };
 
   /// Most training points of the subset behind the std bound (predictMeanAndBoundInto).
@@ -66,9 +66,9 @@ class GprPredictor {
   /// The bound is the latent std of the same GP conditioned on the r = boundSubsetSize()
   /// training points of boundSubset() only (subset of data, noise included): conditioning on
   /// fewer data never lowers the posterior variance, so bound ≥ the exact std of predictInto,
-  /// and equals it when r = m. Costs an r × r triangular solve instead of m × m; the subset's
-  /// kernel values are taken from the full column the mean uses. std_bound_out (outputDim()
-  /// entries, may be null) = output_scale · √max(0, σ_f² − v_Sᵀv_S), v_S = L_S⁻¹ k(X_S, x*),
+  /// and equals it when r = m. Costs an r × r matrix–vector product with L_S⁻¹ (computed at
+  /// construction) instead of an m × m triangular solve; the subset's kernel values are taken
+  /// from the full column the mean uses. std_bound_out (outputDim() entries, may be null) = output_scale · √max(0, σ_f² − v_Sᵀv_S), v_S = L_S⁻¹ k(X_S, x*),
   /// L_S L_Sᵀ = K_SS + σ_n² I (METHOD.md eq. 31 on the subset).
   void predictMeanAndBoundInto(const double* x_raw, double* mean_out, double* std_bound_out,
                                Workspace& workspace) const noexcept;
@@ -86,16 +86,20 @@ class GprPredictor {
   void meanFromColumn(const Workspace& workspace, double* mean_out) const noexcept;
   /// Latent std of the subset GP from the kernel column in workspace (standardised units).
   double subsetLatentStd(Workspace& workspace) const noexcept;
+  /// Latent std of the GP from the kernel column in workspace (standardised units): by the
+  /// subset's when the subset is every training point (the same GP), else from L.
+  double exactLatentStd(Workspace& workspace) const noexcept;
 
   GprParameters parameters_;
   std::vector<int> varying_dims_, constant_dims_;  // inputs that vary over the training set, not
   std::vector<double> constant_values_;             // the latter's shared value / ℓ_d
   Eigen::MatrixXd scaled_inputs_;          // m × varying: normalised inputs / ℓ_d
   Eigen::MatrixXd cholesky_lower_;         // m × m
+  Eigen::VectorXd cholesky_inverse_diagonal_;  // m: 1 / L_jj
   Eigen::VectorXd inverse_length_scales_;  // D
   Eigen::VectorXd scaled_input_norms_;     // m: ‖row i of scaled_inputs_‖²
   Eigen::VectorXi subset_indices_;         // r, ascending
-  Eigen::MatrixXd subset_cholesky_lower_;  // r × r: L_S
+  Eigen::MatrixXd subset_cholesky_inverse_;  // r × r: L_S⁻¹ (lower triangular)
 };
 
 }  // namespace stepcal

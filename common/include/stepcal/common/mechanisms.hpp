@@ -127,15 +127,47 @@ struct PhysicalModel {
   bool has(MechanismKind kind) const noexcept;
 };
 
+/// What physicalLinkAngles can take, once computed, from a model that no longer changes (the
+/// runtime's): the initial poses with every profile's gate open (g = 1 for each joint with a
+/// transmission_error: inside its coverage, the common case), which otherwise cost an exp per
+/// pose and call. Used only while every gate is exactly 1, so the answers are the same bit for
+/// bit with and without them.
+struct PhysicalConstants {
+  bool has_open_geometry = false;  ///< whether profile_geometry moves the poses with gates open
+  InitialPoses exp_open_geometry;  ///< exp(Σ_j δ̂_jk) per initial pose k, gates open
+  InitialPoses initial_open;       ///< the initial poses, gates open, link length scale 1
+};
+/// The constants of a model (allocation-free; recompute after any change of the model).
+PhysicalConstants physicalConstants(const PhysicalModel& model) noexcept;
+
+/// Passes of the fixed point θ = θ₀ + Δθ(τ(θ)) that define the model: from θ₀, each contracts
+/// the error by ~C ∂τ/∂θ ≈ 1e-3, so three leave it far below a nanoradian (METHOD.md eq. 24
+/// uses two for compliance alone).
+inline constexpr int kFixedPointPasses = 3;
+
+/// How physicalLinkAngles runs that fixed point. The default is the model. An iterative solver
+/// that evaluates it at nearby q may start from the deflection of its last evaluation and run
+/// fewer passes: an approximation of the model (error ~1e-3 × the change of the deflection per
+/// pass), which the solver must check against the model.
+struct FixedPointStart {
+  int passes = kFixedPointPasses;
+  const JointVector* deflection_rad = nullptr;  ///< θ − θ₀ to start from (null: θ₀ itself)
+  JointVector* deflection_out_rad = nullptr;    ///< gets θ − θ₀ (may be deflection_rad)
+};
+
 /// Link angles θ [rad] and joint torques τ [N·m] of the physical model at commanded angles q,
 /// a measured wrench (sensor axes; zero when unloaded or no sensor) and a temperature (NaN:
 /// unknown). Leaves ws evaluated at θ (with the thermal length scale). profile_slope, when
 /// given, gets per joint the derivative of its transmission profile's offset (gate included) by
-/// its commanded angle, 0 without one. Allocation-free; false when sizes disagree.
+/// its commanded angle, 0 without one. constants, when given, must be physicalConstants(model).
+/// start, when given, changes the fixed point's start and passes (FixedPointStart).
+/// Allocation-free; false when sizes disagree.
 bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
                         const Vec6& wrench_Sensor, double temp_c, ChainWorkspace& ws,
                         JointVector& theta_rad, JointVector& tau_nm,
-                        JointVector* profile_slope = nullptr) noexcept;
+                        JointVector* profile_slope = nullptr,
+                        const PhysicalConstants* constants = nullptr,
+                        const FixedPointStart* start = nullptr) noexcept;
 
 /// Joints whose commanded angle lies (partly, within the fade) outside the coverage of their
 /// transmission profile: bit j set for joint j (0-based). There the profile's correction is

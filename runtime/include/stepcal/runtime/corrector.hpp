@@ -53,6 +53,7 @@ inline bool validTemperature(double temp_c) noexcept {
 struct RuntimeModel {
   CalibratedModel file;         ///< as loaded
   PhysicalModel physical;       ///< physicalModelOf(file), built once at load
+  PhysicalConstants physical_constants;  ///< physicalConstants(physical), built once at load
   GprPredictor gpr;             ///< valid when file.gpr is present
   uint64_t model_id = 0;        ///< FNV-1a 64 of the file's bytes: tells answers of two models apart
   /// GPR relative predictive std (σ/σ_f) above which a request is OUT_OF_DOMAIN. Set at load
@@ -86,6 +87,7 @@ struct Workspace {
   JointVector link_rad;   ///< link angles θ of the last evaluation, rad
   JointVector torque_nm;  ///< joint torques τ of its last fixed-point pass, N·m
   JointVector profile_slope;  ///< d(profile offset)/dq per joint at its commanded angles
+  JointVector deflection_rad;  ///< θ − θ₀ of the last evaluation: where solveInverse's next starts
   Jacobian J;
   GprPredictor::Workspace gpr;
   Eigen::VectorXd gpr_input;  ///< n + 6
@@ -148,8 +150,12 @@ struct InverseResult {
 /// steps from q_seed_rad (clamped into the joint limits), staying within the limits. Residual
 /// (p_desired − p, log(R_desired Rᵀ)), tracker axes, of the physical model times the GPR's
 /// twist held frozen where it was last evaluated (none for the first step; after it, and again
-/// after a move of more than 3°); where that converges the GPR is evaluated there, and the full
-/// model decides: converged, or the steps go on with the new twist. Jacobian (quasi-Newton): the tip point Jacobian at the
+/// after a move of more than 3°). The iterates' physical model is its approximation with one
+/// pass of the deflection's fixed point from the iterate before (FixedPointStart; within ~1e-8
+/// rad of the model at a 2° step), the model itself where that is within the tolerances or
+/// after a step below 0.01 rad; where the model with the frozen twist converges the GPR is
+/// evaluated there, and the full model decides: converged, or the steps go on with the new
+/// twist. Jacobian (quasi-Newton): the tip point Jacobian at the
 /// link angles θ (thermal length scale and the profiles' geometry included) times
 /// dθ/dq ≈ (I + M) dθ₀/dq, the fixed point of physicalLinkAngles linearised to first order with
 /// M = diag(∂θ/∂τ) ∂τ_W/∂θ (~1e-3): dθ₀/dq exact (joint_coupling, transmission_error with its

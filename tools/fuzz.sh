@@ -10,7 +10,9 @@
 #           urdf             chainFromUrdf and bodyMassesFromUrdf
 # Work folder: $STEPCAL_FUZZ_DIR, default build-fuzz-TARGET/ in the repository. The growing
 # corpus stays in its corpus/ between runs; crashing inputs land in its artifacts/ (re-run one
-# with WORK_FOLDER/fuzz_TARGET ARTIFACT).
+# with WORK_FOLDER/fuzz_TARGET ARTIFACT). The project's sources are compiled into
+# $STEPCAL_FUZZ_OBJ_DIR (default WORK_FOLDER/obj), which several targets may share (ctest does):
+# their flags are the same, and each object is written beside and renamed into place.
 set -euo pipefail
 
 if (($# < 1)); then
@@ -22,10 +24,12 @@ target=$1
 seconds=${2:-30}
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 out=${STEPCAL_FUZZ_DIR:-$root/build-fuzz-$target}
-mkdir -p "$out/obj" "$out/corpus" "$out/seeds" "$out/artifacts"
+shared_obj=${STEPCAL_FUZZ_OBJ_DIR:-$out/obj}
+mkdir -p "$out/obj" "$shared_obj" "$out/corpus" "$out/seeds" "$out/artifacts"
 
 # shellcheck disable=SC2207  # pkg-config prints space-separated flags
-flags=(-std=c++17 -O2 -g -Wall -Wextra -I"$root/common/include" $(pkg-config --cflags eigen3))
+# -O1 -g1: the sanitizers' stack traces keep their lines; the build costs half of -O2 -g.
+flags=(-std=c++17 -O1 -g1 -Wall -Wextra -I"$root/common/include" $(pkg-config --cflags eigen3))
 headers=("$root/common/include" "$root/tests/fuzz")
 libs=()
 seed_main=0  # 1: the target's source, built with -DSTEPCAL_FUZZ_SEED_MAIN, writes the seeds
@@ -97,13 +101,14 @@ compile() {
     return
   fi
   echo "compiling $src"
-  clang++ "${flags[@]}" "${instrument[@]}" "$@" -c "$src" -o "$obj" &
+  # Written beside and renamed: another target's run may read the shared object meanwhile.
+  (clang++ "${flags[@]}" "${instrument[@]}" "$@" -c "$src" -o "$obj.$$.tmp" && mv "$obj.$$.tmp" "$obj") &
   pids+=($!)
 }
 pids=()
 objects=()
 for src in "${sources[@]}"; do
-  obj=$out/obj/$(basename "$src" .cpp).o
+  obj=$shared_obj/$(basename "$src" .cpp).o
   compile "$root/$src" "$obj"
   objects+=("$obj")
 done

@@ -133,7 +133,9 @@ jq -R -s '[split("\n")[] | select(length > 0) | split(" ") |
   "$out/faults.txt" >"$out/faults.json"
 
 # Per reply the wrench's stamp (Unix s) = reply arrival − its age; per fault the replies that
-# arrived during it, and the first OK after it on a wrench stamped after its end.
+# arrived during it, and the first OK after it on a wrench stamped after its end. A reading counts
+# as the fault's from 20 ms after its logged start: the answer in flight when the simulator logs
+# it arrives up to a poll later (stamped 0.7 ms after the logged stall in one run).
 analysis='
   ($c[0].rows | map(select(.status != null) |
      . + {stamp: (if .wrench_age_ms then .received_unix_s - .wrench_age_ms / 1000 else null end)})) as $r |
@@ -144,7 +146,7 @@ analysis='
     $fault + {
       replies: ($during | length),
       statuses: ($during | group_by(.status) | map({(.[0].status): length}) | add // {}),
-      ok_on_fault_readings: ($during | map(select(.status == "OK" and .stamp >= $fault.start)) | length),
+      ok_on_fault_readings: ($during | map(select(.status == "OK" and .stamp >= $fault.start + 0.02)) | length),
       recovery_s: (if $back then $back.received_unix_s - $fault.end else null end)}] as $faults |
   {faults: $faults,
    lost: $c[0].lost,

@@ -103,27 +103,44 @@ std::vector<int> gravityLoadedJoints(const PhysicalModel& global, const FitRows&
   return joints;
 }
 
+RoundStart roundStart(const DiagnosisModel& model, const FitRows& fit) {
+  const PhysicalModel whole = model.combined();
+  RoundStart start;
+  start.evaluation = evaluate(whole, fit);
+  start.linear = linearise(whole, fit, start.evaluation.r);
+  return start;
+}
+
 Screening screening(const DiagnosisModel& model, const FitRows& fit, const RoundStart& start,
                     const DiagnoseOptions& options,
                     const std::optional<std::vector<double>>& body_masses,
                     const Mechanism* only) {
   const PhysicalModel& global = model.global;
+  // Columns are changes of the whole model (its global mechanisms come first in it, so a
+  // parameter indexes both alike); what is present is asked of the global part.
+  const PhysicalModel whole = model.combined();
   const int n = global.chain_Tracker.dof();
   const Eigen::MatrixXd& L = start.linear.link_angle;
-  const Eigen::VectorXd& r0 = start.global.r;
+  const Eigen::VectorXd& r0 = start.evaluation.r;
   Screening s;
   const Eigen::Index geometry = start.linear.geometry.cols();
   ColumnSink sink{{}, {}, geometry};
 
-  // Stage 1: geometry, then the global model's fitted parameters.
+  // Stage 1: geometry, then the global model's fitted parameters (their values kept for the
+  // lumped masses' prior).
   for (Eigen::Index c = 0; c < geometry; ++c) s.stage1.push_back(c);
+  std::vector<double> stage1_values;
   for (const Parameter& p : globalParameters(model)) {
     const bool lumped_mass =
         p.mechanism >= 0 &&
         global.mechanisms[static_cast<size_t>(p.mechanism)].kind == MechanismKind::kSelfWeight;
-    s.stage1.push_back(sink.add(parameterColumn(global, fit, r0, p),
+    s.stage1.push_back(sink.add(parameterColumn(whole, fit, r0, p),
                                 lumped_mass ? 1.0 / (kSelfWeightPriorSigma * kSelfWeightPriorSigma)
                                             : 0.0));
+    stage1_values.push_back(
+        p.mechanism < 0
+            ? global.compliance_rad_per_nm(p.index)
+            : global.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)]);
   }
   // Stage 2: the geometry's change that goes with the profiles (every fit row lies inside every
   // profile's gate, so its columns are the geometry's), then the current profiles.
@@ -170,7 +187,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
   // compliance).
   for (int j = 0; j < n; ++j) {
     std::vector<double> loaded;
-    for (const JointVector& tau : start.global.tau_nm) {
+    for (const JointVector& tau : start.evaluation.tau_nm) {
       if (std::abs(tau(j)) > 1.0) loaded.push_back(std::abs(tau(j)));
     }
     const double typical = median(loaded);
@@ -187,7 +204,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
       f.mechanism.parameters[1] = 0.1 * typical;
       f.free = {0};
       std::vector<double> feature;
-      for (const JointVector& tau : start.global.tau_nm) {
+      for (const JointVector& tau : start.evaluation.tau_nm) {
         feature.push_back(std::tanh(tau(j) / f.mechanism.parameters[1]));
       }
       addGlobal(std::move(f), {featureColumn(L, fit, j, feature)}, {typicalStep(blank(MechanismKind::kBacklash, n, j), 0)});
@@ -201,7 +218,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
         f.mechanism.parameters[1] = t0;
         f.free = {0};
         std::vector<double> feature;
-        for (const JointVector& tau : start.global.tau_nm) {
+        for (const JointVector& tau : start.evaluation.tau_nm) {
           feature.push_back(tau(j) * t0 / (t0 + std::abs(tau(j))));
         }
         addGlobal(std::move(f), {featureColumn(L, fit, j, feature)}, {1e-4 / t0});
@@ -235,12 +252,12 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     Family f;
     f.mechanism = blank(MechanismKind::kSelfWeight, n);
     f.mechanism.parameters = *body_masses;
-    f.compliance = gravityLoadedJoints(global, fit, start.global.theta_rad, *body_masses);
+    f.compliance = gravityLoadedJoints(global, fit, start.evaluation.theta_rad, *body_masses);
     ChainWorkspace ws;
     JointVector tau;
     std::vector<std::vector<double>> features(f.compliance.size());
     for (size_t i = 0; i < fit.rows.size(); ++i) {
-      forwardKinematics(global.chain_Tracker, start.global.theta_rad[i], ws);
+      forwardKinematics(global.chain_Tracker, start.evaluation.theta_rad[i], ws);
       selfWeightTorques(global.chain_Tracker, ws, global.gravity_Tracker, *body_masses, tau);
       for (size_t c = 0; c < f.compliance.size(); ++c) features[c].push_back(tau(f.compliance[c]));
     }
@@ -262,15 +279,15 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
   } else {
     Family f;
     f.mechanism = blank(MechanismKind::kSelfWeight, n);
-    DiagnosisModel with = model;
-    with.global.mechanisms.push_back(f.mechanism);
-    const int index = static_cast<int>(with.global.mechanisms.size()) - 1;
+    PhysicalModel with = whole;
+    with.mechanisms.push_back(f.mechanism);
+    const int index = static_cast<int>(with.mechanisms.size()) - 1;
     std::vector<Eigen::VectorXd> columns;
     std::vector<double> steps;
     for (int i : freeParameters(f.mechanism, false)) {
       f.free.push_back(i);
       const Parameter p{index, i, typicalStep(f.mechanism, i)};
-      columns.push_back(parameterColumn(with.global, fit, r0, p));
+      columns.push_back(parameterColumn(with, fit, r0, p));
       steps.push_back(p.step);
     }
     addGlobal(std::move(f), std::move(columns), std::move(steps),
@@ -282,15 +299,15 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
   } else {
     Family f;
     f.mechanism = blank(MechanismKind::kSensorBias, n);
-    DiagnosisModel with = model;
-    with.global.mechanisms.push_back(f.mechanism);
-    const int index = static_cast<int>(with.global.mechanisms.size()) - 1;
+    PhysicalModel with = whole;
+    with.mechanisms.push_back(f.mechanism);
+    const int index = static_cast<int>(with.mechanisms.size()) - 1;
     std::vector<Eigen::VectorXd> columns;
     std::vector<double> steps;
     for (int i = 0; i < 6; ++i) {
       f.free.push_back(i);
       const Parameter p{index, i, typicalStep(f.mechanism, i)};
-      columns.push_back(parameterColumn(with.global, fit, r0, p));
+      columns.push_back(parameterColumn(with, fit, r0, p));
       steps.push_back(p.step);
     }
     addGlobal(std::move(f), std::move(columns), std::move(steps));
@@ -317,10 +334,10 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
       f.mechanism = blank(MechanismKind::kThermalExpansion, n);
       f.mechanism.parameters[1] = mean;
       f.free = {0};
-      DiagnosisModel with = model;
-      with.global.mechanisms.push_back(f.mechanism);
-      const Parameter p{static_cast<int>(with.global.mechanisms.size()) - 1, 0, 1e-5};
-      addGlobal(std::move(f), {parameterColumn(with.global, fit, r0, p)}, {p.step});
+      PhysicalModel with = whole;
+      with.mechanisms.push_back(f.mechanism);
+      const Parameter p{static_cast<int>(with.mechanisms.size()) - 1, 0, 1e-5};
+      addGlobal(std::move(f), {parameterColumn(with, fit, r0, p)}, {p.step});
     }
   }
 
@@ -350,16 +367,29 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     s.A.col(geometry + static_cast<Eigen::Index>(c)) = sink.columns[c];
     s.ridge(geometry + static_cast<Eigen::Index>(c)) = sink.ridge[c];
   }
+  s.current = Eigen::VectorXd::Zero(total);
+  for (size_t k = 0; k < stage1_values.size(); ++k) {
+    s.current(s.stage1[static_cast<size_t>(geometry) + k]) = stage1_values[k];
+  }
   setStage2(s, model, geometry);
   return s;
 }
 
 void setStage2(Screening& s, const DiagnosisModel& model, Eigen::Index geometry) {
   s.stage2.resize(static_cast<size_t>(geometry));
+  Eigen::VectorXd share = Eigen::VectorXd::Zero(geometry);
+  for (const Profile& p : model.profiles) {
+    if (p.geometry.size() == geometry) share += p.geometry;
+  }
+  for (Eigen::Index c = 0; c < geometry; ++c) s.current(s.stage2[static_cast<size_t>(c)]) = share(c);
   for (size_t i = 0; i < model.profiles.size(); ++i) {
     const Profile& p = model.profiles[i];
-    for (int c = 0; c < 2 * p.mechanism.order; ++c) {
-      const Eigen::Index column = s.profiled[i].columns[static_cast<size_t>(c)];
+    const Family& family = s.profiled[i];
+    for (size_t c = 0; c < family.columns.size(); ++c) {
+      const Eigen::Index column = family.columns[c];
+      const bool fitted = c < static_cast<size_t>(2 * p.mechanism.order);
+      s.current(column) = fitted ? p.mechanism.parameters[c] : 0.0;
+      if (!fitted) continue;
       s.stage2.push_back(column);
       s.ridge(column) = p.ridge;
     }

@@ -34,6 +34,8 @@ struct Family {
 struct Screening {
   Eigen::MatrixXd A;                    ///< count × columns, the residual's weighting
   Eigen::VectorXd ridge;                ///< per column (lumped masses' prior, profiles' ridges)
+  /// Per column, the parameter's value in the model the round starts from (0: a candidate).
+  Eigen::VectorXd current;
   std::vector<Eigen::Index> stage1, stage2;
   std::vector<Family> families;  ///< not in the model yet
   /// The model's profiles as families at the highest order (model order): stage 2 holds the
@@ -42,16 +44,18 @@ struct Screening {
   std::vector<UntestableCandidate> untestable;
 };
 
-/// Stage 2 of a screening for the model's profiles: the geometry's change (its first `geometry`
+/// Stage 2 of a screening for the model's profiles: the geometry's share (its first `geometry`
 /// entries, kept), then the leading 2·order columns of each profiled family, with their ridges
-/// set in the screening's ridge.
+/// set in the screening's ridge and their values (the model's) in its current.
 void setStage2(Screening& s, const DiagnosisModel& model, Eigen::Index geometry);
 
-/// What the round starts from: the global model's evaluation (r0, θ, τ) and linearisation.
+/// What the round starts from: the whole model's evaluation (r0, θ, τ; profiles in) and
+/// linearisation.
 struct RoundStart {
-  Evaluation global;
+  Evaluation evaluation;
   Linearisation linear;
 };
+RoundStart roundStart(const DiagnosisModel& model, const FitRows& fit);
 
 /// Builds the round's screening: the current model's stage-1 and stage-2 columns, and every
 /// catalogued family not in the model yet (only: just the global families of that mechanism's

@@ -67,11 +67,25 @@ FoldGrams::FoldGrams(Eigen::MatrixXd A, const Eigen::VectorXd& r0, const FitRows
   }
 }
 
-CrossValidation::CrossValidation(const FoldGrams& grams, const Eigen::VectorXd& r0,
-                                 const FitRows& fit, std::vector<Eigen::Index> stage1,
-                                 std::vector<Eigen::Index> stage2, Eigen::VectorXd ridge)
-    : grams_(grams), r0_(r0), fit_(fit), stage1_(std::move(stage1)), stage2_(std::move(stage2)),
-      ridge_(std::move(ridge)) {
+FoldGrams FoldGrams::without(const Eigen::VectorXd& v) const {
+  FoldGrams out = *this;
+  const size_t folds = A_fold.size();
+  out.b[folds].setZero();
+  for (size_t f = 0; f < folds; ++f) {
+    out.r0_fold[f] += A_fold[f] * v;
+    out.b[f] += G[f] * v;
+    out.b[folds] += out.b[f];
+    out.e0[f] = out.r0_fold[f].squaredNorm();
+  }
+  return out;
+}
+
+CrossValidation::CrossValidation(const FoldGrams& grams, const FitRows& fit,
+                                 std::vector<Eigen::Index> stage1,
+                                 std::vector<Eigen::Index> stage2, Eigen::VectorXd ridge,
+                                 Eigen::VectorXd current)
+    : grams_(grams), fit_(fit), stage1_(std::move(stage1)), stage2_(std::move(stage2)),
+      ridge_(std::move(ridge)), current_(std::move(current)) {
   const int folds = fit.folds;
   // The current model on each fold's training rows and on every row.
   u_.resize(static_cast<size_t>(folds) + 1);
@@ -82,7 +96,7 @@ CrossValidation::CrossValidation(const FoldGrams& grams, const Eigen::VectorXd& 
   base_.x.resize(u_.size());
   for (int f = 0; f <= folds; ++f) {
     const size_t k = static_cast<size_t>(f);
-    u_[k] = solveStage1(f, stage1_);
+    u_[k] = solveRidged(f, stage1_);
     if (!stage2_.empty()) {
       Eigen::MatrixXd H = trainingGram(f, stage2_, stage2_);
       for (size_t c = 0; c < stage2_.size(); ++c) {
@@ -107,15 +121,19 @@ Eigen::MatrixXd CrossValidation::trainingGram(int f, const std::vector<Eigen::In
   return total(a, b) - grams_.G[static_cast<size_t>(f)](a, b);
 }
 
+// Aᵀr0 of the training rows less the ridges' pull on the current values: the normal equations
+// of the change δ when the ridge holds the value current + δ near zero.
 Eigen::VectorXd CrossValidation::trainingRhs(int f, const std::vector<Eigen::Index>& a) const {
   const Eigen::VectorXd& total = grams_.b[static_cast<size_t>(fit_.folds)];
-  if (f == fit_.folds) return total(a);
-  return total(a) - grams_.b[static_cast<size_t>(f)](a);
+  Eigen::VectorXd rhs = total(a) - ridge_(a).cwiseProduct(current_(a));
+  if (f < fit_.folds) rhs -= grams_.b[static_cast<size_t>(f)](a);
+  return rhs;
 }
 
-// Stage 1: least squares on column-normalised normal equations, truncated eigen-decomposition
-// (the geometry is rank deficient by construction: METHOD.md, rank 30 of 42).
-Eigen::VectorXd CrossValidation::solveStage1(int f, const std::vector<Eigen::Index>& columns) const {
+// Least squares on column-normalised normal equations with the ridges, truncated
+// eigen-decomposition (the geometry is rank deficient by construction: METHOD.md, rank 30 of 42).
+Eigen::VectorXd CrossValidation::solveRidged(int f, const std::vector<Eigen::Index>& columns,
+                                             Eigen::VectorXd* unit_variance) const {
   const Eigen::Index m = static_cast<Eigen::Index>(columns.size());
   Eigen::MatrixXd G = trainingGram(f, columns, columns);
   const Eigen::VectorXd b = trainingRhs(f, columns);
@@ -134,11 +152,14 @@ Eigen::VectorXd CrossValidation::solveStage1(int f, const std::vector<Eigen::Ind
   const double cutoff = kGramRankTolerance * lambda.maxCoeff();
   const Eigen::VectorXd bs = b.cwiseQuotient(s);
   Eigen::VectorXd z = Eigen::VectorXd::Zero(m);
+  if (unit_variance) unit_variance->setZero(m);
   for (Eigen::Index i = 0; i < m; ++i) {
     if (lambda(i) > cutoff) {
       z += eig.eigenvectors().col(i) * (eig.eigenvectors().col(i).dot(bs) / lambda(i));
+      if (unit_variance) *unit_variance += eig.eigenvectors().col(i).cwiseAbs2() / lambda(i);
     }
   }
+  if (unit_variance) *unit_variance = unit_variance->cwiseQuotient(s.cwiseAbs2());
   return z.cwiseQuotient(s);
 }
 
@@ -158,7 +179,7 @@ CrossValidation::Correction CrossValidation::withGlobal(
   out.x.resize(static_cast<size_t>(fit_.folds) + 1);
   for (int f = 0; f <= fit_.folds; ++f) {
     const size_t k = static_cast<size_t>(f);
-    const Eigen::VectorXd u = solveStage1(f, stage1);
+    const Eigen::VectorXd u = solveRidged(f, stage1);
     Eigen::VectorXd p(static_cast<Eigen::Index>(stage2_.size()));
     if (!stage2_.empty()) {
       p = H_[k].solve(trainingRhs(f, stage2_) - trainingGram(f, stage2_, stage1) * u);
@@ -214,20 +235,15 @@ CrossValidation::Correction CrossValidation::withProfile(const ProfileCandidate&
   return out;
 }
 
-CrossValidation::Stage2 CrossValidation::stage2OnAllRows() const {
-  Stage2 out;
+CrossValidation::JointFit CrossValidation::jointFit(const std::vector<Eigen::Index>& columns) const {
+  JointFit out;
+  out.change = solveRidged(fit_.folds, columns, &out.unit_variance);
   const size_t all = static_cast<size_t>(fit_.folds);
-  out.x = p_[all];
-  const Eigen::Index width = static_cast<Eigen::Index>(stage2_.size());
-  if (width == 0) return out;
-  out.H = trainingGram(fit_.folds, stage2_, stage2_);
-  for (Eigen::Index c = 0; c < width; ++c) out.H(c, c) += ridge_(stage2_[static_cast<size_t>(c)]);
   double e0 = 0.0;
   for (double e : grams_.e0) e0 += e;
-  const Eigen::VectorXd& x = base_.x[all];
-  const double sse = e0 - 2.0 * x.dot(grams_.b[all](base_.columns)) +
-                     x.dot(grams_.G[all](base_.columns, base_.columns) * x);
-  out.variance = std::max(0.0, sse) / std::max<double>(1.0, double(fit_.count - width));
+  const double sse = e0 - 2.0 * out.change.dot(grams_.b[all](columns)) +
+                     out.change.dot(grams_.G[all](columns, columns) * out.change);
+  out.variance = std::max(0.0, sse) / std::max<double>(1.0, double(fit_.count - columns.size()));
   return out;
 }
 

@@ -1,11 +1,17 @@
 // Cross-validation of linear corrections of the diagnosis's model over folds of poses, from
 // per-fold Gram blocks (internal to stepcal::trainer).
 //
-// The model is linearised as the two stages it is fitted in (model.hpp): stage 1, the global
-// columns (geometry and global parameters), fitted first on the global model's residual r0;
-// stage 2, the profiles' columns, fitted with their ridges on what stage 1 leaves. A candidate
-// joins stage 1 (a global mechanism) or stage 2 (a profile). For each fold the correction is
-// fitted on the other folds and judged on this one.
+// The whole model (global part and profiles) is linearised at its joint fit (jointChange, applied
+// by the diagnosis before each round): r0 is its residual, every column a change of one
+// parameter, and the ridges hold a parameter's value (current + change), not its change, near
+// zero. A change is fitted in the two stages of model.hpp: stage 1, the global columns (geometry
+// and global parameters), first; stage 2, the geometry's share of the profiles and the profiles'
+// columns, with their ridges, on what stage 1 leaves. From the joint fit neither stage takes what
+// the other holds (linearised at the global part alone, with the profiles out of r0, a lumped
+// self weight fitted first took the part of a shoulder profile in its direction, and what was left
+// looked like a profile of another joint). A candidate (value 0) joins stage 1 (a global
+// mechanism) or stage 2 (a profile). For each fold the change is fitted on the other folds and
+// judged on this one.
 #pragma once
 
 #include <vector>
@@ -18,10 +24,13 @@
 namespace stepcal::trainer::diagnosis {
 
 /// The columns of one screening matrix A (count × p, the residual's weighting) against the
-/// global model's residual r0, summed per fold: what every cross-validated fit on them needs.
-/// Built once while the global model stays the same (a profile added changes none of it).
+/// model's residual r0, summed per fold: what every cross-validated fit on them needs. Built
+/// whenever the model changes.
 struct FoldGrams {
   FoldGrams(Eigen::MatrixXd A, const Eigen::VectorXd& r0, const FitRows& fit);
+  /// The same columns against r0 + A·v: the linearised model with a part of it (values v in its
+  /// columns, 0 elsewhere) taken out.
+  FoldGrams without(const Eigen::VectorXd& v) const;
   std::vector<Eigen::MatrixXd> G;  ///< per fold AᵀA of its rows, then the total (index folds)
   std::vector<Eigen::VectorXd> b;  ///< per fold Aᵀ r0, then the total
   std::vector<double> e0;          ///< per fold Σ r0²
@@ -35,14 +44,15 @@ struct FoldGrams {
 
 class CrossValidation {
  public:
-  /// grams and r0 (the global model's residual) must outlive it; stage1, stage2: the current
-  /// model's columns; ridge: per column (0 = none).
-  CrossValidation(const FoldGrams& grams, const Eigen::VectorXd& r0, const FitRows& fit,
-                  std::vector<Eigen::Index> stage1, std::vector<Eigen::Index> stage2,
-                  Eigen::VectorXd ridge);
+  /// grams must outlive it; stage1, stage2: the current model's columns; ridge: per column
+  /// (0 = none); current: per column, the parameter's value at which r0 was computed (0 for a
+  /// candidate; only where a ridge is and in stage 2 does it matter).
+  CrossValidation(const FoldGrams& grams, const FitRows& fit, std::vector<Eigen::Index> stage1,
+                  std::vector<Eigen::Index> stage2, Eigen::VectorXd ridge,
+                  Eigen::VectorXd current);
 
-  /// A linear correction: its columns, and its coefficients fitted without each fold (index f)
-  /// and on every row (index folds).
+  /// A linear correction: its columns, and the changes of their parameters fitted without each
+  /// fold (index f) and on every row (index folds).
   struct Correction {
     std::vector<Eigen::Index> columns;
     std::vector<Eigen::VectorXd> x;
@@ -66,15 +76,15 @@ class CrossValidation {
   /// The current model with the candidate's first `width` columns added to stage 2, ridge λ.
   Correction withProfile(const ProfileCandidate& candidate, int width, double lambda) const;
 
-  /// Stage 2 (the geometry's change and the current profiles) fitted on every row after stage 1:
-  /// coefficients in stage-2 column order, their Gram with the ridges and the residual variance
-  /// (storeStage2).
-  struct Stage2 {
-    Eigen::VectorXd x;
-    Eigen::MatrixXd H;
+  /// The given columns of the current model (stage 1 and the profiles, without the geometry's
+  /// share: it duplicates the geometry) fitted together on every row, as one least-squares
+  /// problem with the ridges on their values: each column's change, in the order given, the
+  /// diagonal of (AᵀA + R)⁺ and the residual variance after it (σ² = variance · unit_variance).
+  struct JointFit {
+    Eigen::VectorXd change, unit_variance;
     double variance = 0.0;
   };
-  Stage2 stage2OnAllRows() const;
+  JointFit jointFit(const std::vector<Eigen::Index>& columns) const;
 
   /// Row by row on the held-out folds: weighted squared error per pose, position error per row.
   struct Outcome {
@@ -87,14 +97,14 @@ class CrossValidation {
   Eigen::MatrixXd trainingGram(int f, const std::vector<Eigen::Index>& a,
                                const std::vector<Eigen::Index>& b) const;
   Eigen::VectorXd trainingRhs(int f, const std::vector<Eigen::Index>& a) const;
-  Eigen::VectorXd solveStage1(int f, const std::vector<Eigen::Index>& columns) const;
+  Eigen::VectorXd solveRidged(int f, const std::vector<Eigen::Index>& columns,
+                              Eigen::VectorXd* unit_variance = nullptr) const;
   double heldOutSse(int f, const std::vector<Eigen::Index>& columns, const Eigen::VectorXd& x) const;
 
   const FoldGrams& grams_;
-  const Eigen::VectorXd& r0_;
   const FitRows& fit_;
   std::vector<Eigen::Index> stage1_, stage2_;
-  Eigen::VectorXd ridge_;
+  Eigen::VectorXd ridge_, current_;
   // The current model per fold (and on every row at index folds).
   std::vector<Eigen::VectorXd> u_, p_, rhs2_;
   std::vector<Eigen::LLT<Eigen::MatrixXd>> H_;

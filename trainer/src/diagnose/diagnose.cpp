@@ -330,11 +330,12 @@ long globalEffect(const Diagnosis& d, size_t k) {
   return -1;
 }
 
-// Alternations of the global refit and the profiles' fit once every cause is named.
-constexpr int kJointFitPasses = 3;
+// Joint fits of the whole model once every cause is named (each rebuilds the screening).
+constexpr int kJointFitPasses = 2;
 
-// Whether a fitted mechanism has a size: one of its fitted parameters at least one σ from zero
-// (self weight under the URDF's masses fits none: its size is the compliance it frees).
+// Whether a fitted global mechanism has a size: one of its fitted parameters at least one σ from
+// zero (self weight under the URDF's masses fits none: its size is the compliance it frees). A
+// profile's is its size_chi2.
 bool hasSize(const Mechanism& m, bool masses_from_urdf) {
   const std::vector<int> fitted = freeParameters(m, masses_from_urdf);
   if (m.kind == MechanismKind::kSelfWeight && fitted.empty()) return true;
@@ -391,6 +392,79 @@ void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpti
   }
 }
 
+// The whole model fitted jointly, linearised where the screening was built: every current
+// column (geometry, global parameters, profiles) in one least-squares problem, the ridges on
+// their values, so what a global cause and a profile share goes to the one without a ridge (the
+// global cause: physics that holds everywhere). Alternating the two fits converges there only
+// slowly where they share much (a lumped self weight and a shoulder profile over a narrow arc).
+// Applied to the model, with r0 and the screening's values moved to it; the global parameters get
+// their σ from it (compliance_sigma: n entries), the profiles their σ and shares of the geometry
+// (storeStage2), the global geometry what is left of its change.
+void jointStep(DiagnosisModel& model, Screening& sc, std::unique_ptr<FoldGrams>& grams,
+               const FitRows& fit, Eigen::Index geometry, JointVector& compliance_sigma) {
+  const std::vector<Parameter> params = globalParameters(model);
+  STEPCAL_INVARIANT(sc.stage1.size() == static_cast<size_t>(geometry) + params.size(),
+                    "stage 1 holds the geometry and every global parameter");
+  std::vector<Eigen::Index> columns = sc.stage1;
+  const std::vector<Eigen::Index> profile_columns(sc.stage2.begin() + geometry, sc.stage2.end());
+  columns.insert(columns.end(), profile_columns.begin(), profile_columns.end());
+  const CrossValidation cv(*grams, fit, sc.stage1, sc.stage2, sc.ridge, sc.current);
+  const CrossValidation::JointFit joint = cv.jointFit(columns);
+  const Eigen::VectorXd& delta = joint.change;
+  Eigen::VectorXd moved = Eigen::VectorXd::Zero(sc.current.size());
+  for (size_t k = 0; k < columns.size(); ++k) moved(columns[k]) = -delta(static_cast<Eigen::Index>(k));
+
+  for (size_t c = 0; c < params.size(); ++c) {
+    const Eigen::Index k = geometry + static_cast<Eigen::Index>(c);
+    shift(model.global, params[c], delta(k));
+    const double sigma = std::sqrt(joint.variance * joint.unit_variance(k));
+    if (params[c].mechanism < 0) {
+      compliance_sigma(params[c].index) = sigma;
+    } else {
+      model.global.mechanisms[static_cast<size_t>(params[c].mechanism)]
+          .sigma[static_cast<size_t>(params[c].index)] = sigma;
+    }
+  }
+  Eigen::VectorXd old_share = Eigen::VectorXd::Zero(geometry);
+  for (const Profile& p : model.profiles) {
+    if (p.geometry.size() == geometry) old_share += p.geometry;
+  }
+  const Eigen::Index width = static_cast<Eigen::Index>(sc.stage2.size());
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(width);
+  const Eigen::Index first_profile = static_cast<Eigen::Index>(sc.stage1.size());
+  for (Eigen::Index c = geometry; c < width; ++c) {
+    x(c) = sc.current(sc.stage2[static_cast<size_t>(c)]) + delta(first_profile + c - geometry);
+  }
+  Eigen::MatrixXd H = grams->G[static_cast<size_t>(fit.folds)](sc.stage2, sc.stage2);
+  H.diagonal() += sc.ridge(sc.stage2);
+  storeStage2(model, H, x, joint.variance);
+  Eigen::VectorXd new_share = Eigen::VectorXd::Zero(geometry);
+  for (const Profile& p : model.profiles) new_share += p.geometry;
+  model.global.chain_Tracker =
+      model.global.chain_Tracker.corrected(delta.head(geometry) + old_share - new_share);
+
+  for (size_t c = 0; c < params.size(); ++c) {
+    sc.current(sc.stage1[static_cast<size_t>(geometry) + c]) += delta(geometry + static_cast<Eigen::Index>(c));
+  }
+  setStage2(sc, model, geometry);
+  grams = std::make_unique<FoldGrams>(grams->without(moved));
+}
+
+// The round's screening and its Grams, built at the model as it stands and moved to its joint
+// fit (jointStep) when it has profiles.
+void buildScreening(DiagnosisModel& model, const FitRows& fit, const DiagnoseOptions& options,
+                    const std::optional<std::vector<double>>& body_masses, Screening& sc,
+                    std::unique_ptr<FoldGrams>& grams, JointVector& compliance_sigma,
+                    const Mechanism* only = nullptr) {
+  const RoundStart start = roundStart(model, fit);
+  sc = screening(model, fit, start, options, body_masses, only);
+  grams = std::make_unique<FoldGrams>(std::move(sc.A), start.evaluation.r, fit);
+  sc.A.resize(0, 0);
+  if (!model.profiles.empty()) {
+    jointStep(model, sc, grams, fit, 6 * (model.global.chain_Tracker.dof() + 1), compliance_sigma);
+  }
+}
+
 // The model without its global mechanism k: the compliances only it made identifiable (self
 // weight) go back to the starting model's.
 void dropGlobal(DiagnosisModel& model, size_t k, const FoundEffect& effect,
@@ -420,16 +494,13 @@ std::optional<Comparison> withoutGlobal(const DiagnosisModel& model, size_t k, s
              starting_compliance);
   scratch.effects.erase(scratch.effects.begin() + globalEffect(d, k - base_globals));
   JointVector sigma = JointVector::Zero(trial.global.chain_Tracker.dof());
-  refitPhysical(trial, fit, options, base_globals, sigma, scratch);
+  refitPhysical(trial, fit, options, base_globals, sigma, scratch, true);
   if (trial.global.mechanisms.size() + 1 != model.global.mechanisms.size()) return std::nullopt;
-  fitProfiles(trial, fit);
-  RoundStart start;
-  start.global = evaluate(trial.global, fit);
-  start.linear = linearise(trial.global, fit, start.global.r);
-  Screening one = screening(trial, fit, start, options, body_masses, &removed);
+  Screening one;
+  std::unique_ptr<FoldGrams> grams;
+  buildScreening(trial, fit, options, body_masses, one, grams, sigma, &removed);
   if (one.families.empty()) return std::nullopt;
-  const FoldGrams grams(std::move(one.A), start.global.r, fit);
-  const CrossValidation cv(grams, start.global.r, fit, one.stage1, one.stage2, one.ridge);
+  const CrossValidation cv(*grams, fit, one.stage1, one.stage2, one.ridge, one.current);
   const CrossValidation::Outcome base = cv.heldOut(cv.base());
   std::optional<Comparison> best;
   bool significant = false;
@@ -445,14 +516,6 @@ std::optional<Comparison> withoutGlobal(const DiagnosisModel& model, size_t k, s
   }
   if (significant) return std::nullopt;
   return best;
-}
-
-// The profiles' coefficients, σ and shares of the geometry from stage 2 fitted on every row.
-// Exact for the linearised model: a profile moves the link angles by ~1e-3 rad, so the
-// Jacobian's change it causes is far below the noise.
-void storeProfiles(DiagnosisModel& model, const CrossValidation& cv) {
-  const CrossValidation::Stage2 s = cv.stage2OnAllRows();
-  storeStage2(model, s.H, s.x, s.variance);
 }
 
 std::string percent(double share) {
@@ -550,27 +613,22 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
   }
   d.seconds_trends += secondsSince(clock);
 
-  // 2. Families, round by round. The screening (columns and their per-fold Grams) is rebuilt only
-  // when the global model changes: a profile added changes none of it, it only joins stage 2.
+  // 2. Families, round by round. The screening (columns and their per-fold Grams, linearised at
+  // the whole model) is rebuilt whenever the model changes.
   const size_t base_globals = dm.global.mechanisms.size(), base_profiles = dm.profiles.size();
   const Eigen::Index geometry = 6 * (n + 1);
-  RoundStart start;
   Screening sc;
   std::unique_ptr<FoldGrams> grams;
   std::vector<Rival> rivals;  // of the effect named last
   for (int round = 1; round <= options.max_rounds; ++round) {
     clock = std::chrono::steady_clock::now();
-    const bool rebuilt = !grams;
-    if (rebuilt) {
-      start.global = evaluate(dm.global, fit);
-      start.linear = linearise(dm.global, fit, start.global.r);
-      sc = screening(dm, fit, start, options, body_masses);
+    if (!grams) {
+      buildScreening(dm, fit, options, body_masses, sc, grams, compliance_sigma);
       d.untestable = sc.untestable;  // what the model as it now stands cannot try
-      grams = std::make_unique<FoldGrams>(std::move(sc.A), start.global.r, fit);
-      sc.A.resize(0, 0);
+    } else {
+      jointStep(dm, sc, grams, fit, geometry, compliance_sigma);  // with the profile named last
     }
-    const CrossValidation cv(*grams, start.global.r, fit, sc.stage1, sc.stage2, sc.ridge);
-    if (rebuilt) storeProfiles(dm, cv);  // on what the new global model leaves
+    const CrossValidation cv(*grams, fit, sc.stage1, sc.stage2, sc.ridge, sc.current);
     const CrossValidation::Outcome base = cv.heldOut(cv.base());
     for (Family& family : sc.families) pruneNegativeCompliance(family, cv, sc.stage1.size(), dm);
     std::vector<Scored> scored(sc.families.size());
@@ -618,14 +676,15 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
     d.effects.push_back(std::move(effect));
     const Family& family = *scored[chosen].family;
     if (family.stage == Stage::kProfile) {
-      // Its leading 2·order columns join stage 2 with its ridge; the other families stay.
+      // Its leading 2·order columns join stage 2 with its ridge (value 0 until the next joint
+      // step); the other families stay.
       sc.profiled.push_back(family);
       sc.families.erase(sc.families.begin() + static_cast<long>(&family - sc.families.data()));
       setStage2(sc, dm, geometry);
-      storeProfiles(dm, CrossValidation(*grams, start.global.r, fit, sc.stage1, sc.stage2, sc.ridge));
     } else {
+      // Refitted with the profiles held; the screening is rebuilt at the new model.
       clock = std::chrono::steady_clock::now();
-      refitPhysical(dm, fit, options, base_globals, compliance_sigma, d);
+      refitPhysical(dm, fit, options, base_globals, compliance_sigma, d, true);
       d.seconds_refit += secondsSince(clock);
       grams.reset();
     }
@@ -656,45 +715,42 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
                starting_compliance);
     d.effects.erase(d.effects.begin() + globalEffect(d, k - base_globals));
     dm = std::move(trial);
-    refitPhysical(dm, fit, options, base_globals, compliance_sigma, d);
+    refitPhysical(dm, fit, options, base_globals, compliance_sigma, d, true);
     fitProfiles(dm, fit);
     grams.reset();
   }
-  // The global causes found and the profiles fitted jointly: each was fitted on what the other
-  // left when it was chosen, so a weakly determined global one (a sensor's moment bias) kept a
-  // part of a profile's signal, and the profile the opposite. Alternating the two fits converges
-  // to their joint least squares.
-  if (!dm.profiles.empty() && dm.global.mechanisms.size() > base_globals) {
-    clock = std::chrono::steady_clock::now();
-    for (int pass = 0; pass < kJointFitPasses; ++pass) {
-      refitPhysical(dm, fit, options, base_globals, compliance_sigma, d, true);
-      fitProfiles(dm, fit);
-    }
-    grams.reset();
-    d.seconds_refit += secondsSince(clock);
-  }
-
   // Each profile's order and ridge chosen again with every other cause in the model: when it
-  // was chosen, the profiles found after it were not there to explain their part.
+  // was chosen, the profiles found after it were not there to explain their part. It is taken
+  // out of the linearised model (its values and its share of the geometry) and tried again.
   if (!dm.profiles.empty()) {
     clock = std::chrono::steady_clock::now();
     if (!grams) {
-      start.global = evaluate(dm.global, fit);
-      start.linear = linearise(dm.global, fit, start.global.r);
-      sc = screening(dm, fit, start, options, body_masses);
-      grams = std::make_unique<FoldGrams>(std::move(sc.A), start.global.r, fit);
-      sc.A.resize(0, 0);
+      buildScreening(dm, fit, options, body_masses, sc, grams, compliance_sigma);
+    } else {
+      jointStep(dm, sc, grams, fit, geometry, compliance_sigma);
     }
-    for (size_t i = 0; i < dm.profiles.size(); ++i) {
+    const std::vector<Profile> found = dm.profiles;
+    for (size_t i = 0; i < found.size(); ++i) {
       DiagnosisModel without = dm;
+      without.profiles = found;
       without.profiles.erase(without.profiles.begin() + static_cast<long>(i));
       Screening others = sc;
       others.profiled.erase(others.profiled.begin() + static_cast<long>(i));
       setStage2(others, without, geometry);
-      const CrossValidation cv(*grams, start.global.r, fit, others.stage1, others.stage2,
-                               others.ridge);
+      Eigen::VectorXd taken = Eigen::VectorXd::Zero(others.current.size());
+      const Mechanism& m = found[i].mechanism;
+      for (int c = 0; c < 2 * m.order; ++c) {
+        taken(sc.profiled[i].columns[static_cast<size_t>(c)]) = m.parameters[static_cast<size_t>(c)];
+      }
+      for (Eigen::Index c = 0; c < geometry; ++c) {
+        taken(sc.stage2[static_cast<size_t>(c)]) = found[i].geometry(c);
+      }
+      for (Eigen::Index c : sc.profiled[i].columns) others.current(c) = 0.0;
+      const FoldGrams grams_without = grams->without(taken);
+      const CrossValidation cv(grams_without, fit, others.stage1, others.stage2, others.ridge,
+                               others.current);
       const Scored again =
-          scoreProfile(sc.profiled[i], cv, cv.heldOut(cv.base()), *grams, options, fit);
+          scoreProfile(sc.profiled[i], cv, cv.heldOut(cv.base()), grams_without, options, fit);
       Profile& p = dm.profiles[i];
       p.mechanism.order = again.score.mechanism.order;
       p.mechanism.parameters.assign(static_cast<size_t>(2 * p.mechanism.order), 0.0);
@@ -707,9 +763,27 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
         }
       }
     }
-    setStage2(sc, dm, geometry);
-    storeProfiles(dm, CrossValidation(*grams, start.global.r, fit, sc.stage1, sc.stage2, sc.ridge));
     d.seconds_screening += secondsSince(clock);
+
+    // The profiles at their new orders, then twice the global part refitted under its signs
+    // (refitPhysical) and the whole model fitted jointly from there (the joint step is linear);
+    // the σ of every parameter are the joint fit's. Should the last joint step have taken a
+    // compliance or a sign-constrained parameter below zero, the global refit holds it again.
+    clock = std::chrono::steady_clock::now();
+    fitProfiles(dm, fit);
+    for (int pass = 0; pass < kJointFitPasses; ++pass) {
+      refitPhysical(dm, fit, options, base_globals, compliance_sigma, d, true);
+      buildScreening(dm, fit, options, body_masses, sc, grams, compliance_sigma);
+    }
+    bool signs_hold = true;
+    for (int j = 0; j < n; ++j) {
+      signs_hold = signs_hold && (!dm.compliance_free[static_cast<size_t>(j)] ||
+                                  dm.global.compliance_rad_per_nm(j) >= 0.0);
+    }
+    for (const Mechanism& m : dm.global.mechanisms) signs_hold = signs_hold && !wrongSign(m);
+    if (!signs_hold) refitPhysical(dm, fit, options, base_globals, compliance_sigma, d, true);
+    grams.reset();
+    d.seconds_refit += secondsSince(clock);
   }
 
   // Every effect's parameters and σ from the final fit, in the order found.
@@ -717,14 +791,19 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
     size_t next_global = base_globals, next_profile = base_profiles;
     for (FoundEffect& e : d.effects) {
       if (e.mechanism.kind == MechanismKind::kTransmissionError) {
-        e.mechanism = dm.profiles[next_profile++].mechanism;
+        const Profile& p = dm.profiles[next_profile++];
+        e.mechanism = p.mechanism;
+        STEPCAL_INVARIANT(p.size_chi2 > 2.0 * p.mechanism.order,
+                          (describe(e.mechanism) +
+                           " was named, yet its fitted coefficients lie within one σ of zero")
+                              .c_str());
       } else {
         e.mechanism = dm.global.mechanisms[next_global++];
+        STEPCAL_INVARIANT(hasSize(e.mechanism, dm.masses_from_urdf),
+                          (describe(e.mechanism) +
+                           " was named, yet every parameter fitted for it lies within one σ of zero")
+                              .c_str());
       }
-      STEPCAL_INVARIANT(hasSize(e.mechanism, dm.masses_from_urdf),
-                        (describe(e.mechanism) +
-                         " was named, yet every parameter fitted for it lies within one σ of zero")
-                            .c_str());
     }
   }
   const PhysicalModel extended_physical = dm.combined();

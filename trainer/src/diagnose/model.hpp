@@ -1,14 +1,14 @@
 // The model a diagnosis builds (internal to stepcal::trainer): a global physical model (geometry,
 // compliance, every mechanism that holds at any pose) and transmission profiles on top of it.
 //
-// The two are fitted in that order. The global part explains all it can with physics that holds
-// everywhere; the profiles then explain what is left jointly with a change of the geometry, each
-// only on the joint angles it was fitted on (its coverage gate, 1 on every fit row). That change
-// of the geometry is split by profile: joint j's share δ_j is the geometry's least-squares
-// answer to joint j's profile on the fit rows, with the opposite sign (δ_j = −G⁺ B_j c_j, so
-// Σ_j δ_j is the joint fit's change of the geometry), and it is switched by joint j's gate
-// (profile_geometry, mechanisms.hpp). Where a profile fades out, its share of the geometry goes
-// with it: a row outside every profile sees exactly the global model.
+// The two are fitted together: the global part explains all it can with physics that holds
+// everywhere (no ridge), the profiles, with their ridges, what is left jointly with a change of
+// the geometry, each only on the joint angles it was fitted on (its coverage gate, 1 on every fit
+// row). That change of the geometry is split by profile: joint j's share δ_j is the geometry's
+// least-squares answer to joint j's profile on the fit rows, with the opposite sign
+// (δ_j = −G⁺ B_j c_j, so Σ_j δ_j is the joint fit's change of the geometry), and it is switched
+// by joint j's gate (profile_geometry, mechanisms.hpp). Where a profile fades out, its share of
+// the geometry goes with it: a row outside every profile sees exactly the global model.
 #pragma once
 
 #include <vector>
@@ -27,6 +27,10 @@ struct Profile {
   double ridge = 0.0;   ///< λ, weighted-residual units per rad²
   /// δ_j of the initial poses that goes with the profile (6(n+1); empty: none yet), its 1-σ.
   Eigen::VectorXd geometry, geometry_sigma;
+  /// cᵀ Σ_c⁻¹ c, the coefficients' squared Mahalanobis distance from zero (Σ_c their covariance):
+  /// 2·order where they lie one σ from it. Its harmonics may each lie within one σ where its
+  /// values over the angles it covers are far from zero (on an arc they trade with each other).
+  double size_chi2 = 0.0;
 };
 
 struct DiagnosisModel {

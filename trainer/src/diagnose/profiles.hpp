@@ -29,8 +29,8 @@ Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows&
 
 /// Stores a solved stage 2 in the model's profiles. Stage-2 columns: the geometry's 6(n+1), then
 /// each profile's in model order; H their Gram with the ridges, x the coefficients, variance the
-/// residual's. Each profile gets its coefficients and σ (from variance · H⁻¹) and its share of
-/// the geometry, δ_j = −H_gg⁻¹ H_gj c_j (model.hpp), with its σ.
+/// residual's. Each profile gets its coefficients, σ (from variance · H⁻¹) and size_chi2, and its
+/// share of the geometry, δ_j = −H_gg⁻¹ H_gj c_j (model.hpp), with its σ.
 void storeStage2(DiagnosisModel& model, const Eigen::MatrixXd& H, const Eigen::VectorXd& x,
                  double variance);
 

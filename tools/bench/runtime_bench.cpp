@@ -9,6 +9,9 @@
 // correction of the same (q, wrench) from a seed 2° off on every joint (alternating sign), with a
 // deadline far away so that the solver's own tolerances end it. Each call is timed alone with
 // std::chrono::steady_clock after a warm-up; heap allocations are counted over the timed calls.
+// Beside them, the machine's own spread: the inverse at one pose (its iteration count the bench
+// poses' most common) timed the same number of times (`inverse_one_pose`): identical work, so its
+// p99 ÷ p50 is the machine's, and what the bench poses' tail has beyond it is theirs.
 // --compare-kdl (built with Debian's liborocos-kdl-dev) times KDL's ChainIkSolverPos_NR_JL in
 // the same run on the model's nominal chain (uncorrected, base frame): the nominal pose at each
 // bench pose's q, from the same seed, at the same tolerance (1e-6), and prints the ratios.
@@ -16,6 +19,7 @@
 // at full precision, untimed, so that two builds' answers can be compared (tools/bench/compare_answers.sh).
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -221,10 +225,12 @@ int main(int argc, char** argv) {
       return poses[static_cast<size_t>(call) % poses.size()];
     };
 
-    CallStats forward, inverse;
+    CallStats forward, inverse, one_pose;
     forward.latency_us.resize(static_cast<size_t>(calls));
     inverse.latency_us.resize(static_cast<size_t>(calls));
+    one_pose.latency_us.resize(static_cast<size_t>(calls));
     inverse.iterations.resize(static_cast<size_t>(runtime::InverseOptions{}.max_iterations) + 1);
+    one_pose.iterations.resize(inverse.iterations.size());
     const auto runForward = [&](int call) {
       const BenchPose& p = pose(call);
       return runtime::correctForward(*model, ws, p.q_rad, p.wrench_Sensor, temp_c).status;
@@ -238,9 +244,20 @@ int main(int argc, char** argv) {
       return r.status;
     };
     int iterations = 0;
+    std::vector<long> warmup_iterations(inverse.iterations.size());
     for (int call = 0; call < kWarmupCalls; ++call) {
       runForward(call);
       runInverse(call, iterations);
+      ++warmup_iterations[size_t(iterations)];
+    }
+    // The pose of the machine's baseline: the first whose iteration count is the most common.
+    const int common = static_cast<int>(
+        std::max_element(warmup_iterations.begin(), warmup_iterations.end()) -
+        warmup_iterations.begin());
+    int baseline_call = 0;
+    while (baseline_call + 1 < static_cast<int>(poses.size()) &&
+           (runInverse(baseline_call, iterations), iterations != common)) {
+      ++baseline_call;
     }
 
     long allocations = 0;
@@ -259,6 +276,13 @@ int main(int argc, char** argv) {
         ++inverse.status_counts[static_cast<int>(status)];
         ++inverse.iterations[size_t(iterations)];
       }
+      for (int call = 0; call < calls; ++call) {
+        const auto start = runtime::Clock::now();
+        const runtime::Status status = runInverse(baseline_call, iterations);
+        one_pose.latency_us[size_t(call)] = microsecondsBetween(start, runtime::Clock::now());
+        ++one_pose.status_counts[static_cast<int>(status)];
+        ++one_pose.iterations[size_t(iterations)];
+      }
       allocations = counter.count();
     }
     if (!answers_path.empty()) writeAnswers(*model, ws, poses, temp_c, answers_path);
@@ -271,12 +295,13 @@ int main(int argc, char** argv) {
                                                                  : nlohmann::json(temp_c)},
                                    {"forward", toJson(forward, false)},
                                    {"inverse", toJson(inverse, true)},
+                                   {"inverse_one_pose", toJson(one_pose, true)},
                                    {"allocations", allocations}};
     if (!kdl.is_null()) report["kdl"] = kdl;
     if (json) {
       std::cout << report.dump(2) << "\n";
     } else {
-      for (const char* name : {"forward", "inverse"}) {
+      for (const char* name : {"forward", "inverse", "inverse_one_pose"}) {
         const nlohmann::json& r = report[name];
         std::cout << name << ": " << r["calls"] << " calls, p50 " << r["p50_us"].get<double>()
                   << " us, p99 " << r["p99_us"].get<double>() << " us, max "

@@ -67,16 +67,20 @@ FoldGrams::FoldGrams(Eigen::MatrixXd A, const Eigen::VectorXd& r0, const FitRows
   }
 }
 
+void FoldGrams::takeOut(const Eigen::VectorXd& v) {
+  const size_t folds = A_fold.size();
+  b[folds].setZero();
+  for (size_t f = 0; f < folds; ++f) {
+    r0_fold[f] += A_fold[f] * v;
+    b[f] += G[f] * v;
+    b[folds] += b[f];
+    e0[f] = r0_fold[f].squaredNorm();
+  }
+}
+
 FoldGrams FoldGrams::without(const Eigen::VectorXd& v) const {
   FoldGrams out = *this;
-  const size_t folds = A_fold.size();
-  out.b[folds].setZero();
-  for (size_t f = 0; f < folds; ++f) {
-    out.r0_fold[f] += A_fold[f] * v;
-    out.b[f] += G[f] * v;
-    out.b[folds] += out.b[f];
-    out.e0[f] = out.r0_fold[f].squaredNorm();
-  }
+  out.takeOut(v);
   return out;
 }
 

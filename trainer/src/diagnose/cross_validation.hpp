@@ -28,8 +28,10 @@ namespace stepcal::trainer::diagnosis {
 /// whenever the model changes.
 struct FoldGrams {
   FoldGrams(Eigen::MatrixXd A, const Eigen::VectorXd& r0, const FitRows& fit);
-  /// The same columns against r0 + A·v: the linearised model with a part of it (values v in its
-  /// columns, 0 elsewhere) taken out.
+  /// Moves r0 to r0 + A·v: the linearised model with a part of it (values v in its columns, 0
+  /// elsewhere) taken out (−v: a change put in).
+  void takeOut(const Eigen::VectorXd& v);
+  /// A copy with takeOut(v).
   FoldGrams without(const Eigen::VectorXd& v) const;
   std::vector<Eigen::MatrixXd> G;  ///< per fold AᵀA of its rows, then the total (index folds)
   std::vector<Eigen::VectorXd> b;  ///< per fold Aᵀ r0, then the total

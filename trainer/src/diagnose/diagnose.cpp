@@ -400,15 +400,15 @@ void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpti
 // Applied to the model, with r0 and the screening's values moved to it; the global parameters get
 // their σ from it (compliance_sigma: n entries), the profiles their σ and shares of the geometry
 // (storeStage2), the global geometry what is left of its change.
-void jointStep(DiagnosisModel& model, Screening& sc, std::unique_ptr<FoldGrams>& grams,
-               const FitRows& fit, Eigen::Index geometry, JointVector& compliance_sigma) {
+void jointStep(DiagnosisModel& model, Screening& sc, FoldGrams& grams, const FitRows& fit,
+               Eigen::Index geometry, JointVector& compliance_sigma) {
   const std::vector<Parameter> params = globalParameters(model);
   STEPCAL_INVARIANT(sc.stage1.size() == static_cast<size_t>(geometry) + params.size(),
                     "stage 1 holds the geometry and every global parameter");
   std::vector<Eigen::Index> columns = sc.stage1;
   const std::vector<Eigen::Index> profile_columns(sc.stage2.begin() + geometry, sc.stage2.end());
   columns.insert(columns.end(), profile_columns.begin(), profile_columns.end());
-  const CrossValidation cv(*grams, fit, sc.stage1, sc.stage2, sc.ridge, sc.current);
+  const CrossValidation cv(grams, fit, sc.stage1, sc.stage2, sc.ridge, sc.current);
   const CrossValidation::JointFit joint = cv.jointFit(columns);
   const Eigen::VectorXd& delta = joint.change;
   Eigen::VectorXd moved = Eigen::VectorXd::Zero(sc.current.size());
@@ -435,7 +435,7 @@ void jointStep(DiagnosisModel& model, Screening& sc, std::unique_ptr<FoldGrams>&
   for (Eigen::Index c = geometry; c < width; ++c) {
     x(c) = sc.current(sc.stage2[static_cast<size_t>(c)]) + delta(first_profile + c - geometry);
   }
-  Eigen::MatrixXd H = grams->G[static_cast<size_t>(fit.folds)](sc.stage2, sc.stage2);
+  Eigen::MatrixXd H = grams.G[static_cast<size_t>(fit.folds)](sc.stage2, sc.stage2);
   H.diagonal() += sc.ridge(sc.stage2);
   storeStage2(model, H, x, joint.variance);
   Eigen::VectorXd new_share = Eigen::VectorXd::Zero(geometry);
@@ -447,7 +447,7 @@ void jointStep(DiagnosisModel& model, Screening& sc, std::unique_ptr<FoldGrams>&
     sc.current(sc.stage1[static_cast<size_t>(geometry) + c]) += delta(geometry + static_cast<Eigen::Index>(c));
   }
   setStage2(sc, model, geometry);
-  grams = std::make_unique<FoldGrams>(grams->without(moved));
+  grams.takeOut(moved);
 }
 
 // The round's screening and its Grams, built at the model as it stands and moved to its joint
@@ -461,7 +461,7 @@ void buildScreening(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpt
   grams = std::make_unique<FoldGrams>(std::move(sc.A), start.evaluation.r, fit);
   sc.A.resize(0, 0);
   if (!model.profiles.empty()) {
-    jointStep(model, sc, grams, fit, 6 * (model.global.chain_Tracker.dof() + 1), compliance_sigma);
+    jointStep(model, sc, *grams, fit, 6 * (model.global.chain_Tracker.dof() + 1), compliance_sigma);
   }
 }
 
@@ -626,7 +626,7 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
       buildScreening(dm, fit, options, body_masses, sc, grams, compliance_sigma);
       d.untestable = sc.untestable;  // what the model as it now stands cannot try
     } else {
-      jointStep(dm, sc, grams, fit, geometry, compliance_sigma);  // with the profile named last
+      jointStep(dm, sc, *grams, fit, geometry, compliance_sigma);  // with the profile named last
     }
     const CrossValidation cv(*grams, fit, sc.stage1, sc.stage2, sc.ridge, sc.current);
     const CrossValidation::Outcome base = cv.heldOut(cv.base());
@@ -727,7 +727,7 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
     if (!grams) {
       buildScreening(dm, fit, options, body_masses, sc, grams, compliance_sigma);
     } else {
-      jointStep(dm, sc, grams, fit, geometry, compliance_sigma);
+      jointStep(dm, sc, *grams, fit, geometry, compliance_sigma);
     }
     const std::vector<Profile> found = dm.profiles;
     for (size_t i = 0; i < found.size(); ++i) {

@@ -130,6 +130,29 @@ TEST(TransmissionOffset, EqualsTheDirectSumAndItsDerivativeTheFiniteDifference) 
   }
 }
 
+TEST(TransmissionOffset, EveryOrderEqualsTheDirectSumAndItsDerivative) {
+  // Orders on either side of the evaluation's blocks of four harmonics, up to kMaxHarmonics.
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> coefficient(-3e-4, 3e-4), angle(-6.5, 6.5);
+  for (const int order : {1, 2, 3, 4, 5, 6, 7, 9, 13, 31, 32, 33, 61, 63, kMaxHarmonics}) {
+    std::vector<double> c(size_t(2 * order));
+    for (double& v : c) v = coefficient(rng);
+    const Mechanism m = profile(c);
+    for (int i = 0; i < 200; ++i) {
+      const double q = angle(rng);
+      double direct = 0.0, direct_slope = 0.0;
+      for (int k = 1; k <= order; ++k) {
+        const double a = c[size_t(2 * (k - 1))], b = c[size_t(2 * k - 1)];
+        direct += a * std::sin(k * q) + b * std::cos(k * q);
+        direct_slope += k * (a * std::cos(k * q) - b * std::sin(k * q));
+      }
+      double slope = 0.0;
+      EXPECT_NEAR(transmissionOffset(m, q, &slope), direct, 1e-15) << order << " " << q;
+      EXPECT_NEAR(slope, direct_slope, 1e-13) << order << " " << q;  // |slope| up to ~0.6
+    }
+  }
+}
+
 TEST(TransmissionOffset, JointsOutsideCoverageAreFlagged) {
   PhysicalModel model;
   Mechanism on_joint_2 = profile({1e-4, 0.0}, arcs({0.0, 1.0}, 0.1));

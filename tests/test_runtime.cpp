@@ -343,6 +343,43 @@ TEST(Runtime, ForwardAppliesSelfWeightThroughTheCompliance) {
             << " m; smallest deflection " << smallest_effect_m << " m\n";
 }
 
+TEST(Runtime, FixedPointStartHoldsOrPassesFromTheGivenDeflection) {
+  // FixedPointStart (mechanisms.hpp), as the inverse's iterates use it: no pass holds the given
+  // deflection (θ = q + d, τ zero: the chord's iterate), one pass is θ = q + C τ_g(q + d).
+  const CalibratedModel file = withMechanisms(
+      {mechanism(MechanismKind::kSelfWeight, -1, -1, 0, selfWeightParameters())}, false);
+  const auto model = RuntimeModel::fromModel(file, 9);
+  const KinematicChain& chain = file.chain_Tracker;
+  const Vec3 gravity_Tracker = file.X_TrackerBase.linear() * file.gravity_Base;
+  const JointVector& C = file.compliance_rad_per_nm;
+  ChainWorkspace ws;
+  double worst_held = 0.0, worst_pass = 0.0;
+  for (const Measurement* row : validationRows()) {
+    const JointVector& q = row->q_rad;
+    JointVector d = JointVector::Constant(q.size(), 1e-4);
+    d(1) = -3e-4;
+    JointVector theta, tau, d_out;
+    FixedPointStart start;
+    start.passes = 0;
+    start.deflection_rad = &d;
+    start.deflection_out_rad = &d_out;
+    ASSERT_TRUE(physicalLinkAngles(model->physical, q, Vec6::Zero(), kUnknownTemperature_c, ws,
+                                   theta, tau, nullptr, &model->physical_constants, &start));
+    EXPECT_EQ(theta, JointVector(q + d));
+    EXPECT_EQ(tau, JointVector::Zero(q.size()));
+    worst_held = std::max(worst_held, (d_out - d).cwiseAbs().maxCoeff());
+    start.passes = 1;
+    ASSERT_TRUE(physicalLinkAngles(model->physical, q, Vec6::Zero(), kUnknownTemperature_c, ws,
+                                   theta, tau, nullptr, &model->physical_constants, &start));
+    const JointVector by_hand =
+        q + C.cwiseProduct(gravityTorquesByHand(chain, q + d, gravity_Tracker,
+                                                selfWeightParameters()));
+    worst_pass = std::max(worst_pass, (theta - by_hand).cwiseAbs().maxCoeff());
+  }
+  EXPECT_LT(worst_held, 1e-15);  // θ − θ₀ back out of θ = θ₀ + d: d to the rounding of θ
+  EXPECT_LT(worst_pass, 1e-15);
+}
+
 TEST(Runtime, ThermalExpansionScalesTheArmAboutJointOneAndUnknownIsTheReference) {
   // Rigid model, links × (1 + α (T − T_ref)). Every joint axis passes through its frame's origin
   // (v = 0), so the tip's offset from frame 1's origin o₁ (T_{0,1}(0), never scaled) scales as a
@@ -453,14 +490,17 @@ TEST(Runtime, InverseRoundTripsThroughForwardWithMechanismsOfEveryKind) {
                                          perturbed(row->q_rad, rng), kNoDeadline);
     ASSERT_EQ(r.status, Status::kOk) << toString(r.status) << " on row " << row->seq;
     ++iterations[r.iterations];
-    // To 1e-10 m/rad within the default 8 steps, though the self weight's derivative is left
-    // out of the Jacobian (one step more than with the other mechanisms alone) and the GPR's
-    // twist is held frozen between its evaluations (one more at this tolerance).
+    // To 1e-10 m/rad in 8 steps, the chord after the first one included, though the self
+    // weight's derivative is left out of the Jacobian (one step more than with the other
+    // mechanisms alone) and the GPR's twist is held frozen between its evaluations (one more at
+    // this tolerance). The cap is raised above that bound so that the bound is what is tested.
+    InverseOptions tight_options = tightOptions();
+    tight_options.max_iterations = 12;
     const InverseResult tight =
         solveInverse(*model, ws, forward.X_TrackerTip, wrench, temp_c, perturbed(row->q_rad, rng),
-                     kNoDeadline, tightOptions());
+                     kNoDeadline, tight_options);
     ASSERT_EQ(tight.status, Status::kOk) << toString(tight.status) << " on row " << row->seq;
-    EXPECT_LE(tight.iterations, 7);
+    EXPECT_LE(tight.iterations, 8);
     ++iterations_tight[tight.iterations];
     const ForwardResult at_target = correctForward(*model, ws, r.q_target_rad, wrench, temp_c);
     EXPECT_EQ(r.X_TrackerTip_predicted.matrix(), at_target.X_TrackerTip.matrix());
@@ -729,7 +769,8 @@ TEST(Runtime, FarFromTheTrainingDataIsOutOfDomain) {
 
 // From seeds 1.5–2.5° off: to 1e-10 in at most 5 steps (the GPR's twist is held frozen between
 // its evaluations, a step more than a Newton that evaluates it every step; without the GPR, at
-// most 4: InverseJacobianCarriesCouplingTransmissionAndBacklash), to the default 1e-6 in 3.
+// most 4: InverseJacobianCarriesCouplingTransmissionAndBacklash), to the default 1e-6 in 3 (a
+// Newton step, the chord, a Newton step), a few in 4.
 TEST(Runtime, InverseRecoversCommandedJointsInFewSteps) {
   const RuntimeModel& model = paperRuntime();
   Workspace ws = makeWorkspace(model);
@@ -758,10 +799,11 @@ TEST(Runtime, InverseRecoversCommandedJointsInFewSteps) {
     const InverseResult d =
         solveInverse(model, ws, X_desired, wrench, kUnknownTemperature_c, seed, kNoDeadline);
     EXPECT_EQ(d.status, Status::kOk);
-    EXPECT_LE(d.iterations, 3);
+    EXPECT_LE(d.iterations, 4);
     ++iterations_default[d.iterations];
   }
   EXPECT_LT(worst_q_rad, 1e-9);
+  EXPECT_LE(iterations_default[4], static_cast<int>(validationRows().size()) / 20);
   const auto print = [](const char* what, const std::map<int, int>& histogram) {
     std::cout << "[ iterations ] " << what << ":";
     for (const auto& [iterations, count] : histogram) std::cout << " " << iterations << "×" << count;

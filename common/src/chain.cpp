@@ -168,8 +168,9 @@ void jointTrig(const JointVector& q_rad, JointTrig& trig) noexcept {
   trig.sin.resize(q_rad.size());
   trig.cos.resize(q_rad.size());
   for (Eigen::Index i = 0; i < q_rad.size(); ++i) {
-    trig.sin(i) = std::sin(q_rad(i));
-    trig.cos(i) = std::cos(q_rad(i));
+    const double q = q_rad(i);  // read once: the compiler then joins sin and cos into one sincos
+    trig.sin(i) = std::sin(q);
+    trig.cos(i) = std::cos(q);
   }
 }
 
@@ -180,8 +181,9 @@ void shiftedJointTrig(const JointTrig& trig, const JointVector& q_rad, const Joi
   for (Eigen::Index i = 0; i < q_rad.size(); ++i) {
     const double d = delta_rad(i);
     if (std::abs(d) > 0.01) {
-      shifted.sin(i) = std::sin(q_rad(i) + d);
-      shifted.cos(i) = std::cos(q_rad(i) + d);
+      const double q = q_rad(i) + d;
+      shifted.sin(i) = std::sin(q);
+      shifted.cos(i) = std::cos(q);
       continue;
     }
     // Taylor to d⁵ / d⁶: the next terms are below 1e-18 of 1 for |d| ≤ 0.01.

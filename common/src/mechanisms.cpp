@@ -52,7 +52,10 @@ double coverageGate(const AngleCoverage& coverage, double q_rad, double* derivat
   if (derivative) *derivative = 0.0;
   const size_t arcs = coverage.arcs_rad.size() / 2;
   if (arcs == 0) return 1.0;
-  double angle = std::fmod(q_rad, kTwoPi);
+  // q mod 2π in [0, 2π) by one floor rather than fmod's exact remainder: the two agree to the
+  // rounding of 2π's multiple, ~1e-15 rad at the joint ranges robots have.
+  double angle = q_rad - kTwoPi * std::floor(q_rad / kTwoPi);
+  if (angle >= kTwoPi) angle -= kTwoPi;
   if (angle < 0.0) angle += kTwoPi;
   double best = 0.0, best_slope = 0.0;
   for (size_t a = 0; a < arcs; ++a) {
@@ -121,53 +124,75 @@ std::string coverageProblem(const AngleCoverage& coverage) {
 
 namespace {
 
+/// Two doubles in one vector register (GCC/Clang vector extension: SSE2 on any x86-64, and the
+/// compiler's choice elsewhere).
+typedef double Lanes2 __attribute__((vector_size(2 * sizeof(double))));
+
 // Σ_k a_k sin(k q) + b_k cos(k q) of a profile, ungated, and its derivative by q when slope is
-// given. sin(kq), cos(kq) by rotations e^{i(k+4)q} = e^{ikq} e^{4iq}: one sin/cos per profile,
-// and four independent chains (k ≡ 1, 2, 3, 4 mod 4, one vector register) instead of one long
-// dependency chain.
-double profileSum(const Mechanism& m, double q_rad, double* slope_out) noexcept {
-  constexpr int kChains = 4;
-  const double s1 = std::sin(q_rad), c1 = std::cos(q_rad);
-  double s[kChains], c[kChains], value[kChains] = {}, slope[kChains] = {}, k[kChains];
-  s[0] = s1;
-  c[0] = c1;
-  for (int j = 1; j < kChains; ++j) {
-    s[j] = s[j - 1] * c1 + c[j - 1] * s1;
-    c[j] = c[j - 1] * c1 - s[j - 1] * s1;
-  }
-  for (int j = 0; j < kChains; ++j) k[j] = j + 1;
-  const double s4 = s[kChains - 1], c4 = c[kChains - 1];
-  const double* p = m.parameters.data();
-  const int blocks = m.order / kChains;
-  for (int block = 0; block < blocks; ++block, p += 2 * kChains) {
-    for (int j = 0; j < kChains; ++j) {
-      const double a = p[2 * j], b = p[2 * j + 1];
-      value[j] += a * s[j] + b * c[j];
-      slope[j] += k[j] * (a * c[j] - b * s[j]);
-      const double s_next = s[j] * c4 + c[j] * s4;
-      c[j] = c[j] * c4 - s[j] * s4;
-      s[j] = s_next;
-      k[j] += kChains;
+// given, from s1 = sin q and c1 = cos q. sin(kq), cos(kq) for k = 1 … 4 by doubling (e^{2iq} =
+// e^{iq} e^{iq}, then e^{i(2+j)q} = e^{ijq} e^{2iq}), then by rotations e^{i(k+4)q} = e^{ikq}
+// e^{4iq} in two chains of two harmonics (k ≡ 1, 2 and 3, 4 mod 4), each chain's sines, cosines,
+// sums and k in one vector register rather than four scalar chains (docs/runtime.md, "The chord
+// step and the physical model's hot spots").
+double profileSum(const Mechanism& m, double s1, double c1, double* slope_out) noexcept {
+  constexpr int kLanes = 2, kChains = 2, kStep = kLanes * kChains;
+  double s0[kStep], c0[kStep];
+  s0[0] = s1;
+  c0[0] = c1;
+  for (int have = 1; have < kStep; have *= 2) {  // k = have + 1 … 2·have from k = 1 … have
+    const double s_have = s0[have - 1], c_have = c0[have - 1];
+    for (int j = 0; j < have; ++j) {
+      s0[have + j] = s0[j] * c_have + c0[j] * s_have;
+      c0[have + j] = c0[j] * c_have - s0[j] * s_have;
     }
   }
-  for (int j = 0; j < m.order - blocks * kChains; ++j) {
-    const double a = p[2 * j], b = p[2 * j + 1];
-    value[j] += a * s[j] + b * c[j];
-    slope[j] += k[j] * (a * c[j] - b * s[j]);
+  Lanes2 s[kChains], c[kChains], value[kChains], slope[kChains], k[kChains];
+  for (int r = 0; r < kChains; ++r) {
+    s[r] = Lanes2{s0[kLanes * r], s0[kLanes * r + 1]};
+    c[r] = Lanes2{c0[kLanes * r], c0[kLanes * r + 1]};
+    k[r] = Lanes2{kLanes * r + 1.0, kLanes * r + 2.0};
+    value[r] = slope[r] = Lanes2{0.0, 0.0};
   }
-  if (slope_out) *slope_out = (slope[0] + slope[1]) + (slope[2] + slope[3]);
-  return (value[0] + value[1]) + (value[2] + value[3]);
+  const Lanes2 s_step = {s0[kStep - 1], s0[kStep - 1]}, c_step = {c0[kStep - 1], c0[kStep - 1]},
+               k_step = {double(kStep), double(kStep)};
+  const double* p = m.parameters.data();  // a_1, b_1, a_2, b_2, …
+  const int blocks = m.order / kStep;
+  for (int block = 0; block < blocks; ++block, p += 2 * kStep) {
+    for (int r = 0; r < kChains; ++r) {
+      const double* pr = p + 2 * kLanes * r;
+      const Lanes2 a = {pr[0], pr[2]}, b = {pr[1], pr[3]};
+      value[r] += a * s[r] + b * c[r];
+      slope[r] += k[r] * (a * c[r] - b * s[r]);
+      const Lanes2 s_next = s[r] * c_step + c[r] * s_step;
+      c[r] = c[r] * c_step - s[r] * s_step;
+      s[r] = s_next;
+      k[r] += k_step;
+    }
+  }
+  double sum = 0.0, sum_slope = 0.0;
+  for (int j = 0; j < m.order - blocks * kStep; ++j) {  // the last order mod 4 harmonics
+    const int r = j / kLanes, l = j % kLanes;
+    const double a = p[2 * j], b = p[2 * j + 1];
+    sum += a * s[r][l] + b * c[r][l];
+    sum_slope += k[r][l] * (a * c[r][l] - b * s[r][l]);
+  }
+  const Lanes2 value_sum = value[0] + value[1], slope_sum = slope[0] + slope[1];
+  sum += value_sum[0] + value_sum[1];
+  sum_slope += slope_sum[0] + slope_sum[1];
+  if (slope_out) *slope_out = sum_slope;
+  return sum;
 }
 
-// The gated offset from a gate and its slope (coverageGate): gate · sum, and its derivative.
-double gatedOffset(const Mechanism& m, double q_rad, double gate, double gate_slope,
+// The gated offset from a gate and its slope (coverageGate) at an angle of sine s1 and cosine
+// c1: gate · sum, and its derivative.
+double gatedOffset(const Mechanism& m, double s1, double c1, double gate, double gate_slope,
                    double* derivative) noexcept {
   if (gate == 0.0) {  // outside the coverage, and so is the slope (the gate is C¹)
     if (derivative) *derivative = 0.0;
     return 0.0;
   }
   double slope = 0.0;
-  const double sum = profileSum(m, q_rad, derivative ? &slope : nullptr);
+  const double sum = profileSum(m, s1, c1, derivative ? &slope : nullptr);
   if (derivative) *derivative = gate * slope + gate_slope * sum;
   return gate * sum;
 }
@@ -177,7 +202,7 @@ double gatedOffset(const Mechanism& m, double q_rad, double gate, double gate_sl
 double transmissionOffset(const Mechanism& m, double q_rad, double* derivative) noexcept {
   double gate_slope = 0.0;
   const double gate = coverageGate(m.coverage, q_rad, derivative ? &gate_slope : nullptr);
-  return gatedOffset(m, q_rad, gate, gate_slope, derivative);
+  return gatedOffset(m, std::sin(q_rad), std::cos(q_rad), gate, gate_slope, derivative);
 }
 
 std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof, int order) {
@@ -388,6 +413,9 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
 
   JointVector theta0 = q_rad;
   if (profile_slope) profile_slope->setZero(n);
+  // sin and cos of q serve the profiles and, shifted by θ₀ − q (~1e-4 rad), θ₀'s own.
+  JointTrig trig_q;
+  jointTrig(q_rad, trig_q);
   Vec6 wrench = wrench_Sensor;
   const Mechanism* self_weight = nullptr;
   // Each profile's gate once: it switches the profile and its share of the geometry.
@@ -403,7 +431,8 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
       gate[static_cast<size_t>(m.joint)] =
           coverageGate(m.coverage, q, profile_slope ? &gate_slope : nullptr);
       gates_open = gates_open && gate[static_cast<size_t>(m.joint)] == 1.0;
-      theta0(m.joint) += gatedOffset(m, q, gate[static_cast<size_t>(m.joint)], gate_slope,
+      theta0(m.joint) += gatedOffset(m, trig_q.sin(m.joint), trig_q.cos(m.joint),
+                                     gate[static_cast<size_t>(m.joint)], gate_slope,
                                      profile_slope ? &slope : nullptr);
       if (profile_slope) (*profile_slope)(m.joint) += slope;
     } else if (m.kind == MechanismKind::kSensorBias) {
@@ -451,12 +480,12 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
   const bool loaded = has_sensor || self_weight != nullptr;
   const int passes = !loaded ? 0 : start != nullptr ? start->passes : kFixedPointPasses;
   theta_rad = theta0;
-  if (passes > 0 && start != nullptr && start->deflection_rad != nullptr) {
+  if (loaded && start != nullptr && start->deflection_rad != nullptr) {
     theta_rad += *start->deflection_rad;
   }
   tau_nm.setZero(n);
   JointTrig trig0, trig;
-  jointTrig(theta0, trig0);
+  shiftedJointTrig(trig_q, q_rad, theta0 - q_rad, trig0);
   const auto evaluate = [&] {
     if (theta_rad == theta0) {
       forwardKinematics(chain, theta_rad, ws, *initial, &trig0);

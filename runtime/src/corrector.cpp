@@ -7,14 +7,11 @@
 #include <utility>
 #include <vector>
 
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
-#include <Eigen/SVD>
-
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/mechanisms.hpp"
+#include "damped_step.hpp"
 
 namespace stepcal::runtime {
 namespace {
@@ -79,22 +76,25 @@ std::pair<Vec3, double> reachSphere(const KinematicChain& chain) {
   return {chain.initialPose(0).translation(), kReachMargin * radius_m};
 }
 
-/// Passes of physicalTip's approximation: one, from the deflection of the last evaluation.
-constexpr int kApproximatePasses = 1;
+/// How physicalTip evaluates the physical model's deflection.
+enum class Deflection {
+  kModel,      ///< the model itself: the fixed point's passes from θ₀
+  kOnePass,    ///< one pass from ws.deflection_rad: within ~1e-3 of the deflection's change since
+  kHeld,       ///< ws.deflection_rad itself: off by the deflection's change since (~3e-5 rad
+               ///< after a 2° step of the UR10), for a chord step's iterate only
+};
 
 /// The physical model's tip at q: FK at its link angles (every mechanism, the thermal length
-/// scale at temp_c). Leaves ws.chain evaluated there, ws.link_rad, ws.torque_nm,
-/// ws.deflection_rad and, with_slopes (for a Jacobian there), ws.profile_slope set. approximate:
-/// the fixed point's one pass from ws.deflection_rad (FixedPointStart; within ~1e-3 of the
-/// deflection's change since, for a solver's intermediate iterates), else the model itself.
-/// Sizes must have been checked.
+/// scale at temp_c), the deflection as `deflection` says (FixedPointStart). Leaves ws.chain
+/// evaluated there, ws.link_rad, ws.torque_nm (zero with kHeld: no pass), ws.deflection_rad and,
+/// with_slopes (for a Jacobian there), ws.profile_slope set. Sizes must have been checked.
 Pose physicalTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
                  const Vec6& wrench_Sensor, double temp_c, bool with_slopes,
-                 bool approximate = false) noexcept {
+                 Deflection deflection = Deflection::kModel) noexcept {
   FixedPointStart start;
   start.deflection_out_rad = &ws.deflection_rad;
-  if (approximate) {
-    start.passes = kApproximatePasses;
+  if (deflection != Deflection::kModel) {
+    start.passes = deflection == Deflection::kOnePass ? 1 : 0;
     start.deflection_rad = &ws.deflection_rad;
   }
   const bool sized = physicalLinkAngles(model.physical, q_rad, wrench_Sensor, temp_c, ws.chain,
@@ -160,84 +160,6 @@ bool clampToLimits(const KinematicChain& chain, JointVector& q_rad) noexcept {
     q_rad(i) = inside;
   }
   return clamped;
-}
-
-/// Gram matrix of J on its smaller side, min(6, n) square: J Jᵀ when n ≥ 6, else Jᵀ J. Its
-/// eigenvalues are the squared singular values of J (thin SVD). Fixed 6 × 6 for six joints.
-using GramMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
-
-template <typename Gram>
-void gramMatrix(const Jacobian& J, Gram& G) noexcept {
-  if (J.cols() >= 6) {
-    G.noalias() = J * J.transpose();
-  } else {
-    G.noalias() = J.transpose() * J;
-  }
-}
-
-/// Smallest singular value of J from its Gram matrix G, or `floor` when it is above floor (the
-/// common case, decided by a Cholesky factorisation of G − floor² I rather than eigenvalues).
-template <typename Gram>
-double smallestSingularValueOrFloor(const Gram& G, double floor) noexcept {
-  Gram shifted = G;
-  shifted.diagonal().array() -= floor * floor;
-  if (Eigen::LLT<Gram>(shifted).info() == Eigen::Success) return floor;
-  const Eigen::SelfAdjointEigenSolver<Gram> eigen(G, Eigen::EigenvaluesOnly);
-  return std::sqrt(std::max(0.0, eigen.eigenvalues()(0)));
-}
-
-template <typename Gram>
-double dampedStepWith(const Jacobian& J, const Vec6& e, const InverseOptions& options,
-                      JointVector& dq_rad) noexcept {
-  Gram G;
-  gramMatrix(J, G);
-  // Only σ_min < threshold matters (ratio < 1); above it ratio = 1 gives the same λ² = 0.
-  const double sigma_min = smallestSingularValueOrFloor(G, options.singular_value_threshold);
-  const double ratio = sigma_min / options.singular_value_threshold;
-  const double lambda2 = ratio < 1.0 ? options.damping * (1.0 - ratio * ratio) : 0.0;
-  G.diagonal().array() += lambda2;
-  const Eigen::LLT<Gram> llt(G);
-  if (llt.info() == Eigen::Success) {
-    if (J.cols() >= 6) {
-      dq_rad.noalias() = J.transpose() * llt.solve(e);
-    } else {
-      dq_rad = llt.solve(J.transpose() * e);
-    }
-    if (dq_rad.allFinite()) return sigma_min;
-  }
-  const Eigen::JacobiSVD<Jacobian> svd(J, Eigen::ComputeThinU | Eigen::ComputeThinV);
-  const auto& sigma = svd.singularValues();
-  dq_rad.setZero(J.cols());
-  for (Eigen::Index i = 0; i < sigma.size(); ++i) {
-    const double denominator = sigma(i) * sigma(i) + lambda2;
-    if (denominator > 0.0) {
-      dq_rad += (sigma(i) / denominator * svd.matrixU().col(i).dot(e)) * svd.matrixV().col(i);
-    }
-  }
-  return sigma_min;
-}
-
-/// Damped least-squares step Δq = Σ_i σ_i / (σ_i² + λ²) v_i u_iᵀ e, rad, with λ² rising from 0
-/// at σ_min ≥ singular_value_threshold to options.damping at σ_min = 0 (Levenberg–Marquardt).
-/// Solved as Jᵀ (J Jᵀ + λ² I)⁻¹ e (n ≥ 6) or (Jᵀ J + λ² I)⁻¹ Jᵀ e (n < 6), the same sum, by
-/// Cholesky; by the SVD only when that matrix is singular (σ_i = 0 terms are left out).
-/// Returns σ_min of J, or singular_value_threshold when it is above that.
-double dampedStep(const Jacobian& J, const Vec6& e, const InverseOptions& options,
-                  JointVector& dq_rad) noexcept {
-  if (J.cols() == 6) return dampedStepWith<Mat6>(J, e, options, dq_rad);
-  return dampedStepWith<GramMatrix>(J, e, options, dq_rad);
-}
-
-/// σ_min of J, or `floor` when it is above floor (smallestSingularValueOrFloor).
-double smallestSingularValueOfJacobianOrFloor(const Jacobian& J, double floor) noexcept {
-  if (J.cols() == 6) {
-    Mat6 G;
-    gramMatrix(J, G);
-    return smallestSingularValueOrFloor(G, floor);
-  }
-  GramMatrix G;
-  gramMatrix(J, G);
-  return smallestSingularValueOrFloor(G, floor);
 }
 
 /// ad_ξᵀ w of a twist ξ = (v, ω) and a wrench w = (f, m): (f × ω, f × v + m × ω), so that
@@ -354,6 +276,11 @@ void correctedJacobian(const RuntimeModel& model, Workspace& ws,
                        const Vec6& wrench_Sensor) noexcept {
   Jacobian J_link;
   tipPointJacobian(model.physical.chain_Tracker, ws.chain, J_link);
+  if (model.physical.sensor_frame < 0 && !model.physical.has(MechanismKind::kJointCoupling)) {
+    // No wrench torques and no coupling: dθ/dq = I + diag(profile slopes), a column scaling.
+    ws.J.noalias() = J_link * (ws.profile_slope.array() + 1.0).matrix().asDiagonal();
+    return;
+  }
   JointMatrix dtheta_dq;
   linkAngleDerivative(model, ws, wrench_Sensor, J_link, dtheta_dq);
   ws.J.noalias() = J_link * dtheta_dq;
@@ -526,6 +453,7 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   // converged. There the full model decides: converged, or the steps go on with that twist. Two
   // GPR evaluations per call instead of one per step.
   Vec6 xi_frozen = Vec6::Zero();
+  Pose exp_frozen = Pose::Identity();  // exp(ξ̂) of xi_frozen
   bool have_twist = false;
   JointVector q_twist_rad = q_rad;  // where xi_frozen was evaluated
   Pose X_TrackerTip_last = Pose::Identity();  // the full model's at q_best_rad when converged
@@ -534,19 +462,29 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   // the tolerances, or after a short step, with the full model, which alone decides convergence.
   ws.deflection_rad.setZero(chain.dof());
   bool full_model_next = false;
+  // After the long first step from the seed, one chord step: the seed's Jacobian and factor
+  // again, at an iterate evaluated with the seed's deflection held. The first step leaves
+  // ~1e-3 of the seed's error (its quadratic term); the chord cuts that by the Jacobian's change
+  // over the step (~2°: a few %) for the price of a forward evaluation, so the next Newton step,
+  // with the full model, lands within the tolerance where it would otherwise need two.
+  detail::StepFactor factor;
+  bool chord_next = false, last_step_chord = false;
   while (!beyond_reach) {
     bool full_model = full_model_next;
-    Pose X_physical =
-        physicalTip(model, ws, q_rad, wrench_Sensor, temp_c, true, !full_model);
+    const bool chord = chord_next;
+    Pose X_physical = physicalTip(model, ws, q_rad, wrench_Sensor, temp_c, !chord,
+                                  chord        ? Deflection::kHeld
+                                  : full_model ? Deflection::kModel
+                                               : Deflection::kOnePass);
     // The seed's own twist would serve one step only (the first step is the long one): the
     // first step goes without, the twist is evaluated after it, and again after long moves.
     if ((!have_twist && result.iterations > 0) ||
         (have_twist && (q_rad - q_twist_rad).cwiseAbs().maxCoeff() > kFrozenTwistDistance_rad)) {
       xi_frozen = residualTwist(model, ws, q_rad, wrench_Sensor, false);
+      exp_frozen = lie::expSE3(xi_frozen);
       q_twist_rad = q_rad;
       have_twist = true;
     }
-    const Pose exp_frozen = lie::expSE3(xi_frozen);
     Vec6 e = poseResidual(X_TrackerTip_desired, Pose(X_physical * exp_frozen));
     const auto within = [&](const Vec6& r) {
       return r.head<3>().norm() <= options.position_tolerance_m &&
@@ -560,9 +498,10 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
     if (within(e)) {  // the full model's physical tip here
       // The full model here: the twist at q_rad with its std (kept in ws.gpr_std).
       xi_frozen = residualTwist(model, ws, q_rad, wrench_Sensor, true);
+      exp_frozen = lie::expSE3(xi_frozen);
       q_twist_rad = q_rad;
       have_twist = true;
-      X_TrackerTip_last = Pose(X_physical * lie::expSE3(xi_frozen));
+      X_TrackerTip_last = Pose(X_physical * exp_frozen);
       e = poseResidual(X_TrackerTip_desired, X_TrackerTip_last);
       if (within(e)) {
         converged = true;
@@ -576,13 +515,22 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
       q_best_rad = q_rad;
     }
     if (result.iterations >= options.max_iterations || Clock::now() >= deadline) break;
-    correctedJacobian(model, ws, wrench_Sensor);
-    sigma_min_last_step = dampedStep(ws.J, e, options, dq_rad);
+    if (chord) {
+      detail::stepFromFactor(ws.J, factor.cholesky, e, dq_rad);
+    } else {
+      correctedJacobian(model, ws, wrench_Sensor);
+      sigma_min_last_step = detail::dampedStep(ws.J, e, options, dq_rad, factor);
+    }
+    last_step_chord = chord;
     const double largest_rad = dq_rad.cwiseAbs().maxCoeff();
-    if (largest_rad > options.max_step_rad) dq_rad *= options.max_step_rad / largest_rad;
+    const bool shortened = largest_rad > options.max_step_rad;
+    if (shortened) dq_rad *= options.max_step_rad / largest_rad;
     q_rad += dq_rad;
     held_at_limit = clampToLimits(chain, q_rad);
     full_model_next = largest_rad <= kFullModelStep_rad;
+    // A shortened or clamped first step is not the Newton step the chord refines.
+    chord_next = result.iterations == 0 && !full_model_next && !shortened && !held_at_limit &&
+                 factor.valid;
     ++result.iterations;
   }
 
@@ -597,12 +545,12 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   if (!converged) {
     result.status = beyond_reach || held_at_limit ? Status::kUnreachable : Status::kNotConverged;
   } else {
-    // On the last step's Jacobian, taken within the tolerance of the answer (a fresh one only
-    // when the seed itself was the answer).
-    if (result.iterations == 0) {
+    // On the last step's Jacobian, taken within the tolerance of the answer (a fresh one when
+    // the seed itself was the answer, or the last step a chord with the seed's Jacobian).
+    if (result.iterations == 0 || last_step_chord) {
       correctedJacobian(model, ws, wrench_Sensor);
       sigma_min_last_step =
-          smallestSingularValueOfJacobianOrFloor(ws.J, options.singular_value_threshold);
+          detail::smallestSingularValueOfJacobianOrFloor(ws.J, options.singular_value_threshold);
     }
     if (sigma_min_last_step < options.singular_value_threshold) {
       result.status = Status::kNearSingular;

@@ -150,7 +150,7 @@ inline constexpr int kFixedPointPasses = 3;
 /// fewer passes: an approximation of the model (error ~1e-3 × the change of the deflection per
 /// pass), which the solver must check against the model.
 struct FixedPointStart {
-  int passes = kFixedPointPasses;
+  int passes = kFixedPointPasses;  ///< 0: θ = θ₀ + deflection_rad, no pass (τ left zero)
   const JointVector* deflection_rad = nullptr;  ///< θ − θ₀ to start from (null: θ₀ itself)
   JointVector* deflection_out_rad = nullptr;    ///< gets θ − θ₀ (may be deflection_rad)
 };

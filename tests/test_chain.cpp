@@ -2,6 +2,7 @@
 // differences, URDF import and its errors, and no allocation on the evaluation path.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -236,6 +237,32 @@ TEST(Urdf, RefusesAJointWhoseChildIsItsParent) {
   ASSERT_EQ(input.substr(0, newline), "base_link tool0");
   expectUrdfError(input.substr(newline + 1), "base_link", "tool0",
                   "the joints above link 'tool0' form a loop");
+}
+
+// Found by tests/fuzz/fuzz_urdf.cpp: a description cut off inside a UTF-8 character (…
+// link="base_lin" then 0xD3 0xD3 0xD3). TinyXML skipped the character's announced bytes past the
+// text's end (AddressSanitizer: heap-buffer-overflow in TiXmlBase::ReadName).
+TEST(Urdf, RefusesTextThatIsNotUtf8) {
+  const std::string input = readTextFile(std::string(STEPCAL_TEST_DATA_DIR) +
+                                         "/fuzz/urdf/truncated-utf8-overflow-f193ce71");
+  const std::string urdf_xml = input.substr(input.find('\n') + 1);
+  expectUrdfError(urdf_xml, "base_link", "tool0",
+                  "byte 0xD3, which starts no complete UTF-8 character, at column 27");
+  try {
+    chainFromUrdf(urdf_xml, "base_link", "tool0", {}, "bad.urdf");
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.line(), 1 + static_cast<int>(std::count(urdf_xml.begin(), urdf_xml.end(), '\n')));
+  }
+  std::string with_nul = twoJoint("1", "revolute");
+  with_nul[with_nul.find("<link")] = '\0';
+  expectUrdfError(with_nul, "a", "c", "a NUL byte at column");
+  std::string bad_continuation = twoJoint("1", "revolute");
+  bad_continuation.insert(bad_continuation.find("<robot"), "<!-- \xC3( -->\n");
+  expectUrdfError(bad_continuation, "a", "c", "byte 0xC3");
+  // Characters beyond ASCII, whole, are welcome (in a comment here).
+  std::string accented = twoJoint("1", "revolute");
+  accented.insert(accented.find("<link"), "<!-- Bahnführung, 軌道 -->\n");
+  EXPECT_EQ(chainFromUrdf(accented, "a", "c").dof(), 2);
 }
 
 // Loops urdfdom accepts beside that one: a link taken as child by a second joint (the later

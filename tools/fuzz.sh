@@ -81,6 +81,8 @@ case $target in
     { echo "base_link tmac flange ft_sensor"; cat "$root/robots/irb4400.urdf"; } \
       > "$out/seeds/irb4400"
     { echo "base_link tool0"; cat "$root/robots/ur10.urdf"; } > "$out/seeds/ur10"
+    # And the inputs it once failed on (tests/test_chain.cpp checks each is refused).
+    cp "$root"/tests/data/fuzz/urdf/* "$out/seeds/"
     ;;
   *)
     echo "unknown fuzz target '$target'; expected model_file, request_decoder, campaign," \

@@ -4,6 +4,7 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -27,6 +28,47 @@ class CapturingHandler : public console_bridge::OutputHandler {
   }
   std::string messages;
 };
+
+/// Bytes of the UTF-8 character a lead byte starts (1 … 4), 0 for a byte that starts none.
+int utf8Length(unsigned char lead) {
+  if (lead < 0x80) return 1;
+  if (lead >= 0xC2 && lead <= 0xDF) return 2;
+  if (lead >= 0xE0 && lead <= 0xEF) return 3;
+  if (lead >= 0xF0 && lead <= 0xF4) return 4;
+  return 0;
+}
+
+/// Throws InputError (line and column of the first bad byte) unless text is UTF-8 without NUL
+/// bytes. TinyXML, urdfdom's parser, skips as many bytes as a lead byte announces, so a character
+/// cut off at the end sends it past the text's end (found by tests/fuzz/fuzz_urdf.cpp), and it
+/// stops at a NUL, dropping what follows without a word.
+void requireUtf8Text(const std::string& text, const std::string& source) {
+  int line = 1;
+  size_t line_start = 0;
+  for (size_t i = 0; i < text.size();) {
+    const auto lead = static_cast<unsigned char>(text[i]);
+    const int length = utf8Length(lead);
+    bool complete = lead != 0 && length > 0 && i + static_cast<size_t>(length) <= text.size();
+    for (int k = 1; complete && k < length; ++k) {
+      complete = (static_cast<unsigned char>(text[i + static_cast<size_t>(k)]) & 0xC0) == 0x80;
+    }
+    if (!complete) {
+      char byte[8];
+      std::snprintf(byte, sizeof byte, "0x%02X", lead);
+      const std::string what = lead == 0 ? std::string("a NUL byte")
+                                         : "byte " + std::string(byte) +
+                                               ", which starts no complete UTF-8 character,";
+      throw InputError(what + " at column " + std::to_string(i - line_start + 1) +
+                           "; expected UTF-8 text (a URDF is XML)",
+                       source, line);
+    }
+    if (lead == '\n') {
+      ++line;
+      line_start = i + 1;
+    }
+    i += static_cast<size_t>(length);
+  }
+}
 
 bool isRevolute(const urdf::Joint& j) {
   return j.type == urdf::Joint::REVOLUTE || j.type == urdf::Joint::CONTINUOUS;
@@ -130,6 +172,7 @@ std::vector<urdf::JointConstSharedPtr> urdfPathFromBase(const urdf::ModelInterfa
 
 urdf::ModelInterfaceSharedPtr parseUrdfOrThrow(const std::string& urdf_xml,
                                                const std::string& source) {
+  requireUtf8Text(urdf_xml, source);
   CapturingHandler handler;
   console_bridge::useOutputHandler(&handler);
   urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(urdf_xml);

@@ -230,6 +230,38 @@ TEST(Cli, BadInputEndsWithAClearErrorAndStatusTwo) {
   EXPECT_NE(unknown.out.find("unknown effect 'gear_wobble'; expected one of"), std::string::npos) << unknown.out;
 }
 
+// --gpr-points caps the GPR's training set of calibrate and of diagnose's extended model (the
+// geometry campaign has 80 residual rows); fewer than two is refused before any work.
+TEST(Cli, GprPointsCapsTheTrainingSet) {
+  const fs::path dir = scratch("gpr_points");
+  ASSERT_EQ(run(kStepcal + " simulate --protocol geometry --seed 1 --out " + dir.string()).status, 0);
+  const auto gprLine = [](const fs::path& model) {
+    const CommandResult inspect = run(kStepcal + " inspect " + model.string());
+    EXPECT_EQ(inspect.status, 0) << inspect.out;
+    const size_t at = inspect.out.find("GPR: ");
+    return at == std::string::npos ? std::string() : inspect.out.substr(at, inspect.out.find(',', at) - at);
+  };
+  ASSERT_EQ(run(kStepcal + " calibrate " + dir.string() + " --out " + (dir / "all.stepcal").string()).status, 0);
+  EXPECT_EQ(gprLine(dir / "all.stepcal"), "GPR: 80 training points");
+  const CommandResult capped = run(kStepcal + " calibrate " + dir.string() + " --gpr-points 30 --out " +
+                                   (dir / "capped.stepcal").string());
+  ASSERT_EQ(capped.status, 0) << capped.out;
+  EXPECT_EQ(gprLine(dir / "capped.stepcal"), "GPR: 30 training points");
+  const CommandResult extended = run(kStepcal + " diagnose " + dir.string() + " --gpr-points 30 --out " +
+                                     (dir / "extended.stepcal").string());
+  ASSERT_EQ(extended.status, 0) << extended.out;
+  EXPECT_EQ(gprLine(dir / "extended.stepcal"), "GPR: 30 training points");
+  for (const char* command : {" calibrate ", " diagnose "}) {
+    const CommandResult refused = run(kStepcal + command + dir.string() + " --gpr-points 1 --out " +
+                                      (dir / "refused.stepcal").string());
+    EXPECT_EQ(refused.status, 2) << command;
+    EXPECT_NE(refused.out.find("--gpr-points 1: expected at least 2 training points (default 400)"),
+              std::string::npos)
+        << refused.out;
+    EXPECT_FALSE(fs::exists(dir / "refused.stepcal"));
+  }
+}
+
 // README, "From plan to URDF": plan → simulate --poses → calibrate → export urdf, as written there
 // (fewer poses), and a bad pose list ends with its file, line, column and value.
 TEST(Cli, FromPlanToUrdf) {

@@ -1,7 +1,7 @@
 #include "kdl_compare.hpp"
 
 #include <algorithm>
-#include <chrono>
+#include <utility>
 
 #include <kdl/chain.hpp>
 #include <kdl/chainfksolverpos_recursive.hpp>
@@ -46,37 +46,41 @@ KDL::Chain kdlChain(const KinematicChain& chain) {
 
 }  // namespace
 
-KdlTimes timeKdlInverse(const KinematicChain& chain, const std::vector<KdlTarget>& targets,
-                        int calls, double eps) {
-  const KDL::Chain kdl = kdlChain(chain);
-  const unsigned n = kdl.getNrOfJoints();
+struct KdlInverse::Solver {
+  Solver(KDL::Chain chain_in, const KDL::JntArray& q_min, const KDL::JntArray& q_max, double eps)
+      : chain(std::move(chain_in)),
+        fk(chain),
+        ik_velocity(chain),
+        ik(chain, q_min, q_max, fk, ik_velocity, 100, eps),
+        q_out(chain.getNrOfJoints()) {}
+  KDL::Chain chain;  // the solvers keep references to it
+  KDL::ChainFkSolverPos_recursive fk;
+  KDL::ChainIkSolverVel_pinv ik_velocity;
+  KDL::ChainIkSolverPos_NR_JL ik;
+  std::vector<KDL::Frame> frames;
+  std::vector<KDL::JntArray> seeds;
+  KDL::JntArray q_out;
+};
+
+KdlInverse::KdlInverse(const KinematicChain& chain, const std::vector<KdlTarget>& targets,
+                       double eps) {
+  const auto n = static_cast<unsigned>(chain.dof());
   KDL::JntArray q_min(n), q_max(n);
   for (unsigned i = 0; i < n; ++i) {
     q_min(i) = chain.joints()[i].lower_rad;
     q_max(i) = chain.joints()[i].upper_rad;
   }
-  KDL::ChainFkSolverPos_recursive fk(kdl);
-  KDL::ChainIkSolverVel_pinv ik_velocity(kdl);
-  KDL::ChainIkSolverPos_NR_JL ik(kdl, q_min, q_max, fk, ik_velocity, 100, eps);
-  std::vector<KDL::Frame> frames;
-  std::vector<KDL::JntArray> seeds;
+  solver_ = std::make_unique<Solver>(kdlChain(chain), q_min, q_max, eps);
   for (const KdlTarget& t : targets) {
-    frames.push_back(toKdl(t.X_RootTip));
-    seeds.push_back(toKdl(t.seed_q_rad));
+    solver_->frames.push_back(toKdl(t.X_RootTip));
+    solver_->seeds.push_back(toKdl(t.seed_q_rad));
   }
-  KDL::JntArray q_out(n);
-  for (size_t i = 0; i < targets.size(); ++i) ik.CartToJnt(seeds[i], frames[i], q_out);
-  KdlTimes times;
-  times.latency_us.resize(static_cast<size_t>(calls));
-  for (int call = 0; call < calls; ++call) {
-    const size_t i = static_cast<size_t>(call) % targets.size();
-    const auto start = std::chrono::steady_clock::now();
-    const int status = ik.CartToJnt(seeds[i], frames[i], q_out);
-    times.latency_us[static_cast<size_t>(call)] =
-        std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
-    if (status < 0) ++times.failures;
-  }
-  return times;
+}
+
+KdlInverse::~KdlInverse() = default;
+
+bool KdlInverse::solve(size_t i) {
+  return solver_->ik.CartToJnt(solver_->seeds[i], solver_->frames[i], solver_->q_out) >= 0;
 }
 
 double kdlChainMismatch_m(const KinematicChain& chain, const std::vector<KdlTarget>& targets) {

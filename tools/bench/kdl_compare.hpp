@@ -2,6 +2,7 @@
 // liborocos-kdl-dev, an optional dependency of the bench only).
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include "stepcal/common/chain.hpp"
@@ -14,20 +15,26 @@ struct KdlTarget {
   JointVector seed_q_rad;
 };
 
-/// Per call, in target order: the latency (µs, one call to CartToJnt timed alone with
-/// steady_clock) and whether KDL converged within eps (its error code ≥ 0).
-struct KdlTimes {
-  std::vector<double> latency_us;
-  long failures = 0;
-};
+/// KDL's ChainIkSolverPos_NR_JL (Newton–Raphson with joint limits, ChainIkSolverVel_pinv inside)
+/// on the chain as a KDL::Chain (T_{0,1}(0) a fixed segment, then per joint the rotation about
+/// its axis followed by T_{k,k+1}(0); the attached frames left out), at tolerance eps, maxiter 100
+/// (KDL's default), ready to solve each target in turn so that the bench times it call by call
+/// beside its own.
+class KdlInverse {
+ public:
+  KdlInverse(const KinematicChain& chain, const std::vector<KdlTarget>& targets, double eps);
+  ~KdlInverse();
+  KdlInverse(const KdlInverse&) = delete;
+  KdlInverse& operator=(const KdlInverse&) = delete;
 
-/// The chain as a KDL::Chain (T_{0,1}(0) a fixed segment, then per joint the rotation about its
-/// axis followed by T_{k,k+1}(0); the attached frames left out), solved by
-/// ChainIkSolverPos_NR_JL (Newton–Raphson with joint limits, ChainIkSolverVel_pinv inside) at
-/// tolerance eps, maxiter 100 (KDL's default), calls times over the targets in turn after a
-/// warm-up of every target once.
-KdlTimes timeKdlInverse(const KinematicChain& chain, const std::vector<KdlTarget>& targets,
-                        int calls, double eps);
+  /// Solves target i (of those given) from its seed; true when KDL converged within eps (its
+  /// error code ≥ 0).
+  bool solve(size_t i);
+
+ private:
+  struct Solver;
+  std::unique_ptr<Solver> solver_;
+};
 
 /// Largest distance (m) between the chain's own forward kinematics and KDL's over the targets'
 /// seeds: the two chains must be the same robot for the comparison to mean anything.

@@ -1,7 +1,7 @@
 // stepcal-bench: time of the runtime's two real-time calls on a model file.
 //
-//   build/bin/stepcal-bench --model MODEL [--calls N] [--temp-c T] [--compare-kdl] [--json]
-//                           [--answers CSV]
+//   build/bin/stepcal-bench --model MODEL [--calls N] [--temp-c T] [--compare-kdl] [--realtime]
+//                           [--json] [--answers CSV]
 //
 // Poses: the model's GPR training inputs de-normalised (joints q and wrench), so every call lies
 // in the model's workspace; every call at the structure temperature --temp-c (°C; default NaN,
@@ -11,13 +11,18 @@
 // std::chrono::steady_clock after a warm-up; heap allocations are counted over the timed calls.
 // Beside them, the machine's own spread: the inverse at one pose (its iteration count the bench
 // poses' most common) timed the same number of times (`inverse_one_pose`): identical work, so its
-// p99 ÷ p50 is the machine's, and what the bench poses' tail has beyond it is theirs. Each call's
-// report also has the p50 of its quietest 1 000 consecutive calls (`p50_quietest_batch_us`): on a
-// shared VM whose speed drifts by tens of per cent from second to second, the code's own speed
-// when undisturbed; p50 and p99 over every call are what a controller there would see.
-// --compare-kdl (built with Debian's liborocos-kdl-dev) times KDL's ChainIkSolverPos_NR_JL in
-// the same run on the model's nominal chain (uncorrected, base frame): the nominal pose at each
-// bench pose's q, from the same seed, at the same tolerance (1e-6), and prints the ratios.
+// p99 ÷ p50 is the machine's, and what the bench poses' tail has beyond it is theirs.
+// --compare-kdl (built with Debian's liborocos-kdl-dev) times KDL's ChainIkSolverPos_NR_JL on
+// the model's nominal chain (uncorrected, base frame): the nominal pose at each bench pose's q,
+// from the same seed, at the same tolerance (1e-6), and prints the ratios.
+// The series are timed in rounds of kRoundCalls calls each, one series after the other, so that
+// every series sees the same stretches of the machine: on a shared VM whose speed drifts by tens
+// of per cent from second to second, series timed one after the other would compare different
+// machines. Each series' report also has the p50 of its quietest 1 000 calls in a row
+// (`p50_quietest_batch_us`): the code's own speed when undisturbed; p50 and p99 over every call
+// are what a controller there would see.
+// --realtime: locked memory, SCHED_FIFO and one CPU for the timing thread (the daemon's settings,
+// stepcal/service/realtime.hpp), so that other processes do not preempt the calls.
 // --answers writes every bench pose's answers (forward pose, inverse status and joint targets)
 // at full precision, untimed, so that two builds' answers can be compared (tools/bench/compare_answers.sh).
 #include <CLI/CLI.hpp>
@@ -26,6 +31,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <limits>
 #include <vector>
@@ -35,6 +41,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/latency.hpp"
+#include "stepcal/service/realtime.hpp"
 #ifdef STEPCAL_BENCH_WITH_KDL
 #include "kdl_compare.hpp"
 #endif
@@ -48,6 +55,8 @@ using namespace stepcal;
 constexpr double kSeedOffsetRad = 2.0 * M_PI / 180.0;
 constexpr int kWarmupCalls = 1000;
 constexpr int kStatusCount = 7;
+/// Calls of one series in a row before the next series' (every series sees the same stretches).
+constexpr int kRoundCalls = 100;
 
 /// One point of the model's workspace and the inverse problem built on it.
 struct BenchPose {
@@ -137,34 +146,33 @@ double microsecondsBetween(runtime::Clock::time_point a, runtime::Clock::time_po
   return std::chrono::duration<double, std::micro>(b - a).count();
 }
 
-/// KDL on the nominal chain at the bench poses (kdl_compare.hpp), with the ratios of its p50 and
-/// p99 to the corrected inverse's; throws InputError when the bench was built without KDL.
-nlohmann::json compareKdl(const runtime::RuntimeModel& model, const std::vector<BenchPose>& poses,
-                          int calls, const CallStats& inverse) {
+/// KDL's inverse on the model's nominal chain at the bench poses: the nominal pose at each
+/// pose's q from its seed, at the inverse's own tolerance.
+struct KdlSide {
+  static constexpr double kEps = 1e-6;  // InverseOptions' tolerances
+  std::function<bool(size_t)> solve;    ///< bench pose index → converged
+  double chain_mismatch_m = 0.0;        ///< KDL's FK against ours over the seeds
+};
+
+/// KdlSide on the bench poses; throws InputError when the bench was built without KDL.
+KdlSide kdlSide(const runtime::RuntimeModel& model, const std::vector<BenchPose>& poses) {
 #ifdef STEPCAL_BENCH_WITH_KDL
-  constexpr double kEps = 1e-6;  // the inverse's own tolerances (InverseOptions)
   std::vector<bench::KdlTarget> targets;
   ChainWorkspace ws;
   for (const BenchPose& p : poses) {
     forwardKinematics(model.file.nominal_Base, p.q_rad, ws);
     targets.push_back({tipPose(ws), p.seed_q_rad});
   }
-  const bench::KdlTimes times = bench::timeKdlInverse(model.file.nominal_Base, targets, calls, kEps);
-  nlohmann::json j = latencyJson(times.latency_us);
-  j["eps"] = kEps;
-  j["failures"] = times.failures;
-  j["chain_mismatch_m"] = bench::kdlChainMismatch_m(model.file.nominal_Base, targets);
-  const nlohmann::json ours = latencyJson(inverse.latency_us);
-  j["ratio_p50"] = j["p50_us"].get<double>() / ours["p50_us"].get<double>();
-  j["ratio_p99"] = j["p99_us"].get<double>() / ours["p99_us"].get<double>();
-  return j;
+  const auto kdl =
+      std::make_shared<bench::KdlInverse>(model.file.nominal_Base, targets, KdlSide::kEps);
+  return {[kdl](size_t i) { return kdl->solve(i); },
+          bench::kdlChainMismatch_m(model.file.nominal_Base, targets)};
 #else
-  (void)model, (void)poses, (void)calls, (void)inverse;
+  (void)model, (void)poses;
   throw InputError("--compare-kdl: this stepcal-bench was built without KDL (install "
                    "liborocos-kdl-dev and build again)");
 #endif
 }
-
 
 /// One CSV line per bench pose: its index, the forward status and corrected pose (translation m,
 /// then the rotation's 9 entries column-major), the inverse's status, iterations, joint targets
@@ -217,10 +225,13 @@ int main(int argc, char** argv) {
   app.add_option("--calls", calls, "timed calls of each function after the warm-up")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  bool compare_kdl = false;
+  bool compare_kdl = false, realtime = false;
   app.add_flag("--compare-kdl", compare_kdl,
                "also time KDL's ChainIkSolverPos_NR_JL on the nominal chain (same poses, seeds, "
                "tolerance)");
+  app.add_flag("--realtime", realtime,
+               "time with locked memory, SCHED_FIFO priority 80 and one CPU (the daemon's "
+               "--realtime; needs root or CAP_SYS_NICE and CAP_IPC_LOCK)");
   app.add_flag("--json", json, "print JSON");
   std::string answers_path;
   app.add_option("--answers", answers_path,
@@ -241,10 +252,30 @@ int main(int argc, char** argv) {
       return poses[static_cast<size_t>(call) % poses.size()];
     };
 
-    CallStats forward, inverse, one_pose;
-    forward.latency_us.resize(static_cast<size_t>(calls));
-    inverse.latency_us.resize(static_cast<size_t>(calls));
-    one_pose.latency_us.resize(static_cast<size_t>(calls));
+    KdlSide kdl_side;
+    if (compare_kdl) kdl_side = kdlSide(*model, poses);
+
+    nlohmann::json realtime_report = {{"on", false}};
+    if (realtime) {
+      std::string refusal = service::enterRealtime(), pin_refusal;
+      const int cpu = refusal.empty() ? service::pinToLastAllowedCpu(pin_refusal) : -1;
+      if (!refusal.empty()) {
+        std::cerr << "stepcal-bench: --realtime: " << refusal
+                  << "; timing without real-time settings\n";
+        realtime_report["refused"] = refusal;
+      } else {
+        realtime_report = {{"on", true}, {"priority", service::kRealtimePriority}, {"cpu", cpu}};
+        if (cpu < 0) {
+          std::cerr << "stepcal-bench: --realtime: " << pin_refusal << "; not pinned to a CPU\n";
+          realtime_report["pin_refused"] = pin_refusal;
+        }
+      }
+    }
+
+    CallStats forward, inverse, one_pose, kdl;
+    for (CallStats* stats : {&forward, &inverse, &one_pose, &kdl}) {
+      stats->latency_us.resize(static_cast<size_t>(calls));
+    }
     inverse.iterations.resize(static_cast<size_t>(runtime::InverseOptions{}.max_iterations) + 1);
     one_pose.iterations.resize(inverse.iterations.size());
     const auto runForward = [&](int call) {
@@ -259,13 +290,20 @@ int main(int argc, char** argv) {
       iterations = r.iterations;
       return r.status;
     };
+    long kdl_failures = 0;
+    const auto runKdl = [&](int call) {
+      if (!kdl_side.solve(static_cast<size_t>(call) % poses.size())) ++kdl_failures;
+      return runtime::Status::kOk;  // KDL's own outcome is counted in kdl_failures
+    };
     int iterations = 0;
     std::vector<long> warmup_iterations(inverse.iterations.size());
     for (int call = 0; call < kWarmupCalls; ++call) {
       runForward(call);
       runInverse(call, iterations);
       ++warmup_iterations[size_t(iterations)];
+      if (compare_kdl) runKdl(call);
     }
+    kdl_failures = 0;
     // The pose of the machine's baseline: the first whose iteration count is the most common.
     const int common = static_cast<int>(
         std::max_element(warmup_iterations.begin(), warmup_iterations.end()) -
@@ -276,27 +314,31 @@ int main(int argc, char** argv) {
       ++baseline_call;
     }
 
+    // Calls [first, last) of one series, each timed alone; the inverse's also counted by its
+    // Newton step count.
+    const auto timeCalls = [&](CallStats& stats, int first, int last, const auto& run) {
+      for (int call = first; call < last; ++call) {
+        const auto start = runtime::Clock::now();
+        const runtime::Status status = run(call);
+        stats.latency_us[size_t(call)] = microsecondsBetween(start, runtime::Clock::now());
+        ++stats.status_counts[static_cast<int>(status)];
+        if (!stats.iterations.empty()) ++stats.iterations[size_t(iterations)];
+      }
+    };
     long allocations = 0;
-    {
-      const test::AllocationCounter counter;
-      // Each call timed alone; the inverse's also counted by its Newton step count.
-      const auto timeCalls = [&](CallStats& stats, const auto& run) {
-        for (int call = 0; call < calls; ++call) {
-          const auto start = runtime::Clock::now();
-          const runtime::Status status = run(call);
-          stats.latency_us[size_t(call)] = microsecondsBetween(start, runtime::Clock::now());
-          ++stats.status_counts[static_cast<int>(status)];
-          if (!stats.iterations.empty()) ++stats.iterations[size_t(iterations)];
-        }
-      };
-      timeCalls(forward, runForward);
-      timeCalls(inverse, [&](int call) { return runInverse(call, iterations); });
-      timeCalls(one_pose, [&](int) { return runInverse(baseline_call, iterations); });
-      allocations = counter.count();
+    for (int first = 0; first < calls; first += kRoundCalls) {
+      const int last = std::min(calls, first + kRoundCalls);
+      {
+        const test::AllocationCounter counter;  // ours only: KDL's are its own
+        timeCalls(forward, first, last, runForward);
+        timeCalls(inverse, first, last, [&](int call) { return runInverse(call, iterations); });
+        timeCalls(one_pose, first, last,
+                  [&](int) { return runInverse(baseline_call, iterations); });
+        allocations += counter.count();
+      }
+      if (compare_kdl) timeCalls(kdl, first, last, runKdl);
     }
     if (!answers_path.empty()) writeAnswers(*model, ws, poses, temp_c, answers_path);
-    nlohmann::json kdl;
-    if (compare_kdl) kdl = compareKdl(*model, poses, calls, inverse);
 
     nlohmann::json report = {{"model", model_path},
                                    {"poses", poses.size()},
@@ -305,8 +347,17 @@ int main(int argc, char** argv) {
                                    {"forward", toJson(forward, false)},
                                    {"inverse", toJson(inverse, true)},
                                    {"inverse_one_pose", toJson(one_pose, true)},
-                                   {"allocations", allocations}};
-    if (!kdl.is_null()) report["kdl"] = kdl;
+                                   {"allocations", allocations},
+                                   {"realtime", realtime_report}};
+    if (compare_kdl) {
+      nlohmann::json j = latencyJson(kdl.latency_us);
+      j["eps"] = KdlSide::kEps;
+      j["failures"] = kdl_failures;
+      j["chain_mismatch_m"] = kdl_side.chain_mismatch_m;
+      j["ratio_p50"] = j["p50_us"].get<double>() / report["inverse"]["p50_us"].get<double>();
+      j["ratio_p99"] = j["p99_us"].get<double>() / report["inverse"]["p99_us"].get<double>();
+      report["kdl"] = j;
+    }
     if (json) {
       std::cout << report.dump(2) << "\n";
     } else {
@@ -322,12 +373,14 @@ int main(int argc, char** argv) {
         std::cout << ", statuses " << r["statuses"].dump() << "\n";
       }
       std::cout << "allocations during the timed calls: " << allocations << "\n";
-      if (!kdl.is_null()) {
-        std::cout << "KDL ChainIkSolverPos_NR_JL, nominal chain, eps " << kdl["eps"].get<double>()
-                  << ": p50 " << kdl["p50_us"].get<double>() << " us, p99 "
-                  << kdl["p99_us"].get<double>() << " us, max " << kdl["max_us"].get<double>()
-                  << " us, failures " << kdl["failures"] << "; KDL / stepcal inverse: p50 "
-                  << kdl["ratio_p50"].get<double>() << "x, p99 " << kdl["ratio_p99"].get<double>()
+      std::cout << "real-time settings: " << realtime_report.dump() << "\n";
+      if (compare_kdl) {
+        const nlohmann::json& k = report["kdl"];
+        std::cout << "KDL ChainIkSolverPos_NR_JL, nominal chain, eps " << k["eps"].get<double>()
+                  << ": p50 " << k["p50_us"].get<double>() << " us, p99 "
+                  << k["p99_us"].get<double>() << " us, max " << k["max_us"].get<double>()
+                  << " us, failures " << k["failures"] << "; KDL / stepcal inverse: p50 "
+                  << k["ratio_p50"].get<double>() << "x, p99 " << k["ratio_p99"].get<double>()
                   << "x\n";
       }
     }

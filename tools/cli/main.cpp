@@ -195,11 +195,24 @@ void writeReport(const std::string& path, const std::string& html) {
   writeFileAtomically(path, html.data(), html.size(), "report");
 }
 
+/// The calibration's options with the GPR's training set capped at gpr_points (--gpr-points).
+trainer::CalibrationOptions calibrationOptions(int gpr_points) {
+  if (gpr_points < 2) {
+    throw InputError("--gpr-points " + std::to_string(gpr_points) +
+                     ": expected at least 2 training points (default " +
+                     std::to_string(trainer::CalibrationOptions{}.gpr_max_points) + ")");
+  }
+  trainer::CalibrationOptions options;
+  options.gpr_max_points = gpr_points;
+  return options;
+}
+
 void runCalibrate(const std::string& dir, const std::string& model_out,
-                  const std::string& report_out, bool json) {
+                  const std::string& report_out, bool json, int gpr_points) {
+  const trainer::CalibrationOptions options = calibrationOptions(gpr_points);
   InterruptNotice notice(outputs({report_out, model_out}));
   const Campaign campaign = readCampaign(dir);
-  const trainer::CalibrationOutcome outcome = trainer::calibrateCampaign(campaign);
+  const trainer::CalibrationOutcome outcome = trainer::calibrateCampaign(campaign, options);
   if (!report_out.empty()) {
     notice.write(report_out, "report",
                  [&] { writeReport(report_out, cli::htmlReport(campaign, outcome)); });
@@ -250,19 +263,23 @@ void runValidate(const std::string& model_path, const std::string& dir, bool ref
 // Diagnosis of a campaign against its calibrated physical model (calibrated here, or the given
 // model file): the named causes, the extended model (written with --out) and its gain.
 void runDiagnose(const std::string& dir, const std::string& model_path,
-                 const std::string& model_out, const std::string& report_out, bool json) {
+                 const std::string& model_out, const std::string& report_out, bool json,
+                 int gpr_points) {
+  trainer::DiagnoseOptions options;
+  options.calibration = calibrationOptions(gpr_points);
   InterruptNotice notice(outputs({report_out, model_out}));
   const Campaign campaign = readCampaign(dir);
   const auto start = std::chrono::steady_clock::now();
   CalibratedModel model;
   if (model_path.empty()) {
-    model = trainer::modelFromOutcome(campaign, trainer::calibrateCampaign(campaign));
+    model = trainer::modelFromOutcome(campaign,
+                                      trainer::calibrateCampaign(campaign, options.calibration));
   } else {
     model = readModelFile(model_path);
   }
   const double seconds_calibrate =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const trainer::Diagnosis diagnosis = trainer::diagnose(campaign, model);
+  const trainer::Diagnosis diagnosis = trainer::diagnose(campaign, model, options);
   if (!report_out.empty()) {
     notice.write(report_out, "report",
                  [&] { writeReport(report_out, cli::diagnosisHtml(campaign, diagnosis)); });
@@ -405,6 +422,13 @@ int main(int argc, char** argv) {
   calibrate->add_flag("--json", json, "print the report as JSON");
   std::string report_out;
   calibrate->add_option("--report", report_out, "HTML report with the figures to write");
+  // The GPR's size trades accuracy for the runtime's call time (docs/runtime.md, "Against the
+  // number of GPR points").
+  int gpr_points = trainer::CalibrationOptions{}.gpr_max_points;
+  const std::string gpr_points_help =
+      "largest GPR training set: more residual rows are thinned evenly (the runtime's call time "
+      "grows with it)";
+  calibrate->add_option("--gpr-points", gpr_points, gpr_points_help)->capture_default_str();
 
   std::string validate_model, validate_dir;
   bool validate_json = false;
@@ -451,6 +475,9 @@ int main(int argc, char** argv) {
   diagnose_cmd->add_flag("--json", diagnose_json, "print the diagnosis as JSON");
   diagnose_cmd->add_option("--out", diagnose_out, "extended model file to write");
   diagnose_cmd->add_option("--report", diagnose_report, "HTML report with the plots to write");
+  diagnose_cmd->add_option("--gpr-points", gpr_points,
+                           gpr_points_help + ", of the calibration and of the extended model")
+      ->capture_default_str();
 
   CLI::App* demo = app.add_subcommand(
       "demo", "the main job: simulate the paper's IRB4400 campaign, calibrate it, print the tables");
@@ -468,14 +495,15 @@ int main(int argc, char** argv) {
       writeCampaign(importers::importIpaSeries(ipa_csv, validation_from_row, ipa_urdf), ipa_out);
       std::cerr << "wrote " << ipa_out << "\n";
     } else if (*calibrate) {
-      runCalibrate(campaign_dir, model_out, report_out, json);
+      runCalibrate(campaign_dir, model_out, report_out, json, gpr_points);
     } else if (*inspect) {
       const std::string bytes = readTextFile(inspect_model);
       std::cout << cli::formatModel(
           parseModel(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), inspect_model),
           bytes.size());
     } else if (*diagnose_cmd) {
-      runDiagnose(diagnose_dir, diagnose_model, diagnose_out, diagnose_report, diagnose_json);
+      runDiagnose(diagnose_dir, diagnose_model, diagnose_out, diagnose_report, diagnose_json,
+                  gpr_points);
     } else if (*export_urdf) {
       runExportUrdf(export_model, export_campaign, export_out);
     } else if (*validate) {
@@ -487,7 +515,8 @@ int main(int argc, char** argv) {
       runSimulate(paper);
       std::cout << "simulated the paper's IRB4400 campaign (seed " << demo_seed << ") into "
                 << demo_out << "\n\n";
-      runCalibrate(demo_out, demo_out + "/model.stepcal", demo_out + "/report.html", false);
+      runCalibrate(demo_out, demo_out + "/model.stepcal", demo_out + "/report.html", false,
+                   trainer::CalibrationOptions{}.gpr_max_points);
     }
   } catch (const InputError& e) {
     std::cerr << "stepcal: error: " << e.what() << "\n";

@@ -17,7 +17,6 @@
 #include <sched.h>
 #include <signal.h>
 #include <sys/eventfd.h>
-#include <sys/mman.h>
 #include <sys/signalfd.h>
 #include <sys/timerfd.h>
 #include <unistd.h>
@@ -32,16 +31,12 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/lcm_server.hpp"
+#include "stepcal/service/realtime.hpp"
 
 namespace {
 
 using namespace stepcal;
 
-/// SCHED_FIFO priority of the serving thread with --realtime (and of LCM's receive thread,
-/// which inherits it).
-constexpr int kRealtimePriority = 80;
-/// Stack touched after mlockall, so the serving thread never page-faults on it, bytes.
-constexpr size_t kPrefaultStackBytes = 512 * 1024;
 constexpr long kStatusPeriodNs = 100'000'000;  // 10 Hz
 
 void logLine(const char* format, ...) __attribute__((format(printf, 1, 2)));
@@ -54,31 +49,13 @@ void logLine(const char* format, ...) {
   std::fprintf(stderr, "stepcal-runtime: %s\n", line);
 }
 
-void prefaultStack() {
-  char stack[kPrefaultStackBytes];
-  explicit_bzero(stack, sizeof stack);  // never optimised away
-}
-
-/// mlockall and SCHED_FIFO for the calling thread; false, with one line saying what is missing,
-/// when the process is not permitted.
+/// The real-time settings (service::enterRealtime); false, with one line saying what is
+/// missing, when the process is not permitted.
 bool enterRealtime() {
-  if (mlockall(MCL_CURRENT | MCL_FUTURE) != 0) {
-    logLine("--realtime: mlockall failed (%s): needs CAP_IPC_LOCK or RLIMIT_MEMLOCK large enough "
-            "(systemd: LimitMEMLOCK=infinity); running without real-time settings",
-            std::strerror(errno));
-    return false;
-  }
-  sched_param param{};
-  param.sched_priority = kRealtimePriority;
-  if (const int error = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param)) {
-    munlockall();
-    logLine("--realtime: SCHED_FIFO priority %d refused (%s): needs CAP_SYS_NICE or RLIMIT_RTPRIO "
-            "≥ %d (systemd: LimitRTPRIO=%d); running without real-time settings",
-            kRealtimePriority, std::strerror(error), kRealtimePriority, kRealtimePriority);
-    return false;
-  }
-  prefaultStack();
-  return true;
+  const std::string refusal = service::enterRealtime();
+  if (refusal.empty()) return true;
+  logLine("--realtime: %s; running without real-time settings", refusal.c_str());
+  return false;
 }
 
 /// Reloads the model file on its own thread (SCHED_OTHER) when asked.

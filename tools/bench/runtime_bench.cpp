@@ -18,7 +18,8 @@
 // The series are timed in rounds of kRoundCalls calls each, one series after the other, so that
 // every series sees the same stretches of the machine: on a shared VM whose speed drifts by tens
 // of per cent from second to second, series timed one after the other would compare different
-// machines. Each series' report also has the p50 of its quietest 1 000 calls in a row
+// machines. Each round opens with a few untimed calls of its series, so that the caches hold
+// its code and data as in a run of that series alone. Each series' report also has the p50 of its quietest 1 000 calls in a row
 // (`p50_quietest_batch_us`): the code's own speed when undisturbed; p50 and p99 over every call
 // are what a controller there would see.
 // --realtime: locked memory, SCHED_FIFO and one CPU for the timing thread (the daemon's settings,
@@ -57,6 +58,9 @@ constexpr int kWarmupCalls = 1000;
 constexpr int kStatusCount = 7;
 /// Calls of one series in a row before the next series' (every series sees the same stretches).
 constexpr int kRoundCalls = 100;
+/// Untimed calls that open each series' round: its code and data back in the caches the
+/// previous series' round used (KDL's, another code path), as in a run of that series alone.
+constexpr int kRoundWarmupCalls = 5;
 
 /// One point of the model's workspace and the inverse problem built on it.
 struct BenchPose {
@@ -290,10 +294,11 @@ int main(int argc, char** argv) {
       iterations = r.iterations;
       return r.status;
     };
-    long kdl_failures = 0;
+    // KDL's outcome as a status: converged within eps, or not.
     const auto runKdl = [&](int call) {
-      if (!kdl_side.solve(static_cast<size_t>(call) % poses.size())) ++kdl_failures;
-      return runtime::Status::kOk;  // KDL's own outcome is counted in kdl_failures
+      return kdl_side.solve(static_cast<size_t>(call) % poses.size())
+                 ? runtime::Status::kOk
+                 : runtime::Status::kNotConverged;
     };
     int iterations = 0;
     std::vector<long> warmup_iterations(inverse.iterations.size());
@@ -303,7 +308,6 @@ int main(int argc, char** argv) {
       ++warmup_iterations[size_t(iterations)];
       if (compare_kdl) runKdl(call);
     }
-    kdl_failures = 0;
     // The pose of the machine's baseline: the first whose iteration count is the most common.
     const int common = static_cast<int>(
         std::max_element(warmup_iterations.begin(), warmup_iterations.end()) -
@@ -314,9 +318,10 @@ int main(int argc, char** argv) {
       ++baseline_call;
     }
 
-    // Calls [first, last) of one series, each timed alone; the inverse's also counted by its
-    // Newton step count.
+    // Calls [first, last) of one series, each timed alone, after kRoundWarmupCalls untimed ones
+    // (the round's first poses); the inverse's also counted by its Newton step count.
     const auto timeCalls = [&](CallStats& stats, int first, int last, const auto& run) {
+      for (int call = first; call < first + kRoundWarmupCalls; ++call) run(call);
       for (int call = first; call < last; ++call) {
         const auto start = runtime::Clock::now();
         const runtime::Status status = run(call);
@@ -352,7 +357,7 @@ int main(int argc, char** argv) {
     if (compare_kdl) {
       nlohmann::json j = latencyJson(kdl.latency_us);
       j["eps"] = KdlSide::kEps;
-      j["failures"] = kdl_failures;
+      j["failures"] = kdl.status_counts[static_cast<int>(runtime::Status::kNotConverged)];
       j["chain_mismatch_m"] = kdl_side.chain_mismatch_m;
       j["ratio_p50"] = j["p50_us"].get<double>() / report["inverse"]["p50_us"].get<double>();
       j["ratio_p99"] = j["p99_us"].get<double>() / report["inverse"]["p99_us"].get<double>();

@@ -180,6 +180,11 @@ void shiftedJointTrig(const JointTrig& trig, const JointVector& q_rad, const Joi
   shifted.cos.resize(q_rad.size());
   for (Eigen::Index i = 0; i < q_rad.size(); ++i) {
     const double d = delta_rad(i);
+    if (d == 0.0) {  // a joint the deflection leaves alone (rigid): the same angle
+      shifted.sin(i) = trig.sin(i);
+      shifted.cos(i) = trig.cos(i);
+      continue;
+    }
     if (std::abs(d) > 0.01) {
       const double q = q_rad(i) + d;
       shifted.sin(i) = std::sin(q);

@@ -8,6 +8,9 @@
 #           pose_list        readPoseList (poses.csv) and writePoseList
 #           ipa_import       importIpaSeries (the IPA UR10 series CSV + Trafo_TM_F_init.txt)
 #           urdf             chainFromUrdf and bodyMassesFromUrdf
+# STEPCAL_FUZZ_SEED: libFuzzer's random seed (default: a new one per run, to find what earlier
+# runs did not). ctest sets 1: from the same seeds a run then tries the same inputs in the same
+# order on every machine (a slower one a prefix of them), so its verdict is the code's, not luck.
 # Work folder: $STEPCAL_FUZZ_DIR, default build-fuzz-TARGET/ in the repository. The growing
 # corpus stays in its corpus/ between runs; crashing inputs land in its artifacts/ (re-run one
 # with WORK_FOLDER/fuzz_TARGET ARTIFACT). The project's sources are compiled into
@@ -137,6 +140,8 @@ if [[ -z ${TMPDIR:-} && -w /dev/shm ]]; then export TMPDIR=/dev/shm; fi
 export LSAN_OPTIONS=suppressions=$root/tests/fuzz/urdfdom.supp
 # A hang is a finding too: no input of these sizes needs more than a fraction of a second, even
 # on a loaded host.
-"$out/fuzz_$target" -max_total_time="$seconds" -timeout=25 -print_final_stats=1 \
+seed=()
+[[ -n ${STEPCAL_FUZZ_SEED:-} ]] && seed=(-seed="$STEPCAL_FUZZ_SEED")
+"$out/fuzz_$target" "${seed[@]}" -max_total_time="$seconds" -timeout=25 -print_final_stats=1 \
   -dict="$root/tests/fuzz/$target.dict" -artifact_prefix="$out/artifacts/" \
   "$out/corpus" "$out/seeds"

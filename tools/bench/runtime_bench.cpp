@@ -19,9 +19,9 @@
 // every series sees the same stretches of the machine: on a shared VM whose speed drifts by tens
 // of per cent from second to second, series timed one after the other would compare different
 // machines. Each round opens with a few untimed calls of its series, so that the caches hold
-// its code and data as in a run of that series alone. Each series' report also has the p50 of its quietest 1 000 calls in a row
-// (`p50_quietest_batch_us`): the code's own speed when undisturbed; p50 and p99 over every call
-// are what a controller there would see.
+// its code and data as in a run of that series alone. Each series' report also has the p50 of
+// its quietest 1 000 calls in a row (`p50_quietest_batch_us`): the code's own speed when
+// undisturbed; p50 and p99 over every call are what a controller there would see.
 // --realtime: locked memory, SCHED_FIFO and one CPU for the timing thread (the daemon's settings,
 // stepcal/service/realtime.hpp), so that other processes do not preempt the calls.
 // --answers writes every bench pose's answers (forward pose, inverse status and joint targets)

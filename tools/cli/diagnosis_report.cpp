@@ -98,6 +98,88 @@ std::string statisticsText(const char* title, const trainer::ResidualStatistics&
   return out;
 }
 
+// What the data can and cannot tell apart, and what the search changed, in sentences: the
+// model changes in the order done, then each effect's alternatives, then what each effect is on
+// the fit rows.
+std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
+  std::vector<std::string> lines;
+  for (const trainer::ModelChange& c : d.changes) {
+    using Kind = trainer::ModelChange::Kind;
+    switch (c.kind) {
+      case Kind::kComplianceHeldAtZero:
+        lines.push_back(format("joint %d's compliance came out negative (%.3g rad/(N·m)) refitted "
+                               "with the rest: held at zero, the data show no deflection of it "
+                               "under load",
+                               c.joint + 1, c.compliance_rad_per_nm));
+        break;
+      case Kind::kDroppedWrongSign:
+        lines.push_back(describe(c.mechanism) + ": dropped, its " + parameterNames(c.mechanism)[0] +
+                        " turned negative once refitted with the other causes found (another of "
+                        "them explains what it did)");
+        break;
+      case Kind::kDroppedExplained:
+        lines.push_back(describe(c.mechanism) +
+                        format(": dropped, the causes named after it explain what it did (tried "
+                               "again with them in the model it removes %.1f %% of the held-out "
+                               "error, z = %.1f: not significant)",
+                               100.0 * c.relative_reduction, c.z_statistic));
+        break;
+    }
+  }
+  for (const trainer::FoundEffect& f : d.effects) {
+    for (const Mechanism& other : f.alternatives) {
+      lines.push_back(describe(f.mechanism) + " and " + describe(other) +
+                      " explain the same error: the second removed nearly as much held-out error "
+                      "as the first (at least 80 %), and nothing once the first was in the model; "
+                      "these rows cannot tell them apart (the first was named)");
+    }
+  }
+  for (const trainer::FoundEffect& f : d.effects) {
+    const Mechanism& m = f.mechanism;
+    if (m.kind == MechanismKind::kTransmissionError) {
+      if (!f.harmonics_separable) {
+        lines.push_back(describe(m) +
+                        format(": its harmonics cannot be told apart on the angles it covers (the "
+                               "largest amplitude, %.0f urad, is %.0f times its RMS of %.0f urad: "
+                               "they cancel each other there); its values over those angles are "
+                               "determined, its single harmonics are not",
+                               1e6 * f.largest_amplitude_rad, f.largest_amplitude_rad / f.rms_rad,
+                               1e6 * f.rms_rad));
+      }
+      std::string shared;
+      for (size_t k = 0; k < f.geometry_share.size(); ++k) {
+        if (f.geometry_share[k] < 0.5) continue;
+        shared += format("%s%zu %.0f %%", shared.empty() ? "harmonic " : ", ", k + 1,
+                         100.0 * f.geometry_share[k]);
+      }
+      if (!shared.empty()) {
+        lines.push_back(describe(m) + ": " + shared +
+                        " within reach of a geometric error on these rows (a tilt, offset or "
+                        "eccentricity of the joint): the profile and the geometry were fitted "
+                        "together and the ridge keeps what they share small; what the geometry "
+                        "took of the profile is its profile_geometry, switched with it");
+      }
+    } else if (m.kind == MechanismKind::kSelfWeight && !f.gravity_torque_std_nm.empty()) {
+      std::string text =
+          "self_weight: link masses and centres of mass from the URDF; the compliance of joint(s)";
+      for (int j : f.gravity_loaded_joints) text += format(" %d", j + 1);
+      text += " is identified from the arm's own weight";
+      for (int j : f.weak_gravity_joints) {
+        text += format("; joint %d's gravity torque varies by %.2f N·m (std), too little for its "
+                       "compliance",
+                       j + 1, f.gravity_torque_std_nm[static_cast<size_t>(j)]);
+      }
+      lines.push_back(text);
+    } else if (m.kind == MechanismKind::kSelfWeight) {
+      lines.push_back(
+          "self_weight: only the gravity torques of the lumped link masses on the compliant joints "
+          "are identifiable; the masses themselves are a representative (a weak prior of 50 kg, "
+          "50 kg·m holds the rest near zero)");
+    }
+  }
+  return lines;
+}
+
 }  // namespace
 
 std::string effectParameterText(const trainer::FoundEffect& e) {
@@ -194,7 +276,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
                   e.z_statistic);
     for (int j : e.compliance_joints) out += "    " + selfWeightComplianceText(d, j) + "\n";
   }
-  for (const std::string& line : d.identifiability) out += "  identifiability: " + line + "\n";
+  for (const std::string& line : identifiabilityLines(d)) out += "  identifiability: " + line + "\n";
   if (!d.unexplained_trend.empty()) {
     out += "  " + std::string(d.verdict == trainer::Verdict::kUnexplained
                                   ? "unexplained structure: "
@@ -273,7 +355,7 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
   }
   j["untestable"] = nlohmann::json::array();
   for (const auto& u : d.untestable) j["untestable"].push_back({{"name", u.name}, {"reason", u.reason}});
-  j["identifiability"] = d.identifiability;
+  j["identifiability"] = identifiabilityLines(d);
   j["unexplained_trend"] =
       d.unexplained_trend.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.unexplained_trend);
   auto stats = [](const trainer::ResidualStatistics& s) {

@@ -157,6 +157,19 @@ double profileRms(const Mechanism& profile, const FitRows& fit) {
   return fit.rows.empty() ? 0.0 : std::sqrt(sum / static_cast<double>(fit.rows.size()));
 }
 
+double largestAmplitude(const Mechanism& profile) {
+  double largest = 0.0;
+  for (int k = 0; k < profile.order; ++k) {
+    largest = std::max(largest, std::hypot(profile.parameters[static_cast<size_t>(2 * k)],
+                                           profile.parameters[static_cast<size_t>(2 * k + 1)]));
+  }
+  return largest;
+}
+
+bool harmonicsSeparable(const Mechanism& profile, double rms_rad) {
+  return largestAmplitude(profile) <= 3.0 * rms_rad;
+}
+
 std::vector<double> geometryShare(const Eigen::MatrixXd& geometry,
                                   const Eigen::MatrixXd& profile) {
   // P_G B = G (GᵀG)⁺ GᵀB, the pseudo-inverse truncated as step 1 truncates the geometry.

@@ -42,6 +42,13 @@ void fitProfiles(DiagnosisModel& model, const FitRows& fit);
 /// RMS over the fit rows of a profile's link-angle offset, gate included, rad.
 double profileRms(const Mechanism& profile, const FitRows& fit);
 
+/// A profile's largest harmonic amplitude, rad.
+double largestAmplitude(const Mechanism& profile);
+
+/// Whether a profile's single harmonics mean anything: not when its largest amplitude exceeds 3×
+/// its RMS over the fit rows (rms_rad), where neighbouring harmonics cancel each other.
+bool harmonicsSeparable(const Mechanism& profile, double rms_rad);
+
 /// Per harmonic of a profile, the share of its columns' squared norm that the geometry columns
 /// reach (1: a geometric error explains it entirely, 0: orthogonal to every geometric error).
 std::vector<double> geometryShare(const Eigen::MatrixXd& geometry, const Eigen::MatrixXd& profile);

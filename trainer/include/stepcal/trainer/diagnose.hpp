@@ -93,8 +93,10 @@ struct FoundEffect {
   int round = 1;
   double cv_gain_mm = 0.0, z_statistic = 0.0, p_value = 1.0;
   /// transmission_error: RMS over the fit rows of the link-angle offset (gate included), rad;
-  /// its relative ridge; per harmonic the share of its effect a geometric error could produce.
+  /// its largest harmonic amplitude, rad; its relative ridge; per harmonic the share of its
+  /// effect a geometric error could produce.
   double rms_rad = 0.0;
+  double largest_amplitude_rad = 0.0;
   double ridge = 0.0;
   std::vector<double> geometry_share;
   /// transmission_error: whether its single harmonics mean something on the arc it covers. Not
@@ -102,11 +104,36 @@ struct FoundEffect {
   /// cancel each other over the arc (too narrow to tell them apart) and only the profile's
   /// values there are determined.
   bool harmonics_separable = true;
-  /// self_weight: joints whose compliance the arm's own weight identifies (0-based).
+  /// self_weight: joints whose compliance it frees (0-based).
   std::vector<int> compliance_joints;
+  /// self_weight with the URDF's masses, at the final model: the joints whose gravity torque
+  /// varies enough over the fit rows to identify their compliance, the std of each joint's
+  /// gravity torque (N·m, n entries), and the joints whose compliance neither it nor a load
+  /// identifies (0-based).
+  std::vector<int> gravity_loaded_joints;
+  std::vector<double> gravity_torque_std_nm;
+  std::vector<int> weak_gravity_joints;
   /// Other significant families of its round that removed nearly as much held-out error (at
   /// least 80 %) and nothing more once it was in the model: the data cannot tell them from it.
   std::vector<Mechanism> alternatives;
+};
+
+/// What the search did to the model that the verdict says: a compliance held at zero, or a cause
+/// dropped, and why (in the order done).
+struct ModelChange {
+  enum class Kind {
+    kComplianceHeldAtZero,  ///< a joint's compliance came out negative refitted with the rest
+    /// A cause whose lost motion or extra compliance turned negative refitted with the others.
+    kDroppedWrongSign,
+    /// A cause that the causes named after it explain: tried again with them in the model, it
+    /// is no longer significant (relative_reduction, z_statistic of that trial).
+    kDroppedExplained,
+  };
+  Kind kind = Kind::kComplianceHeldAtZero;
+  int joint = -1;                      ///< kComplianceHeldAtZero (0-based)
+  double compliance_rad_per_nm = 0.0;  ///< kComplianceHeldAtZero: the value it came out at
+  Mechanism mechanism;                 ///< the cause dropped
+  double relative_reduction = 0.0, z_statistic = 0.0;  ///< kDroppedExplained
 };
 
 /// A cross-validated trend of the residual in one variable (cubic in the variable).
@@ -139,8 +166,9 @@ struct Diagnosis {
   std::vector<FoundEffect> effects;
   std::vector<CandidateScore> candidates;  ///< every round's, in order
   std::vector<UntestableCandidate> untestable;
-  /// What the data can and cannot tell apart (confounded harmonics, self weight's combinations).
-  std::vector<std::string> identifiability;
+  /// Compliances held at zero and causes dropped, in the order done (what the data can and
+  /// cannot tell apart is in each effect: alternatives, geometry_share, harmonics_separable, …).
+  std::vector<ModelChange> changes;
   ResidualStatistics before, after;        ///< of the model without / with the effects
   std::string unexplained_trend;           ///< what the residual still follows, if anything
   std::vector<GainRow> gain;               ///< per validation load

@@ -1,0 +1,130 @@
+// The fits of the diagnosis's whole model (model_fits.hpp).
+#include "model_fits.hpp"
+
+#include "profiles.hpp"
+#include "stepcal/common/error.hpp"
+
+namespace stepcal::trainer::diagnosis {
+
+size_t globalEffect(const Diagnosis& d, size_t k) {
+  size_t global_index = 0;
+  for (size_t e = 0; e < d.effects.size(); ++e) {
+    if (d.effects[e].mechanism.kind == MechanismKind::kTransmissionError) continue;
+    if (global_index++ == k) return e;
+  }
+  STEPCAL_INVARIANT(false, "every global mechanism found has its effect");
+  return d.effects.size();
+}
+
+bool wrongSign(const Mechanism& m) {
+  return (m.kind == MechanismKind::kBacklash || m.kind == MechanismKind::kNonlinearStiffness) &&
+         m.parameters[0] < 0.0;
+}
+
+void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOptions& options,
+                   size_t base_globals, JointVector& compliance_sigma, Diagnosis& d,
+                   bool hold_profiles) {
+  for (;;) {
+    refitGlobal(model, fit, options.refit_iterations, compliance_sigma, hold_profiles);
+    JointVector& c = model.global.compliance_rad_per_nm;
+    Eigen::Index joint = -1;
+    for (Eigen::Index j = 0; j < c.size(); ++j) {
+      if (model.compliance_free[static_cast<size_t>(j)] && c(j) < 0.0) joint = j;
+    }
+    if (joint >= 0) {
+      ModelChange change;
+      change.kind = ModelChange::Kind::kComplianceHeldAtZero;
+      change.joint = static_cast<int>(joint);
+      change.compliance_rad_per_nm = c(joint);
+      d.changes.push_back(change);
+      c(joint) = 0.0;
+      compliance_sigma(joint) = 0.0;
+      model.compliance_free[static_cast<size_t>(joint)] = false;
+      continue;
+    }
+    size_t dropped = model.global.mechanisms.size();
+    for (size_t k = base_globals; k < model.global.mechanisms.size(); ++k) {
+      if (wrongSign(model.global.mechanisms[k])) dropped = k;
+    }
+    if (dropped == model.global.mechanisms.size()) return;
+    ModelChange change;
+    change.kind = ModelChange::Kind::kDroppedWrongSign;
+    change.mechanism = model.global.mechanisms[dropped];
+    d.changes.push_back(std::move(change));
+    d.effects.erase(d.effects.begin() + static_cast<long>(globalEffect(d, dropped - base_globals)));
+    model.global.mechanisms.erase(model.global.mechanisms.begin() + static_cast<long>(dropped));
+  }
+}
+
+// The whole model fitted jointly, linearised where the screening was built: every current
+// column (geometry, global parameters, profiles) in one least-squares problem, the ridges on
+// their values, so what a global cause and a profile share goes to the one without a ridge (the
+// global cause: physics that holds everywhere). Alternating the two fits converges there only
+// slowly where they share much (a lumped self weight and a shoulder profile over a narrow arc).
+// Applied to the model, with r0 and the screening's values moved to it; the global parameters get
+// their σ from it (compliance_sigma: n entries), the profiles their σ and shares of the geometry
+// (storeStage2), the global geometry what is left of its change.
+void jointStep(DiagnosisModel& model, Screening& sc, FoldGrams& grams, const FitRows& fit,
+               Eigen::Index geometry, JointVector& compliance_sigma) {
+  const std::vector<Parameter> params = globalParameters(model);
+  STEPCAL_INVARIANT(sc.stage1.size() == static_cast<size_t>(geometry) + params.size(),
+                    "stage 1 holds the geometry and every global parameter");
+  std::vector<Eigen::Index> columns = sc.stage1;
+  const std::vector<Eigen::Index> profile_columns(sc.stage2.begin() + geometry, sc.stage2.end());
+  columns.insert(columns.end(), profile_columns.begin(), profile_columns.end());
+  const CrossValidation cv(grams, fit, sc.stage1, sc.stage2, sc.ridge, sc.current);
+  const CrossValidation::JointFit joint = cv.jointFit(columns);
+  const Eigen::VectorXd& delta = joint.change;
+  Eigen::VectorXd moved = Eigen::VectorXd::Zero(sc.current.size());
+  for (size_t k = 0; k < columns.size(); ++k) moved(columns[k]) = -delta(static_cast<Eigen::Index>(k));
+
+  for (size_t c = 0; c < params.size(); ++c) {
+    const Eigen::Index k = geometry + static_cast<Eigen::Index>(c);
+    shift(model.global, params[c], delta(k));
+    const double sigma = std::sqrt(joint.variance * joint.unit_variance(k));
+    if (params[c].mechanism < 0) {
+      compliance_sigma(params[c].index) = sigma;
+    } else {
+      model.global.mechanisms[static_cast<size_t>(params[c].mechanism)]
+          .sigma[static_cast<size_t>(params[c].index)] = sigma;
+    }
+  }
+  Eigen::VectorXd old_share = Eigen::VectorXd::Zero(geometry);
+  for (const Profile& p : model.profiles) {
+    if (p.geometry.size() == geometry) old_share += p.geometry;
+  }
+  const Eigen::Index width = static_cast<Eigen::Index>(sc.stage2.size());
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(width);
+  const Eigen::Index first_profile = static_cast<Eigen::Index>(sc.stage1.size());
+  for (Eigen::Index c = geometry; c < width; ++c) {
+    x(c) = sc.current(sc.stage2[static_cast<size_t>(c)]) + delta(first_profile + c - geometry);
+  }
+  Eigen::MatrixXd H = grams.G[static_cast<size_t>(fit.folds)](sc.stage2, sc.stage2);
+  H.diagonal() += sc.ridge(sc.stage2);
+  storeStage2(model, H, x, joint.variance);
+  Eigen::VectorXd new_share = Eigen::VectorXd::Zero(geometry);
+  for (const Profile& p : model.profiles) new_share += p.geometry;
+  model.global.chain_Tracker =
+      model.global.chain_Tracker.corrected(delta.head(geometry) + old_share - new_share);
+
+  for (size_t c = 0; c < params.size(); ++c) {
+    sc.current(sc.stage1[static_cast<size_t>(geometry) + c]) += delta(geometry + static_cast<Eigen::Index>(c));
+  }
+  setStage2(sc, model, geometry);
+  grams.takeOut(moved);
+}
+
+void buildScreening(DiagnosisModel& model, const FitRows& fit, const DiagnoseOptions& options,
+                    const std::optional<std::vector<double>>& body_masses, Screening& sc,
+                    std::unique_ptr<FoldGrams>& grams, JointVector& compliance_sigma,
+                    const Mechanism* only) {
+  const RoundStart start = roundStart(model, fit);
+  sc = screening(model, fit, start, options, body_masses, only);
+  grams = std::make_unique<FoldGrams>(std::move(sc.A), start.evaluation.r, fit);
+  sc.A.resize(0, 0);
+  if (!model.profiles.empty()) {
+    jointStep(model, sc, *grams, fit, 6 * (model.global.chain_Tracker.dof() + 1), compliance_sigma);
+  }
+}
+
+}  // namespace stepcal::trainer::diagnosis

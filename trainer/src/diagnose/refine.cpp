@@ -1,0 +1,220 @@
+// Refining the model once the rounds are done (search.hpp): backward elimination, each profile's
+// order and ridge chosen again, the final joint fits.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "model_fits.hpp"
+#include "profiles.hpp"
+#include "scoring.hpp"
+#include "search.hpp"
+#include "stepcal/common/error.hpp"
+
+namespace stepcal::trainer::diagnosis {
+namespace {
+
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// Joint fits of the whole model once every cause is named (each rebuilds the screening).
+constexpr int kJointFitPasses = 2;
+
+// Whether a fitted global mechanism has a size: one of its fitted parameters at least one σ from
+// zero (self weight under the URDF's masses fits none: its size is the compliance it frees). A
+// profile's is its size_chi2.
+bool hasSize(const Mechanism& m, bool masses_from_urdf) {
+  const std::vector<int> fitted = freeParameters(m, masses_from_urdf);
+  if (m.kind == MechanismKind::kSelfWeight && fitted.empty()) return true;
+  return std::any_of(fitted.begin(), fitted.end(), [&m](int i) {
+    return std::abs(m.parameters[static_cast<size_t>(i)]) > m.sigma[static_cast<size_t>(i)];
+  });
+}
+
+// The model without its global mechanism k: the compliances only it made identifiable (self
+// weight) go back to the starting model's.
+void dropGlobal(DiagnosisModel& model, size_t k, const FoundEffect& effect,
+                const std::vector<bool>& starting_compliance) {
+  const Mechanism& m = model.global.mechanisms[k];
+  for (int j : effect.compliance_joints) {
+    if (starting_compliance[static_cast<size_t>(j)]) continue;
+    model.global.compliance_rad_per_nm(j) = 0.0;
+    model.compliance_free[static_cast<size_t>(j)] = false;
+  }
+  if (m.kind == MechanismKind::kSelfWeight) model.masses_from_urdf = false;
+  model.global.mechanisms.erase(model.global.mechanisms.begin() + static_cast<long>(k));
+}
+
+// Global mechanism k (found here) tried again as a candidate with every other cause in the
+// model: its best configuration's comparison when it is no longer significant (so it is to be
+// dropped), nullopt when it still is or cannot be tried.
+std::optional<Comparison> withoutGlobal(const DiagnosisModel& model, size_t k, size_t base_globals,
+                                        const FitRows& fit, const DiagnoseOptions& options,
+                                        const std::optional<std::vector<double>>& body_masses,
+                                        const std::vector<bool>& starting_compliance,
+                                        const Diagnosis& d) {
+  DiagnosisModel trial = model;
+  Diagnosis scratch = d;
+  const Mechanism removed = model.global.mechanisms[k];
+  dropGlobal(trial, k, d.effects[globalEffect(d, k - base_globals)],
+             starting_compliance);
+  scratch.effects.erase(scratch.effects.begin() + static_cast<long>(globalEffect(d, k - base_globals)));
+  JointVector sigma = JointVector::Zero(trial.global.chain_Tracker.dof());
+  refitPhysical(trial, fit, options, base_globals, sigma, scratch, true);
+  if (trial.global.mechanisms.size() + 1 != model.global.mechanisms.size()) return std::nullopt;
+  Screening one;
+  std::unique_ptr<FoldGrams> grams;
+  buildScreening(trial, fit, options, body_masses, one, grams, sigma, &removed);
+  if (one.families.empty()) return std::nullopt;
+  const CrossValidation cv(*grams, fit, one.stage1, one.stage2, one.ridge, one.current);
+  const CrossValidation::Outcome base = cv.heldOut(cv.base());
+  std::optional<Comparison> best;
+  bool significant = false;
+  for (Family& family : one.families) {
+    pruneNegativeCompliance(family, cv, one.stage1.size(), trial);
+    const Scored scored = scoreGlobal(family, cv, base, one.stage1.size());
+    const Comparison c = compare(base, scored.outcome);
+    significant = significant ||
+                  (scored.score.physical &&
+                   c.p < options.family_alpha / static_cast<double>(one.families.size()) &&
+                   c.relative_reduction >= options.min_relative_reduction);
+    if (!best || c.relative_reduction > best->relative_reduction) best = c;
+  }
+  if (significant) return std::nullopt;
+  return best;
+}
+
+}  // namespace
+
+void refine(Search& search) {
+  const FitRows& fit = search.fit;
+  const DiagnoseOptions& options = search.options;
+  DiagnosisModel& dm = search.model;
+  Diagnosis& d = search.d;
+  Screening& sc = search.screening;
+  std::unique_ptr<FoldGrams>& grams = search.grams;
+  const Eigen::Index geometry = search.geometry;
+  JointVector& compliance_sigma = search.compliance_sigma;
+  const size_t base_globals = search.base_globals, base_profiles = search.base_profiles;
+  const std::optional<std::vector<double>>& body_masses = search.body_masses;
+  const std::vector<bool>& starting_compliance = search.starting_compliance;
+  const int n = dm.global.chain_Tracker.dof();
+  auto clock = std::chrono::steady_clock::now();
+  // Backward: a global cause named in an early round that the causes named after it explain is
+  // dropped (a physical constant goes first when it is significant, and may only have stood for
+  // a part of what a later cause explains in full).
+  for (size_t k = base_globals; k < dm.global.mechanisms.size();) {
+    clock = std::chrono::steady_clock::now();
+    const std::optional<Comparison> without = withoutGlobal(dm, k, base_globals, fit, options,
+                                                            body_masses, starting_compliance, d);
+    d.seconds_screening += secondsSince(clock);
+    if (!without) {
+      ++k;
+      continue;
+    }
+    ModelChange change;
+    change.kind = ModelChange::Kind::kDroppedExplained;
+    change.mechanism = dm.global.mechanisms[k];
+    change.relative_reduction = without->relative_reduction;
+    change.z_statistic = without->z;
+    d.changes.push_back(std::move(change));
+    DiagnosisModel trial = dm;
+    dropGlobal(trial, k, d.effects[globalEffect(d, k - base_globals)],
+               starting_compliance);
+    d.effects.erase(d.effects.begin() + static_cast<long>(globalEffect(d, k - base_globals)));
+    dm = std::move(trial);
+    refitPhysical(dm, fit, options, base_globals, compliance_sigma, d, true);
+    fitProfiles(dm, fit);
+    grams.reset();
+  }
+  // Each profile's order and ridge chosen again with every other cause in the model: when it
+  // was chosen, the profiles found after it were not there to explain their part. It is taken
+  // out of the linearised model (its values and its share of the geometry) and tried again.
+  if (!dm.profiles.empty()) {
+    clock = std::chrono::steady_clock::now();
+    if (!grams) {
+      buildScreening(dm, fit, options, body_masses, sc, grams, compliance_sigma);
+    } else {
+      jointStep(dm, sc, *grams, fit, geometry, compliance_sigma);
+    }
+    const std::vector<Profile> found = dm.profiles;
+    for (size_t i = 0; i < found.size(); ++i) {
+      DiagnosisModel without = dm;
+      without.profiles = found;
+      without.profiles.erase(without.profiles.begin() + static_cast<long>(i));
+      Screening others = sc;
+      others.profiled.erase(others.profiled.begin() + static_cast<long>(i));
+      setStage2(others, without, geometry);
+      Eigen::VectorXd taken = Eigen::VectorXd::Zero(others.current.size());
+      const Mechanism& m = found[i].mechanism;
+      for (int c = 0; c < 2 * m.order; ++c) {
+        taken(sc.profiled[i].columns[static_cast<size_t>(c)]) = m.parameters[static_cast<size_t>(c)];
+      }
+      for (Eigen::Index c = 0; c < geometry; ++c) {
+        taken(sc.stage2[static_cast<size_t>(c)]) = found[i].geometry(c);
+      }
+      for (Eigen::Index c : sc.profiled[i].columns) others.current(c) = 0.0;
+      const FoldGrams grams_without = grams->without(taken);
+      const CrossValidation cv(grams_without, fit, others.stage1, others.stage2, others.ridge,
+                               others.current);
+      const Scored again =
+          scoreProfile(sc.profiled[i], cv, cv.heldOut(cv.base()), grams_without, options, fit);
+      Profile& p = dm.profiles[i];
+      p.mechanism.order = again.score.mechanism.order;
+      p.mechanism.parameters.assign(static_cast<size_t>(2 * p.mechanism.order), 0.0);
+      p.mechanism.sigma.assign(p.mechanism.parameters.size(), 0.0);
+      p.ridge = again.lambda;
+      for (FoundEffect& e : d.effects) {
+        if (e.mechanism.kind == MechanismKind::kTransmissionError &&
+            e.mechanism.joint == p.mechanism.joint) {
+          e.ridge = again.score.ridge;
+        }
+      }
+    }
+    d.seconds_screening += secondsSince(clock);
+
+    // The profiles at their new orders, then twice the global part refitted under its signs
+    // (refitPhysical) and the whole model fitted jointly from there (the joint step is linear);
+    // the σ of every parameter are the joint fit's. Should the last joint step have taken a
+    // compliance or a sign-constrained parameter below zero, the global refit holds it again.
+    clock = std::chrono::steady_clock::now();
+    fitProfiles(dm, fit);
+    for (int pass = 0; pass < kJointFitPasses; ++pass) {
+      refitPhysical(dm, fit, options, base_globals, compliance_sigma, d, true);
+      buildScreening(dm, fit, options, body_masses, sc, grams, compliance_sigma);
+    }
+    bool signs_hold = true;
+    for (int j = 0; j < n; ++j) {
+      signs_hold = signs_hold && (!dm.compliance_free[static_cast<size_t>(j)] ||
+                                  dm.global.compliance_rad_per_nm(j) >= 0.0);
+    }
+    for (const Mechanism& m : dm.global.mechanisms) signs_hold = signs_hold && !wrongSign(m);
+    if (!signs_hold) refitPhysical(dm, fit, options, base_globals, compliance_sigma, d, true);
+    grams.reset();
+    d.seconds_refit += secondsSince(clock);
+  }
+
+  // Every effect's parameters and σ from the final fit, in the order found.
+  {
+    size_t next_global = base_globals, next_profile = base_profiles;
+    for (FoundEffect& e : d.effects) {
+      if (e.mechanism.kind == MechanismKind::kTransmissionError) {
+        const Profile& p = dm.profiles[next_profile++];
+        e.mechanism = p.mechanism;
+        STEPCAL_INVARIANT(p.size_chi2 > 2.0 * p.mechanism.order,
+                          (describe(e.mechanism) +
+                           " was named, yet its fitted coefficients lie within one σ of zero")
+                              .c_str());
+      } else {
+        e.mechanism = dm.global.mechanisms[next_global++];
+        STEPCAL_INVARIANT(hasSize(e.mechanism, dm.masses_from_urdf),
+                          (describe(e.mechanism) +
+                           " was named, yet every parameter fitted for it lies within one σ of zero")
+                              .c_str());
+      }
+    }
+  }
+}
+
+}  // namespace stepcal::trainer::diagnosis

@@ -124,6 +124,13 @@ std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
                                "error, z = %.1f: not significant)",
                                100.0 * c.relative_reduction, c.z_statistic));
         break;
+      case Kind::kDroppedWithoutSize:
+        lines.push_back(describe(c.mechanism) +
+                        format(": dropped, the final fit leaves it without a size (what the data "
+                               "identify of it, %d direction(s), lies within one σ of zero: "
+                               "chi2 %.2f); the other causes stand without it",
+                               c.size_dof, c.size_chi2));
+        break;
     }
   }
   for (const trainer::FoundEffect& f : d.effects) {
@@ -337,6 +344,8 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
     x["z_statistic"] = e.z_statistic;
     x["p_value"] = e.p_value;
     x["round"] = e.round;
+    x["size_chi2"] = e.size_chi2;
+    x["size_dof"] = e.size_dof;
     j["effects"].push_back(x);
   }
   j["candidates"] = nlohmann::json::array();

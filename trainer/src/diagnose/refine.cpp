@@ -1,5 +1,6 @@
 // Refining the model once the rounds are done (search.hpp): backward elimination, each profile's
-// order and ridge chosen again, the final joint fits.
+// order and ridge chosen again, the final joint fits, and the causes they leave without a size
+// dropped.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -9,6 +10,7 @@
 #include "profiles.hpp"
 #include "scoring.hpp"
 #include "search.hpp"
+#include "sizes.hpp"
 #include "stepcal/common/error.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -20,17 +22,6 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
 
 // Joint fits of the whole model once every cause is named (each rebuilds the screening).
 constexpr int kJointFitPasses = 2;
-
-// Whether a fitted global mechanism has a size: one of its fitted parameters at least one σ from
-// zero (self weight under the URDF's masses fits none: its size is the compliance it frees). A
-// profile's is its size_chi2.
-bool hasSize(const Mechanism& m, bool masses_from_urdf) {
-  const std::vector<int> fitted = freeParameters(m, masses_from_urdf);
-  if (m.kind == MechanismKind::kSelfWeight && fitted.empty()) return true;
-  return std::any_of(fitted.begin(), fitted.end(), [&m](int i) {
-    return std::abs(m.parameters[static_cast<size_t>(i)]) > m.sigma[static_cast<size_t>(i)];
-  });
-}
 
 // The model without its global mechanism k: the compliances only it made identifiable (self
 // weight) go back to the starting model's.
@@ -85,29 +76,19 @@ std::optional<Comparison> withoutGlobal(const DiagnosisModel& model, size_t k, s
   return best;
 }
 
-}  // namespace
-
-void refine(Search& search) {
+// A global cause named in an early round that the causes named after it explain is dropped (a
+// physical constant goes first when it is significant, and may only have stood for a part of
+// what a later cause explains in full).
+void eliminateBackward(Search& search) {
   const FitRows& fit = search.fit;
-  const DiagnoseOptions& options = search.options;
   DiagnosisModel& dm = search.model;
   Diagnosis& d = search.d;
-  Screening& sc = search.screening;
-  std::unique_ptr<FoldGrams>& grams = search.grams;
-  const Eigen::Index geometry = search.geometry;
-  JointVector& compliance_sigma = search.compliance_sigma;
-  const size_t base_globals = search.base_globals, base_profiles = search.base_profiles;
-  const std::optional<std::vector<double>>& body_masses = search.body_masses;
-  const std::vector<bool>& starting_compliance = search.starting_compliance;
-  const int n = dm.global.chain_Tracker.dof();
-  auto clock = std::chrono::steady_clock::now();
-  // Backward: a global cause named in an early round that the causes named after it explain is
-  // dropped (a physical constant goes first when it is significant, and may only have stood for
-  // a part of what a later cause explains in full).
+  const size_t base_globals = search.base_globals;
   for (size_t k = base_globals; k < dm.global.mechanisms.size();) {
-    clock = std::chrono::steady_clock::now();
-    const std::optional<Comparison> without = withoutGlobal(dm, k, base_globals, fit, options,
-                                                            body_masses, starting_compliance, d);
+    const auto clock = std::chrono::steady_clock::now();
+    const std::optional<Comparison> without =
+        withoutGlobal(dm, k, base_globals, fit, search.options, search.body_masses,
+                      search.starting_compliance, d);
     d.seconds_screening += secondsSince(clock);
     if (!without) {
       ++k;
@@ -119,25 +100,32 @@ void refine(Search& search) {
     change.relative_reduction = without->relative_reduction;
     change.z_statistic = without->z;
     d.changes.push_back(std::move(change));
-    DiagnosisModel trial = dm;
-    dropGlobal(trial, k, d.effects[globalEffect(d, k - base_globals)],
-               starting_compliance);
-    d.effects.erase(d.effects.begin() + static_cast<long>(globalEffect(d, k - base_globals)));
-    dm = std::move(trial);
-    refitPhysical(dm, fit, options, base_globals, compliance_sigma, d, true);
+    const size_t effect = globalEffect(d, k - base_globals);
+    dropGlobal(dm, k, d.effects[effect], search.starting_compliance);
+    d.effects.erase(d.effects.begin() + static_cast<long>(effect));
+    refitPhysical(dm, fit, search.options, base_globals, search.compliance_sigma, d, true);
     fitProfiles(dm, fit);
-    grams.reset();
+    search.grams.reset();
   }
-  // Each profile's order and ridge chosen again with every other cause in the model: when it
-  // was chosen, the profiles found after it were not there to explain their part. It is taken
-  // out of the linearised model (its values and its share of the geometry) and tried again.
-  if (!dm.profiles.empty()) {
-    clock = std::chrono::steady_clock::now();
-    if (!grams) {
-      buildScreening(dm, fit, options, body_masses, sc, grams, compliance_sigma);
-    } else {
-      jointStep(dm, sc, *grams, fit, geometry, compliance_sigma);
-    }
+}
+
+// Each profile's order and ridge chosen again with every other cause in the model: when it was
+// chosen, the profiles found after it were not there to explain their part. It is taken out of
+// the linearised model (its values and its share of the geometry) and tried again.
+void retuneProfiles(Search& search) {
+  const FitRows& fit = search.fit;
+  const DiagnoseOptions& options = search.options;
+  DiagnosisModel& dm = search.model;
+  Diagnosis& d = search.d;
+  Screening& sc = search.screening;
+  std::unique_ptr<FoldGrams>& grams = search.grams;
+  const Eigen::Index geometry = search.geometry;
+  const auto clock = std::chrono::steady_clock::now();
+  if (!grams) {
+    buildScreening(dm, fit, options, search.body_masses, sc, grams, search.compliance_sigma);
+  } else {
+    jointStep(dm, sc, *grams, fit, geometry, search.compliance_sigma);
+  }
     const std::vector<Profile> found = dm.profiles;
     for (size_t i = 0; i < found.size(); ++i) {
       DiagnosisModel without = dm;
@@ -172,17 +160,30 @@ void refine(Search& search) {
         }
       }
     }
-    d.seconds_screening += secondsSince(clock);
+  d.seconds_screening += secondsSince(clock);
+}
 
-    // The profiles at their new orders, then twice the global part refitted under its signs
-    // (refitPhysical) and the whole model fitted jointly from there (the joint step is linear);
-    // the σ of every parameter are the joint fit's. Should the last joint step have taken a
-    // compliance or a sign-constrained parameter below zero, the global refit holds it again.
-    clock = std::chrono::steady_clock::now();
+// The final fit: the profiles at their orders, then twice the global part refitted under its
+// signs (refitPhysical) and the whole model fitted jointly from there (the joint step is
+// linear); the σ of every parameter are the joint fit's. Should the last joint step have taken a
+// compliance or a sign-constrained parameter below zero, the global refit holds it again.
+// Without profiles, the global refit alone.
+void finalFit(Search& search) {
+  const FitRows& fit = search.fit;
+  const DiagnoseOptions& options = search.options;
+  DiagnosisModel& dm = search.model;
+  Diagnosis& d = search.d;
+  const size_t base_globals = search.base_globals;
+  const int n = dm.global.chain_Tracker.dof();
+  const auto clock = std::chrono::steady_clock::now();
+  if (dm.profiles.empty()) {
+    refitPhysical(dm, fit, options, base_globals, search.compliance_sigma, d, true);
+  } else {
     fitProfiles(dm, fit);
     for (int pass = 0; pass < kJointFitPasses; ++pass) {
-      refitPhysical(dm, fit, options, base_globals, compliance_sigma, d, true);
-      buildScreening(dm, fit, options, body_masses, sc, grams, compliance_sigma);
+      refitPhysical(dm, fit, options, base_globals, search.compliance_sigma, d, true);
+      buildScreening(dm, fit, options, search.body_masses, search.screening, search.grams,
+                     search.compliance_sigma);
     }
     bool signs_hold = true;
     for (int j = 0; j < n; ++j) {
@@ -190,31 +191,75 @@ void refine(Search& search) {
                                   dm.global.compliance_rad_per_nm(j) >= 0.0);
     }
     for (const Mechanism& m : dm.global.mechanisms) signs_hold = signs_hold && !wrongSign(m);
-    if (!signs_hold) refitPhysical(dm, fit, options, base_globals, compliance_sigma, d, true);
-    grams.reset();
-    d.seconds_refit += secondsSince(clock);
-  }
-
-  // Every effect's parameters and σ from the final fit, in the order found.
-  {
-    size_t next_global = base_globals, next_profile = base_profiles;
-    for (FoundEffect& e : d.effects) {
-      if (e.mechanism.kind == MechanismKind::kTransmissionError) {
-        const Profile& p = dm.profiles[next_profile++];
-        e.mechanism = p.mechanism;
-        STEPCAL_INVARIANT(p.size_chi2 > 2.0 * p.mechanism.order,
-                          (describe(e.mechanism) +
-                           " was named, yet its fitted coefficients lie within one σ of zero")
-                              .c_str());
-      } else {
-        e.mechanism = dm.global.mechanisms[next_global++];
-        STEPCAL_INVARIANT(hasSize(e.mechanism, dm.masses_from_urdf),
-                          (describe(e.mechanism) +
-                           " was named, yet every parameter fitted for it lies within one σ of zero")
-                              .c_str());
-      }
+    if (!signs_hold) {
+      refitPhysical(dm, fit, options, base_globals, search.compliance_sigma, d, true);
     }
   }
+  search.grams.reset();
+  d.seconds_refit += secondsSince(clock);
+}
+
+// Whether data, not the code, left a named cause without a size: in the final fit what the data
+// identify of it lies within one σ of zero (sizes.hpp). Such a cause is dropped, the weakest
+// first, with a line in the verdict, and the model fitted again without it; the rest of the
+// diagnosis stands.
+void dropCausesWithoutSize(Search& search) {
+  DiagnosisModel& dm = search.model;
+  Diagnosis& d = search.d;
+  for (;;) {
+    const std::vector<CauseSize> sizes =
+        causeSizes(dm, search.fit, d, search.base_globals, search.base_profiles);
+    size_t weakest = sizes.size();
+    for (size_t e = 0; e < sizes.size(); ++e) {
+      const CauseSize& s = sizes[e];
+      d.effects[e].size_chi2 = s.chi2;
+      d.effects[e].size_dof = s.dof;
+      if (s.hasSize()) continue;
+      const auto ratio = [](const CauseSize& x) { return x.dof > 0 ? x.chi2 / x.dof : 0.0; };
+      if (weakest == sizes.size() || ratio(s) < ratio(sizes[weakest])) weakest = e;
+    }
+    if (weakest == sizes.size()) return;
+    ModelChange change;
+    change.kind = ModelChange::Kind::kDroppedWithoutSize;
+    change.mechanism = d.effects[weakest].mechanism;
+    change.size_chi2 = sizes[weakest].chi2;
+    change.size_dof = sizes[weakest].dof;
+    d.changes.push_back(change);
+    // Its index among the profiles or the global causes found, in the order found.
+    size_t index = search.base_globals, profile = search.base_profiles;
+    for (size_t e = 0; e < weakest; ++e) {
+      (d.effects[e].mechanism.kind == MechanismKind::kTransmissionError ? profile : index)++;
+    }
+    if (d.effects[weakest].mechanism.kind == MechanismKind::kTransmissionError) {
+      dm.profiles.erase(dm.profiles.begin() + static_cast<long>(profile));
+    } else {
+      dropGlobal(dm, index, d.effects[weakest], search.starting_compliance);
+    }
+    d.effects.erase(d.effects.begin() + static_cast<long>(weakest));
+    finalFit(search);
+  }
+}
+
+// Every effect's parameters and σ from the final fit, in the order found.
+void storeFinalParameters(Search& search) {
+  size_t next_global = search.base_globals, next_profile = search.base_profiles;
+  for (FoundEffect& e : search.d.effects) {
+    e.mechanism = e.mechanism.kind == MechanismKind::kTransmissionError
+                      ? search.model.profiles[next_profile++].mechanism
+                      : search.model.global.mechanisms[next_global++];
+  }
+}
+
+}  // namespace
+
+void refine(Search& search) {
+  eliminateBackward(search);
+  if (!search.model.profiles.empty()) {
+    retuneProfiles(search);
+    finalFit(search);
+  }
+  dropCausesWithoutSize(search);
+  storeFinalParameters(search);
 }
 
 }  // namespace stepcal::trainer::diagnosis

@@ -5,19 +5,23 @@
 // (geometry δ, compliances, every mechanism that holds at any pose: self weight, backlash,
 // nonlinear stiffness, coupling, thermal expansion, sensor bias), and on what it leaves, one
 // transmission profile per joint (a Fourier series in the joint angle, ridge-regularised, gated
-// to the joint angles it was fitted on). Each round:
-// 1. The residual is compared with the tracker noise and tested for trends in q_j, τ_j, load,
-//    temperature and seq.
-// 2. Every family not in the model yet (a global mechanism with its parameters; a joint's
+// to the joint angles it was fitted on). First the residual of the starting model is compared
+// with the tracker noise and tested for trends in q_j, τ_j, load, temperature and seq. Then, each
+// round (trainer/src/diagnose/search.hpp has the phases):
+// 1. Every family not in the model yet (a global mechanism with its parameters; a joint's
 //    profile at every order and ridge of a grid) is added to the linearised two-stage model and
-//    judged by cross-validation over poses (folds by pose_id). A one-sided t-test on the per-pose
-//    reduction of the held-out squared error, Bonferroni-corrected over every configuration
-//    tried in the round, keeps chance from naming a cause; a cause must also remove ≥ 1 %.
-// 3. The best family is added (unless a simpler one is not significantly worse) and the model
-//    refitted: the global part jointly, then every profile on what it leaves. Repeat until
-//    nothing significant is left.
-// Then: the verdict (found, none, unexplained), the identifiable combinations, the extended model
-// (with a GPR refitted on its residual) and its gain on validation rows.
+//    judged by cross-validation over poses (folds by pose_id). A one-sided Wilcoxon signed-rank
+//    test of the per-pose reduction of the held-out squared error, Bonferroni-corrected over
+//    every configuration tried in the round, keeps chance from naming a cause; a cause must also
+//    remove ≥ 1 % and have the signs its physics needs.
+// 2. One significant family is added (physical constants of the arm first; else the best unless
+//    a simpler one is not significantly worse) and the model refitted. Repeat until nothing
+//    significant is left.
+// Then backward elimination, each profile's order and ridge chosen again, the final joint fits,
+// and every cause the final fit leaves without a size (what the data identify of it within one σ
+// of zero) dropped; the verdict (found, none, unexplained), with the residual after the effects
+// tested for trends again; the extended model (with a GPR refitted on its residual) and its gain
+// on validation rows.
 #pragma once
 
 #include <optional>
@@ -116,6 +120,10 @@ struct FoundEffect {
   /// Other significant families of its round that removed nearly as much held-out error (at
   /// least 80 %) and nothing more once it was in the model: the data cannot tell them from it.
   std::vector<Mechanism> alternatives;
+  /// Its size in the final fit: χ² of what the data identify of it over the size_dof directions
+  /// they determine (a profile: cᵀ Σ_c⁻¹ c over 2·order); every cause kept has χ² > dof.
+  double size_chi2 = 0.0;
+  int size_dof = 0;
 };
 
 /// What the search did to the model that the verdict says: a compliance held at zero, or a cause
@@ -128,12 +136,18 @@ struct ModelChange {
     /// A cause that the causes named after it explain: tried again with them in the model, it
     /// is no longer significant (relative_reduction, z_statistic of that trial).
     kDroppedExplained,
+    /// A cause left without a size in the final fit: what the data identify of it lies within
+    /// one σ of zero (size_chi2 ≤ size_dof over its size_dof determined directions; a profile:
+    /// its coefficients' cᵀ Σ⁻¹ c against 2·order).
+    kDroppedWithoutSize,
   };
   Kind kind = Kind::kComplianceHeldAtZero;
   int joint = -1;                      ///< kComplianceHeldAtZero (0-based)
   double compliance_rad_per_nm = 0.0;  ///< kComplianceHeldAtZero: the value it came out at
   Mechanism mechanism;                 ///< the cause dropped
   double relative_reduction = 0.0, z_statistic = 0.0;  ///< kDroppedExplained
+  double size_chi2 = 0.0;                               ///< kDroppedWithoutSize
+  int size_dof = 0;                                     ///< kDroppedWithoutSize
 };
 
 /// A cross-validated trend of the residual in one variable (cubic in the variable).

@@ -172,6 +172,67 @@ TEST(TransmissionOffset, JointsOutsideCoverageAreFlagged) {
 
 // Link masses from <inertial>: each moving body gathers every link rigidly attached to it, its
 // centre of mass carried through the fixed joints into the body's frame.
+Mechanism torqueMechanism(MechanismKind kind, int order, std::vector<double> parameters) {
+  Mechanism m;
+  m.kind = kind;
+  m.joint = 1;
+  m.order = order;
+  m.parameters = std::move(parameters);
+  m.sigma.assign(m.parameters.size(), 0.0);
+  return m;
+}
+
+// Backlash and nonlinear stiffness are their closed forms; a torsion curve is lost motion plus
+// knees: odd in the torque, its derivative the finite difference everywhere (at zero, at and
+// between the knees, far beyond), its compliance the segments' sums well away from the knees.
+TEST(TorqueDeflection, ClosedFormsKneesAndTheirDerivative) {
+  const double b = 2e-4, tau_b = 5.0, c1 = 3e-6, t1 = 100.0, c2 = 1e-6, t2 = 400.0;
+  const Mechanism backlash = torqueMechanism(MechanismKind::kBacklash, 0, {b, tau_b});
+  const Mechanism nonlinear = torqueMechanism(MechanismKind::kNonlinearStiffness, 0, {c1, t1});
+  const Mechanism curve = torqueMechanism(MechanismKind::kTorsionCurve, 2, {b, tau_b, c1, t1, c2, t2});
+  for (const Mechanism* m : {&backlash, &nonlinear, &curve}) EXPECT_EQ(mechanismProblem(*m, 6), "");
+  for (const double tau : {-700.0, -30.0, 0.0, 0.4, 12.0, 99.0, 100.0, 250.0, 1e4}) {
+    EXPECT_DOUBLE_EQ(torqueDeflection(backlash, tau), b * std::tanh(tau / tau_b)) << tau;
+    EXPECT_DOUBLE_EQ(torqueDeflection(nonlinear, tau), c1 * tau * t1 / (t1 + std::abs(tau))) << tau;
+    EXPECT_DOUBLE_EQ(torqueDeflection(curve, -tau), -torqueDeflection(curve, tau)) << tau;
+    for (const Mechanism* m : {&backlash, &nonlinear, &curve}) {
+      double slope = 0.0;
+      torqueDeflection(*m, tau, &slope);
+      const double h = 1e-4 * std::max(1.0, std::abs(tau));
+      const double fd = (torqueDeflection(*m, tau + h) - torqueDeflection(*m, tau - h)) / (2 * h);
+      EXPECT_NEAR(slope, fd, 1e-6 * (std::abs(fd) + 1e-9)) << describe(*m) << " at " << tau;
+      EXPECT_GE(slope, 0.0) << describe(*m) << " at " << tau;
+    }
+  }
+  // The knees' compliance: c1 + c2 below T1, c2 between, none above (lost motion taken up);
+  // five knee widths from a knee its logistic has e⁻⁵ ≈ 0.7 % left.
+  const auto slopeAt = [&](double tau) {
+    double slope = 0.0;
+    torqueDeflection(curve, tau, &slope);
+    return slope;
+  };
+  EXPECT_NEAR(slopeAt(50.0), c1 + c2, 1e-2 * (c1 + c2));
+  EXPECT_NEAR(slopeAt(200.0), c2, 1e-2 * c2);
+  EXPECT_NEAR(slopeAt(1000.0), 0.0, 1e-2 * c2);
+  // Far beyond the last knee the curve is the lost motion plus each knee's c·T.
+  EXPECT_NEAR(torqueDeflection(curve, 5000.0), b + c1 * t1 + c2 * t2, 1e-3 * (c1 * t1 + c2 * t2));
+}
+
+TEST(TorqueDeflection, MalformedTorsionCurvesAreNamed) {
+  const auto problem = [](int order, std::vector<double> p) {
+    return mechanismProblem(torqueMechanism(MechanismKind::kTorsionCurve, order, std::move(p)), 6);
+  };
+  EXPECT_EQ(problem(0, {2e-4, 5.0}), "");
+  EXPECT_EQ(problem(1, {0.0, 0.0, 1e-6, 80.0}), "");
+  EXPECT_NE(problem(0, {0.0, 0.0}).find("neither lost motion nor"), std::string::npos);
+  EXPECT_NE(problem(1, {2e-4, 0.0, 1e-6, 80.0}).find("or 0 with no lost motion"), std::string::npos);
+  EXPECT_NE(problem(1, {0.0, -1.0, 1e-6, 80.0}).find("smoothing_torque_nm"), std::string::npos);
+  EXPECT_NE(problem(2, {0.0, 0.0, 1e-6, 80.0, 1e-6, 60.0}).find("knee_torque2_nm"), std::string::npos);
+  EXPECT_NE(problem(1, {0.0, 0.0, 1e-6, 0.0}).find("knee_torque1_nm"), std::string::npos);
+  EXPECT_NE(problem(5, std::vector<double>(12, 1.0)).find("0 to 4 terms"), std::string::npos);
+  EXPECT_NE(problem(1, {0.0, 0.0, 1e-6}).find("expected 4"), std::string::npos);
+}
+
 TEST(UrdfMasses, BodiesGatherTheirRigidLinksInTheirOwnFrame) {
   const std::string urdf = R"(<robot name="r">
     <link name="base"/>

@@ -273,11 +273,16 @@ TEST(UrdfExport, RefusesWhatAUrdfCannotHoldAndAnotherRobot) {
 
 // The twin's geometry protocol simulated into dir/campaign and calibrated into dir/model.stepcal
 // (the model's path).
+// A geometry campaign with a self weight hidden in it, calibrated: the geometric model leaves
+// a residual the GPR learns, so the model has a poe+gpr layer.
 std::string calibratedSimulation(const fs::path& dir, int seed) {
   const std::string campaign = (dir / "campaign").string();
   const std::string model_path = (dir / "model.stepcal").string();
+  const std::string self_weight =
+      R"('{"name":"self_weight","links":[{"link":2,"mass_kg":40,"com_m":[0.3,0,0.1]},)"
+      R"({"link":3,"mass_kg":30,"com_m":[0.2,0,0.05]}]}')";
   EXPECT_EQ(test::run(kStepcal + " simulate --protocol geometry --seed " + std::to_string(seed) +
-                      " --out " + campaign).status,
+                      " --out " + campaign + " --effect " + self_weight).status,
             0);
   EXPECT_EQ(test::run(kStepcal + " calibrate " + campaign + " --out " + model_path).status, 0);
   return model_path;

@@ -15,14 +15,15 @@ constexpr MechanismKind kAllKinds[] = {
     MechanismKind::kBacklash,           MechanismKind::kSelfWeight,
     MechanismKind::kTransmissionError,  MechanismKind::kNonlinearStiffness,
     MechanismKind::kThermalExpansion,   MechanismKind::kSensorBias,
-    MechanismKind::kJointCoupling,      MechanismKind::kProfileGeometry};
+    MechanismKind::kJointCoupling,      MechanismKind::kProfileGeometry,
+    MechanismKind::kTorsionCurve};
 
 constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
 
 bool usesJoint(MechanismKind kind) {
   return kind == MechanismKind::kBacklash || kind == MechanismKind::kTransmissionError ||
          kind == MechanismKind::kNonlinearStiffness || kind == MechanismKind::kJointCoupling ||
-         kind == MechanismKind::kProfileGeometry;
+         kind == MechanismKind::kProfileGeometry || kind == MechanismKind::kTorsionCurve;
 }
 
 }  // namespace
@@ -37,6 +38,7 @@ const char* toString(MechanismKind kind) noexcept {
     case MechanismKind::kSensorBias: return "sensor_bias";
     case MechanismKind::kJointCoupling: return "joint_coupling";
     case MechanismKind::kProfileGeometry: return "profile_geometry";
+    case MechanismKind::kTorsionCurve: return "torsion_curve";
   }
   return "unknown";
 }
@@ -199,6 +201,50 @@ double gatedOffset(const Mechanism& m, double s1, double c1, double gate, double
 
 }  // namespace
 
+bool isTorqueDeflection(MechanismKind kind) noexcept {
+  return kind == MechanismKind::kBacklash || kind == MechanismKind::kNonlinearStiffness ||
+         kind == MechanismKind::kTorsionCurve;
+}
+
+double torqueDeflection(const Mechanism& m, double tau_nm, double* derivative) noexcept {
+  double slope = 0.0, deflection = 0.0;
+  // Lost motion b tanh(τ/τ_b), slope (b/τ_b) sech².
+  const auto lost = [&](double b, double smoothing) {
+    if (smoothing <= 0.0) return;
+    const double t = std::tanh(tau_nm / smoothing);
+    deflection += b * t;
+    slope += b * (1.0 - t * t) / smoothing;
+  };
+  // Nonlinear stiffness c τ τ₀/(τ₀ + |τ|), slope c τ₀²/(τ₀ + |τ|)².
+  const auto fade = [&](double c, double t0) {
+    const double d = t0 + std::abs(tau_nm);
+    deflection += c * tau_nm * t0 / d;
+    slope += c * t0 * t0 / (d * d);
+  };
+  // A knee c sign(τ) min(|τ|, T), the min smooth: x − w s((x − T)/w) + w s(−T/w) with s the
+  // softplus, w = kTorsionKneeWidth T (0 at x = 0, slope 1 − σ((x − T)/w): 1 below T, 0 above).
+  const auto knee = [&](double c, double corner) {
+    const double w = kTorsionKneeWidth * corner, x = std::abs(tau_nm);
+    const auto softplus = [](double z) { return std::max(z, 0.0) + std::log1p(std::exp(-std::abs(z))); };
+    const double z = (x - corner) / w;
+    const double bent = x - w * softplus(z) + w * softplus(-corner / w);
+    deflection += c * std::copysign(bent, tau_nm);
+    slope += c / (1.0 + std::exp(z));
+  };
+  const auto p = [&m](size_t i) { return m.parameters[i]; };
+  switch (m.kind) {
+    case MechanismKind::kBacklash: lost(p(0), p(1)); break;
+    case MechanismKind::kNonlinearStiffness: fade(p(0), p(1)); break;
+    case MechanismKind::kTorsionCurve:
+      lost(p(0), p(1));
+      for (int k = 0; k < m.order; ++k) knee(p(2 + 2 * size_t(k)), p(3 + 2 * size_t(k)));
+      break;
+    default: break;
+  }
+  if (derivative) *derivative = slope;
+  return deflection;
+}
+
 double transmissionOffset(const Mechanism& m, double q_rad, double* derivative) noexcept {
   double gate_slope = 0.0;
   const double gate = coverageGate(m.coverage, q_rad, derivative ? &gate_slope : nullptr);
@@ -233,6 +279,14 @@ std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof, in
     case MechanismKind::kSensorBias:
       return {"fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm"};
     case MechanismKind::kJointCoupling: return {"ratio"};
+    case MechanismKind::kTorsionCurve: {
+      std::vector<std::string> names = {"lost_motion_rad", "smoothing_torque_nm"};
+      for (int k = 1; k <= order; ++k) {
+        names.push_back("extra_compliance" + std::to_string(k) + "_rad_per_nm");
+        names.push_back("knee_torque" + std::to_string(k) + "_nm");
+      }
+      return names;
+    }
     case MechanismKind::kProfileGeometry: {
       std::vector<std::string> names;
       for (int k = 0; k <= dof; ++k) {
@@ -252,13 +306,17 @@ std::string mechanismProblem(const Mechanism& m, int dof) {
   for (MechanismKind kind : kAllKinds) known = known || kind == m.kind;
   if (!known) {
     return "mechanism kind " + std::to_string(static_cast<uint32_t>(m.kind)) +
-           "; expected 1 to 8 (mechanisms.hpp)";
+           "; expected 1 to 9 (mechanisms.hpp)";
   }
   const std::string what = toString(m.kind);
-  if ((m.kind == MechanismKind::kTransmissionError) != (m.order >= 1) ||
-      m.order > kMaxHarmonics) {
+  const bool order_fits =
+      m.kind == MechanismKind::kTransmissionError ? m.order >= 1 && m.order <= kMaxHarmonics
+      : m.kind == MechanismKind::kTorsionCurve    ? m.order >= 0 && m.order <= kMaxTorsionTerms
+                                                  : m.order == 0;
+  if (!order_fits) {
     return what + " order " + std::to_string(m.order) + "; expected 1 to " +
-           std::to_string(kMaxHarmonics) + " harmonics for transmission_error, else 0";
+           std::to_string(kMaxHarmonics) + " harmonics for transmission_error, 0 to " +
+           std::to_string(kMaxTorsionTerms) + " terms for torsion_curve, else 0";
   }
   const size_t count = mechanismParameterNames(m.kind, dof, m.order).size();
   if (m.parameters.size() != count || m.sigma.size() != count) {
@@ -293,6 +351,25 @@ std::string mechanismProblem(const Mechanism& m, int dof) {
     return what + " " + mechanismParameterNames(m.kind, dof)[1] + " = " +
            std::to_string(m.parameters[1]) + "; expected > 0";
   }
+  if (m.kind == MechanismKind::kTorsionCurve) {
+    if (m.parameters[1] < 0.0 || (m.parameters[1] == 0.0 && m.parameters[0] != 0.0)) {
+      return what + " smoothing_torque_nm = " + std::to_string(m.parameters[1]) +
+             " with lost_motion_rad = " + std::to_string(m.parameters[0]) +
+             "; expected > 0, or 0 with no lost motion";
+    }
+    if (m.parameters[1] == 0.0 && m.order == 0) {
+      return what + " has neither lost motion nor a stiffening term; expected at least one";
+    }
+    double previous = 0.0;
+    for (int k = 1; k <= m.order; ++k) {
+      const double fade = m.parameters[1 + 2 * size_t(k)];
+      if (!(fade > previous)) {
+        return what + " knee_torque" + std::to_string(k) + "_nm = " + std::to_string(fade) +
+               "; expected > 0 and above the term before it";
+      }
+      previous = fade;
+    }
+  }
   return {};
 }
 
@@ -302,6 +379,7 @@ std::string describe(const Mechanism& m) {
     case MechanismKind::kBacklash:
     case MechanismKind::kNonlinearStiffness:
     case MechanismKind::kProfileGeometry:
+    case MechanismKind::kTorsionCurve:
       return s + " (joint " + std::to_string(m.joint + 1) + ")";
     case MechanismKind::kTransmissionError:
       return s + " (joint " + std::to_string(m.joint + 1) + ", " + std::to_string(m.order) +
@@ -462,17 +540,11 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
   }
   Jacobian J;
   JointVector tau_self;
-  // θ = θ₀ + Δθ(τ): the compliance, plus each backlash's and nonlinear stiffness' deflection.
+  // θ = θ₀ + Δθ(τ): the compliance, plus each joint's torque-deflection mechanism.
   const auto deflect = [&](const JointVector& tau) {
     theta_rad = theta0 + model.compliance_rad_per_nm.cwiseProduct(tau);
     for (const Mechanism& m : model.mechanisms) {
-      const double t = m.joint >= 0 ? tau(m.joint) : 0.0;
-      if (m.kind == MechanismKind::kBacklash) {
-        theta_rad(m.joint) += m.parameters[0] * std::tanh(t / m.parameters[1]);
-      } else if (m.kind == MechanismKind::kNonlinearStiffness) {
-        const double c = m.parameters[0], t0 = m.parameters[1];
-        theta_rad(m.joint) += c * t * t0 / (t0 + std::abs(t));
-      }
+      if (isTorqueDeflection(m.kind)) theta_rad(m.joint) += torqueDeflection(m, tau(m.joint));
     }
   };
   // Without a wrench or self weight every torque is zero and θ = θ₀: no passes. The passes move

@@ -966,9 +966,10 @@ std::string mechanismInModelProblem(const CalibratedModel& model, size_t index) 
   const bool single = m.kind == MechanismKind::kSelfWeight ||
                       m.kind == MechanismKind::kSensorBias ||
                       m.kind == MechanismKind::kThermalExpansion;
-  // A joint has at most one profile and one profile geometry.
+  // A joint has at most one profile, one profile geometry and one torsion curve.
   const bool per_joint = m.kind == MechanismKind::kTransmissionError ||
-                         m.kind == MechanismKind::kProfileGeometry;
+                         m.kind == MechanismKind::kProfileGeometry ||
+                         m.kind == MechanismKind::kTorsionCurve;
   for (size_t i = 0; i < index; ++i) {
     const Mechanism& earlier = model.mechanisms[i];
     if (earlier.kind != m.kind) continue;

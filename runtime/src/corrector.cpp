@@ -204,20 +204,17 @@ bool commandedAngleDerivative(const PhysicalModel& model, const JointVector& pro
   return changed;
 }
 
-/// ∂θ/∂τ per joint at the torques τ [N·m]: the compliance C, plus (b / τ_s) sech²(τ_j / τ_s) of
-/// a backlash and c τ₀² / (τ₀ + |τ_j|)² of a nonlinear_stiffness, rad/(N·m) (mechanisms.hpp).
-/// True when any entry is nonzero.
+/// ∂θ/∂τ per joint at the torques τ [N·m]: the compliance C, plus the slope of each joint's
+/// torque-deflection mechanism (backlash, nonlinear_stiffness, torsion_curve; mechanisms.hpp),
+/// rad/(N·m). True when any entry is nonzero.
 bool torqueCompliance(const PhysicalModel& model, const JointVector& tau_nm,
                       JointVector& dtheta_dtau) noexcept {
   dtheta_dtau = model.compliance_rad_per_nm;
   for (const Mechanism& m : model.mechanisms) {
-    if (m.kind == MechanismKind::kBacklash) {
-      const double c = std::cosh(tau_nm(m.joint) / m.parameters[1]);
-      dtheta_dtau(m.joint) += m.parameters[0] / (m.parameters[1] * c * c);
-    } else if (m.kind == MechanismKind::kNonlinearStiffness) {
-      const double t0 = m.parameters[1], d = t0 + std::abs(tau_nm(m.joint));
-      dtheta_dtau(m.joint) += m.parameters[0] * t0 * t0 / (d * d);
-    }
+    if (!isTorqueDeflection(m.kind)) continue;
+    double slope = 0.0;
+    torqueDeflection(m, tau_nm(m.joint), &slope);
+    dtheta_dtau(m.joint) += slope;
   }
   return !dtheta_dtau.isZero(0.0);
 }

@@ -13,6 +13,7 @@
 
 #include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/pipeline.hpp"
+#include "stepcal/twin/draws.hpp"
 #include "stepcal/twin/twin.hpp"
 
 namespace stepcal::trainer::test_support {
@@ -31,120 +32,52 @@ struct Hidden {
   std::vector<double> self_weight_truth;  // self_weight: (m, m·com) per link, as the model holds them
 };
 
-inline double uniform(std::mt19937_64& rng, double lo, double hi) {
-  return std::uniform_real_distribution<double>(lo, hi)(rng);
-}
-inline int pick(std::mt19937_64& rng, std::initializer_list<int> choices) {
-  const auto i = std::uniform_int_distribution<size_t>(0, choices.size() - 1)(rng);
-  return *(choices.begin() + static_cast<long>(i));
-}
-
-// A realistic mechanism at a size a laser tracker sees on the paper's campaign: lost motion of
-// 0.6–1.4 arcmin, cyclic errors of 10–25 arcsec (20–50 on the wrist), couplings of 0.05–0.2 %, a joint up to twice as
-// soft at small torque, thermal expansion of steel or aluminium, a mistared sensor, an upper arm
-// and forearm out of balance. Joints where the protocol loads them (backlash, nonlinear
-// stiffness).
+// A realistic mechanism of a kind (twin::drawMechanism: its sizes, and the joints where the
+// protocol loads the torque-driven ones), with what the test checks of it.
 // kind: 0 backlash, 1 transmission error, 2 nonlinear stiffness, 3 joint coupling, 4 thermal
 // expansion, 5 sensor bias, 6 self weight.
 inline Hidden drawOfKind(int kind, std::mt19937_64& rng) {
+  const twin::DrawnMechanism drawn = twin::drawMechanism(kind, rng);
   Hidden h;
-  switch (kind) {
-    case 0: {
-      const int joint = pick(rng, {2, 3, 5});
-      const double b = uniform(rng, 1.7e-4, 4e-4);
-      h.effect = {{"name", "backlash"}, {"joint", joint}, {"lost_motion_rad", b}};
-      h.kind = MechanismKind::kBacklash;
-      h.joint = joint - 1;
-      h.truth = b;
+  h.effect = drawn.effect;
+  h.kind = drawn.kind;
+  h.joint = drawn.joint;
+  h.source_joint = drawn.source_joint;
+  const nlohmann::json& e = h.effect;
+  switch (h.kind) {
+    case MechanismKind::kBacklash:
+      h.truth = e.at("lost_motion_rad");
       h.load_dependent = true;
       break;
-    }
-    case 1: {
-      // A harmonic whose period fits at least twice into the joint's arc on the paper's campaign
-      // (joints 1–3 sweep 90–120°, 4–6 over 200°): a slower one is not separable from the
-      // joint's geometry there (TransmissionError.SlowHarmonicOnANarrowArc).
-      // Wrist joints at twice the size: their lever to the T-Mac is a decimetre, so 10 arcsec
-      // there move it by less than the tracker's noise (and wrist gears are the less accurate).
-      const int joint = pick(rng, {1, 2, 3, 4, 5, 6});
-      const int harmonic = std::uniform_int_distribution<int>(joint <= 3 ? 9 : 4, 16)(rng);
-      const double size = joint <= 3 ? 1.0 : 2.0;
-      const double amplitude = uniform(rng, 5e-5 * size, 1.2e-4 * size);
-      const double phase = uniform(rng, -M_PI, M_PI);
-      const double a = amplitude * std::cos(phase), b = amplitude * std::sin(phase);
-      h.effect = {{"name", "transmission_error"}, {"joint", joint}, {"harmonic", harmonic},
-                  {"sin_rad", a},                  {"cos_rad", b}};
-      h.kind = MechanismKind::kTransmissionError;
-      h.joint = joint - 1;
-      h.harmonic = harmonic;
-      h.sin_rad = a;
-      h.cos_rad = b;
+    case MechanismKind::kTransmissionError:
+      h.harmonic = e.at("harmonic");
+      h.sin_rad = e.at("sin_rad");
+      h.cos_rad = e.at("cos_rad");
       break;
-    }
-    case 2: {
-      const int joint = pick(rng, {2, 3});
-      const double c = uniform(rng, 0.6e-6, 1.5e-6), t0 = uniform(rng, 120.0, 300.0);
-      h.effect = {{"name", "nonlinear_stiffness"},
-                  {"joint", joint},
-                  {"extra_compliance_rad_per_nm", c},
-                  {"saturation_torque_nm", t0}};
-      h.kind = MechanismKind::kNonlinearStiffness;
-      h.joint = joint - 1;
-      h.truth = c;
+    case MechanismKind::kNonlinearStiffness:
+      h.truth = e.at("extra_compliance_rad_per_nm");
       h.load_dependent = true;
       break;
-    }
-    case 4: {  // steel/aluminium arm, 8–24 ppm/K
-      const double alpha = uniform(rng, 8e-6, 2.4e-5);
-      h.effect = {{"name", "thermal_expansion"}, {"expansion_per_k", alpha}, {"reference_temp_c", 20.0}};
-      h.kind = MechanismKind::kThermalExpansion;
-      h.truth = alpha;
-      break;
-    }
-    case 5: {  // a tare gone wrong: 15–40 N, 0.3–1.5 N·m
-      Eigen::Vector3d f = Eigen::Vector3d::Zero(), m = f;
-      for (int i = 0; i < 3; ++i) {
-        f(i) = uniform(rng, -1.0, 1.0);
-        m(i) = uniform(rng, -1.0, 1.0);
-      }
-      f *= uniform(rng, 15.0, 40.0) / f.norm();
-      m *= uniform(rng, 0.3, 1.5) / m.norm();
-      h.effect = {{"name", "sensor_bias"},
-                  {"force_n", {f(0), f(1), f(2)}},
-                  {"moment_nm", {m(0), m(1), m(2)}}};
-      h.kind = MechanismKind::kSensorBias;
-      f.cwiseAbs().maxCoeff(&h.primary);
-      h.truth = f(static_cast<Eigen::Index>(h.primary));
+    case MechanismKind::kThermalExpansion: h.truth = e.at("expansion_per_k"); break;
+    case MechanismKind::kSensorBias: {
+      const std::vector<double> f = e.at("force_n");
+      const Eigen::Vector3d force(f[0], f[1], f[2]);
+      force.cwiseAbs().maxCoeff(&h.primary);
+      h.truth = force(static_cast<Eigen::Index>(h.primary));
       h.load_dependent = false;
       break;
     }
-    case 6: {  // upper arm and forearm imbalance left by the counterbalance
-      nlohmann::json links = nlohmann::json::array();
+    case MechanismKind::kSelfWeight:
       h.self_weight_truth.assign(24, 0.0);
-      for (int link : {2, 3}) {
-        const double mass = uniform(rng, 30.0, 80.0);
-        const Eigen::Vector3d com(uniform(rng, -0.1, 0.4), uniform(rng, -0.05, 0.05),
-                                  uniform(rng, -0.1, 0.4));
-        links.push_back({{"link", link}, {"mass_kg", mass}, {"com_m", {com(0), com(1), com(2)}}});
-        const size_t k = static_cast<size_t>(4 * (link - 1));
+      for (const nlohmann::json& link : e.at("links")) {
+        const size_t k = static_cast<size_t>(4 * (link.at("link").get<int>() - 1));
+        const double mass = link.at("mass_kg");
+        const std::vector<double> com = link.at("com_m");
         h.self_weight_truth[k] = mass;
-        for (int i = 0; i < 3; ++i) h.self_weight_truth[k + 1 + static_cast<size_t>(i)] = mass * com(i);
+        for (size_t i = 0; i < 3; ++i) h.self_weight_truth[k + 1 + i] = mass * com[i];
       }
-      h.effect = {{"name", "self_weight"}, {"links", links}};
-      h.kind = MechanismKind::kSelfWeight;
       break;
-    }
-    default: {  // 3
-      const int from = pick(rng, {4, 5, 6});
-      int to = pick(rng, {4, 5, 6});
-      if (to == from) to = from == 6 ? 5 : from + 1;
-      const double ratio = uniform(rng, 5e-4, 2e-3);
-      h.effect = {{"name", "joint_coupling"}, {"joints", {from, to}}, {"ratio", ratio}};
-      h.kind = MechanismKind::kJointCoupling;
-      h.joint = to - 1;
-      h.source_joint = from - 1;
-      h.truth = ratio;
-      break;
-    }
+    default: h.truth = e.at("ratio"); break;  // joint coupling
   }
   return h;
 }

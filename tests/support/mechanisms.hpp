@@ -49,7 +49,7 @@ inline Mechanism mechanism(MechanismKind kind, int joint, int source_joint, int 
 /// covering 57°–315°),
 /// [3] nonlinear_stiffness (joint 4), [4] thermal_expansion (T_ref 20 °C), [5] sensor_bias,
 /// [6] joint_coupling (joint 5 → joint 6), [7] profile_geometry (joint 3: tens of µm and µrad
-/// on every initial pose).
+/// on every initial pose), [8] torsion_curve (joint 5: lost motion and two knees).
 inline std::vector<Mechanism> mechanismOfEveryKind() {
   return {mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-4, 5.0}),
           mechanism(MechanismKind::kSelfWeight, -1, -1, 0, selfWeightParameters()),
@@ -59,7 +59,8 @@ inline std::vector<Mechanism> mechanismOfEveryKind() {
           mechanism(MechanismKind::kThermalExpansion, -1, -1, 0, {1.15e-5, 20.0}),
           mechanism(MechanismKind::kSensorBias, -1, -1, 0, {1.5, -0.8, 2.1, 0.03, -0.02, 0.01}),
           mechanism(MechanismKind::kJointCoupling, 5, 4, 0, {-1.2e-3}),
-          mechanism(MechanismKind::kProfileGeometry, 2, -1, 0, profileGeometryParameters())};
+          mechanism(MechanismKind::kProfileGeometry, 2, -1, 0, profileGeometryParameters()),
+          mechanism(MechanismKind::kTorsionCurve, 4, -1, 2, {1.5e-4, 4.0, 3e-6, 40.0, 1e-6, 150.0})};
 }
 
 }  // namespace stepcal::test

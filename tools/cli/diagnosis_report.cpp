@@ -74,8 +74,11 @@ std::string parameterText(const Mechanism& m) {
   if (m.kind == MechanismKind::kTransmissionError) return transmissionSummary(m);
   const std::vector<std::string> names = parameterNames(m);
   std::string out;
+  // A torsion curve without lost motion (smoothing 0) has none to show.
+  const bool no_lost_motion = m.kind == MechanismKind::kTorsionCurve && m.parameters[1] == 0.0;
   for (size_t i = 0; i < names.size(); ++i) {
     if (m.kind == MechanismKind::kSelfWeight && m.parameters[i] == 0.0) continue;
+    if (no_lost_motion && i < 2) continue;
     out += format("%s%s = %.4g", out.empty() ? "" : ", ", names[i].c_str(), m.parameters[i]);
     if (m.sigma[i] > 0.0) out += format(" ± %.2g", m.sigma[i]);
   }
@@ -116,6 +119,12 @@ std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
         lines.push_back(describe(c.mechanism) + ": dropped, its " + parameterNames(c.mechanism)[0] +
                         " turned negative once refitted with the other causes found (another of "
                         "them explains what it did)");
+        break;
+      case Kind::kPartDroppedWrongSign:
+        lines.push_back(describe(c.mechanism) +
+                        ": the parts whose lost motion or extra compliance turned negative once "
+                        "refitted with the other causes were removed; kept as " +
+                        describe(c.kept) + " (" + parameterText(c.kept) + ")");
         break;
       case Kind::kDroppedExplained:
         lines.push_back(describe(c.mechanism) +
@@ -201,6 +210,19 @@ std::string effectParameterText(const trainer::FoundEffect& e) {
                                : "harmonics not separable on its angles; " + coverageText(e.mechanism);
 }
 
+std::string torqueCurveText(const trainer::FoundEffect& e) {
+  if (!isTorqueDeflection(e.mechanism.kind) || e.stiffness_segments.empty()) return {};
+  std::string out = "stiffness";
+  for (size_t i = 0; i < e.stiffness_segments.size(); ++i) {
+    const auto& s = e.stiffness_segments[i];
+    out += format("%s %.0f..%.0f N·m %.3g", i == 0 ? "" : ",", s.from_nm, s.to_nm,
+                  s.stiffness_nm_per_rad);
+  }
+  return out + format(" N·m/rad (lost motion apart); identified up to %.0f N·m, the largest "
+                      "torque on the fit rows",
+                      e.max_torque_nm);
+}
+
 std::string selfWeightComplianceText(const trainer::Diagnosis& d, int joint) {
   return format("joint %d compliance %.3g rad/(N·m) ± %.2g, from the arm's own weight", joint + 1,
                 d.extended_model.compliance_rad_per_nm(joint),
@@ -282,6 +304,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
     out += format("%s (held-out gain %.4f mm, z %.1f)\n", effectParameterText(e).c_str(), e.cv_gain_mm,
                   e.z_statistic);
     for (int j : e.compliance_joints) out += "    " + selfWeightComplianceText(d, j) + "\n";
+    if (const std::string curve = torqueCurveText(e); !curve.empty()) out += "    " + curve + "\n";
   }
   for (const std::string& line : identifiabilityLines(d)) out += "  identifiability: " + line + "\n";
   if (!d.unexplained_trend.empty()) {
@@ -292,6 +315,9 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
   }
   if (!d.effects.empty()) out += "\n" + statisticsText("  after", d.after);
 
+  out += format("\nThe extended model's GPR: %d training rows, held-out reduction z %.1f: %s\n",
+                d.extended_gpr_rows, d.extended_gpr_z,
+                d.extended_gpr_taken ? "taken" : "not taken (it does not predict the residual on rows it was not fitted on)");
   if (!d.gain.empty()) {
     out += format(
         "\nGain on validation rows (position mean / max mm, orientation mean deg; noise floor "
@@ -346,6 +372,15 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
     x["round"] = e.round;
     x["size_chi2"] = e.size_chi2;
     x["size_dof"] = e.size_dof;
+    if (isTorqueDeflection(e.mechanism.kind)) {
+      x["max_torque_nm"] = e.max_torque_nm;
+      x["stiffness_segments"] = nlohmann::json::array();
+      for (const auto& s : e.stiffness_segments) {
+        x["stiffness_segments"].push_back({{"from_nm", s.from_nm},
+                                           {"to_nm", s.to_nm},
+                                           {"stiffness_nm_per_rad", s.stiffness_nm_per_rad}});
+      }
+    }
     j["effects"].push_back(x);
   }
   j["candidates"] = nlohmann::json::array();
@@ -365,6 +400,9 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
   j["untestable"] = nlohmann::json::array();
   for (const auto& u : d.untestable) j["untestable"].push_back({{"name", u.name}, {"reason", u.reason}});
   j["identifiability"] = identifiabilityLines(d);
+  j["extended_gpr"] = {{"training_rows", d.extended_gpr_rows},
+                       {"z_statistic", d.extended_gpr_z},
+                       {"taken", d.extended_gpr_taken}};
   j["unexplained_trend"] =
       d.unexplained_trend.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.unexplained_trend);
   auto stats = [](const trainer::ResidualStatistics& s) {

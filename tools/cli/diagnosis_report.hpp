@@ -19,8 +19,12 @@ std::string formatDiagnosis(const trainer::Diagnosis& diagnosis, double seconds_
 /// → [{harmonic, sin_rad, cos_rad, sin_sigma_rad, cos_sigma_rad, geometry_share}] (link angle +=
 /// sin_rad·sin(k q) + cos_rad·cos(k q), q the recorded joint angle, inside its coverage),
 /// `coverage_deg` → [[from, to]], `rms_urad` and `strongest_harmonics`; a self_weight whose masses
-/// come from the URDF has `compliance` → [{joint, compliance_rad_per_nm, sigma_rad_per_nm}].
+/// come from the URDF has `compliance` → [{joint, compliance_rad_per_nm, sigma_rad_per_nm}]; a
+/// backlash, nonlinear_stiffness or torsion_curve `max_torque_nm` and `stiffness_segments` →
+/// [{from_nm, to_nm, stiffness_nm_per_rad}]; every effect `size_chi2` and `size_dof` (its size
+/// in the final fit).
 /// Then `candidates` → every family tried with its score, `untestable`, `identifiability`,
+/// `extended_gpr` {training_rows, z_statistic, taken},
 /// `unexplained_trend`, `residual` {before, after}, `gain` → [{load_kg, rows,
 /// before_mean_position_mm, after_mean_position_mm, gpr_mean_position_mm, …}], `timing_s`.
 nlohmann::json diagnosisJson(const trainer::Diagnosis& diagnosis, double seconds_calibrate);
@@ -44,6 +48,12 @@ std::string transmissionSummary(const Mechanism& profile);
 /// A profile geometry in one line: its largest translation (µm) and rotation (µrad) of an
 /// initial pose, e.g. "initial poses moved by up to 41 um, 63 urad where joint 2's profile holds".
 std::string profileGeometrySummary(const Mechanism& geometry);
+
+/// A joint's torque–deflection mechanism in a gear catalogue's terms: its stiffness in
+/// segments and the torques the rows identify it over, e.g. "stiffness 0..120 N·m 2.1e+06,
+/// 120..840 N·m 3.3e+06 N·m/rad (lost motion apart); identified up to 840 N·m, the largest
+/// torque on the fit rows". Empty for other effects.
+std::string torqueCurveText(const trainer::FoundEffect& effect);
 
 /// The joint angles a profile covers, deg, e.g. "covers 52..180 deg".
 std::string coverageText(const Mechanism& profile);

@@ -111,7 +111,12 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
       const double unit = o < 3 ? kMm : kDeg;
       out << format(" %.4f", std::sqrt(r.report.cv_mse(o)) * unit);
     }
-    out << "\n";
+    out << format("\n  held out, it leaves %.2f of the %.2f uncorrected (per row, squared over "
+                  "the tracker's stated noise), signed-rank z %.1f: %s\n",
+                  r.cv_error, r.uncorrected_error, r.z_statistic,
+                  r.taken ? "taken"
+                          : "not taken, it does not predict the residual on rows it was not fitted "
+                            "on (the layer is the model under it; the model file holds no GPR)");
   }
   out << format("time: geometry %.3f s, stiffness %.3f s, GPR %.3f s\n", outcome.seconds_geometry,
                        outcome.seconds_stiffness, outcome.seconds_gpr);
@@ -295,7 +300,11 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
                    {"signal_sigma", h.signal_sigma},
                    {"length_scales", std::vector<double>(h.length_scales.data(), h.length_scales.data() + h.length_scales.size())},
                    {"log_marginal_likelihood", r.gp.logMarginalLikelihood()},
-                   {"cv_rms_mm_deg", cv}});
+                   {"cv_rms_mm_deg", cv},
+                   {"cv_error", r.cv_error},
+                   {"uncorrected_error", r.uncorrected_error},
+                   {"z_statistic", r.z_statistic},
+                   {"taken", r.taken}});
   }
   return {{"campaign", campaign.directory},
           {"stiffness_nm_per_rad", stiffness},

@@ -389,7 +389,18 @@ GaussianProcess GaussianProcess::fit(const Eigen::MatrixXd& X, const Eigen::Matr
   const Eigen::MatrixXd Xn = normaliseInputs(X, scaling);
   const Eigen::MatrixXd Yn = standardiseOutputs(Y, scaling);
 
-  const GprBounds& b = options.bounds;
+  GprBounds b = options.bounds;
+  if (options.output_noise_sigma.size() == Y.cols()) {
+    if (!(options.output_noise_sigma.array() > 0.0).all() || !options.output_noise_sigma.allFinite()) {
+      throw InputError("GPR output noise must be finite and positive");
+    }
+    const double stated = (options.output_noise_sigma.array() / scaling.output_scale.array()).minCoeff();
+    b.min_noise_sigma = std::min(std::max(b.min_noise_sigma, kNoiseBoundShare * stated),
+                                 0.5 * b.max_noise_sigma);
+  } else if (options.output_noise_sigma.size() != 0) {
+    throw InputError("GPR output noise has " + std::to_string(options.output_noise_sigma.size()) +
+                     " entries for " + std::to_string(Y.cols()) + " outputs");
+  }
   Eigen::VectorXd lower(D + 2), upper(D + 2);
   lower << Eigen::VectorXd::Constant(D, std::log(b.min_length_scale)), std::log(b.min_signal_sigma),
       std::log(b.min_noise_sigma);
@@ -504,7 +515,7 @@ double GaussianProcess::alphaBackwardError() const {
   return m > 0 ? worst : 0.0;
 }
 
-Eigen::VectorXd GaussianProcess::crossValidationMse(int folds) const {
+Eigen::MatrixXd GaussianProcess::crossValidationResiduals(int folds) const {
   const Eigen::Index m = trainingSize(), P = outputDim();
   if (folds < 2 || m < 2) {
     throw InputError("cross-validation needs at least 2 folds and 2 training points, got " +
@@ -515,16 +526,21 @@ Eigen::VectorXd GaussianProcess::crossValidationMse(int folds) const {
   inverseFromCholesky(predictor_.choleskyLower(), inverse_factor, inverse);
   inverse.triangularView<Eigen::StrictlyUpper>() = inverse.transpose();
   // Held-out residual of fold F: y_F − μ_F = ([K⁻¹]_FF)⁻¹ α_F.
-  Eigen::VectorXd sum_squares = Eigen::VectorXd::Zero(P);
+  Eigen::MatrixXd residuals(m, P);
   for (Eigen::Index fold = 0; fold < k; ++fold) {
     std::vector<Eigen::Index> rows;
     for (Eigen::Index i = fold; i < m; i += k) rows.push_back(i);
     const Eigen::MatrixXd inverse_block = inverse(rows, rows);
     const Eigen::MatrixXd alpha_block = alpha()(rows, Eigen::all);
-    const Eigen::MatrixXd residual = inverse_block.llt().solve(alpha_block);
-    sum_squares += residual.colwise().squaredNorm().transpose();
+    const Eigen::MatrixXd held_out = inverse_block.llt().solve(alpha_block);
+    residuals(rows, Eigen::all) = held_out;
   }
-  return sum_squares.cwiseProduct(scaling_.output_scale.cwiseAbs2()) / static_cast<double>(m);
+  return residuals * scaling_.output_scale.cwiseAbs().asDiagonal();
+}
+
+Eigen::VectorXd GaussianProcess::crossValidationMse(int folds) const {
+  const Eigen::MatrixXd residuals = crossValidationResiduals(folds);
+  return residuals.colwise().squaredNorm().transpose() / static_cast<double>(residuals.rows());
 }
 
 GprWorkspace GaussianProcess::makeWorkspace() const { return predictor_.makeWorkspace(); }

@@ -15,6 +15,7 @@
 #include "stepcal/common/gpr_predictor.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/trainer/registration.hpp"
+#include "diagnose/cross_validation.hpp"
 
 namespace stepcal::trainer {
 namespace {
@@ -62,8 +63,13 @@ PoseModel withResidual(PoseModel base, const GaussianProcess& gp) {
   };
 }
 
+PoseModel withResidual(PoseModel base, const ResidualModel& residual) {
+  return residual.taken ? withResidual(std::move(base), residual.gp) : base;
+}
+
 ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measurement*>& rows,
-                          const std::string& set_name, const CalibrationOptions& options) {
+                          const std::string& set_name, const TrackerNoise& noise,
+                          const CalibrationOptions& options) {
   std::vector<const Measurement*> usable;
   for (const Measurement* row : rows) {
     if (row->has_orientation) usable.push_back(row);
@@ -81,9 +87,30 @@ ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measur
     Y.row(static_cast<Eigen::Index>(i)) =
         lie::logSE3(model(row).inverse() * row.X_TrackerTip()).transpose();
   }
+  // The twist's noise per output: the tip's position error (v, in tip axes) and its rotation (ω).
+  Eigen::VectorXd stated(6);
+  stated << Eigen::Vector3d::Constant(noise.position_sigma_m),
+      Eigen::Vector3d::Constant(noise.orientation_sigma_rad);
+  GprOptions gpr = options.gpr;
+  if (gpr.output_noise_sigma.size() == 0) gpr.output_noise_sigma = stated;
+  stated = gpr.output_noise_sigma;
+  if (gpr.cv_folds < 2) gpr.cv_folds = 10;  // the choice below needs it
   GprFitReport report;
-  GaussianProcess gp = GaussianProcess::fit(X, Y, options.gpr, &report);
-  return ResidualModel{std::move(gp), std::move(report), static_cast<int>(m), set_name};
+  GaussianProcess gp = GaussianProcess::fit(X, Y, gpr, &report);
+  ResidualModel out{std::move(gp), std::move(report), static_cast<int>(m), set_name};
+  const Eigen::RowVectorXd weight = stated.array().square().inverse().matrix().transpose();
+  const Eigen::VectorXd held_out =
+      (out.gp.crossValidationResiduals(gpr.cv_folds).array().square().rowwise() * weight.array())
+          .rowwise()
+          .sum();
+  const Eigen::VectorXd uncorrected = (Y.array().square().rowwise() * weight.array()).rowwise().sum();
+  out.cv_error = held_out.mean();
+  out.uncorrected_error = uncorrected.mean();
+  out.z_statistic = diagnosis::signedRankZ(
+      std::vector<double>(uncorrected.data(), uncorrected.data() + uncorrected.size()),
+      std::vector<double>(held_out.data(), held_out.data() + held_out.size()));
+  out.taken = out.z_statistic > kGprTakenZ;
+  return out;
 }
 
 KinematicChain campaignChain(const Campaign& campaign, int* sensor_frame) {
@@ -173,8 +200,10 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
   physical_parts.sensor_frame = out.sensor_frame;
   physical_parts.compliance_rad_per_nm = compliance;
   const PoseModel physical = out.has_stiffness ? physicalPoseModel(physical_parts) : poe_model;
-  out.gpr = fitResidual(physical, residual_rows, residual_set, options);
-  if (out.has_stiffness) out.gpr_baseline = fitResidual(poe_model, residual_rows, residual_set, options);
+  out.gpr = fitResidual(physical, residual_rows, residual_set, campaign.tracker, options);
+  if (out.has_stiffness) {
+    out.gpr_baseline = fitResidual(poe_model, residual_rows, residual_set, campaign.tracker, options);
+  }
   out.seconds_gpr = secondsSince(clock);
 
   evaluate(out, kMethodNominal, chainModel(out.nominal_Base.rerooted(out.X_TrackerBase_nominal)),
@@ -183,10 +212,10 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
   evaluate(out, kMethodPoe, poe_model, campaign.rows);
   if (out.has_stiffness) {
     evaluate(out, kMethodPoeStiffness, physical, campaign.rows);
-    evaluate(out, kMethodPoeGpr, withResidual(poe_model, out.gpr_baseline->gp), campaign.rows);
-    evaluate(out, kMethodPoeStiffnessGpr, withResidual(physical, out.gpr->gp), campaign.rows);
+    evaluate(out, kMethodPoeGpr, withResidual(poe_model, *out.gpr_baseline), campaign.rows);
+    evaluate(out, kMethodPoeStiffnessGpr, withResidual(physical, *out.gpr), campaign.rows);
   } else {
-    evaluate(out, kMethodPoeGpr, withResidual(poe_model, out.gpr->gp), campaign.rows);
+    evaluate(out, kMethodPoeGpr, withResidual(poe_model, *out.gpr), campaign.rows);
   }
   out.floor_position_m = noiseFloorMean(campaign.tracker.position_sigma_m);
   out.floor_orientation_rad = noiseFloorMean(campaign.tracker.orientation_sigma_rad);
@@ -266,7 +295,7 @@ CalibratedModel modelFromOutcome(const Campaign& campaign, const CalibrationOutc
     model.compliance_rad_per_nm = outcome.stiffness.compliance_rad_per_nm;
     model.compliance_sigma_rad_per_nm = outcome.stiffness.compliance_sigma_rad_per_nm;
   }
-  if (outcome.gpr) model.gpr = outcome.gpr->gp.parameters();
+  if (outcome.gpr && outcome.gpr->taken) model.gpr = outcome.gpr->gp.parameters();
   model.provenance.campaign_hash = campaignHash(campaign);
   model.provenance.campaign_path = campaign.directory;
   model.provenance.trainer_version = STEPCAL_VERSION;

@@ -86,8 +86,13 @@ Panel signaturePanel(const trainer::EffectSignature& s) {
 
 /// A candidate's name, with what tells apart the families of one mechanism on one joint.
 std::string candidateLabel(const Mechanism& m) {
-  return m.kind == MechanismKind::kNonlinearStiffness ? describe(m) + format(", τ₀ %.0f N·m", m.parameters[1])
-                                                      : describe(m);
+  if (m.kind == MechanismKind::kNonlinearStiffness) {
+    return describe(m) + format(", τ₀ %.0f N·m", m.parameters[1]);
+  }
+  if (m.kind != MechanismKind::kTorsionCurve) return describe(m);
+  std::string label = describe(m) + (m.parameters[1] > 0.0 ? ", lost motion" : "");
+  for (int k = 0; k < m.order; ++k) label += format(", T%d %.0f N·m", k + 1, m.parameters[3 + 2 * size_t(k)]);
+  return label;
 }
 
 class DiagnosisPage {
@@ -121,6 +126,7 @@ class DiagnosisPage {
   std::string effectParameters(const trainer::FoundEffect& e) const {
     std::string text = effectParameterText(e);
     for (const int j : e.compliance_joints) text += "; " + selfWeightComplianceText(d_, j);
+    if (const std::string curve = torqueCurveText(e); !curve.empty()) text += "; " + curve;
     return text;
   }
 

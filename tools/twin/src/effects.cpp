@@ -1,5 +1,6 @@
 #include "stepcal/twin/effects.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <sstream>
@@ -41,7 +42,7 @@ namespace {
 /// Names EffectSet::add knows, in the order of its error message.
 constexpr const char* kKnownEffects[] = {
     "joint_compliance", "backlash",    "transmission_error", "nonlinear_stiffness",
-    "joint_coupling",   "self_weight", "thermal_expansion",  "sensor_bias"};
+    "joint_coupling",   "self_weight", "thermal_expansion",  "sensor_bias", "torsion_curve"};
 
 std::string show(double v) {
   std::ostringstream s;
@@ -156,6 +157,65 @@ nlohmann::json NonlinearStiffness::toJson() const {
           {"joint", joint_},
           {"extra_compliance_rad_per_nm", extra_compliance_rad_per_nm_},
           {"saturation_torque_nm", saturation_torque_nm_}};
+}
+
+TorsionCurve::TorsionCurve(int joint, double lost_motion_rad,
+                           std::vector<double> extra_compliance_rad_per_nm,
+                           std::vector<double> segment_end_torque_nm, int dof)
+    : joint_(joint),
+      lost_motion_rad_(lost_motion_rad),
+      extra_compliance_rad_per_nm_(std::move(extra_compliance_rad_per_nm)),
+      segment_end_torque_nm_(std::move(segment_end_torque_nm)) {
+  requireJoint(name(), "joint", joint, dof);
+  requireMagnitude(name(), "lost_motion_rad", lost_motion_rad, 0.01, true, "rad");
+  if (lost_motion_rad < 0.0) {
+    throw InputError(name() + ".lost_motion_rad = " + show(lost_motion_rad) +
+                     " rad; expected a lost motion ≥ 0");
+  }
+  const size_t segments = extra_compliance_rad_per_nm_.size();
+  if (segments < 1 || segments > 2 || segment_end_torque_nm_.size() != segments) {
+    throw InputError(name() + " has " + std::to_string(segments) + " extra compliances and " +
+                     std::to_string(segment_end_torque_nm_.size()) +
+                     " segment end torques; expected one or two of each (K1 up to T1, K2 up to T2)");
+  }
+  double previous = 0.0;
+  for (size_t s = 0; s < segments; ++s) {
+    const std::string at = "[" + std::to_string(s) + "]";
+    requireMagnitude(name(), ("extra_compliance_rad_per_nm" + at).c_str(),
+                     extra_compliance_rad_per_nm_[s], 1e-3, true, "rad/(N·m)");
+    if (extra_compliance_rad_per_nm_[s] < 0.0) {
+      throw InputError(name() + ".extra_compliance_rad_per_nm" + at + " = " +
+                       show(extra_compliance_rad_per_nm_[s]) +
+                       " rad/(N·m); expected ≥ 0 (a segment softer than the joint above T2)");
+    }
+    const double end = segment_end_torque_nm_[s];
+    if (!(std::isfinite(end) && end > previous)) {
+      throw InputError(name() + ".segment_end_torque_nm" + at + " = " + show(end) +
+                       " N·m; expected a finite torque above " + show(previous) + " N·m");
+    }
+    previous = end;
+  }
+}
+
+void TorsionCurve::apply(const JointVector&, const JointVector& tau_nm,
+                         JointVector& theta_rad) const {
+  const Eigen::Index j = joint_ - 1;
+  const double tau = tau_nm(j), magnitude = std::abs(tau);
+  double extra = 0.0, from = 0.0;
+  for (size_t s = 0; s < extra_compliance_rad_per_nm_.size(); ++s) {
+    const double to = segment_end_torque_nm_[s];
+    extra += extra_compliance_rad_per_nm_[s] * std::clamp(magnitude - from, 0.0, to - from);
+    from = to;
+  }
+  theta_rad(j) += lost_motion_rad_ * std::tanh(tau / kSmoothingTorque_nm) + std::copysign(extra, tau);
+}
+
+nlohmann::json TorsionCurve::toJson() const {
+  return {{"name", name()},
+          {"joint", joint_},
+          {"lost_motion_rad", lost_motion_rad_},
+          {"extra_compliance_rad_per_nm", extra_compliance_rad_per_nm_},
+          {"segment_end_torque_nm", segment_end_torque_nm_}};
 }
 
 JointCoupling::JointCoupling(int from_joint, int to_joint, double ratio, int dof)
@@ -276,6 +336,11 @@ void EffectSet::add(const nlohmann::json& j, int dof) {
     link_angle.push_back(std::make_shared<NonlinearStiffness>(
         j.at("joint").get<int>(), j.at("extra_compliance_rad_per_nm").get<double>(),
         j.at("saturation_torque_nm").get<double>(), dof));
+  } else if (name == "torsion_curve") {
+    link_angle.push_back(std::make_shared<TorsionCurve>(
+        j.at("joint").get<int>(), j.value("lost_motion_rad", 0.0),
+        j.at("extra_compliance_rad_per_nm").get<std::vector<double>>(),
+        j.at("segment_end_torque_nm").get<std::vector<double>>(), dof));
   } else if (name == "joint_coupling") {
     const auto joints = j.at("joints").get<std::vector<int>>();
     if (joints.size() != 2) {

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
+#include <utility>
 
 #include "profiles.hpp"
 #include "stepcal/trainer/pipeline.hpp"
@@ -180,11 +182,19 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     s.families.push_back(std::move(family));
   };
 
-  // Torque-driven mechanisms need load torque on the joint; their torque scales (τ_b, τ₀) come
-  // from the loads the joint sees. Backlash is taken up at a tenth of the typical load (far above
-  // the sensor's noise, far below the loads); nonlinear stiffness: τ₀ on a grid (the compliance
-  // is linear in c for a given τ₀; far below the loads it is backlash, far above them linear
-  // compliance).
+  // Torque-driven mechanisms need load torque on the joint; their torque scales come from the
+  // loads the joint sees. Lost motion is taken up at a tenth of the typical load (far above the
+  // sensor's noise, far below the loads); a nonlinear stiffness fades at, and a torsion curve's
+  // knee sits at, a torque of a grid (the deflection is linear in the compliance for a given
+  // torque; far below the loads either is lost motion, far above them linear compliance). A
+  // joint has one torque–deflection curve: without one yet, backlash alone, nonlinear stiffness
+  // alone and torsion curves (lost motion or not, one or two knees) compete; a backlash or a
+  // torsion curve found is extended by the part it lacks (lost motion, a knee at another torque),
+  // and a nonlinear stiffness by a backlash beside it.
+  constexpr double kTorqueFactors[] = {0.1, 0.25, 0.5, 1.0, 2.0};
+  const auto wantedTorque = [&](int joint) {
+    return only == nullptr || (isTorqueDeflection(only->kind) && only->joint == joint);
+  };
   for (int j = 0; j < n; ++j) {
     std::vector<double> loaded;
     for (const JointVector& tau : start.evaluation.tau_nm) {
@@ -192,37 +202,130 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     }
     const double typical = median(loaded);
     if (loaded.size() < 10 || typical < 10.0) {
-      for (const char* name : {"backlash", "nonlinear_stiffness"}) {
+      for (const char* name : {"backlash", "nonlinear_stiffness", "torsion_curve"}) {
         s.untestable.push_back({std::string(name) + " (joint " + std::to_string(j + 1) + ")",
                                 "the joint carries too little load torque on these rows"});
       }
       continue;
     }
-    if (!present(global, MechanismKind::kBacklash, j, -1) && wanted(MechanismKind::kBacklash, j)) {
-      Family f;
-      f.mechanism = blank(MechanismKind::kBacklash, n, j);
-      f.mechanism.parameters[1] = 0.1 * typical;
-      f.free = {0};
+    if (!wantedTorque(j)) continue;
+    const double smoothing = 0.1 * typical;
+    // The link-angle column of one part of a curve at unit size (torqueDeflection's shapes).
+    const auto partColumn = [&](MechanismKind kind, double scale_nm) {
+      Mechanism unit = blank(kind, n, j, -1, kind == MechanismKind::kTorsionCurve ? 1 : 0);
+      unit.parameters[0] = 1.0;
+      unit.parameters[1] = scale_nm;
+      if (kind == MechanismKind::kTorsionCurve) {  // a knee alone: c = 1 at T = scale
+        unit.parameters = {0.0, 0.0, 1.0, scale_nm};
+      }
       std::vector<double> feature;
       for (const JointVector& tau : start.evaluation.tau_nm) {
-        feature.push_back(std::tanh(tau(j) / f.mechanism.parameters[1]));
+        feature.push_back(torqueDeflection(unit, tau(j)));
       }
-      addGlobal(std::move(f), {featureColumn(L, fit, j, feature)}, {typicalStep(blank(MechanismKind::kBacklash, n, j), 0)});
+      return featureColumn(L, fit, j, feature);
+    };
+    const auto lostColumn = [&] { return partColumn(MechanismKind::kBacklash, smoothing); };
+    const auto kneeColumn = [&](double knee) { return partColumn(MechanismKind::kTorsionCurve, knee); };
+    // A curve of lost motion (b, smoothing; 0: none) and knees (compliance, torque).
+    const auto curve = [&](double b, double lost_smoothing,
+                           const std::vector<std::pair<double, double>>& knees) {
+      Mechanism m = blank(MechanismKind::kTorsionCurve, n, j, -1, static_cast<int>(knees.size()));
+      m.parameters[0] = b;
+      m.parameters[1] = lost_smoothing;
+      for (size_t k = 0; k < knees.size(); ++k) {
+        m.parameters[2 + 2 * k] = knees[k].first;
+        m.parameters[3 + 2 * k] = knees[k].second;
+      }
+      return m;
+    };
+    int existing = -1, count = 0;
+    for (size_t k = 0; k < global.mechanisms.size(); ++k) {
+      const Mechanism& m = global.mechanisms[k];
+      if (!isTorqueDeflection(m.kind) || m.joint != j) continue;
+      if (existing < 0 || m.kind == MechanismKind::kNonlinearStiffness) existing = static_cast<int>(k);
+      ++count;
     }
-    if (!present(global, MechanismKind::kNonlinearStiffness, j, -1) &&
-        wanted(MechanismKind::kNonlinearStiffness, j)) {
-      for (double factor : {0.1, 0.25, 0.5, 1.0, 2.0}) {
+    if (count > 1) continue;  // a nonlinear stiffness and a backlash beside it: the whole curve
+    const auto addBacklash = [&] {
+      Family f;
+      f.mechanism = blank(MechanismKind::kBacklash, n, j);
+      f.mechanism.parameters[1] = smoothing;
+      f.free = {0};
+      addGlobal(std::move(f), {lostColumn()}, {typicalStep(blank(MechanismKind::kBacklash, n, j), 0)});
+    };
+    if (existing < 0) {
+      addBacklash();
+      for (double factor : kTorqueFactors) {
         Family f;
         f.mechanism = blank(MechanismKind::kNonlinearStiffness, n, j);
         const double t0 = factor * typical;
         f.mechanism.parameters[1] = t0;
         f.free = {0};
-        std::vector<double> feature;
-        for (const JointVector& tau : start.evaluation.tau_nm) {
-          feature.push_back(tau(j) * t0 / (t0 + std::abs(tau(j))));
-        }
-        addGlobal(std::move(f), {featureColumn(L, fit, j, feature)}, {1e-4 / t0});
+        f.chosen = 1;
+        addGlobal(std::move(f), {partColumn(MechanismKind::kNonlinearStiffness, t0)}, {1e-4 / t0});
       }
+      for (const bool with_lost : {true, false}) {
+        for (size_t a = 0; a < std::size(kTorqueFactors); ++a) {
+          for (size_t b = a; b < std::size(kTorqueFactors); ++b) {
+            std::vector<std::pair<double, double>> knees = {{0.0, kTorqueFactors[a] * typical}};
+            if (b > a) knees.push_back({0.0, kTorqueFactors[b] * typical});
+            if (!with_lost && knees.size() == 1) continue;  // a single knee: nonlinear stiffness's part
+            Family f;
+            f.mechanism = curve(0.0, with_lost ? smoothing : 0.0, knees);
+            f.free = signConstrained(f.mechanism);
+            f.chosen = static_cast<int>(knees.size());
+            std::vector<Eigen::VectorXd> columns;
+            std::vector<double> steps;
+            if (with_lost) {
+              columns.push_back(lostColumn());
+              steps.push_back(1e-4);
+            }
+            for (const auto& knee : knees) {
+              columns.push_back(kneeColumn(knee.second));
+              steps.push_back(1e-4 / knee.second);
+            }
+            addGlobal(std::move(f), std::move(columns), std::move(steps));
+          }
+        }
+      }
+      continue;
+    }
+    const Mechanism& m = global.mechanisms[static_cast<size_t>(existing)];
+    if (m.kind == MechanismKind::kNonlinearStiffness) {
+      addBacklash();  // its fade is no knee: lost motion joins it as a backlash of its own
+      continue;
+    }
+    // A backlash or a torsion curve, extended by one part at a time.
+    const bool lost = m.parameters[1] > 0.0;
+    std::vector<std::pair<double, double>> knees;
+    for (int k = 0; k < m.order; ++k) {
+      knees.push_back({m.parameters[2 + 2 * size_t(k)], m.parameters[3 + 2 * size_t(k)]});
+    }
+    if (!lost) {
+      Family f;
+      f.mechanism = curve(0.0, smoothing, knees);
+      f.free = {0};
+      f.extends = existing;
+      addGlobal(std::move(f), {lostColumn()}, {1e-4});
+    }
+    if (static_cast<int>(knees.size()) >= kMaxTorsionTerms) continue;
+    for (double factor : kTorqueFactors) {
+      const double knee = factor * typical;
+      // A knee within a factor 1.5 of one the curve has is that knee again.
+      bool near = false;
+      for (const auto& k : knees) near = near || (knee < 1.5 * k.second && k.second < 1.5 * knee);
+      if (near) continue;
+      std::vector<std::pair<double, double>> more = knees;
+      more.push_back({0.0, knee});
+      std::sort(more.begin(), more.end(),
+                [](const auto& x, const auto& y) { return x.second < y.second; });
+      const auto at = std::find_if(more.begin(), more.end(), [&](const auto& x) { return x.second == knee; });
+      Family f;
+      f.mechanism = curve(m.parameters[0], m.parameters[1], more);
+      f.free = {2 + 2 * static_cast<int>(at - more.begin())};
+      f.chosen = 1;
+      f.extends = existing;
+      addGlobal(std::move(f), {kneeColumn(knee)}, {1e-4 / knee});
     }
   }
   for (int i = 0; i < n; ++i) {

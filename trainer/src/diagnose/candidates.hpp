@@ -26,6 +26,12 @@ struct Family {
   std::vector<int> free;        ///< global: the mechanism's fitted parameters
   std::vector<int> compliance;  ///< global: joints whose compliance it frees (self weight)
   std::vector<Eigen::Index> columns;  ///< in the screening matrix, free then compliance
+  /// Constants it picks from a grid (a fade torque each): spent like fitted parameters.
+  int chosen = 0;
+  /// A joint's torque-deflection mechanism already in the model that this family extends
+  /// (index in the global mechanisms; mechanism is then the whole curve, the new parts free),
+  /// −1: a family of its own.
+  int extends = -1;
   /// Fitted on every row it makes every compliance it frees negative: not a deflection.
   bool negative_compliance = false;
 };

@@ -42,8 +42,13 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
     gpr_set = "geometry";
   }
   const PoseModel after = physicalPoseModel(extended_physical);
-  const ResidualModel residual = fitResidual(after, gpr_rows, gpr_set, options.calibration);
-  ext.gpr = residual.gp.parameters();
+  const ResidualModel residual =
+      fitResidual(after, gpr_rows, gpr_set, campaign.tracker, options.calibration);
+  ext.gpr.reset();
+  if (residual.taken) ext.gpr = residual.gp.parameters();
+  d.extended_gpr_rows = residual.training_rows;
+  d.extended_gpr_z = residual.z_statistic;
+  d.extended_gpr_taken = residual.taken;
   d.seconds_gpr = secondsSince(clock);
 
   clock = std::chrono::steady_clock::now();
@@ -58,7 +63,7 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
     const auto s_before = summarize("before", before, validation);
     const auto s_after = summarize(kMethodExtended, after, validation);
     const auto s_after_gpr =
-        summarize(kMethodExtendedGpr, withResidual(after, residual.gp), validation);
+        summarize(kMethodExtendedGpr, withResidual(after, residual), validation);
     std::vector<AccuracySummary> s_gpr;
     if (has_gpr) s_gpr = summarize(d.gpr_method, base_layers.back().second, validation);
     for (size_t g = 0; g < s_before.size(); ++g) {

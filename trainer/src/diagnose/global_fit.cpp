@@ -95,6 +95,10 @@ double typicalStep(const Mechanism& m, int index) {
   switch (m.kind) {
     case MechanismKind::kNonlinearStiffness:
       return index == 0 ? 1e-4 / m.parameters[1] : 0.01 * m.parameters[1];
+    case MechanismKind::kTorsionCurve:  // lost motion; a knee's compliance, its torque
+      return index == 0 ? 1e-4
+             : index % 2 == 0 ? 1e-4 / m.parameters[static_cast<size_t>(index) + 1]
+                              : 0.01 * m.parameters[static_cast<size_t>(index)];
     case MechanismKind::kThermalExpansion: return 1e-5;
     case MechanismKind::kSensorBias: return index < 3 ? 1.0 : 0.1;
     case MechanismKind::kSelfWeight: return index % 4 == 0 ? 1.0 : 0.5;
@@ -102,9 +106,36 @@ double typicalStep(const Mechanism& m, int index) {
   }
 }
 
+std::vector<int> signConstrained(const Mechanism& m) {
+  switch (m.kind) {
+    case MechanismKind::kBacklash:
+    case MechanismKind::kNonlinearStiffness: return {0};
+    case MechanismKind::kTorsionCurve: {
+      std::vector<int> constrained;
+      if (m.parameters[1] > 0.0) constrained.push_back(0);
+      for (int k = 0; k < m.order; ++k) constrained.push_back(2 + 2 * k);
+      return constrained;
+    }
+    default: return {};
+  }
+}
+
+Mechanism simplestTorqueDeflection(Mechanism m) {
+  if (m.kind != MechanismKind::kTorsionCurve || m.order > 0) return m;
+  m.kind = MechanismKind::kBacklash;  // lost motion alone
+  return m;
+}
+
 std::vector<int> freeParameters(const Mechanism& m, bool masses_from_urdf) {
   std::vector<int> free;
   if (m.kind == MechanismKind::kSelfWeight && masses_from_urdf) return free;
+  if (m.kind == MechanismKind::kTorsionCurve) {
+    free = signConstrained(m);
+    for (int k = 0; k < m.order; ++k) {
+      if (m.parameters[2 + 2 * size_t(k)] != 0.0) free.push_back(3 + 2 * k);
+    }
+    return free;
+  }
   for (size_t i = 0; i < m.parameters.size(); ++i) {
     if ((m.kind == MechanismKind::kThermalExpansion || m.kind == MechanismKind::kBacklash) &&
         i == 1) {
@@ -148,8 +179,17 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
   GlobalFit out;
   out.r = residuals(global, fit);
   out.cost = out.r.squaredNorm() + priorCost(model, global);
+  // The free parameters as the fit stands: a nonlinear stiffness's τ₀ and a torsion curve's
+  // fade torques join once their compliance has moved off zero (the first step fits it).
+  const auto parametersNow = [&] {
+    DiagnosisModel now = model;
+    now.global.mechanisms.assign(global.mechanisms.begin(),
+                                 global.mechanisms.begin() +
+                                     static_cast<long>(model.global.mechanisms.size()));
+    return globalParameters(now);
+  };
   for (int it = 0; it < iterations; ++it) {
-    const std::vector<Parameter> params = globalParameters(model);
+    const std::vector<Parameter> params = parametersNow();
     Eigen::MatrixXd A = jacobian(global, fit, out.r, params);
     Eigen::VectorXd rhs = out.r;
     addPriors(model, global, params, A, rhs);
@@ -172,7 +212,7 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
     if (!improved) break;
   }
   // Covariance of the final linearisation: s² (AᵀA)⁺ in column-normalised coordinates.
-  const std::vector<Parameter> params = globalParameters(model);
+  const std::vector<Parameter> params = parametersNow();
   Eigen::MatrixXd A = jacobian(global, fit, out.r, params);
   Eigen::VectorXd rhs = out.r;
   addPriors(model, global, params, A, rhs);

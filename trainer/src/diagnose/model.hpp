@@ -58,8 +58,18 @@ double typicalStep(const Mechanism& m, int index);
 
 /// The fitted parameters of a global mechanism (thermal's reference temperature and backlash's
 /// smoothing are chosen, not fitted; nonlinear stiffness's τ₀ only once its compliance is
-/// nonzero; self_weight's masses not when they come from the URDF).
+/// nonzero; a torsion curve's lost motion and extra compliances, and each fade torque once its
+/// compliance is nonzero, its smoothing chosen; self_weight's masses not when they come from the
+/// URDF).
 std::vector<int> freeParameters(const Mechanism& m, bool masses_from_urdf);
+
+/// The parameters of a mechanism whose physics needs them ≥ 0: a lost motion, an extra
+/// compliance (backlash, nonlinear_stiffness, each of a torsion_curve's).
+std::vector<int> signConstrained(const Mechanism& m);
+
+/// A torsion_curve in its simplest kind: lost motion alone is a backlash; other mechanisms as
+/// they are.
+Mechanism simplestTorqueDeflection(Mechanism m);
 
 /// Every fitted global parameter: free compliances, then each mechanism's free parameters.
 std::vector<Parameter> globalParameters(const DiagnosisModel& model);

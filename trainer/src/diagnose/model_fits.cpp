@@ -1,6 +1,8 @@
 // The fits of the diagnosis's whole model (model_fits.hpp).
 #include "model_fits.hpp"
 
+#include <algorithm>
+
 #include "profiles.hpp"
 #include "stepcal/common/error.hpp"
 
@@ -17,8 +19,9 @@ size_t globalEffect(const Diagnosis& d, size_t k) {
 }
 
 bool wrongSign(const Mechanism& m) {
-  return (m.kind == MechanismKind::kBacklash || m.kind == MechanismKind::kNonlinearStiffness) &&
-         m.parameters[0] < 0.0;
+  const std::vector<int> constrained = signConstrained(m);
+  return std::any_of(constrained.begin(), constrained.end(),
+                     [&m](int i) { return m.parameters[static_cast<size_t>(i)] < 0.0; });
 }
 
 void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOptions& options,
@@ -47,6 +50,30 @@ void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpti
       if (wrongSign(model.global.mechanisms[k])) dropped = k;
     }
     if (dropped == model.global.mechanisms.size()) return;
+    if (Mechanism& m = model.global.mechanisms[dropped]; m.kind == MechanismKind::kTorsionCurve) {
+      // A curve loses its parts that turned negative and keeps the rest, if any.
+      Mechanism kept = m;
+      if (kept.parameters[1] > 0.0 && kept.parameters[0] < 0.0) {
+        kept.parameters[0] = kept.parameters[1] = 0.0;
+        kept.sigma[0] = kept.sigma[1] = 0.0;
+      }
+      for (int k = kept.order; k-- > 0;) {
+        const auto at = kept.parameters.begin() + 2 + 2 * k;
+        if (*at >= 0.0) continue;
+        kept.parameters.erase(at, at + 2);
+        kept.sigma.erase(kept.sigma.begin() + 2 + 2 * k, kept.sigma.begin() + 4 + 2 * k);
+        --kept.order;
+      }
+      if (kept.parameters[1] > 0.0 || kept.order > 0) {
+        ModelChange change;
+        change.kind = ModelChange::Kind::kPartDroppedWrongSign;
+        change.mechanism = m;
+        change.kept = simplestTorqueDeflection(kept);
+        m = change.kept;
+        d.changes.push_back(std::move(change));
+        continue;
+      }
+    }
     ModelChange change;
     change.kind = ModelChange::Kind::kDroppedWrongSign;
     change.mechanism = model.global.mechanisms[dropped];

@@ -48,8 +48,9 @@ void namePreviousAlternatives(const std::vector<Scored>& scored, const DiagnoseO
 }
 
 // Adds a chosen family to the model: a profile (its coefficients come from the next stage-2
-// fit), or a global mechanism (the caller refits the global part; the profiles then need a fit
-// on what it leaves).
+// fit), a global mechanism (the caller refits the global part; the profiles then need a fit
+// on what it leaves), or the part a joint's torque–deflection curve lacked (the curve replaces
+// the mechanism it extends).
 void addFamily(DiagnosisModel& model, const Scored& chosen) {
   const Family& family = *chosen.family;
   if (family.stage == Stage::kProfile) {
@@ -59,10 +60,15 @@ void addFamily(DiagnosisModel& model, const Scored& chosen) {
     p.ridge = chosen.lambda;
     model.profiles.push_back(std::move(p));
   } else {
-    Mechanism m = family.mechanism;  // from zero: the first Gauss–Newton step is the linear fit
+    // From zero (what it adds): the first Gauss–Newton step is the linear fit.
+    Mechanism m = family.mechanism;
     for (int j : family.compliance) model.compliance_free[static_cast<size_t>(j)] = true;
     if (m.kind == MechanismKind::kSelfWeight && family.free.empty()) model.masses_from_urdf = true;
-    model.global.mechanisms.push_back(std::move(m));
+    if (family.extends >= 0) {
+      model.global.mechanisms[static_cast<size_t>(family.extends)] = std::move(m);
+    } else {
+      model.global.mechanisms.push_back(std::move(m));
+    }
   }
 }
 
@@ -117,6 +123,16 @@ void searchRounds(Search& search) {
     const size_t chosen = choose(scored, significant);
     scored[chosen].score.chosen = true;
     addFamily(dm, scored[chosen]);
+    rivals.clear();
+    if (scored[chosen].family->extends >= 0) {
+      // The joint's curve, found in an earlier round, gains a part: no new effect.
+      clock = std::chrono::steady_clock::now();
+      refitPhysical(dm, fit, options, search.base_globals, compliance_sigma, d, true);
+      d.seconds_refit += secondsSince(clock);
+      grams.reset();
+      for (Scored& s : scored) d.candidates.push_back(std::move(s.score));
+      continue;
+    }
     FoundEffect effect;
     effect.round = round;
     effect.cv_gain_mm = scored[chosen].score.cv_gain_mm;
@@ -125,7 +141,6 @@ void searchRounds(Search& search) {
     effect.ridge = scored[chosen].score.ridge;
     effect.compliance_joints = scored[chosen].family->compliance;
     effect.mechanism = scored[chosen].score.mechanism;
-    rivals.clear();
     for (size_t k : significant) {
       if (k != chosen && scored[k].score.relative_reduction >=
                              kRivalShare * scored[chosen].score.relative_reduction) {

@@ -34,12 +34,11 @@ Scored scoreGlobal(const Family& family, const CrossValidation& cv,
   s.score.relative_reduction = cmp.relative_reduction;
   s.score.z_statistic = cmp.z;
   s.score.p_value = cmp.p;
-  const MechanismKind kind = family.mechanism.kind;
-  s.score.physical = !family.negative_compliance &&
-                     !((kind == MechanismKind::kBacklash || kind == MechanismKind::kNonlinearStiffness) &&
-                       s.score.mechanism.parameters[0] < 0.0);
-  s.spent = static_cast<int>(family.free.size() + family.compliance.size()) +
-            (family.mechanism.kind == MechanismKind::kNonlinearStiffness ? 1 : 0);
+  s.score.physical = !family.negative_compliance;
+  for (int i : signConstrained(s.score.mechanism)) {
+    s.score.physical = s.score.physical && s.score.mechanism.parameters[static_cast<size_t>(i)] >= 0.0;
+  }
+  s.spent = static_cast<int>(family.free.size() + family.compliance.size()) + family.chosen;
   return s;
 }
 
@@ -179,13 +178,14 @@ Scored scoreProfile(const Family& family, const CrossValidation& cv,
 // URDF's masses, thermal expansion and sensor bias if there is one, else among all. Each of these
 // has a form fixed by physics and parameters that are constants of the arm (a compliance, an
 // expansion coefficient, the sensor's offset), so it holds at poses far from the fit rows. Lumped
-// masses (24 free parameters), a coupling c·q_i, or backlash and nonlinear stiffness (on an
-// unloaded arm functions of the pose through its own gravity torque) can instead stand for any
-// smooth error of the angles they were fitted on: they compete with the profiles on equal terms. (On the real UR10, giving them
-// priority too made series A → D 0.05 mm worse: README, "On a real robot".)
-// Then the family with the largest held-out reduction, unless one spending fewer parameters is
-// not significantly worse (paired t < 2 on the per-pose errors): then the simplest such
-// (nonlinear stiffness with a small τ₀ imitates backlash, for instance).
+// masses (24 free parameters), a coupling c·q_i, or a torque–deflection curve (on an unloaded arm
+// a function of the pose through its own gravity torque) can instead stand for any smooth error
+// of the angles they were fitted on: they compete with the profiles on equal terms. (On the real
+// UR10, giving them priority too made the A → D case of docs/diagnosis.md, "On the real UR10",
+// 0.05 mm worse when this rule was chosen.) Then the family with the largest held-out reduction,
+// unless one spending fewer parameters is not significantly worse (signed-rank z < 2 on the
+// per-pose errors): then the simplest such (nonlinear stiffness with a small τ₀ imitates
+// backlash, for instance).
 size_t choose(const std::vector<Scored>& scored, std::vector<size_t> significant) {
   std::vector<size_t> constants;
   for (size_t k : significant) {

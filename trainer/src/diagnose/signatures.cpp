@@ -13,7 +13,7 @@ using diagnosis::Evaluation;
 using diagnosis::FitRows;
 
 // Samples of a profile's curve across the rows' range: fine enough for 48 harmonics.
-constexpr int kProfileCurveSamples = 600;
+constexpr int kCurveSamples = 600;
 // Most curve points taken from the rows (a curve sampled at the rows, sorted by x).
 constexpr size_t kRowCurvePoints = 400;
 // A row's direction weaker than this fraction of the median says little about the effect.
@@ -128,8 +128,8 @@ std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Di
                                                jointAngles(fit, m.joint));
         if (s.x.empty()) break;
         const auto [lo, hi] = std::minmax_element(s.x.begin(), s.x.end());
-        for (int i = 0; i < kProfileCurveSamples; ++i) {
-          const double q = *lo + (*hi - *lo) * i / (kProfileCurveSamples - 1);
+        for (int i = 0; i < kCurveSamples; ++i) {
+          const double q = *lo + (*hi - *lo) * i / (kCurveSamples - 1);
           s.curve_x.push_back(q);
           s.curve_y.push_back(transmissionOffset(m, q));
         }
@@ -138,14 +138,27 @@ std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Di
       }
       case MechanismKind::kBacklash:
       case MechanismKind::kNonlinearStiffness:
-      case MechanismKind::kJointCoupling: {
-        // A coupling follows the source joint's angle; the others act on the joint's torque.
-        const bool coupling = m.kind == MechanismKind::kJointCoupling;
-        const int variable_joint = coupling ? m.source_joint : m.joint;
+      case MechanismKind::kTorsionCurve: {
+        // The joint's torque–deflection beyond its linear compliance, drawn over the torques the
+        // rows span: the curve a gear catalogue gives, less its linear part.
         EffectSignature s = linkAngleSignature(
             m, m.joint, fit, with, diagnosis::evaluate(without(model, k), fit), link_angle,
-            coupling ? SignatureVariable::kJointAngle : SignatureVariable::kJointTorque, variable_joint,
-            coupling ? jointAngles(fit, variable_joint) : jointTorques(with, nullptr, variable_joint));
+            SignatureVariable::kJointTorque, m.joint, jointTorques(with, nullptr, m.joint));
+        if (s.x.empty()) break;
+        const auto [lo, hi] = std::minmax_element(s.x.begin(), s.x.end());
+        for (int i = 0; i < kCurveSamples; ++i) {
+          const double tau = *lo + (*hi - *lo) * i / (kCurveSamples - 1);
+          s.curve_x.push_back(tau);
+          s.curve_y.push_back(torqueDeflection(m, tau));
+        }
+        signatures.push_back(std::move(s));
+        break;
+      }
+      case MechanismKind::kJointCoupling: {
+        // A coupling follows the source joint's angle.
+        EffectSignature s = linkAngleSignature(
+            m, m.joint, fit, with, diagnosis::evaluate(without(model, k), fit), link_angle,
+            SignatureVariable::kJointAngle, m.source_joint, jointAngles(fit, m.source_joint));
         curveFromRows(s);
         signatures.push_back(std::move(s));
         break;

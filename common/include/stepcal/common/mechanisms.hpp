@@ -7,8 +7,10 @@
 //   θ₀ = q + Σ_coupling c q_i e_j + Σ_transmission g_j(q_j) Σ_k (a_k sin k q_j + b_k cos k q_j) e_j
 //   W  = W_meas − b_sensor                                   (sensor_bias)
 //   τ  = J_s(θ)ᵀ W_root(θ) + τ_self(θ)                       (self_weight: link gravity torques)
-//   θ  = θ₀ + C τ + Σ_backlash b tanh(τ_j / τ_b) e_j
-//               + Σ_nonlinear c τ_j τ₀ / (τ₀ + |τ_j|) e_j     (the fixed point, three passes)
+//   θ  = θ₀ + C τ + Σ_j d_j(τ_j) e_j                          (the fixed point, three passes)
+//        d_j: joint j's torque–deflection beyond its linear compliance (torqueDeflection):
+//             backlash b tanh(τ_j / τ_b), nonlinear stiffness c τ_j τ₀ / (τ₀ + |τ_j|), or a
+//             torsion curve, lost motion and stiffening terms together
 //   X_TrackerTip = FK(θ) with the links' lengths × (1 + α (T − T_ref))   (thermal_expansion)
 //                  and each initial pose T_k · exp(Σ_j g_j(q_j) δ̂_jk)          (profile_geometry)
 // g_j is joint j's transmission profile's coverage gate: 1 on the joint angles it was fitted on,
@@ -39,6 +41,7 @@ enum class MechanismKind : uint32_t {
   kSensorBias = 6,          ///< a constant offset of the F/T reading
   kJointCoupling = 7,       ///< joint j's link angle moves with joint i's commanded angle
   kProfileGeometry = 8,     ///< joint j: initial-pose corrections that go with its transmission profile
+  kTorsionCurve = 9,        ///< joint j: lost motion and stiffening terms of its torque, one curve
 };
 
 /// Snake-case name, e.g. "transmission_error".
@@ -48,6 +51,12 @@ std::optional<MechanismKind> mechanismKindFromString(const std::string& name);
 
 /// Highest harmonic of a transmission profile.
 inline constexpr int kMaxHarmonics = 64;
+/// Most stiffening terms of a torsion curve.
+inline constexpr int kMaxTorsionTerms = 4;
+/// Width of a torsion curve's knee as a fraction of its torque: its term's compliance falls from
+/// c_k to 0 over about ±2 widths around T_k (a logistic), so the curve is C¹ for the runtime's
+/// Newton steps yet close to a catalogue's corner.
+inline constexpr double kTorsionKneeWidth = 0.1;
 /// Most arcs in one coverage.
 inline constexpr int kMaxCoverageArcs = 32;
 
@@ -76,7 +85,9 @@ struct Mechanism {
   int joint = -1;  ///< joint it moves (0-based): backlash, transmission, nonlinear, coupling;
                    ///< profile_geometry: the joint whose transmission profile it goes with
   int source_joint = -1;  ///< joint_coupling: the joint whose commanded angle drives it
-  int order = 0;          ///< transmission_error: harmonics 1 … order (1 ≤ order ≤ kMaxHarmonics)
+  /// transmission_error: harmonics 1 … order (1 ≤ order ≤ kMaxHarmonics); torsion_curve: its
+  /// stiffening terms (0 ≤ order ≤ kMaxTorsionTerms); other kinds 0.
+  int order = 0;
   /// Layout per kind (mechanismParameterNames):
   ///   backlash            [b rad, τ_b N·m]: b tanh(τ_j/τ_b), a sign smoothed over ±τ_b (with
   ///                       no load the joint sits mid-play; τ_b is set from the loads, not fitted)
@@ -90,6 +101,14 @@ struct Mechanism {
   ///   joint_coupling      [c rad/rad]
   ///   profile_geometry    per initial pose k = 0..n: [δ_k (v m (3), ω rad (3))], applied as
   ///                       T_k · exp(g(q_j) δ̂_k), g the gate of joint j's transmission_error
+  ///   torsion_curve       [b rad, τ_b N·m, then per term k = 1..order: c_k rad/(N·m), T_k N·m]:
+  ///                       b tanh(τ_j/τ_b) + Σ_k c_k sign(τ_j) min_k(|τ_j|, T_k): lost motion as
+  ///                       backlash's (τ_b = 0: none, then b = 0), and per term an extra
+  ///                       compliance c_k up to the knee T_k (T_k increasing), its min smooth
+  ///                       over kTorsionKneeWidth · T_k (torqueDeflection). With b, c_k ≥ 0 it is
+  ///                       odd in τ_j, monotone and stiffening: the joint's compliance is
+  ///                       C + c_1 + … + c_order below T_1, C + c_2 + … above it, C above the last
+  ///                       knee — a gear catalogue's segments K1, K2, K3 and its lost motion.
   std::vector<double> parameters;
   std::vector<double> sigma;  ///< 1-σ of each parameter, same size (0 = not estimated)
   /// transmission_error: the angles of its joint it was fitted on (empty: everywhere); other
@@ -107,6 +126,16 @@ std::string mechanismProblem(const Mechanism& mechanism, int dof);
 
 /// Short human name, e.g. "backlash (joint 2)", "transmission_error (joint 3, 24 harmonics)".
 std::string describe(const Mechanism& mechanism);
+
+/// Whether a kind is a joint's torque–deflection beyond its linear compliance: backlash,
+/// nonlinear_stiffness or torsion_curve.
+bool isTorqueDeflection(MechanismKind kind) noexcept;
+
+/// Deflection of a torque-deflection mechanism (isTorqueDeflection) at its joint's torque
+/// tau_nm [N·m], rad, and its derivative ∂/∂τ [rad/(N·m)] when derivative is given; 0 for other
+/// kinds. Allocation-free.
+double torqueDeflection(const Mechanism& mechanism, double tau_nm,
+                        double* derivative = nullptr) noexcept;
 
 /// Link-angle offset of a transmission_error at commanded angle q_rad, gate included, rad, and
 /// its derivative d/dq when derivative is given. Allocation-free (harmonics by recurrence).

@@ -117,6 +117,17 @@ struct FoundEffect {
   std::vector<int> gravity_loaded_joints;
   std::vector<double> gravity_torque_std_nm;
   std::vector<int> weak_gravity_joints;
+  /// backlash, nonlinear_stiffness, torsion_curve: the largest |τ_j| of the joint on the fit
+  /// rows, N·m (the curve is identified up to it; beyond it the model goes on with its last
+  /// stiffness, which the rows do not show), and the joint's stiffness in segments as a gear
+  /// catalogue gives it, lost motion apart: the secant stiffness of C τ plus the stiffening terms
+  /// over [0, T_1], [T_1, T_2], …, [T_last, max], the T_k being the curve's fade torques below
+  /// the largest (nonlinear_stiffness: τ₀), N·m/rad.
+  double max_torque_nm = 0.0;
+  struct StiffnessSegment {
+    double from_nm = 0.0, to_nm = 0.0, stiffness_nm_per_rad = 0.0;
+  };
+  std::vector<StiffnessSegment> stiffness_segments;
   /// Other significant families of its round that removed nearly as much held-out error (at
   /// least 80 %) and nothing more once it was in the model: the data cannot tell them from it.
   std::vector<Mechanism> alternatives;
@@ -133,6 +144,9 @@ struct ModelChange {
     kComplianceHeldAtZero,  ///< a joint's compliance came out negative refitted with the rest
     /// A cause whose lost motion or extra compliance turned negative refitted with the others.
     kDroppedWrongSign,
+    /// A torsion curve some of whose parts (its lost motion, a stiffening term) turned negative
+    /// refitted with the others: those parts removed, the rest kept.
+    kPartDroppedWrongSign,
     /// A cause that the causes named after it explain: tried again with them in the model, it
     /// is no longer significant (relative_reduction, z_statistic of that trial).
     kDroppedExplained,
@@ -144,7 +158,8 @@ struct ModelChange {
   Kind kind = Kind::kComplianceHeldAtZero;
   int joint = -1;                      ///< kComplianceHeldAtZero (0-based)
   double compliance_rad_per_nm = 0.0;  ///< kComplianceHeldAtZero: the value it came out at
-  Mechanism mechanism;                 ///< the cause dropped
+  Mechanism mechanism;                 ///< the cause dropped (kPartDroppedWrongSign: before)
+  Mechanism kept;                      ///< kPartDroppedWrongSign: what is left of it
   double relative_reduction = 0.0, z_statistic = 0.0;  ///< kDroppedExplained
   double size_chi2 = 0.0;                               ///< kDroppedWithoutSize
   int size_dof = 0;                                     ///< kDroppedWithoutSize
@@ -187,6 +202,12 @@ struct Diagnosis {
   std::string unexplained_trend;           ///< what the residual still follows, if anything
   std::vector<GainRow> gain;               ///< per validation load
   std::string gpr_method;                  ///< the GPR reference, e.g. "poe+stiffness+gpr"
+  /// The extended model's GPR: its training rows, the signed-rank z of its held-out reduction
+  /// and whether it was taken (ResidualModel::taken; not taken, the extended+gpr column is the
+  /// extended model's and the model file holds no GPR).
+  int extended_gpr_rows = 0;
+  double extended_gpr_z = 0.0;
+  bool extended_gpr_taken = true;
   double floor_position_m = 0.0;           ///< mean error the tracker noise alone gives
   CalibratedModel extended_model;          ///< the model with the effects and its GPR
   /// Fit-row variables for plots: names (trend variables) and values (row-major, per fit row).

@@ -50,7 +50,18 @@ struct GprOptions {
   /// that happens below about √D); this one-sided log-normal prior picks the former, so the
   /// predictive variance means something. Real short-scale structure outweighs it easily.
   double short_length_scale_prior = 1.0;
+  /// The noise each output carries at least, raw output units (P entries; empty: unknown), e.g.
+  /// the tracker's stated σ for the residual twist. σ_n is then bounded below by
+  /// kNoiseBoundShare · min_k σ_k / scale_k (standardised units): a GP whose noise sits below
+  /// the measurement's interpolates its training rows, noise included (a 60-row campaign's
+  /// search otherwise ended at σ_n = 0.01, with every fit row at 0.0000 mm and validation worse).
+  Eigen::VectorXd output_noise_sigma;
 };
+
+/// Share of the stated output noise σ_n may not go below: rows that a calibration step fitted
+/// carry less noise than the instrument, by the degrees of freedom the fit took (a 42-parameter
+/// geometry on 60 six-dimensional rows leaves 96 % of its σ; 0.8 leaves room for 36 % taken).
+inline constexpr double kNoiseBoundShare = 0.8;
 
 /// Kernel hyperparameters, in normalised input and standardised output units.
 struct GprHyperparameters {
@@ -157,6 +168,9 @@ class GaussianProcess {
   /// raw output units². Row i is held out in fold i mod k (k > m: leave-one-out). Closed form
   /// of refitting α on the other folds; the scaling stays that of the whole data.
   Eigen::VectorXd crossValidationMse(int folds = 10) const;
+  /// The held-out residuals themselves (target − prediction of the other folds), m × P raw
+  /// output units, as crossValidationMse averages them.
+  Eigen::MatrixXd crossValidationResiduals(int folds = 10) const;
 
   /// Predictive mean at x (D, raw input units), P raw output units (METHOD.md eq. 30).
   Eigen::VectorXd predictMean(const Eigen::VectorXd& x) const;

@@ -25,12 +25,26 @@ struct CalibrationOptions {
   int gpr_max_points = 400;
 };
 
+/// One-sided 1 % point of the standard normal: a residual GP is taken when the signed-rank z of
+/// its rows' cross-validated reduction exceeds it (its hyperparameters were chosen on the same
+/// rows, so its cross-validated error is optimistic: a GP fitted to pure noise still shows a few
+/// per cent of "gain").
+inline constexpr double kGprTakenZ = 2.326;
+
 /// A fitted residual GP and what it was trained on.
 struct ResidualModel {
   GaussianProcess gp;
   GprFitReport report;
   int training_rows = 0;
   std::string training_set;  ///< "residual", or "geometry" when the campaign has no residual rows
+  /// Its k-fold cross-validated squared error and that of no correction (the residual itself),
+  /// per row the squares over the tracker's stated noise² summed over the outputs, mean over the
+  /// rows; and the one-sided signed-rank z of the rows' reduction.
+  double cv_error = 0.0, uncorrected_error = 0.0, z_statistic = 0.0;
+  /// Whether the GP is taken: it reduces the held-out error significantly (z above the
+  /// one-sided 1 % point, kGprTakenZ). Not taken, the layer is the model under it (its rows equal
+  /// that model's) and no model file holds it.
+  bool taken = true;
 };
 
 /// Everything the trainer found, for reports and the model file.
@@ -77,12 +91,19 @@ PoseModel physicalPoseModel(PhysicalModel physical);
 /// The model times the GP's predicted residual twist: T · exp(ξ̂) (METHOD.md eq. 32). gp must
 /// outlive the predictor.
 PoseModel withResidual(PoseModel base, const GaussianProcess& gp);
+/// The model with a residual GP's correction where it was taken (ResidualModel::taken), else the
+/// model itself. residual must outlive the predictor.
+PoseModel withResidual(PoseModel base, const ResidualModel& residual);
 
 /// Step 3: residual twists ξ = log(T_model⁻¹ T_measured)^∨ (eq. 25) on the training rows,
 /// thinned evenly to options.gpr_max_points; rows without orientation cannot give a 6-D twist.
+/// The tracker's stated noise bounds the GP's σ_n from below (GprOptions::output_noise_sigma:
+/// position σ on v, orientation σ on ω, unless options.gpr gives its own) and weighs the
+/// choice whether it is taken (ResidualModel::taken).
 /// Throws InputError when fewer than 2 rows have orientation.
 ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measurement*>& rows,
-                          const std::string& set_name, const CalibrationOptions& options);
+                          const std::string& set_name, const TrackerNoise& noise,
+                          const CalibrationOptions& options);
 
 /// Builds the campaign's chain from its URDF (base_link → tip_link, sensor_link attached).
 /// Throws InputError naming the robot file when it does not fit the campaign.

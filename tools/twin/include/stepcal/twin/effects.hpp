@@ -116,6 +116,32 @@ class NonlinearStiffness final : public LinkAngleEffect {
   double extra_compliance_rad_per_nm_, saturation_torque_nm_;
 };
 
+/// A gear's torsion curve as its maker's catalogue gives it: lost motion at small torque, then
+/// stiffness in segments, K1 up to T1, K2 up to T2, and the joint's own (linear) stiffness K3
+/// above. On top of the linear compliance C = 1/K3 of joint_compliance, each segment's extra
+/// compliance e_s = 1/K_s − C:
+///   Δθ_j = b tanh(τ_j / τ_s) + sign(τ_j) [e_1 min(|τ_j|, T1) + e_2 clamp(|τ_j| − T1, 0, T2 − T1)]
+/// with τ_s = 1 N·m as a backlash's. Piecewise linear: a shape the model's torsion_curve (a sum
+/// of smooth stiffening terms) does not hold exactly. b rad, e_s rad/(N·m), T_s N·m.
+class TorsionCurve final : public LinkAngleEffect {
+ public:
+  static constexpr double kSmoothingTorque_nm = 1.0;
+  /// joint 1 … dof; lost_motion_rad finite in [0, 0.01); extra compliances finite in
+  /// [0, 1e-3) rad/(N·m), one per segment (1 or 2); segment end torques finite, > 0 and
+  /// increasing, as many. Throws InputError naming the key and the value.
+  TorsionCurve(int joint, double lost_motion_rad, std::vector<double> extra_compliance_rad_per_nm,
+               std::vector<double> segment_end_torque_nm, int dof);
+  std::string name() const override { return "torsion_curve"; }
+  void apply(const JointVector& q_cmd_rad, const JointVector& tau_nm,
+             JointVector& theta_rad) const override;
+  nlohmann::json toJson() const override;
+
+ private:
+  int joint_;
+  double lost_motion_rad_;
+  std::vector<double> extra_compliance_rad_per_nm_, segment_end_torque_nm_;
+};
+
 /// Joint j's link angle moves with joint i's commanded angle (wrist coupling):
 /// Δθ_j = c q_i. c rad/rad.
 class JointCoupling final : public LinkAngleEffect {

@@ -1,0 +1,310 @@
+// stepcal-diagnose-stress: the diagnosis on campaigns it was not tuned to. Per seed, a random mix
+// of 0–3 of the twin's mechanisms (twin::drawMechanismMix: every kind, the torque-driven ones on
+// a joint another loads too, self weight from a few kilograms up) is simulated into the paper's
+// campaign by `stepcal simulate`, diagnosed by `stepcal diagnose --json` as a user would run it
+// (a separate process: an abort is an outcome, not the end of the run), and judged:
+//   abort     the diagnosis ended by a signal or with a status other than 0;
+//   named     the causes named are the hidden ones: each hidden mechanism named (a torque-driven
+//             one by any torque–deflection mechanism of its joint: backlash, nonlinear stiffness
+//             and a torsion curve are one curve of the joint's torque), nothing else; a hidden
+//             one the diagnosis says it cannot test on these rows counts neither way;
+//   worst     the extended model's largest mean position error over the validation loads,
+//             against the tracker-noise floor.
+// Prints one line per seed and a summary table; --json FILE writes every seed's outcome. Exit
+// status 1 on any abort, and with --strict also on a wrong named set or a load above 1.5× the
+// floor; 2 on bad options.
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "stepcal/twin/draws.hpp"
+
+namespace fs = std::filesystem;
+using stepcal::MechanismKind;
+using stepcal::twin::DrawnMechanism;
+
+extern char** environ;
+
+namespace {
+
+constexpr double kFloorLimit = 1.5;
+
+// Runs argv with stdout and stderr to files; the shell-style status (128 + signal when killed).
+int run(const std::vector<std::string>& argv, const fs::path& out, const fs::path& err) {
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&actions, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  pid_t pid = 0;
+  const int spawned = posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (spawned != 0) return 127;
+  int status = 0;
+  waitpid(pid, &status, 0);
+  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 255;
+}
+
+bool torqueDriven(const std::string& name) {
+  return name == "backlash" || name == "nonlinear_stiffness" || name == "torsion_curve";
+}
+
+// What a diagnosis names, as the JSON has it: name, joint and coupling joints (1-based).
+struct Named {
+  std::string name;
+  int joint = 0;
+  std::vector<int> joints;
+};
+
+bool matches(const DrawnMechanism& h, const Named& n) {
+  const std::string hidden = h.effect.at("name");
+  if (torqueDriven(hidden)) return torqueDriven(n.name) && n.joint == h.joint + 1;
+  if (hidden != n.name) return false;
+  if (hidden == "transmission_error") return n.joint == h.joint + 1;
+  if (hidden == "joint_coupling") {
+    return n.joints == std::vector<int>{h.source_joint + 1, h.joint + 1};
+  }
+  return true;
+}
+
+// The diagnosis's name for what cannot be tested, e.g. "backlash (joint 2)".
+std::string untestableName(const DrawnMechanism& h) {
+  const std::string name = h.effect.at("name");
+  if (h.joint < 0 || name == "joint_coupling") return name;
+  return name + " (joint " + std::to_string(h.joint + 1) + ")";
+}
+
+struct Outcome {
+  uint64_t seed = 0;
+  std::vector<DrawnMechanism> hidden;
+  int status = 0;           // of stepcal diagnose
+  std::string error;        // its last stderr line when it failed
+  std::vector<std::string> named, missing, extra, untestable;
+  double worst_over_floor = 0.0;
+  double seconds = 0.0;
+  bool abort() const { return status != 0; }
+  bool rightSet() const { return !abort() && missing.empty() && extra.empty(); }
+  bool atFloor() const { return !abort() && worst_over_floor <= kFloorLimit; }
+};
+
+std::string describe(const Named& n) {
+  if (!n.joints.empty()) return n.name + " (" + std::to_string(n.joints[0]) + "->" + std::to_string(n.joints[1]) + ")";
+  return n.joint > 0 ? n.name + " (joint " + std::to_string(n.joint) + ")" : n.name;
+}
+
+std::string lastLine(const fs::path& file) {
+  std::ifstream in(file);
+  std::string line, last;
+  while (std::getline(in, line)) {
+    if (!line.empty()) last = line;
+  }
+  return last;
+}
+
+Outcome diagnoseSeed(uint64_t seed, const std::string& stepcal, const fs::path& work) {
+  Outcome o;
+  o.seed = seed;
+  o.hidden = stepcal::twin::drawMechanismMix(seed);
+  const fs::path dir = work / ("seed-" + std::to_string(seed));
+  fs::remove_all(dir);
+  fs::create_directories(work);
+  std::vector<std::string> simulate = {stepcal, "simulate", "--seed", std::to_string(seed), "--out",
+                                       dir.string()};
+  for (const DrawnMechanism& h : o.hidden) {
+    simulate.push_back("--effect");
+    simulate.push_back(h.effect.dump());
+  }
+  const fs::path log = work / ("seed-" + std::to_string(seed) + ".simulate.log");
+  if (const int status = run(simulate, log, log); status != 0) {
+    o.status = status;
+    o.error = "simulate: " + lastLine(log);
+    return o;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  o.status = run({stepcal, "diagnose", dir.string(), "--json"}, dir / "diagnose.json",
+                 dir / "diagnose.err");
+  o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (o.status != 0) {
+    o.error = lastLine(dir / "diagnose.err");
+    return o;
+  }
+  nlohmann::json d;
+  try {
+    std::ifstream(dir / "diagnose.json") >> d;
+  } catch (const nlohmann::json::exception& e) {
+    o.status = 254;
+    o.error = std::string("unreadable diagnose.json: ") + e.what();
+    return o;
+  }
+  std::vector<Named> named;
+  for (const nlohmann::json& e : d.at("effects")) {
+    Named n;
+    n.name = e.at("name");
+    if (!e.at("joint").is_null()) n.joint = e.at("joint");
+    if (!e.at("joints").is_null()) n.joints = e.at("joints").get<std::vector<int>>();
+    named.push_back(n);
+    o.named.push_back(describe(n));
+  }
+  std::vector<std::string> untestable;
+  for (const nlohmann::json& u : d.at("untestable")) untestable.push_back(u.at("name"));
+  std::vector<bool> used(named.size(), false);
+  for (const DrawnMechanism& h : o.hidden) {
+    bool found = false;
+    for (size_t k = 0; k < named.size(); ++k) {
+      if (matches(h, named[k])) found = used[k] = true;
+    }
+    if (found) continue;
+    const std::string u = untestableName(h);
+    if (std::find(untestable.begin(), untestable.end(), u) != untestable.end()) {
+      o.untestable.push_back(u);
+    } else {
+      o.missing.push_back(u);
+    }
+  }
+  for (size_t k = 0; k < named.size(); ++k) {
+    if (!used[k]) o.extra.push_back(describe(named[k]));
+  }
+  const double floor = d.at("noise_floor_position_mm");
+  for (const nlohmann::json& g : d.at("gain")) {
+    if (g.contains("after_mean_position_mm") && !g.at("after_mean_position_mm").is_null()) {
+      o.worst_over_floor = std::max(o.worst_over_floor, g.at("after_mean_position_mm").get<double>() / floor);
+    }
+  }
+  return o;
+}
+
+std::string join(const std::vector<std::string>& v) {
+  std::string s;
+  for (const std::string& x : v) s += (s.empty() ? "" : ", ") + x;
+  return s.empty() ? "-" : s;
+}
+
+nlohmann::json toJson(const Outcome& o) {
+  nlohmann::json hidden = nlohmann::json::array();
+  for (const DrawnMechanism& h : o.hidden) hidden.push_back(h.effect);
+  return {{"seed", o.seed},          {"hidden", hidden},       {"status", o.status},
+          {"error", o.error},        {"named", o.named},       {"missing", o.missing},
+          {"extra", o.extra},        {"untestable", o.untestable},
+          {"worst_over_floor", o.worst_over_floor},            {"seconds", o.seconds},
+          {"right_set", o.rightSet()}, {"at_floor", o.atFloor()}};
+}
+
+// "1-200" or "1,5,9" (or a mix: "1-3,10").
+std::vector<uint64_t> parseSeeds(const std::string& text) {
+  std::vector<uint64_t> seeds;
+  std::stringstream in(text);
+  std::string part;
+  while (std::getline(in, part, ',')) {
+    const size_t dash = part.find('-');
+    const uint64_t a = std::stoull(part.substr(0, dash));
+    const uint64_t b = dash == std::string::npos ? a : std::stoull(part.substr(dash + 1));
+    if (b < a) throw std::invalid_argument(part);
+    for (uint64_t s = a; s <= b; ++s) seeds.push_back(s);
+  }
+  if (seeds.empty()) throw std::invalid_argument(text);
+  return seeds;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"stepcal-diagnose-stress: the diagnosis on random mixes of hidden mechanisms"};
+  std::string seeds_text = "1-10", work = "out/diagnose-stress", json_out;
+  std::string stepcal = (fs::canonical("/proc/self/exe").parent_path() / "stepcal").string();
+  int jobs = 1;
+  bool strict = false;
+  app.add_option("--seeds", seeds_text, "seeds, e.g. 1-200 or 3,7,11")->capture_default_str();
+  app.add_option("--out", work, "working folder (a campaign per seed)")->capture_default_str();
+  app.add_option("--json", json_out, "file for every seed's outcome");
+  app.add_option("--jobs", jobs, "seeds diagnosed at once")->check(CLI::Range(1, 64))->capture_default_str();
+  app.add_option("--stepcal", stepcal, "the stepcal command to run")->capture_default_str();
+  app.add_flag("--strict", strict, "also fail on a wrong named set or a load above 1.5x the floor");
+  CLI11_PARSE(app, argc, argv);
+  std::vector<uint64_t> seeds;
+  try {
+    seeds = parseSeeds(seeds_text);
+  } catch (const std::exception&) {
+    std::cerr << "stepcal-diagnose-stress: error: --seeds '" << seeds_text
+              << "'; expected seeds and ranges such as 1-200 or 3,7,11\n";
+    return 2;
+  }
+  if (access(stepcal.c_str(), X_OK) != 0) {
+    std::cerr << "stepcal-diagnose-stress: error: --stepcal '" << stepcal
+              << "' is not an executable; expected the stepcal command (build/bin/stepcal)\n";
+    return 2;
+  }
+
+  std::vector<Outcome> outcomes(seeds.size());
+  std::atomic<size_t> next{0};
+  std::mutex print;
+  const auto worker = [&] {
+    for (size_t i = next++; i < seeds.size(); i = next++) {
+      outcomes[i] = diagnoseSeed(seeds[i], stepcal, work);
+      const Outcome& o = outcomes[i];
+      std::string hidden;
+      for (const DrawnMechanism& h : o.hidden) hidden += (hidden.empty() ? "" : ", ") + untestableName(h);
+      const std::lock_guard<std::mutex> lock(print);
+      std::printf("seed %4llu  %-9s  hidden: %s | named: %s | missing: %s | extra: %s | worst %.2fx floor%s%s\n",
+                  static_cast<unsigned long long>(o.seed),
+                  o.abort() ? "ABORT" : !o.rightSet() ? "WRONG-SET" : !o.atFloor() ? "ABOVE" : "ok",
+                  hidden.empty() ? "-" : hidden.c_str(), join(o.named).c_str(),
+                  join(o.missing).c_str(), join(o.extra).c_str(), o.worst_over_floor,
+                  o.error.empty() ? "" : " | ", o.error.c_str());
+      std::fflush(stdout);
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < jobs; ++t) pool.emplace_back(worker);
+  worker();
+  for (std::thread& t : pool) t.join();
+
+  int aborts = 0, right = 0, at_floor = 0, clean = 0, clean_right = 0;
+  std::vector<double> worst;
+  for (const Outcome& o : outcomes) {
+    aborts += o.abort();
+    right += o.rightSet();
+    at_floor += o.atFloor();
+    if (o.hidden.empty()) {
+      ++clean;
+      clean_right += o.rightSet();
+    }
+    if (!o.abort()) worst.push_back(o.worst_over_floor);
+  }
+  std::sort(worst.begin(), worst.end());
+  const auto quantile = [&](double q) {
+    return worst.empty() ? 0.0 : worst[std::min(worst.size() - 1, static_cast<size_t>(q * worst.size()))];
+  };
+  std::printf("\n| seeds | aborts | named set right | clean named nothing | every load <= 1.5x floor | worst/floor p50 | p90 | max |\n");
+  std::printf("|---|---|---|---|---|---|---|---|\n");
+  std::printf("| %zu | %d | %d | %d of %d | %d | %.2f | %.2f | %.2f |\n", outcomes.size(), aborts,
+              right, clean_right, clean, at_floor, quantile(0.5), quantile(0.9),
+              worst.empty() ? 0.0 : worst.back());
+  if (!json_out.empty()) {
+    nlohmann::json all = nlohmann::json::array();
+    for (const Outcome& o : outcomes) all.push_back(toJson(o));
+    std::ofstream(json_out) << all.dump(2) << "\n";
+  }
+  const bool failed = aborts > 0 || (strict && (right < static_cast<int>(outcomes.size()) ||
+                                                at_floor < static_cast<int>(outcomes.size())));
+  return failed ? 1 : 0;
+}

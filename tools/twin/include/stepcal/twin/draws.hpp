@@ -1,0 +1,42 @@
+// Hidden mechanisms drawn at random at realistic sizes, as the twin's effects (effects.hpp): what
+// the diagnosis tests and the stress run (stepcal-diagnose-stress) hide in a campaign.
+#pragma once
+
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "stepcal/common/mechanisms.hpp"
+
+namespace stepcal::twin {
+
+/// A mechanism drawn for a twin, and what a diagnosis names for it.
+struct DrawnMechanism {
+  nlohmann::json effect;  ///< the twin's JSON object (stepcal simulate --effect)
+  MechanismKind kind = MechanismKind::kBacklash;  ///< the catalogue kind that describes it
+  int joint = -1;         ///< 0-based: the joint it moves (−1: none)
+  int source_joint = -1;  ///< joint_coupling: the joint whose angle drives it
+};
+
+/// The kinds drawMechanism draws: 0 backlash, 1 transmission error, 2 nonlinear stiffness,
+/// 3 joint coupling, 4 thermal expansion, 5 sensor bias, 6 self weight, 7 a gear's torsion curve.
+inline constexpr int kDrawnKinds = 8;
+
+/// One mechanism of a kind at a size a laser tracker sees on the paper's campaign: lost motion
+/// of 0.6–1.4 arcmin, cyclic errors of 10–25 arcsec (20–50 on the wrist), couplings of
+/// 0.05–0.2 %, a joint up to twice as soft at small torque, thermal expansion of steel or
+/// aluminium, a mistared sensor (15–40 N, 0.3–1.5 N·m), an upper arm and forearm out of balance
+/// by 30–80 kg, a gear's curve with up to 0.8 arcmin of lost motion and one or two softer
+/// segments; the torque-driven ones on the joints the protocol loads (2, 3, 5). The draws of
+/// kinds 0–6 are those the diagnosis tests were validated on: do not change their sequence.
+DrawnMechanism drawMechanism(int kind, std::mt19937_64& rng);
+
+/// A stress mix for seed: 0 to 3 mechanisms of any kinds (self weight, thermal expansion and
+/// sensor bias at most once each, as a twin holds them); a torque-driven one may land on the
+/// joint another already loads (then the two are one curve of its torque); self weight from a
+/// few kilograms up. The same seed gives the same mix.
+std::vector<DrawnMechanism> drawMechanismMix(uint64_t seed);
+
+}  // namespace stepcal::twin

@@ -224,6 +224,29 @@ TEST(Cli, BadInputEndsWithAClearErrorAndStatusTwo) {
   EXPECT_NE(bad_bias.out.find("sensor_bias.force_n = [900, 0, 0] N; expected finite values with norm < 500 N"),
             std::string::npos)
       << bad_bias.out;
+  const CommandResult cog = run(kStepcal + " simulate --payload-cog 0,0.1 --out " + dir.string());
+  EXPECT_EQ(cog.status, 2);
+  EXPECT_NE(cog.out.find("--payload-cog has 2 values; expected x,y,z"), std::string::npos) << cog.out;
+  const CommandResult stiffness = run(kStepcal + " simulate --stiffness 1e5,1e5 --out " + dir.string());
+  EXPECT_EQ(stiffness.status, 2);
+  EXPECT_NE(stiffness.out.find("stiffness_nm_per_rad has 2 values; expected one per revolute joint, 6"),
+            std::string::npos) << stiffness.out;
+  const CommandResult tip = run(kStepcal + " simulate --robot ur10 --tip-link tmac --out " + dir.string());
+  EXPECT_EQ(tip.status, 2);
+  EXPECT_NE(tip.out.find("ur10.urdf: tip_link 'tmac' is not a link"), std::string::npos) << tip.out;
+  // Candidates from this campaign, corrupted above, and from one of another robot.
+  const CommandResult not_read = run(kStepcal + " plan --poses 5 --candidates-from " + dir.string() +
+                                     " --out " + (dir / "p.csv").string());
+  EXPECT_EQ(not_read.status, 2);
+  EXPECT_NE(not_read.out.find("measurements.csv:5"), std::string::npos) << not_read.out;
+  const fs::path irb = scratch("bad_irb");
+  ASSERT_EQ(run(kStepcal + " simulate --protocol geometry --out " + irb.string()).status, 0);
+  const CommandResult other = run(kStepcal + " plan --robot ur10 --poses 5 --candidates-from " +
+                                  irb.string() + " --out " + (dir / "p.csv").string());
+  EXPECT_EQ(other.status, 2);
+  EXPECT_NE(other.out.find("the campaign's joints (joint_1, joint_2, joint_3, joint_4, joint_5, "
+                           "joint_6) are not the planned robot's (shoulder_pan_joint"),
+            std::string::npos) << other.out;
   const CommandResult unknown = run(kStepcal + " simulate --effect '{\"name\": \"gear_wobble\"}' --out " +
                                     dir.string());
   EXPECT_EQ(unknown.status, 2);

@@ -199,13 +199,28 @@ struct PlanArgs {
   trainer::PlanOptions options;
 };
 
-// The unloaded fit rows of a campaign (one per pose_id) as a plan's candidates.
-std::vector<PlannedMeasurement> measuredPoses(const std::string& dir, int joint_count) {
+/// "a, b, c": the joints' names.
+std::string jointNames(const KinematicChain& chain) {
+  std::string names;
+  for (const ChainJoint& j : chain.joints()) names += (names.empty() ? "" : ", ") + j.name;
+  return names;
+}
+
+// The unloaded fit rows of a campaign (one per pose_id) as the candidates of a plan for chain,
+// and the tracker noise it states (weighing position against rotation), if it does.
+std::vector<PlannedMeasurement> measuredPoses(const std::string& dir, const KinematicChain& chain,
+                                              trainer::PlanOptions& options) {
   const Campaign campaign = readCampaign(dir);
-  if (campaign.joint_count != joint_count) {
-    throw InputError("--candidates-from: the campaign has " +
-                         std::to_string(campaign.joint_count) + " joints, the robot planned for " +
-                         std::to_string(joint_count) + "; expected a campaign of that robot",
+  if (campaign.tracker.stated) {
+    options.position_sigma_m = campaign.tracker.position_sigma_m;
+    options.orientation_sigma_rad = campaign.tracker.orientation_sigma_rad;
+  }
+  const KinematicChain measured = chainFromUrdf(campaign.urdf_xml, campaign.base_link,
+                                                campaign.tip_link, {}, campaign.robot_file);
+  if (jointNames(measured) != jointNames(chain)) {
+    throw InputError("--candidates-from: the campaign's joints (" + jointNames(measured) +
+                         ") are not the planned robot's (" + jointNames(chain) +
+                         "); expected a campaign of the robot planned for",
                      dir);
   }
   std::vector<PlannedMeasurement> poses;
@@ -258,7 +273,7 @@ void runPlan(PlanArgs a) {
   const KinematicChain chain =
       chainFromUrdfFile(robot.urdf_path, robot.base_link, robot.tip_link, attached);
   if (!a.candidates_from.empty()) {
-    a.options.given_candidates = measuredPoses(a.candidates_from, chain.dof());
+    a.options.given_candidates = measuredPoses(a.candidates_from, chain, a.options);
   }
   const trainer::CampaignPlan plan = trainer::planCampaign(chain, sensor ? 0 : -1, a.options);
   writePoseList(plan.rows, a.out);
@@ -567,7 +582,8 @@ int main(int argc, char** argv) {
       ->delimiter(',');
   plan->add_option("--candidates-from", plan_args.candidates_from,
                    "choose among the measured poses of this campaign (its unloaded fit rows, "
-                   "pose_ids kept) instead of drawing candidates");
+                   "pose_ids kept; weighed by its stated tracker noise) instead of drawing "
+                   "candidates");
   plan->add_option("--tracker", plan_args.tracker_m, "tracker head in base_link: x,y,z, m")
       ->delimiter(',')->capture_default_str();
   plan->add_option("--min-range-m", plan_args.options.min_range_m, "nearest tip distance, m")

@@ -8,6 +8,7 @@
 #include <utility>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Core>
 
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/error.hpp"
@@ -16,6 +17,15 @@
 
 namespace stepcal::trainer {
 namespace {
+
+// The cache sizes Eigen's products are told, bytes: the GPR's (gpr.cpp, pinEigenBlocking). Eigen
+// blocks its products by the CPU's caches, which orders the sums; the greedy choice between
+// candidates of nearly equal gain then followed the last bits: the same plan came out different
+// on another CPU, or after a GPR fit had pinned the blocking in the same process (a 60-pose plan
+// among Series C's poses changed 7 poses between `stepcal plan` and a test that calibrated first).
+constexpr std::ptrdiff_t kPinnedL1CacheBytes = 32 * 1024;
+constexpr std::ptrdiff_t kPinnedL2CacheBytes = 256 * 1024;
+constexpr std::ptrdiff_t kPinnedL3CacheBytes = 2 * 1024 * 1024;
 
 /// Uniform in [0, 1) from the engine's 53 high bits: mt19937_64's output is fixed by the
 /// standard, std::uniform_real_distribution's is not.
@@ -222,6 +232,7 @@ class Coverage {
 CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
                           const PlanOptions& options) {
   validate(nominal_Base, sensor_frame, options);
+  Eigen::setCpuCacheSizes(kPinnedL1CacheBytes, kPinnedL2CacheBytes, kPinnedL3CacheBytes);
   const int n = nominal_Base.dof();
   std::vector<double> payloads_kg;
   for (double load_kg : options.loads_kg) {

@@ -84,7 +84,9 @@ struct CampaignPlan {
 
 /// Plans options.poses poses for the chain (rooted at base_link) whose attached frame
 /// sensor_frame carries the payload (−1: none; then loads_kg must be {0}). Throws InputError on
-/// bad options or when fewer visible candidates than poses are found.
+/// bad options or when fewer visible candidates than poses are found. The same plan whatever the
+/// CPU: it first pins Eigen's blocking to the GPR's sizes (Eigen::setCpuCacheSizes, for the whole
+/// process, as GaussianProcess::fit does), so no other thread may run Eigen products meanwhile.
 CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
                           const PlanOptions& options);
 

@@ -363,6 +363,13 @@ TEST(Cli, TheWalkWorksOnTheUr10) {
   EXPECT_EQ(urdf.status, 0) << urdf.out;
   EXPECT_TRUE(fs::exists(dir / "robot_calibrated.urdf"));
   const nlohmann::json diagnosis = diagnoseJson(campaign, dir / "extended.stepcal");
+  for (const std::string& command :
+       {" inspect " + (dir / "extended.stepcal").string(),
+        " validate " + (dir / "extended.stepcal").string() + " " + campaign.string(),
+        " validate " + (dir / "planned.stepcal").string() + " " + campaign.string() + " --refit-frames"}) {
+    const CommandResult r = run(kStepcal + command);
+    EXPECT_EQ(r.status, 0) << command << "\n" << r.out;
+  }
   EXPECT_EQ(diagnosis["verdict"], "found");
   ASSERT_GE(diagnosis["effects"].size(), 1u);
   EXPECT_EQ(diagnosis["effects"][0]["name"], "self_weight");

@@ -31,15 +31,15 @@ void expectRefused(Call&& call, const std::vector<std::string>& parts) {
 }
 
 /// A simulated IRB4400 campaign (paper protocol, seed 3, a backlash on joint 2) written into
-/// dir/campaign, its calibrated model (poe + stiffness + GPR) and its extended one (diagnose,
-/// which names the backlash) written beside it.
+/// dir/campaign, its calibrated model (poe + stiffness + GPR) and, when asked, its extended one
+/// (diagnose, which names the backlash) written beside it.
 struct Calibrated {
   std::string campaign_dir, model_path, extended_path;
   Campaign campaign;
   CalibratedModel model, extended;
 };
 
-Calibrated calibrated(const test::TempDir& dir) {
+Calibrated calibrated(const test::TempDir& dir, bool extended = false) {
   twin::TwinOptions o;
   o.urdf_path = kRobots + "/irb4400.urdf";
   o.seed = 3;
@@ -49,11 +49,13 @@ Calibrated calibrated(const test::TempDir& dir) {
   twin::writeSimulation(o, c.campaign_dir);
   c.campaign = readCampaign(c.campaign_dir);
   c.model = trainer::modelFromOutcome(c.campaign, trainer::calibrateCampaign(c.campaign));
-  c.extended = trainer::diagnose(c.campaign, c.model).extended_model;
   c.model_path = (dir.path() / "model.stepcal").string();
-  c.extended_path = (dir.path() / "extended.stepcal").string();
   writeModelFile(c.model, c.model_path);
-  writeModelFile(c.extended, c.extended_path);
+  if (extended) {
+    c.extended = trainer::diagnose(c.campaign, c.model).extended_model;
+    c.extended_path = (dir.path() / "extended.stepcal").string();
+    writeModelFile(c.extended, c.extended_path);
+  }
   return c;
 }
 
@@ -70,7 +72,7 @@ twin::ModelTwinOptions noiseless(const std::string& model_path, const std::strin
 
 TEST(ModelTwin, NoiselessItIsTheModelsPhysicalLayer) {
   const test::TempDir dir;
-  const Calibrated c = calibrated(dir);
+  const Calibrated c = calibrated(dir, true);
   ASSERT_FALSE(c.extended.mechanisms.empty());
   for (const auto& [path, model, layer] :
        {std::make_tuple(c.model_path, c.model, std::string(trainer::kMethodPoeStiffness)),

@@ -48,8 +48,10 @@ double sigmaOrStated(const std::optional<double>& given, double stated, bool is_
 // Refuses a model of another robot than the campaign's: the joints' count and names.
 void requireSameRobot(const CalibratedModel& model, const Campaign& campaign,
                       const std::string& model_path) {
-  const KinematicChain nominal = chainFromUrdf(campaign.urdf_xml, campaign.base_link,
-                                               campaign.tip_link, {}, campaign.robot_file);
+  const KinematicChain nominal =
+      chainFromUrdf(campaign.urdf_xml, campaign.base_link, campaign.tip_link, {},
+                    campaign.directory.empty() ? campaign.robot_file
+                                               : campaign.directory + "/" + campaign.robot_file);
   const std::vector<ChainJoint>& a = model.chain_Tracker.joints();
   const std::vector<ChainJoint>& b = nominal.joints();
   bool same = a.size() == b.size();

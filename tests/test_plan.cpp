@@ -2,6 +2,7 @@
 // twin measuring a planned campaign: planned poses calibrate better than random ones.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
@@ -120,6 +121,97 @@ TEST(Plan, DOptimalHasMoreInformationThanRandom) {
   const double random = trainer::planCampaign(chain, 0, options).log_det_information;
   // Measured 8.6 more (a factor e^8.6 in the information's volume); required e^5.
   EXPECT_GT(planned, random + 5.0) << planned << " vs " << random;
+}
+
+// A robot without an F/T sensor (the UR10) is planned unloaded: every pose once, at 0 kg, within
+// its limits and visible; payloads need a link to hang from.
+TEST(Plan, RobotWithoutASensorIsPlannedUnloaded) {
+  const KinematicChain ur10 =
+      chainFromUrdfFile(std::string(STEPCAL_ROBOTS_DIR) + "/ur10.urdf", "base_link", "tool0");
+  trainer::PlanOptions options;
+  options.poses = 10;
+  options.candidates = 600;
+  options.loads_kg = {0.0};
+  const trainer::CampaignPlan plan = trainer::planCampaign(ur10, -1, options);
+  ASSERT_EQ(plan.rows.size(), 10u);
+  std::set<std::string> poses;
+  ChainWorkspace ws;
+  for (const PlannedMeasurement& row : plan.rows) {
+    EXPECT_EQ(row.load_kg, 0.0);
+    poses.insert(row.pose_id);
+    forwardKinematics(ur10, row.q_rad, ws);
+    for (int k = 2; k <= ur10.dof() + 1; ++k) {
+      EXPECT_GE(ws.X_RootFrame[static_cast<size_t>(k)].translation().z(), options.min_link_height_m);
+    }
+  }
+  EXPECT_EQ(poses.size(), 10u);
+  options.loads_kg = {0.0, 10.0};
+  try {
+    trainer::planCampaign(ur10, -1, options);
+    ADD_FAILURE() << "loads without a payload link were accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("loads of 2 values on a robot without a payload link; "
+                                         "expected 0 only"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+// The payload's centre of gravity off the sensor's origin: its moment loads joint 6, whose axis
+// runs through the sensor, so its compliance, not excited by a payload on the axis (its column
+// left to the ridge, log(1e-3) in the log det), gains information.
+TEST(Plan, APayloadsCentreOfGravityAddsItsMoment) {
+  trainer::PlanOptions options;
+  options.poses = 15;
+  options.candidates = 500;
+  const double on_axis = trainer::planCampaign(irb4400(), 0, options).log_det_information;
+  options.p_CoGInSensor_m = Vec3(0.1, 0.0, 0.1);
+  const double off_axis = trainer::planCampaign(irb4400(), 0, options).log_det_information;
+  std::printf("log det of the information: CoG on the sensor's origin %.2f, off it %.2f\n",
+              on_axis, off_axis);
+  EXPECT_GT(off_axis, on_axis + 3.0) << on_axis << " vs " << off_axis;
+}
+
+// Candidates given (the measured poses of a campaign) are chosen among as they are: no draw,
+// no visibility test, their pose_ids kept.
+TEST(Plan, GivenCandidatesAreChosenAmongAsTheyAre) {
+  const KinematicChain chain = irb4400();
+  twin::TwinOptions twin_options;
+  twin_options.urdf_path = kUrdf;
+  twin_options.protocol = "geometry";
+  const Campaign measured = twin::simulateCampaign(twin_options, nullptr);
+  trainer::PlanOptions options;
+  options.poses = 8;
+  options.loads_kg = {0.0};
+  for (const Measurement* row : measured.rowsIn(RowSet::kGeometry)) {
+    options.given_candidates.push_back({row->pose_id, 0.0, row->q_rad, 0});
+  }
+  const trainer::CampaignPlan plan = trainer::planCampaign(chain, 0, options);
+  EXPECT_EQ(plan.candidates_drawn, 80);
+  EXPECT_EQ(plan.rejected_range + plan.rejected_floor + plan.rejected_line_of_sight, 0);
+  ASSERT_EQ(plan.rows.size(), 8u);
+  for (const PlannedMeasurement& row : plan.rows) {
+    const auto given = std::find_if(options.given_candidates.begin(), options.given_candidates.end(),
+                                    [&](const PlannedMeasurement& c) { return c.pose_id == row.pose_id; });
+    ASSERT_NE(given, options.given_candidates.end()) << row.pose_id;
+    EXPECT_EQ(given->q_rad, row.q_rad);
+  }
+  // D-optimal among them has more information than random among them.
+  options.selection = trainer::PoseSelection::kRandom;
+  EXPECT_GT(plan.log_det_information, trainer::planCampaign(chain, 0, options).log_det_information);
+
+  options.poses = 81;
+  EXPECT_THROW(trainer::planCampaign(chain, 0, options), InputError);
+  options.poses = 8;
+  options.given_candidates[3].q_rad = JointVector::Zero(5);
+  try {
+    trainer::planCampaign(chain, 0, options);
+    ADD_FAILURE() << "a candidate of another robot was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("with 5 joint angles; expected 6 finite angles"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 /// poe+stiffness's mean position error over every validation row of the twin's campaign with

@@ -617,6 +617,142 @@ TEST(Twin, DefaultUrdfIsTheShippedIrb4400) {
   EXPECT_EQ(c.urdf_xml, readTextFile(kIrb));
 }
 
+// Any robot from its URDF: the UR10 is drawn within its joint limits, its stiffness from its
+// rated torques, its own weight from its inertials; the paper's robot keeps the paper's values.
+TEST(Twin, AnyRobotTakesRangesStiffnessAndSelfWeightFromItsUrdf) {
+  const std::string ur10 = std::string(STEPCAL_ROBOTS_DIR) + "/ur10.urdf";
+  const TwinOptions o = twinOptionsForRobot(ur10, "base_link", "tool0", "");
+  EXPECT_EQ(o.urdf_path, ur10);
+  EXPECT_EQ(o.tip_link, "tool0");
+  EXPECT_EQ(o.sensor_link, "");
+  EXPECT_EQ(o.protocol, "geometry");
+  const std::vector<double> effort = {330, 330, 150, 54, 54, 54};
+  ASSERT_EQ(o.stiffness_nm_per_rad.size(), 6u);
+  for (size_t i = 0; i < 6; ++i) {
+    EXPECT_DOUBLE_EQ(o.stiffness_nm_per_rad[i], effort[i] / kRatedTorqueDeflection_rad);
+  }
+  const KinematicChain chain = chainFromUrdfFile(ur10, "base_link", "tool0");
+  ASSERT_EQ(o.pose_ranges.size(), 6u);
+  for (size_t i = 0; i < 6; ++i) {
+    EXPECT_EQ(o.pose_ranges[i].lower_rad, chain.joints()[i].lower_rad);
+    EXPECT_EQ(o.pose_ranges[i].upper_rad, chain.joints()[i].upper_rad);
+    EXPECT_EQ(o.pose_ranges[i].min_abs_rad, 0.0);
+  }
+  ASSERT_TRUE(o.min_link_height_m.has_value());
+  EXPECT_EQ(*o.min_link_height_m, 0.1);
+  // The UR10's reach (its initial poses after joint 1's): 0.1273 + 0.612 + 0.5723 + 0.163941 +
+  // 0.1157 + 0.0922 m.
+  EXPECT_NEAR(o.min_tip_forward_m, 0.3 * 1.683441, 1e-12);
+  EXPECT_NEAR(o.min_tip_height_m, 0.1 * 1.683441, 1e-12);
+  ASSERT_EQ(o.hidden_effects.size(), 1u);
+  const nlohmann::json& self_weight = o.hidden_effects[0];
+  EXPECT_EQ(self_weight.at("name"), "self_weight");
+  const std::vector<double> bodies =
+      *bodyMassesFromUrdf(readTextFile(ur10), "base_link", "tool0", ur10);
+  ASSERT_EQ(self_weight.at("links").size(), 6u);
+  for (int k = 0; k < 6; ++k) {
+    const nlohmann::json& link = self_weight.at("links").at(static_cast<size_t>(k));
+    EXPECT_EQ(link.at("link"), k + 1);
+    EXPECT_DOUBLE_EQ(link.at("mass_kg").get<double>(), bodies[4 * k]);
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_NEAR(link.at("com_m").at(static_cast<size_t>(a)).get<double>() * bodies[4 * k],
+                  bodies[4 * k + 1 + a], 1e-15);
+    }
+  }
+  EXPECT_DOUBLE_EQ(self_weight.at("links").at(1).at("mass_kg").get<double>(), 12.93);
+
+  const TwinOptions irb = twinOptionsForRobot(kIrb, "base_link", "tmac", "ft_sensor");
+  const TwinOptions paper;
+  EXPECT_EQ(irb.protocol, "paper");
+  EXPECT_EQ(irb.stiffness_nm_per_rad, paper.stiffness_nm_per_rad);
+  EXPECT_EQ(toJson(irb).at("pose_ranges"), toJson(paper).at("pose_ranges"));
+  EXPECT_TRUE(irb.hidden_effects.empty());
+  EXPECT_FALSE(irb.min_link_height_m.has_value());
+  // So the IRB4400's campaigns stay as they were.
+  TwinOptions a = paperOptions(4), b = irb;
+  b.seed = 4;
+  expectSameRows(simulateCampaign(a, nullptr), simulateCampaign(b, nullptr));
+}
+
+// A robot without an F/T sensor: every row unloaded and without a reading; every nominal link
+// above the floor; the truth round trips without a sensor frame; its own weight deflects it.
+TEST(Twin, RobotWithoutASensorIsMeasuredUnloadedWithoutAWrench) {
+  const std::string ur10 = std::string(STEPCAL_ROBOTS_DIR) + "/ur10.urdf";
+  TwinOptions o = twinOptionsForRobot(ur10, "base_link", "tool0", "");
+  o.seed = 2;
+  nlohmann::json truth;
+  const Campaign c = simulateCampaign(o, &truth);
+  EXPECT_EQ(c.sensor_link, "");
+  ASSERT_EQ(c.rows.size(), 130u);
+  const KinematicChain nominal = chainFromUrdfFile(ur10, "base_link", "tool0");
+  ChainWorkspace ws;
+  for (const Measurement& m : c.rows) {
+    EXPECT_EQ(m.load_kg, 0.0);
+    EXPECT_FALSE(m.has_wrench);
+    forwardKinematics(nominal, m.q_rad, ws);
+    for (int k = 2; k <= 7; ++k) {
+      EXPECT_GE(ws.X_RootFrame[static_cast<size_t>(k)].translation().z(), 0.1) << m.pose_id;
+    }
+    EXPECT_GE(tipPose(ws).translation().x(), o.min_tip_forward_m);
+  }
+  EXPECT_TRUE(truth.at("sensor_frame").is_null());
+  const TwinRobot robot(o);
+  const TwinRobot back = TwinRobot::fromTruthJson(truth);
+  EXPECT_EQ(back.sensorFrame(), -1);
+  const JointVector& q = c.rows[7].q_rad;
+  EXPECT_EQ(back.X_TrackerTip(q, 0.0).matrix(), robot.X_TrackerTip(q, 0.0).matrix());
+  EXPECT_EQ(robot.sensorReading(q, 0.0), Vec6::Zero());
+  // Its own weight on the shoulder and elbow (110 000 and 50 000 N·m/rad) moves the tip by
+  // about a millimetre.
+  TwinOptions weightless = o;
+  weightless.hidden_effects.clear();
+  double largest_m = 0.0;
+  for (const Measurement& m : c.rows) {
+    largest_m = std::max(largest_m, (TwinRobot(weightless).X_BaseTip(m.q_rad, 0.0).translation() -
+                                     robot.X_BaseTip(m.q_rad, 0.0).translation())
+                                        .norm());
+  }
+  EXPECT_GT(largest_m, 0.5e-3);
+  EXPECT_LT(largest_m, 5e-3);
+}
+
+TEST(Twin, PaperProtocolPayloadsAndStiffnessNeedTheirLinkAndLimits) {
+  const std::string ur10 = std::string(STEPCAL_ROBOTS_DIR) + "/ur10.urdf";
+  TwinOptions o = twinOptionsForRobot(ur10, "base_link", "tool0", "");
+  o.protocol = "paper";
+  const auto refused = [](const TwinOptions& options, const std::string& message) {
+    try {
+      simulateCampaign(options, nullptr);
+      ADD_FAILURE() << "accepted; expected " << message;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+  };
+  refused(o, "TwinOptions.protocol = 'paper' without a sensor_link");
+  o.protocol = "geometry";
+  const JointVector q = JointVector::Constant(6, 0.3);
+  o.planned_fit_rows = {{"p", 0.0, q, 2}, {"p", 10.0, q, 3}};
+  refused(o, "pose 'p' at 10.000000 kg, but the robot has no sensor_link");
+  // With a link to hang from (the flange), the payload is measured.
+  TwinOptions flange = twinOptionsForRobot(ur10, "base_link", "tool0", "tool0");
+  flange.planned_fit_rows = o.planned_fit_rows;
+  const Campaign loaded = simulateCampaign(flange, nullptr);
+  EXPECT_EQ(loaded.rowsIn(RowSet::kStiffness).size(), 1u);
+  // 10 kg's weight, read with 0.2 N of noise per axis.
+  EXPECT_NEAR(loaded.rowsIn(RowSet::kStiffness)[0]->wrench_Sensor.head<3>().norm(), 98.07, 1.5);
+  // A robot the paper does not give and whose URDF has no effort limits: stiffness to be given.
+  std::string unnamed = readTextFile(kIrb);
+  unnamed.replace(unnamed.find(kPaperRobotName), std::string(kPaperRobotName).size(), "my_arm");
+  const test::TempDir dir;
+  const std::string path = (dir.path() / "my_arm.urdf").string();
+  std::ofstream(path) << unnamed;
+  TwinOptions mine = twinOptionsForRobot(path, "base_link", "tmac", "ft_sensor");
+  EXPECT_TRUE(mine.stiffness_nm_per_rad.empty());
+  refused(mine, "--stiffness K1,...,Kn");
+  mine.stiffness_nm_per_rad = kPaperStiffnessNmPerRad;
+  EXPECT_EQ(simulateCampaign(mine, nullptr).rows.size(), 1070u);
+}
+
 TEST(Twin, SecondSelfWeightThermalOrBiasIsRefused) {
   for (const nlohmann::json& spec : selfWeightThermalAndBias()) {
     TwinOptions o = paperOptions();

@@ -3,11 +3,13 @@
 #include <console_bridge/console.h>
 #include <urdf_parser/urdf_parser.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <utility>
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
@@ -297,6 +299,70 @@ std::optional<std::vector<double>> bodyMassesFromUrdf(const std::string& urdf_xm
                     "one body per revolute joint");
   if (!found) return std::nullopt;
   return parameters;
+}
+
+UrdfChainEnds urdfChainEnds(const std::string& urdf_xml, const std::string& source) {
+  const urdf::ModelInterfaceSharedPtr model = parseUrdfOrThrow(urdf_xml, source);
+  const urdf::LinkConstSharedPtr root = model->getRoot();
+  STEPCAL_INVARIANT(root != nullptr, "urdfdom's parser returns a model with a root link");
+  // Depth-first over the tree: each leaf with the number of revolute joints above it.
+  int most = -1;
+  std::vector<std::string> deepest;
+  std::vector<std::pair<urdf::LinkConstSharedPtr, int>> stack = {{root, 0}};
+  while (!stack.empty()) {
+    const auto [link, revolute] = stack.back();
+    stack.pop_back();
+    if (link->child_joints.empty()) {
+      if (revolute > most) {
+        most = revolute;
+        deepest.clear();
+      }
+      if (revolute == most) deepest.push_back(link->name);
+      continue;
+    }
+    for (const urdf::JointSharedPtr& j : link->child_joints) {
+      const urdf::LinkConstSharedPtr child = model->getLink(j->child_link_name);
+      if (child) stack.emplace_back(child, revolute + (isRevolute(*j) ? 1 : 0));
+    }
+  }
+  if (most < 1) {
+    throw InputError("no revolute joint below the root link '" + root->name +
+                         "'; expected a serial arm",
+                     source);
+  }
+  if (deepest.size() > 1) {
+    std::sort(deepest.begin(), deepest.end());
+    std::string names;
+    for (const std::string& name : deepest) names += (names.empty() ? "" : ", ") + name;
+    throw InputError("the links " + names + " all end a chain of " + std::to_string(most) +
+                         " revolute joints below '" + root->name +
+                         "'; expected one end of the arm (hint: name the tracked frame with "
+                         "--tip-link)",
+                     source);
+  }
+  return {root->name, deepest.front()};
+}
+
+std::string urdfRobotName(const std::string& urdf_xml, const std::string& source) {
+  return parseUrdfOrThrow(urdf_xml, source)->getName();
+}
+
+bool urdfHasLink(const std::string& urdf_xml, const std::string& link, const std::string& source) {
+  return parseUrdfOrThrow(urdf_xml, source)->getLink(link) != nullptr;
+}
+
+std::vector<double> jointEffortLimits(const std::string& urdf_xml, const std::string& base_link,
+                                      const std::string& tip_link, const std::string& source) {
+  chainFromUrdf(urdf_xml, base_link, tip_link, {}, source);  // the same checks and messages
+  const urdf::ModelInterfaceSharedPtr model = parseUrdfOrThrow(urdf_xml, source);
+  std::vector<double> effort_nm;
+  for (const urdf::JointConstSharedPtr& j :
+       urdfPathFromBase(*model, base_link, tip_link, source, "tip_link")) {
+    if (j->type == urdf::Joint::FIXED) continue;
+    const double effort = j->limits ? j->limits->effort : 0.0;
+    effort_nm.push_back(std::isfinite(effort) && effort > 0.0 ? effort : 0.0);
+  }
+  return effort_nm;
 }
 
 UrdfOrigin urdfOriginOf(const Pose& X) {

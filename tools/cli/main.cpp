@@ -26,6 +26,7 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/robots.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/common/urdf_export.hpp"
 #include "stepcal/importers/ipa.hpp"
@@ -33,6 +34,7 @@
 #include "stepcal/trainer/validate.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/trainer/plan.hpp"
+#include "stepcal/twin/model_twin.hpp"
 #include "stepcal/twin/twin.hpp"
 
 namespace {
@@ -41,41 +43,142 @@ using namespace stepcal;
 
 constexpr double kDegToRad = M_PI / 180.0;
 
+/// --robot and the chain's links, as plan and simulate take them.
+struct RobotArgs {
+  std::string robot = "irb4400";  ///< a URDF file or a shipped robot's name (robots.hpp)
+  std::string base_link, tip_link;  ///< empty: the URDF's root and the end of its arm
+  std::string sensor_link;  ///< empty: 'ft_sensor' when the URDF has it; "none": no sensor
+};
+
+/// The robot a command works on: its URDF file and links, resolved.
+struct Robot {
+  std::string urdf_path, base_link, tip_link, sensor_link;  ///< sensor_link empty: none
+};
+
+constexpr const char* kDefaultSensorLink = "ft_sensor";
+constexpr const char* kNoSensor = "none";
+
+Robot resolveRobot(const RobotArgs& a) {
+  Robot r;
+  r.urdf_path = robotDescriptionPath(a.robot);
+  const std::string urdf_xml = readTextFile(r.urdf_path);
+  if (a.base_link.empty() || a.tip_link.empty()) {
+    const UrdfChainEnds ends = urdfChainEnds(urdf_xml, r.urdf_path);
+    r.base_link = a.base_link.empty() ? ends.base_link : a.base_link;
+    r.tip_link = a.tip_link.empty() ? ends.tip_link : a.tip_link;
+  } else {
+    r.base_link = a.base_link;
+    r.tip_link = a.tip_link;
+  }
+  if (a.sensor_link.empty()) {
+    if (urdfHasLink(urdf_xml, kDefaultSensorLink, r.urdf_path)) r.sensor_link = kDefaultSensorLink;
+  } else if (a.sensor_link != kNoSensor) {
+    r.sensor_link = a.sensor_link;
+  }
+  std::cerr << "robot " << r.urdf_path << ": " << r.base_link << " -> " << r.tip_link << ", "
+            << (r.sensor_link.empty() ? "no F/T sensor (unloaded rows only)"
+                                      : "payloads and their wrench at " + r.sensor_link)
+            << "\n";
+  return r;
+}
+
+/// "irb4400, ur10": the shipped robots found, for --robot's help.
+std::string shippedRobotList() {
+  std::string names;
+  for (const std::string& name : shippedRobots()) names += (names.empty() ? "" : ", ") + name;
+  return names.empty() ? std::string("none found") : names;
+}
+
+void addRobotOptions(CLI::App* command, RobotArgs& a) {
+  command->add_option("--robot", a.robot,
+                      "robot description: a URDF file (a path with '/' or ending in .urdf) or a "
+                      "shipped robot's name (" + shippedRobotList() + ")")
+      ->capture_default_str();
+  command->add_option("--base-link", a.base_link,
+                      "root of the chain (default: the URDF's root link)");
+  command->add_option("--tip-link", a.tip_link,
+                      "frame the tracker measures (default: the link that ends the arm)");
+  command->add_option("--sensor-link", a.sensor_link,
+                      "link the payload hangs from, whose axes its wrench is in: the F/T "
+                      "sensor's, or for a payload of known mass and --payload-cog any link of "
+                      "the arm (default: 'ft_sensor' if the URDF has it; 'none': unloaded only)");
+}
+
+/// x,y,z in metres from a --payload-cog value.
+Vec3 payloadCoG(const std::vector<double>& xyz) {
+  if (xyz.size() != 3) {
+    throw InputError("--payload-cog has " + std::to_string(xyz.size()) +
+                     " values; expected x,y,z of the payload's centre of gravity in the sensor "
+                     "link, m (hint: --payload-cog 0.03,-0.02,0.15)");
+  }
+  return Vec3(xyz[0], xyz[1], xyz[2]);
+}
+
 struct SimulateArgs {
-  std::string robot = "irb4400";
-  std::string protocol = "paper";
+  RobotArgs robot;
+  std::string protocol;  ///< empty: paper with a sensor, geometry without
+  std::vector<double> stiffness_nm_per_rad;  ///< --stiffness; empty: the robot's default
+  std::vector<double> payload_cog_m;         ///< --payload-cog; empty: the twin's default
+  std::string model;     ///< --model: the twin of a calibrated robot
+  std::string campaign;  ///< --campaign: the rows the model's twin measures
   uint64_t seed = 1;
   std::string out;
   double position_sigma_mm = 0.010;
   double orientation_sigma_deg = 0.005;
+  bool position_sigma_given = false, orientation_sigma_given = false;
   std::vector<std::string> effects;  ///< --effect: hidden mechanisms as JSON objects
   std::string poses;  ///< --poses: a pose list (poses.csv) to measure as the fit rows
 };
 
-std::string robotUrdf(const std::string& robot) {
-  return std::string(STEPCAL_ROBOTS_DIR) + "/" + robot + ".urdf";
+// The twin of a calibrated robot (model_twin.hpp): the model's physics on a campaign's rows.
+void runSimulateModel(const SimulateArgs& a) {
+  twin::ModelTwinOptions options;
+  options.model_path = a.model;
+  options.campaign_dir = a.campaign;
+  options.seed = a.seed;
+  if (a.position_sigma_given) options.tracker_position_sigma_m = a.position_sigma_mm * 1e-3;
+  if (a.orientation_sigma_given) {
+    options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kDegToRad;
+  }
+  if (!a.payload_cog_m.empty()) options.p_CoGInSensor_m = payloadCoG(a.payload_cog_m);
+  if (!a.poses.empty()) {
+    options.planned_fit_rows =
+        readPoseList(a.poses, readModelFile(a.model).chain_Tracker.dof());
+  }
+  twin::writeModelSimulation(options, a.out);
 }
 
 void runSimulate(const SimulateArgs& a) {
-  if (a.robot != "irb4400") {
-    throw InputError("--robot '" + a.robot +
-                     "': the twin simulates 'irb4400' (its pose ranges and stiffness are the "
-                     "paper's); hint: use --robot irb4400");
+  if (!a.model.empty()) {
+    runSimulateModel(a);
+    return;
   }
-  twin::TwinOptions options;
-  options.urdf_path = robotUrdf(a.robot);
-  options.protocol = a.protocol;
+  const Robot robot = resolveRobot(a.robot);
+  twin::TwinOptions options =
+      twin::twinOptionsForRobot(robot.urdf_path, robot.base_link, robot.tip_link, robot.sensor_link);
+  if (!a.protocol.empty()) options.protocol = a.protocol;
   options.seed = a.seed;
   options.tracker_position_sigma_m = a.position_sigma_mm * 1e-3;
   options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kDegToRad;
+  if (!a.stiffness_nm_per_rad.empty()) options.stiffness_nm_per_rad = a.stiffness_nm_per_rad;
+  if (!a.payload_cog_m.empty()) options.p_CoGInSensor_m = payloadCoG(a.payload_cog_m);
   for (const std::string& spec : a.effects) {
+    nlohmann::json effect;
     try {
-      options.hidden_effects.push_back(nlohmann::json::parse(spec));
+      effect = nlohmann::json::parse(spec);
     } catch (const nlohmann::json::exception& e) {
       throw InputError("--effect '" + spec + "': not a JSON object (" + e.what() +
                        "); expected e.g. '{\"name\": \"backlash\", \"joint\": 2, "
                        "\"lost_motion_rad\": 2e-4}'");
     }
+    // A self weight given replaces the one of the URDF's inertials.
+    if (effect.is_object() && effect.value("name", "") == "self_weight") {
+      auto& hidden = options.hidden_effects;
+      hidden.erase(std::remove_if(hidden.begin(), hidden.end(),
+                                  [](const nlohmann::json& e) { return e.at("name") == "self_weight"; }),
+                   hidden.end());
+    }
+    options.hidden_effects.push_back(effect);
   }
   if (!a.poses.empty()) {
     const int joint_count =
@@ -86,13 +189,53 @@ void runSimulate(const SimulateArgs& a) {
 }
 
 struct PlanArgs {
-  std::string urdf = robotUrdf("irb4400");
-  std::string base_link = "base_link", tip_link = "tmac", sensor_link = "ft_sensor";
+  RobotArgs robot;
+  std::vector<double> loads_kg;  ///< empty: 0,20,40 with a sensor link, else 0
+  std::vector<double> payload_cog_m;
+  std::string candidates_from;  ///< a campaign whose measured poses are the candidates
   std::string selection = "d-optimal";
   std::vector<double> tracker_m = {4.0, 0.0, 1.2};
   std::string out;
   trainer::PlanOptions options;
 };
+
+/// "a, b, c": the joints' names.
+std::string jointNames(const KinematicChain& chain) {
+  std::string names;
+  for (const ChainJoint& j : chain.joints()) names += (names.empty() ? "" : ", ") + j.name;
+  return names;
+}
+
+// The unloaded fit rows of a campaign (one per pose_id) as the candidates of a plan for chain,
+// and the tracker noise it states (weighing position against rotation), if it does.
+std::vector<PlannedMeasurement> measuredPoses(const std::string& dir, const KinematicChain& chain,
+                                              trainer::PlanOptions& options) {
+  const Campaign campaign = readCampaign(dir);
+  if (campaign.tracker.stated) {
+    options.position_sigma_m = campaign.tracker.position_sigma_m;
+    options.orientation_sigma_rad = campaign.tracker.orientation_sigma_rad;
+  }
+  const KinematicChain measured = chainFromUrdf(campaign.urdf_xml, campaign.base_link,
+                                                campaign.tip_link, {}, campaign.robot_file);
+  if (jointNames(measured) != jointNames(chain)) {
+    throw InputError("--candidates-from: the campaign's joints (" + jointNames(measured) +
+                         ") are not the planned robot's (" + jointNames(chain) +
+                         "); expected a campaign of the robot planned for",
+                     dir);
+  }
+  std::vector<PlannedMeasurement> poses;
+  std::set<std::string> seen;
+  for (const Measurement& row : campaign.rows) {
+    if (row.set == RowSet::kValidation || row.load_kg != 0.0) continue;
+    if (seen.insert(row.pose_id).second) poses.push_back({row.pose_id, 0.0, row.q_rad, row.source_line});
+  }
+  if (poses.empty()) {
+    throw InputError("--candidates-from: no unloaded fit rows; expected measured poses to "
+                     "choose from (rows of set geometry, stiffness or residual at 0 kg)",
+                     dir);
+  }
+  return poses;
+}
 
 // Plans a campaign (trainer/plan.hpp), writes its pose list and says what was found.
 void runPlan(PlanArgs a) {
@@ -109,9 +252,30 @@ void runPlan(PlanArgs a) {
                      "--tracker 4,0,1.2)");
   }
   a.options.p_TrackerInBase_m = Vec3(a.tracker_m[0], a.tracker_m[1], a.tracker_m[2]);
+  const Robot robot = resolveRobot(a.robot);
+  const bool sensor = !robot.sensor_link.empty();
+  if (a.loads_kg.empty()) {
+    a.options.loads_kg = sensor ? std::vector<double>{0.0, 20.0, 40.0} : std::vector<double>{0.0};
+  } else {
+    a.options.loads_kg = a.loads_kg;
+  }
+  const bool loaded = std::any_of(a.options.loads_kg.begin(), a.options.loads_kg.end(),
+                                  [](double load_kg) { return load_kg != 0.0; });
+  if (loaded && !sensor) {
+    throw InputError("--loads with payloads, but " + robot.urdf_path +
+                     " has no F/T sensor link ('" + kDefaultSensorLink +
+                     "'); expected --loads 0, or --sensor-link LINK: the F/T sensor's, or the "
+                     "link a payload of known mass hangs from, with its --payload-cog");
+  }
+  if (!a.payload_cog_m.empty()) a.options.p_CoGInSensor_m = payloadCoG(a.payload_cog_m);
+  std::vector<std::string> attached;
+  if (sensor) attached.push_back(robot.sensor_link);
   const KinematicChain chain =
-      chainFromUrdfFile(a.urdf, a.base_link, a.tip_link, {a.sensor_link});
-  const trainer::CampaignPlan plan = trainer::planCampaign(chain, 0, a.options);
+      chainFromUrdfFile(robot.urdf_path, robot.base_link, robot.tip_link, attached);
+  if (!a.candidates_from.empty()) {
+    a.options.given_candidates = measuredPoses(a.candidates_from, chain, a.options);
+  }
+  const trainer::CampaignPlan plan = trainer::planCampaign(chain, sensor ? 0 : -1, a.options);
   writePoseList(plan.rows, a.out);
   std::cerr << "wrote " << a.out << "\n";
   std::cout << cli::formatPlan(plan, a.options);
@@ -355,39 +519,71 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
 
   SimulateArgs sim;
-  CLI::App* simulate = app.add_subcommand("simulate", "write a campaign of the simulated robot (twin) and its truth.json");
-  simulate->add_option("--robot", sim.robot, "robot to simulate")->capture_default_str();
-  simulate->add_option("--protocol", sim.protocol, "paper | geometry")->capture_default_str();
+  CLI::App* simulate = app.add_subcommand(
+      "simulate", "write a campaign of a simulated robot (twin) and its truth.json: a robot drawn "
+                  "from its URDF, or with --model the robot a calibrated model describes");
+  addRobotOptions(simulate, sim.robot);
+  simulate->add_option("--protocol", sim.protocol,
+                       "paper | geometry (default: paper with an F/T sensor, else geometry)");
+  simulate->add_option("--stiffness", sim.stiffness_nm_per_rad,
+                       "joint stiffness K1,...,Kn, N·m/rad (default: the paper's for the IRB4400, "
+                       "else each joint's URDF effort limit / 3 mrad)")
+      ->delimiter(',');
+  simulate->add_option("--payload-cog", sim.payload_cog_m,
+                       "payload's centre of gravity in the sensor link, x,y,z, m (default "
+                       "0.03,-0.02,0.15)")
+      ->delimiter(',');
+  CLI::Option* model_option = simulate->add_option(
+      "--model", sim.model,
+      "model file (calibrate/diagnose --out): simulate the robot it describes (calibrated "
+      "geometry, compliance, every mechanism; not the GPR) on a campaign's rows");
+  CLI::Option* campaign_option = simulate->add_option(
+      "--campaign", sim.campaign,
+      "with --model: the campaign whose rows, robot description and tracker noise are used "
+      "(default: the model's own, from its provenance)");
+  campaign_option->needs(model_option);
+  for (const char* robot_only : {"--robot", "--base-link", "--tip-link", "--sensor-link",
+                                 "--protocol", "--stiffness"}) {
+    model_option->excludes(simulate->get_option(robot_only));
+  }
   simulate->add_option("--seed", sim.seed, "random seed")->capture_default_str();
   simulate->add_option("--tracker-position-sigma-mm", sim.position_sigma_mm,
-                       "tracker position noise per axis, 1-sigma, mm")->capture_default_str();
+                       "tracker position noise per axis, 1-sigma, mm (with --model: the "
+                       "campaign's stated noise)")->capture_default_str();
   simulate->add_option("--tracker-orientation-sigma-deg", sim.orientation_sigma_deg,
-                       "tracker orientation noise per axis, 1-sigma, deg")->capture_default_str();
+                       "tracker orientation noise per axis, 1-sigma, deg (with --model: the "
+                       "campaign's stated noise)")->capture_default_str();
   simulate->add_option("--effect", sim.effects,
                        "a hidden mechanism as JSON, repeatable: backlash {joint, lost_motion_rad}, "
                        "transmission_error {joint, harmonic, sin_rad, cos_rad}, nonlinear_stiffness "
                        "{joint, extra_compliance_rad_per_nm, saturation_torque_nm}, joint_coupling "
                        "{joints: [from, to], ratio}, self_weight {links: [{link, mass_kg, com_m}]}, "
                        "thermal_expansion {expansion_per_k, reference_temp_c}, sensor_bias "
-                       "{force_n, moment_nm}; joints and links 1 … 6");
+                       "{force_n, moment_nm}; joints and links 1 … n; a self_weight replaces the "
+                       "URDF inertials' one")
+      ->excludes(model_option);
   simulate->add_option("--poses", sim.poses,
                        "pose list (poses.csv, e.g. from stepcal plan) measured as the fit rows; "
-                       "the protocol's validation rows stay");
+                       "the protocol's (with --model: the campaign's) validation rows stay");
   simulate->add_option("--out", sim.out, "campaign folder to write")->required();
 
   PlanArgs plan_args;
   CLI::App* plan = app.add_subcommand(
       "plan", "choose the poses of a campaign, each measured at the given loads: D-optimal for geometry and "
               "compliance, spread over every joint's range, visible to the tracker");
-  plan->add_option("--robot", plan_args.urdf, "robot description (URDF)")->capture_default_str();
-  plan->add_option("--base-link", plan_args.base_link, "root of the chain")->capture_default_str();
-  plan->add_option("--tip-link", plan_args.tip_link, "frame the tracker measures")->capture_default_str();
-  plan->add_option("--sensor-link", plan_args.sensor_link, "F/T sensor the payload hangs from")
-      ->capture_default_str();
+  addRobotOptions(plan, plan_args.robot);
   plan->add_option("--poses", plan_args.options.poses, "number of poses N")->required();
-  plan->add_option("--loads", plan_args.options.loads_kg,
-                   "payloads every pose is measured at, kg, with 0")
-      ->delimiter(',')->capture_default_str();
+  plan->add_option("--loads", plan_args.loads_kg,
+                   "payloads every pose is measured at, kg, with 0 (default: 0,20,40 with a "
+                   "sensor link, else 0)")
+      ->delimiter(',');
+  plan->add_option("--payload-cog", plan_args.payload_cog_m,
+                   "payload's centre of gravity in the sensor link, x,y,z, m (default 0,0,0)")
+      ->delimiter(',');
+  plan->add_option("--candidates-from", plan_args.candidates_from,
+                   "choose among the measured poses of this campaign (its unloaded fit rows, "
+                   "pose_ids kept; weighed by its stated tracker noise) instead of drawing "
+                   "candidates");
   plan->add_option("--tracker", plan_args.tracker_m, "tracker head in base_link: x,y,z, m")
       ->delimiter(',')->capture_default_str();
   plan->add_option("--min-range-m", plan_args.options.min_range_m, "nearest tip distance, m")
@@ -405,13 +601,16 @@ int main(int argc, char** argv) {
 
   CLI::App* import = app.add_subcommand("import", "convert foreign measurements into a campaign");
   import->require_subcommand(1);
-  std::string ipa_csv, ipa_out, ipa_urdf = robotUrdf("ur10");
+  std::string ipa_csv, ipa_out, ipa_robot = "ur10";
   int validation_from_row = -1;
   CLI::App* ipa = import->add_subcommand("ipa", "a series of the IPA UR10 data set (ipa-robot-accuracy)");
   ipa->add_option("csv", ipa_csv, "the series' measurements CSV")->required();
   ipa->add_option("--validation-from-row", validation_from_row,
                   "rows from N on (0-based, after the header) become set=validation");
-  ipa->add_option("--urdf", ipa_urdf, "nominal UR10 description")->capture_default_str();
+  ipa->add_option("--robot", ipa_robot,
+                  "nominal UR10 description: a URDF file or a shipped robot's name (" +
+                      shippedRobotList() + ")")
+      ->capture_default_str();
   ipa->add_option("--out", ipa_out, "campaign folder to write")->required();
 
   std::string campaign_dir, model_out;
@@ -485,6 +684,8 @@ int main(int argc, char** argv) {
   demo->add_option("--seed", demo_seed, "random seed of the twin")->capture_default_str();
 
   CLI11_PARSE(app, argc, argv);
+  sim.position_sigma_given = simulate->count("--tracker-position-sigma-mm") > 0;
+  sim.orientation_sigma_given = simulate->count("--tracker-orientation-sigma-deg") > 0;
   try {
     if (*simulate) {
       runSimulate(sim);
@@ -492,7 +693,9 @@ int main(int argc, char** argv) {
     } else if (*plan) {
       runPlan(plan_args);
     } else if (*ipa) {
-      writeCampaign(importers::importIpaSeries(ipa_csv, validation_from_row, ipa_urdf), ipa_out);
+      writeCampaign(importers::importIpaSeries(ipa_csv, validation_from_row,
+                                               robotDescriptionPath(ipa_robot)),
+                    ipa_out);
       std::cerr << "wrote " << ipa_out << "\n";
     } else if (*calibrate) {
       runCalibrate(campaign_dir, model_out, report_out, json, gpr_points);

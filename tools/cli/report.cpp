@@ -333,12 +333,20 @@ std::string formatPlan(const trainer::CampaignPlan& plan, const trainer::PlanOpt
   std::ostringstream out;
   const int visible = plan.candidates_drawn - plan.rejected_range - plan.rejected_floor -
                       plan.rejected_line_of_sight;
-  out << format("%d poses (%s) x %zu loads = %zu rows, from %d visible of %d candidates "
-                "(%d out of range, %d below the floor, %d with the arm in the line of sight)\n",
-                options.poses,
-                options.selection == trainer::PoseSelection::kRandom ? "random" : "D-optimal",
-                options.loads_kg.size(), plan.rows.size(), visible, plan.candidates_drawn,
-                plan.rejected_range, plan.rejected_floor, plan.rejected_line_of_sight);
+  const char* selection =
+      options.selection == trainer::PoseSelection::kRandom ? "random" : "D-optimal";
+  if (!options.given_candidates.empty()) {
+    out << format("%d poses (%s) x %zu loads = %zu rows, from %d given candidates (measured "
+                  "poses: no visibility test)\n",
+                  options.poses, selection, options.loads_kg.size(), plan.rows.size(),
+                  plan.candidates_drawn);
+  } else {
+    out << format("%d poses (%s) x %zu loads = %zu rows, from %d visible of %d candidates "
+                  "(%d out of range, %d below the floor, %d with the arm in the line of sight)\n",
+                  options.poses, selection, options.loads_kg.size(), plan.rows.size(), visible,
+                  plan.candidates_drawn, plan.rejected_range, plan.rejected_floor,
+                  plan.rejected_line_of_sight);
+  }
   out << format("log det of the normalised information (geometry + compliance, ridge %g): %.2f\n",
                 options.ridge, plan.log_det_information);
   out << format("joint range covered (share of %d bins):", options.spread_bins);

@@ -5,8 +5,10 @@
 #include <cstdio>
 #include <random>
 #include <string>
+#include <utility>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Core>
 
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/error.hpp"
@@ -16,10 +18,28 @@
 namespace stepcal::trainer {
 namespace {
 
+// The cache sizes Eigen's products are told, bytes: the GPR's (gpr.cpp, pinEigenBlocking). Eigen
+// blocks its products by the CPU's caches, which orders the sums; the greedy choice between
+// candidates of nearly equal gain then followed the last bits: the same plan came out different
+// on another CPU, or after a GPR fit had pinned the blocking in the same process (a 60-pose plan
+// among Series C's poses changed 7 poses between `stepcal plan` and a test that calibrated first).
+constexpr std::ptrdiff_t kPinnedL1CacheBytes = 32 * 1024;
+constexpr std::ptrdiff_t kPinnedL2CacheBytes = 256 * 1024;
+constexpr std::ptrdiff_t kPinnedL3CacheBytes = 2 * 1024 * 1024;
+
 /// Uniform in [0, 1) from the engine's 53 high bits: mt19937_64's output is fixed by the
 /// standard, std::uniform_real_distribution's is not.
 double uniform01(std::mt19937_64& engine) {
   return static_cast<double>(engine() >> 11) * 0x1.0p-53;
+}
+
+/// The range a joint's candidate angles are drawn from and its coverage binned over: its limits,
+/// or one turn (−π, π) for a continuous joint. rad.
+std::pair<double, double> jointRange(const ChainJoint& joint) {
+  if (std::isfinite(joint.lower_rad) && std::isfinite(joint.upper_rad)) {
+    return {joint.lower_rad, joint.upper_rad};
+  }
+  return {-M_PI, M_PI};
 }
 
 /// Shortest distance between segments [a0, a1] and [b0, b1], m.
@@ -85,11 +105,13 @@ Eigen::MatrixXd identificationBlock(const KinematicChain& chain, int sensor_fram
   Jacobian J_tip(6, n), J_s(6, n);
   tipPointJacobian(chain, ws, J_tip);
   spatialJacobian(chain, ws, J_s);
+  if (payloads_kg.empty()) return block;
   const Pose X_BaseSensor = framePose(chain, ws, sensor_frame);
   for (size_t l = 0; l < payloads_kg.size(); ++l) {
-    Vec6 wrench_Sensor = Vec6::Zero();  // the payload's weight at the sensor origin
+    Vec6 wrench_Sensor;  // the payload's weight at its centre of gravity, about the sensor origin
     wrench_Sensor.head<3>() =
         X_BaseSensor.linear().transpose() * (payloads_kg[l] * o.gravity_in_base_m_per_s2);
+    wrench_Sensor.tail<3>() = o.p_CoGInSensor_m.cross(wrench_Sensor.head<3>());
     const JointVector tau_nm = jointTorques(J_s, wrenchInRoot(X_BaseSensor, wrench_Sensor));
     const int first = rows * (1 + static_cast<int>(l));
     block.block(first, geometry_columns, 3, n) =
@@ -106,12 +128,32 @@ void validate(const KinematicChain& chain, int sensor_frame, const PlanOptions& 
   auto fail = [](const std::string& what, const std::string& expected, const std::string& hint) {
     throw InputError(what + "; expected " + expected + " (hint: " + hint + ")");
   };
-  if (sensor_frame < 0 || sensor_frame >= static_cast<int>(chain.frames().size())) {
-    fail("sensor frame " + std::to_string(sensor_frame), "an attached frame of the chain",
+  if (sensor_frame < -1 || sensor_frame >= static_cast<int>(chain.frames().size())) {
+    fail("sensor frame " + std::to_string(sensor_frame), "an attached frame of the chain or -1",
          "the F/T sensor link the payload hangs from");
   }
+  if (sensor_frame < 0 && (o.loads_kg.size() != 1 || o.loads_kg.front() != 0.0)) {
+    fail("loads of " + std::to_string(o.loads_kg.size()) + " values on a robot without a payload "
+         "link", "0 only",
+         "a payload needs the link it hangs from, whose axes its wrench is given in: an F/T "
+         "sensor's, or the flange for a payload of known mass and centre of gravity");
+  }
+  if (!o.p_CoGInSensor_m.allFinite()) fail("payload centre of gravity", "finite", "e.g. 0,0,0.1 m");
   if (o.poses < 1) fail("poses = " + std::to_string(o.poses), ">= 1", "e.g. 30");
-  if (o.candidates < o.poses) {
+  if (!o.given_candidates.empty()) {
+    if (static_cast<int>(o.given_candidates.size()) < o.poses) {
+      fail(std::to_string(o.given_candidates.size()) + " given candidate poses",
+           "at least as many as poses (" + std::to_string(o.poses) + ")",
+           "plan fewer poses or give more candidates");
+    }
+    for (const PlannedMeasurement& c : o.given_candidates) {
+      if (c.q_rad.size() != chain.dof() || !c.q_rad.allFinite()) {
+        fail("candidate '" + c.pose_id + "' with " + std::to_string(c.q_rad.size()) +
+                 " joint angles", std::to_string(chain.dof()) + " finite angles",
+             "candidates of the robot planned for");
+      }
+    }
+  } else if (o.candidates < o.poses) {
     fail("candidates = " + std::to_string(o.candidates), "at least as many as poses (" +
          std::to_string(o.poses) + ")", "a few thousand");
   }
@@ -175,9 +217,9 @@ class Coverage {
 
  private:
   size_t index(int joint, double q_rad) const {
-    const ChainJoint& j = chain_.joints()[static_cast<size_t>(joint)];
-    const double share = (q_rad - j.lower_rad) / (j.upper_rad - j.lower_rad);
-    return static_cast<size_t>(joint * bins_ + std::clamp(static_cast<int>(share * bins_), 0, bins_ - 1));
+    const auto [lower, upper] = jointRange(chain_.joints()[static_cast<size_t>(joint)]);
+    const double share = std::clamp((q_rad - lower) / (upper - lower), 0.0, 1.0);
+    return static_cast<size_t>(joint * bins_ + std::min(static_cast<int>(share * bins_), bins_ - 1));
   }
 
   const KinematicChain& chain_;
@@ -190,6 +232,7 @@ class Coverage {
 CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
                           const PlanOptions& options) {
   validate(nominal_Base, sensor_frame, options);
+  Eigen::setCpuCacheSizes(kPinnedL1CacheBytes, kPinnedL2CacheBytes, kPinnedL3CacheBytes);
   const int n = nominal_Base.dof();
   std::vector<double> payloads_kg;
   for (double load_kg : options.loads_kg) {
@@ -198,13 +241,21 @@ CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
 
   CampaignPlan plan;
   std::vector<Candidate> candidates;
+  std::vector<std::string> candidate_ids;  // given candidates' pose_ids
   std::mt19937_64 engine(options.seed);
   ChainWorkspace ws;
-  for (int draw = 0; draw < options.candidates; ++draw) {
+  for (const PlannedMeasurement& given : options.given_candidates) {
+    forwardKinematics(nominal_Base, given.q_rad, ws);
+    candidates.push_back(
+        {given.q_rad, identificationBlock(nominal_Base, sensor_frame, ws, payloads_kg, options)});
+    candidate_ids.push_back(given.pose_id);
+    ++plan.candidates_drawn;
+  }
+  for (int draw = 0; options.given_candidates.empty() && draw < options.candidates; ++draw) {
     JointVector q(n);
     for (int i = 0; i < n; ++i) {
-      const ChainJoint& joint = nominal_Base.joints()[static_cast<size_t>(i)];
-      q(i) = joint.lower_rad + (joint.upper_rad - joint.lower_rad) * uniform01(engine);
+      const auto [lower, upper] = jointRange(nominal_Base.joints()[static_cast<size_t>(i)]);
+      q(i) = lower + (upper - lower) * uniform01(engine);
     }
     ++plan.candidates_drawn;
     forwardKinematics(nominal_Base, q, ws);
@@ -292,7 +343,8 @@ CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
     for (size_t k = 0; k < chosen.size(); ++k) {
       char pose_id[32];
       std::snprintf(pose_id, sizeof pose_id, "plan-%03zu", k);
-      plan.rows.push_back({pose_id, load_kg, candidates[chosen[k]].q_rad, 0});
+      plan.rows.push_back({candidate_ids.empty() ? std::string(pose_id) : candidate_ids[chosen[k]],
+                           load_kg, candidates[chosen[k]].q_rad, 0});
     }
   }
   std::stable_sort(plan.rows.begin(), plan.rows.end(),

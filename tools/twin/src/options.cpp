@@ -4,6 +4,7 @@
 
 #include "internal.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/robots.hpp"
 #include "stepcal/common/urdf.hpp"
 
 namespace stepcal::twin {
@@ -39,18 +40,57 @@ std::vector<JointSampleRange> defaultIrb4400PoseRanges() {
 }
 
 std::string resolvedUrdfPath(const TwinOptions& options) {
-  return options.urdf_path.empty() ? std::string(STEPCAL_TWIN_DEFAULT_URDF) : options.urdf_path;
+  return options.urdf_path.empty() ? robotDescriptionPath("irb4400") : options.urdf_path;
 }
 
 KinematicChain nominalChain(const std::string& urdf_xml, const TwinOptions& options,
                             const std::string& source) {
-  if (options.sensor_link.empty()) {
-    throw InputError(
-        "TwinOptions.sensor_link is empty; expected the link of the F/T sensor the payload hangs "
-        "from (hint: 'ft_sensor' in robots/irb4400.urdf)");
+  std::vector<std::string> attached;
+  if (!options.sensor_link.empty()) attached.push_back(options.sensor_link);
+  return chainFromUrdf(urdf_xml, options.base_link, options.tip_link, attached, source);
+}
+
+TwinOptions twinOptionsForRobot(const std::string& urdf_path, const std::string& base_link,
+                                const std::string& tip_link, const std::string& sensor_link) {
+  const std::string urdf_xml = readTextFile(urdf_path);
+  TwinOptions o;
+  o.urdf_path = urdf_path;
+  o.base_link = base_link;
+  o.tip_link = tip_link;
+  o.sensor_link = sensor_link;
+  o.protocol = sensor_link.empty() ? "geometry" : "paper";
+  if (urdfRobotName(urdf_xml, urdf_path) == kPaperRobotName) return o;
+
+  const KinematicChain nominal = nominalChain(urdf_xml, o, urdf_path);
+  o.pose_ranges.clear();
+  for (const ChainJoint& joint : nominal.joints()) {
+    const bool limited = std::isfinite(joint.lower_rad) && std::isfinite(joint.upper_rad);
+    o.pose_ranges.push_back({limited ? joint.lower_rad : -kPi, limited ? joint.upper_rad : kPi, 0.0});
   }
-  return chainFromUrdf(urdf_xml, options.base_link, options.tip_link, {options.sensor_link},
-                       source);
+  double reach_m = 0.0;
+  for (int k = 1; k <= nominal.dof(); ++k) reach_m += nominal.initialPose(k).translation().norm();
+  o.min_tip_forward_m = 0.3 * reach_m;
+  o.min_tip_height_m = 0.1 * reach_m;
+  o.min_link_height_m = 0.1;
+
+  o.stiffness_nm_per_rad.clear();
+  const std::vector<double> effort_nm = jointEffortLimits(urdf_xml, base_link, tip_link, urdf_path);
+  if (std::all_of(effort_nm.begin(), effort_nm.end(), [](double e) { return e > 0.0; })) {
+    for (const double e : effort_nm) o.stiffness_nm_per_rad.push_back(e / kRatedTorqueDeflection_rad);
+  }
+
+  if (const auto bodies = bodyMassesFromUrdf(urdf_xml, base_link, tip_link, urdf_path)) {
+    nlohmann::json links = nlohmann::json::array();
+    for (int k = 1; k <= nominal.dof(); ++k) {
+      const double* body = bodies->data() + 4 * (k - 1);  // m, m · centre of mass (3)
+      if (!(body[0] > 0.0)) continue;
+      links.push_back({{"link", k},
+                       {"mass_kg", body[0]},
+                       {"com_m", {body[1] / body[0], body[2] / body[0], body[3] / body[0]}}});
+    }
+    if (!links.empty()) o.hidden_effects.push_back({{"name", "self_weight"}, {"links", links}});
+  }
+  return o;
 }
 
 void validateOptions(const TwinOptions& options, const KinematicChain& nominal) {
@@ -58,6 +98,28 @@ void validateOptions(const TwinOptions& options, const KinematicChain& nominal) 
     throw InputError("TwinOptions.protocol = '" + options.protocol +
                      "'; expected 'paper' or 'geometry' (hint: 'geometry' writes only the 130 "
                      "unloaded rows, for quick tests)");
+  }
+  if (options.protocol == "paper" && options.sensor_link.empty() &&
+      options.planned_fit_rows.empty()) {
+    throw InputError("TwinOptions.protocol = 'paper' without a sensor_link; expected a link the "
+                     "payloads hang from for the paper's loaded rows (hint: protocol 'geometry' "
+                     "measures a robot without an F/T sensor unloaded)");
+  }
+  if (options.sensor_link.empty()) {
+    for (const PlannedMeasurement& row : options.planned_fit_rows) {
+      if (row.load_kg != 0.0) {
+        throw InputError("pose '" + row.pose_id + "' at " + std::to_string(row.load_kg) +
+                             " kg, but the robot has no sensor_link; expected unloaded rows only "
+                             "(hint: a payload needs the link it hangs from, whose axes its "
+                             "wrench is written in: the F/T sensor's, or a flange for a payload "
+                             "of known mass)",
+                         "poses", row.source_line);
+      }
+    }
+  }
+  if (options.min_link_height_m && !std::isfinite(*options.min_link_height_m)) {
+    throw InputError("TwinOptions.min_link_height_m = " + show(*options.min_link_height_m) +
+                     "; expected a finite height above the floor, m, or unset");
   }
   const std::string noise_hint = "0 switches this noise off";
   requireNonNegative(options.tracker_position_sigma_m, "tracker_position_sigma_m",
@@ -111,7 +173,9 @@ void validateOptions(const TwinOptions& options, const KinematicChain& nominal) 
     throw InputError("TwinOptions.stiffness_nm_per_rad has " +
                      std::to_string(options.stiffness_nm_per_rad.size()) +
                      " values; expected one per revolute joint, " + std::to_string(n) +
-                     " (hint: kPaperStiffnessNmPerRad is for a 6-axis robot)");
+                     " (hint: kPaperStiffnessNmPerRad is for a 6-axis robot; without effort "
+                     "limits in its URDF a robot's stiffness must be given, stepcal simulate "
+                     "--stiffness K1,...,Kn in N·m/rad)");
   }
   if (options.pose_ranges.size() != n) {
     throw InputError("TwinOptions.pose_ranges has " + std::to_string(options.pose_ranges.size()) +
@@ -175,6 +239,8 @@ nlohmann::json toJson(const TwinOptions& o) {
       {"pose_ranges", ranges},
       {"min_tip_forward_m", o.min_tip_forward_m},
       {"min_tip_height_m", o.min_tip_height_m},
+      {"min_link_height_m",
+       o.min_link_height_m ? nlohmann::json(*o.min_link_height_m) : nlohmann::json(nullptr)},
   };
 }
 

@@ -10,7 +10,13 @@ namespace stepcal::twin {
 
 /// Independent random streams of one seed: changing what one stream is used for leaves the
 /// others unchanged.
-enum class Stream : uint32_t { kTruth = 1, kPoses = 2, kNoise = 3, kRandomPoseList = 4 };
+enum class Stream : uint32_t {
+  kTruth = 1,
+  kPoses = 2,
+  kNoise = 3,
+  kRandomPoseList = 4,
+  kModelTwinNoise = 5,  ///< the twin of a calibrated robot (model_twin.hpp)
+};
 
 /// std::mt19937_64 with platform-independent uniform and normal variates.
 class Rng {

@@ -58,17 +58,22 @@ JointVector drawPose(Rng& rng, const KinematicChain& nominal, const TwinOptions&
     if (!accepted) continue;
     forwardKinematics(nominal, q, ws);
     const Vec3 p_TipInBase = tipPose(ws).translation();
-    if (p_TipInBase.x() >= o.min_tip_forward_m && p_TipInBase.z() >= o.min_tip_height_m) {
-      return q;
+    if (p_TipInBase.x() < o.min_tip_forward_m || p_TipInBase.z() < o.min_tip_height_m) continue;
+    if (o.min_link_height_m) {
+      for (int k = 2; accepted && k <= n + 1; ++k) {
+        accepted = ws.X_RootFrame[static_cast<size_t>(k)].translation().z() >= *o.min_link_height_m;
+      }
     }
+    if (accepted) return q;
   }
   throw InputError("no commanded pose within TwinOptions.pose_ranges puts the nominal tip at "
                    "x >= " +
                    std::to_string(o.min_tip_forward_m) + " m and z >= " +
                    std::to_string(o.min_tip_height_m) + " m in " +
                    std::to_string(kMaxPoseDraws) +
-                   " draws; expected ranges that reach in front of the robot (hint: widen "
-                   "pose_ranges or lower min_tip_forward_m / min_tip_height_m)");
+                   " draws (with every link above the floor, when min_link_height_m is set); "
+                   "expected ranges that reach in front of the robot (hint: widen pose_ranges "
+                   "or lower min_tip_forward_m / min_tip_height_m)");
 }
 
 // True temperature of row seq: TwinOptions::temperature_c's sinusoid, °C.
@@ -167,11 +172,13 @@ Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out)
     m.has_orientation = true;
     m.q_TrackerTip = quat;
     // The sensor is always mounted and tared unloaded: unloaded rows read noise (around
-    // the bias, if the tare went wrong).
-    m.has_wrench = true;
-    m.wrench_Sensor = robot.sensorReading(q, load_kg, temp_c);
-    m.wrench_Sensor.head<3>() += df;
-    m.wrench_Sensor.tail<3>() += dm;
+    // the bias, if the tare went wrong). Without one, no reading (every row is unloaded).
+    m.has_wrench = robot.sensorFrame() >= 0;
+    if (m.has_wrench) {
+      m.wrench_Sensor = robot.sensorReading(q, load_kg, temp_c);
+      m.wrench_Sensor.head<3>() += df;
+      m.wrench_Sensor.tail<3>() += dm;
+    }
     m.temp_c = temp_c + dtemp;
     campaign.rows.push_back(std::move(m));
   }

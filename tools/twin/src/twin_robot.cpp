@@ -83,7 +83,7 @@ TwinRobot::TwinRobot(const TwinOptions& options) {
     }
   }
   // The sensor keeps its nominal offset from joint n: the tool error lies beyond it.
-  sensor_frame_ = chain_.findFrame(options.sensor_link);
+  sensor_frame_ = options.sensor_link.empty() ? -1 : chain_.findFrame(options.sensor_link);
   p_CoGInSensor_m_ = options.p_CoGInSensor_m;
   gravity_in_base_ = options.gravity_in_base_m_per_s2;
   if (options.compliance) {
@@ -113,6 +113,10 @@ TwinRobot::TwinRobot(const TwinOptions& options) {
 }
 
 Vec6 TwinRobot::payloadWrenchAtBase(const ChainWorkspace& ws, double load_kg) const {
+  if (sensor_frame_ < 0) {
+    STEPCAL_INVARIANT(load_kg == 0.0, "a payload hangs from the sensor link (validateOptions)");
+    return Vec6::Zero();
+  }
   const Vec3 p_CoGInBase = framePose(chain_, ws, sensor_frame_) * p_CoGInSensor_m_;
   const Vec3 f = load_kg * gravity_in_base_;
   Vec6 W;
@@ -162,6 +166,7 @@ Pose TwinRobot::X_TrackerTip(const JointVector& q_cmd_rad, double load_kg,
 }
 
 Vec6 TwinRobot::sensorWrench(const JointVector& q_cmd_rad, double load_kg, double temp_c) const {
+  if (sensor_frame_ < 0) return Vec6::Zero();
   ChainWorkspace ws;
   deflectedFrames(q_cmd_rad, load_kg, temp_c, ws);
   const Mat3 R_BaseSensor = framePose(chain_, ws, sensor_frame_).linear();
@@ -188,7 +193,6 @@ nlohmann::json TwinRobot::truthJson() const {
   for (const Pose& X : chain_.initialPoses()) initial.push_back(poseToJson(X));
   nlohmann::json errors = nlohmann::json::array();
   for (const Vec6& d : geometric_errors_) errors.push_back(vecToJson(d));
-  const AttachedFrame& sensor = chain_.frames()[static_cast<size_t>(sensor_frame_)];
 
   nlohmann::json truth = provenance_;
   truth["format"] = kTruthFormat;
@@ -199,8 +203,13 @@ nlohmann::json TwinRobot::truthJson() const {
   truth["joints"] = joints;
   truth["initial_poses_m"] = initial;
   truth["initial_pose_errors_m_rad"] = errors;
-  truth["sensor_frame"] = {{"parent_joint", sensor.parent},
-                           {"X_ParentSensor_m", poseToJson(sensor.X_ParentFrame)}};
+  if (sensor_frame_ >= 0) {
+    const AttachedFrame& sensor = chain_.frames()[static_cast<size_t>(sensor_frame_)];
+    truth["sensor_frame"] = {{"parent_joint", sensor.parent},
+                             {"X_ParentSensor_m", poseToJson(sensor.X_ParentFrame)}};
+  } else {
+    truth["sensor_frame"] = nullptr;  // no sensor: every row unloaded
+  }
   truth["effects"] = effects_.toJson();
   truth["p_CoGInSensor_m"] = vecToJson(p_CoGInSensor_m_);
   truth["gravity_in_base_m_per_s2"] = vecToJson(gravity_in_base_);
@@ -239,17 +248,21 @@ TwinRobot TwinRobot::fromTruthJson(const nlohmann::json& truth) {
     }
     robot.sensor_link_ = truth.at("sensor_link").get<std::string>();
     const nlohmann::json& sensor = truth.at("sensor_frame");
-    AttachedFrame frame;
-    frame.name = robot.sensor_link_;
-    frame.parent = sensor.at("parent_joint").get<int>();
-    frame.X_ParentFrame = poseFromJson(sensor.at("X_ParentSensor_m"), "X_ParentSensor_m");
-    if (frame.parent < 0 || frame.parent > static_cast<int>(joints.size())) {
-      throw InputError("sensor_frame.parent_joint = " + std::to_string(frame.parent) +
-                       "; expected 0 to the number of joints");
+    std::vector<AttachedFrame> frames;
+    if (!sensor.is_null()) {
+      AttachedFrame frame;
+      frame.name = robot.sensor_link_;
+      frame.parent = sensor.at("parent_joint").get<int>();
+      frame.X_ParentFrame = poseFromJson(sensor.at("X_ParentSensor_m"), "X_ParentSensor_m");
+      if (frame.parent < 0 || frame.parent > static_cast<int>(joints.size())) {
+        throw InputError("sensor_frame.parent_joint = " + std::to_string(frame.parent) +
+                         "; expected 0 to the number of joints");
+      }
+      frames.push_back(frame);
     }
     const size_t n = joints.size();
-    robot.chain_ = KinematicChain(std::move(joints), std::move(initial), {frame});
-    robot.sensor_frame_ = 0;
+    robot.chain_ = KinematicChain(std::move(joints), std::move(initial), frames);
+    robot.sensor_frame_ = frames.empty() ? -1 : 0;
     for (const nlohmann::json& e : truth.at("effects")) robot.effects_.add(e, static_cast<int>(n));
     robot.X_TrackerBase_ = poseFromJson(truth.at("X_TrackerBase_m"), "X_TrackerBase_m");
     robot.p_CoGInSensor_m_ = vecFromJson<3>(truth.at("p_CoGInSensor_m"), "p_CoGInSensor_m");

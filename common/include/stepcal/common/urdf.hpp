@@ -32,6 +32,30 @@ std::optional<std::vector<double>> bodyMassesFromUrdf(const std::string& urdf_xm
                                                       const std::string& tip_link,
                                                       const std::string& source = "robot.urdf");
 
+/// The ends of a URDF's serial chain, what a command takes when --base-link and --tip-link are
+/// not given: the root link, and the leaf link below the most revolute joints (the arm's end,
+/// past any fixed joints after the last axis: tool0 in robots/ur10.urdf, tmac in
+/// robots/irb4400.urdf). Throws InputError as chainFromUrdf, and when several leaves lie below
+/// equally many revolute joints (a tree that branches after its last axis), naming them.
+struct UrdfChainEnds {
+  std::string base_link, tip_link;
+};
+UrdfChainEnds urdfChainEnds(const std::string& urdf_xml, const std::string& source = "robot.urdf");
+
+/// The name attribute of the URDF's <robot>. Throws InputError as chainFromUrdf.
+std::string urdfRobotName(const std::string& urdf_xml, const std::string& source = "robot.urdf");
+
+/// Whether the URDF text has a link of this name. Throws InputError as chainFromUrdf.
+bool urdfHasLink(const std::string& urdf_xml, const std::string& link,
+                 const std::string& source = "robot.urdf");
+
+/// The <limit effort> of each revolute joint on the chain base_link → tip_link, N·m; 0 where
+/// the URDF gives none (a continuous joint without <limit>, or effort="0"). Throws InputError
+/// as chainFromUrdf.
+std::vector<double> jointEffortLimits(const std::string& urdf_xml, const std::string& base_link,
+                                      const std::string& tip_link,
+                                      const std::string& source = "robot.urdf");
+
 /// Reads a URDF file and calls chainFromUrdf. Throws InputError.
 KinematicChain chainFromUrdfFile(const std::string& path, const std::string& base_link,
                                  const std::string& tip_link,

@@ -8,11 +8,16 @@
 // out (the wrist and tool around the target are not modelled); it is blocked when it passes
 // closer than line_of_sight_clearance_m to the polyline.
 //
+// Candidates may instead be given (PlanOptions::given_candidates: e.g. the poses of a campaign
+// already measured, which the tracker saw): then they are all taken, with no draw and no test.
+//
 // Each candidate pose is measured unloaded and at every payload of loads_kg. Its identification
 // block stacks what steps 1 and 2 fit, each row divided by the tracker's noise: the unloaded
 // row's tip position and rotation against the 6(n+1) initial pose parameters (parameterJacobian;
 // position rows ṗ = v − p̂ω), and per payload the deflection against the n compliances (tip point
-// Jacobian · diag(τ), τ = J_sᵀ W with the payload's weight at the sensor frame). Columns are normalised over the candidates (so that millimetres and
+// Jacobian · diag(τ), τ = J_sᵀ W with the payload's weight at its centre of gravity in the
+// payload's frame: the F/T sensor's, or the link a payload of known mass hangs from). A robot
+// without one is planned unloaded (loads_kg = {0}). Columns are normalised over the candidates (so that millimetres and
 // compliances weigh alike) and selection is greedy D-optimal: the pose that most increases
 // log det(M + ridge I), M the selected poses' information. The ridge gives the geometry's 2n
 // structural redundancies (rank 30 of 42 for six joints) the same constant share whatever is
@@ -47,6 +52,12 @@ struct PlanOptions {
   double tip_exclusion_m = 0.3;            ///< end of the sight line not checked, m
   double min_link_height_m = 0.1;          ///< link origins after joint 1 above the floor, m
   int candidates = 2000;                   ///< candidate poses drawn, ≥ poses
+  /// When not empty, the candidates (pose_id and angles; load_kg ignored), all taken as they are:
+  /// no draw, no visibility test (candidates is then unused). Their pose_ids name the plan's
+  /// poses. At least poses of them.
+  std::vector<PlannedMeasurement> given_candidates;
+  /// The payload's centre of gravity in the payload frame (planCampaign's sensor_frame), m.
+  Vec3 p_CoGInSensor_m = Vec3::Zero();
   uint64_t seed = 1;                       ///< same seed, same candidates and random choice
   PoseSelection selection = PoseSelection::kDOptimal;
   Vec3 gravity_in_base_m_per_s2 = Vec3(0.0, 0.0, -9.80665);  ///< m/s², base_link axes
@@ -61,7 +72,7 @@ struct PlanOptions {
 /// A plan: the rows to measure and how it was found.
 struct CampaignPlan {
   std::vector<PlannedMeasurement> rows;  ///< unloaded rows of every pose, then each payload's
-  int candidates_drawn = 0;
+  int candidates_drawn = 0;  ///< or given (PlanOptions::given_candidates)
   int rejected_range = 0;           ///< tip too near or too far from the tracker
   int rejected_floor = 0;           ///< a link origin below min_link_height_m
   int rejected_line_of_sight = 0;   ///< the arm in the way
@@ -72,8 +83,10 @@ struct CampaignPlan {
 };
 
 /// Plans options.poses poses for the chain (rooted at base_link) whose attached frame
-/// sensor_frame carries the payload. Throws InputError on bad options or when fewer visible
-/// candidates than poses are found.
+/// sensor_frame carries the payload (−1: none; then loads_kg must be {0}). Throws InputError on
+/// bad options or when fewer visible candidates than poses are found. The same plan whatever the
+/// CPU: it first pins Eigen's blocking to the GPR's sizes (Eigen::setCpuCacheSizes, for the whole
+/// process, as GaussianProcess::fit does), so no other thread may run Eigen products meanwhile.
 CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
                           const PlanOptions& options);
 

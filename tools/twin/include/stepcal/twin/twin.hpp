@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -47,14 +48,29 @@ struct JointSampleRange {
 /// elbow away from stretched.
 std::vector<JointSampleRange> defaultIrb4400PoseRanges();
 
+/// `<robot name>` of the shipped IRB 4400/60 (robots/irb4400.urdf): the robot whose stiffness
+/// and pose ranges the paper gives (TwinOptions' defaults).
+inline constexpr const char* kPaperRobotName = "abb_irb4400_60";
+
+/// What sets a joint's stiffness in a twin of a robot the paper does not give it for: the joint
+/// deflects this much at its rated torque (URDF <limit effort>), K = effort / this, rad. On the
+/// real UR10 (Series C, identified from the arm's own weight, docs/diagnosis.md) the shoulder
+/// deflects 3.5 mrad at its 330 N·m and the elbow 2.3 mrad at its 150 N·m.
+inline constexpr double kRatedTorqueDeflection_rad = 3e-3;
+
 /// Everything that defines a simulated campaign. Bad values throw InputError.
 struct TwinOptions {
-  /// Nominal robot description; empty: the shipped robots/irb4400.urdf.
+  /// Nominal robot description; empty: the shipped irb4400 (robots.hpp: found at run time).
   std::string urdf_path;
   std::string base_link = "base_link";  ///< root of the chain
   std::string tip_link = "tmac";        ///< frame the tracker measures
-  std::string sensor_link = "ft_sensor";  ///< F/T sensor frame; the payload hangs from it
-  /// "paper" (the reference protocol, 1070 rows) or "geometry" (its 80 + 50 unloaded rows).
+  /// The link the payload hangs from and whose axes its wrench is read in: the F/T sensor's, or
+  /// for a payload of known mass without a sensor any link of the arm (its wrench is then the
+  /// known weight, written as the reading). Empty: none, so every row is unloaded and has no
+  /// wrench (protocol "geometry", or a pose list at 0 kg).
+  std::string sensor_link = "ft_sensor";
+  /// "paper" (the reference protocol, 1070 rows; needs sensor_link) or "geometry" (its 80 + 50
+  /// unloaded rows).
   std::string protocol = "paper";
   /// Seeds every random draw; same seed, same campaign.
   uint64_t seed = 1;
@@ -125,7 +141,24 @@ struct TwinOptions {
   double min_tip_forward_m = 0.5;
   /// Nominal tip at least this high above the base origin, m.
   double min_tip_height_m = 0.2;
+  /// When set, every nominal joint frame after joint 1's (the links' origins, and the tip) at
+  /// least this high above base_link's z = 0 plane, the floor, m; unset: not checked (the paper's
+  /// pose ranges keep the IRB4400 above it).
+  std::optional<double> min_link_height_m;
 };
+
+/// Options for a twin of the robot urdf_path describes, chain base_link → tip_link, payload at
+/// sensor_link (empty: no sensor, so unloaded rows; protocol "paper" with a sensor, else
+/// "geometry"). For the paper's robot (`<robot name>` kPaperRobotName) they are TwinOptions'
+/// defaults. For any other: the commanded angles drawn within the URDF's joint limits (±π for a
+/// continuous joint), the nominal tip in front of and above the base by 0.3 and 0.1 × the arm's
+/// reach (the lengths of its initial poses after joint 1's), every link 0.1 m above the floor;
+/// the stiffness from the joints' rated torque (kRatedTorqueDeflection_rad; left empty, and
+/// refused by the twin, when a joint has no effort limit); and, when the URDF has <inertial>s,
+/// a self_weight of its links' masses and centres of mass (each body as bodyMassesFromUrdf
+/// lumps it), so that the arm deflects under its own weight. Throws InputError on a bad URDF.
+TwinOptions twinOptionsForRobot(const std::string& urdf_path, const std::string& base_link,
+                                const std::string& tip_link, const std::string& sensor_link);
 
 /// The options as JSON (SI, units in the names), as stored in truth.json.
 nlohmann::json toJson(const TwinOptions& options);
@@ -172,6 +205,7 @@ class TwinRobot {
 
   /// True chain, root base_link, tip tip_link; the sensor is attached frame sensorFrame().
   const KinematicChain& trueChain() const noexcept { return chain_; }
+  /// Index of the sensor's attached frame; −1: no sensor (no payload, zero wrench).
   int sensorFrame() const noexcept { return sensor_frame_; }
   /// Pose of base_link in the tracker frame, m.
   const Pose& X_TrackerBase() const noexcept { return X_TrackerBase_; }

@@ -1,0 +1,272 @@
+#include "stepcal/twin/model_twin.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <string>
+
+#include "random.hpp"
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/lie.hpp"
+#include "stepcal/common/urdf.hpp"
+
+namespace stepcal::twin {
+namespace {
+
+constexpr char kFormat[] = "stepcal-model-twin/1";
+// The payload's reading and the deflection it causes agree to this relative change; the sensor
+// turns by ~1e-3 rad under a payload, so a few passes get there.
+constexpr double kReadingTolerance = 1e-13;
+constexpr int kMaxReadingPasses = 20;
+
+Vec6 sensorBias(const PhysicalModel& model) {
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kSensorBias) return Eigen::Map<const Vec6>(m.parameters.data());
+  }
+  return Vec6::Zero();
+}
+
+double sigmaOrStated(const std::optional<double>& given, double stated, bool is_stated,
+                     const std::string& what, const std::string& campaign) {
+  if (given) {
+    if (!(std::isfinite(*given) && *given >= 0.0)) {
+      throw InputError("tracker " + what + " noise " + std::to_string(*given) +
+                       "; expected a finite 1-sigma >= 0");
+    }
+    return *given;
+  }
+  if (!is_stated) {
+    throw InputError("the campaign states no tracker noise; expected its tracker block "
+                     "(campaign.yaml) or the noise given (hint: stepcal simulate "
+                     "--tracker-position-sigma-mm and --tracker-orientation-sigma-deg)",
+                     campaign);
+  }
+  return stated;
+}
+
+// Refuses a model of another robot than the campaign's: the joints' count and names.
+void requireSameRobot(const CalibratedModel& model, const Campaign& campaign,
+                      const std::string& model_path) {
+  const KinematicChain nominal =
+      chainFromUrdf(campaign.urdf_xml, campaign.base_link, campaign.tip_link, {},
+                    campaign.directory.empty() ? campaign.robot_file
+                                               : campaign.directory + "/" + campaign.robot_file);
+  const std::vector<ChainJoint>& a = model.chain_Tracker.joints();
+  const std::vector<ChainJoint>& b = nominal.joints();
+  bool same = a.size() == b.size();
+  for (size_t i = 0; same && i < a.size(); ++i) same = a[i].name == b[i].name;
+  if (!same) {
+    std::string names_a, names_b;
+    for (const ChainJoint& j : a) names_a += (names_a.empty() ? "" : ", ") + j.name;
+    for (const ChainJoint& j : b) names_b += (names_b.empty() ? "" : ", ") + j.name;
+    throw InputError("the model's joints (" + names_a + ") are not the campaign's (" + names_b +
+                         ", " + campaign.base_link + " -> " + campaign.tip_link +
+                         "); expected the campaign of the robot the model was calibrated for",
+                     model_path);
+  }
+  bool loaded = false;
+  for (const Measurement& row : campaign.rows) loaded = loaded || row.load_kg != 0.0;
+  if (loaded && model.sensor_frame < 0) {
+    throw InputError("the campaign has loaded rows but the model no F/T sensor frame to apply "
+                     "their wrench at; expected a model calibrated with the campaign's sensor",
+                     model_path);
+  }
+}
+
+}  // namespace
+
+ModelTwin::ModelTwin(const CalibratedModel& model)
+    : physical_(physicalModelOf(model)), constants_(physicalConstants(physical_)) {}
+
+Pose ModelTwin::X_TrackerTip(const JointVector& q_cmd_rad, const Vec6& wrench_Sensor,
+                             double temp_c) const {
+  ChainWorkspace ws;
+  JointVector theta, tau;
+  const bool sizes = physicalLinkAngles(physical_, q_cmd_rad, wrench_Sensor, temp_c, ws, theta,
+                                        tau, nullptr, &constants_);
+  STEPCAL_INVARIANT(sizes, "one commanded angle per joint of the model");
+  return tipPose(ws);
+}
+
+Vec6 ModelTwin::payloadReading(const JointVector& q_cmd_rad, double load_kg,
+                               const Vec3& p_CoGInSensor_m, double temp_c) const {
+  STEPCAL_INVARIANT(physical_.sensor_frame >= 0, "a payload needs the model's sensor frame");
+  const Vec6 bias = sensorBias(physical_);
+  const Vec3 weight_Tracker = load_kg * physical_.gravity_Tracker;
+  Vec6 wrench = Vec6::Zero();  // the payload's, sensor axes, about the sensor origin
+  ChainWorkspace ws;
+  JointVector theta, tau;
+  for (int pass = 0; pass < kMaxReadingPasses; ++pass) {
+    physicalLinkAngles(physical_, q_cmd_rad, wrench + bias, temp_c, ws, theta, tau, nullptr,
+                       &constants_);
+    const Mat3 R_TrackerSensor =
+        framePose(physical_.chain_Tracker, ws, physical_.sensor_frame).linear();
+    Vec6 next;
+    next.head<3>() = R_TrackerSensor.transpose() * weight_Tracker;
+    next.tail<3>() = p_CoGInSensor_m.cross(next.head<3>());
+    const double change = (next - wrench).norm();
+    wrench = next;
+    if (change <= kReadingTolerance * (1.0 + wrench.norm())) return wrench + bias;
+  }
+  STEPCAL_INVARIANT(false, "the payload's reading converges (the arm turns the sensor ~1e-3 rad)");
+  return wrench + bias;
+}
+
+Campaign simulateFromModel(const ModelTwinOptions& options, nlohmann::json* truth_out) {
+  const CalibratedModel model = readModelFile(options.model_path);
+  std::string dir = options.campaign_dir;
+  if (dir.empty()) {
+    dir = model.provenance.campaign_path;
+    if (dir.empty() || !std::filesystem::exists(dir)) {
+      throw InputError("the model's campaign '" + dir + "' (from its provenance) is not there; "
+                       "expected the campaign whose robot description, tracker noise and rows "
+                       "the twin takes (hint: stepcal simulate --model MODEL --campaign DIR)",
+                       options.model_path);
+    }
+  }
+  const Campaign source = readCampaign(dir);
+  requireSameRobot(model, source, options.model_path);
+  const double sigma_p_m =
+      sigmaOrStated(options.tracker_position_sigma_m, source.tracker.position_sigma_m,
+                    source.tracker.stated, "position", dir);
+  const double sigma_r_rad =
+      sigmaOrStated(options.tracker_orientation_sigma_rad, source.tracker.orientation_sigma_rad,
+                    source.tracker.stated, "orientation", dir);
+  if (!(std::isfinite(options.ft_force_sigma_n) && options.ft_force_sigma_n >= 0.0 &&
+        std::isfinite(options.ft_moment_sigma_nm) && options.ft_moment_sigma_nm >= 0.0 &&
+        options.p_CoGInSensor_m.allFinite())) {
+    throw InputError("F/T noise " + std::to_string(options.ft_force_sigma_n) + " N, " +
+                     std::to_string(options.ft_moment_sigma_nm) +
+                     " N·m or the payload's centre of gravity; expected finite values, noise >= 0");
+  }
+  const ModelTwin robot(model);
+
+  Campaign campaign;
+  campaign.urdf_xml = source.urdf_xml;
+  campaign.base_link = source.base_link;
+  campaign.tip_link = source.tip_link;
+  campaign.sensor_link = source.sensor_link;
+  campaign.tracker.position_sigma_m = sigma_p_m;
+  campaign.tracker.orientation_sigma_rad = sigma_r_rad;
+  campaign.tracker.stated = sigma_p_m > 0.0 && sigma_r_rad > 0.0;
+  campaign.gravity_in_base = source.gravity_in_base;
+  campaign.joint_count = source.joint_count;
+
+  // The rows to measure: the campaign's, or the plan's and then the campaign's validation rows.
+  std::vector<Measurement> rows;
+  const bool has_plan = !options.planned_fit_rows.empty();
+  if (has_plan) {
+    double temp_sum = 0.0;
+    int temps = 0;
+    bool orientation = false;
+    for (const Measurement& row : source.rows) {
+      if (row.temp_c) {
+        temp_sum += *row.temp_c;
+        ++temps;
+      }
+      orientation = orientation || row.has_orientation;
+    }
+    const bool sensor = model.sensor_frame >= 0 && !source.sensor_link.empty();
+    for (const PlannedMeasurement& planned : options.planned_fit_rows) {
+      if (planned.q_rad.size() != source.joint_count) {
+        throw InputError("a planned row has " + std::to_string(planned.q_rad.size()) +
+                             " joint angles; expected " + std::to_string(source.joint_count) +
+                             " (hint: plan with the robot of the model)",
+                         "poses", planned.source_line);
+      }
+      if (planned.load_kg != 0.0 && !sensor) {
+        throw InputError("pose '" + planned.pose_id + "' at " + std::to_string(planned.load_kg) +
+                             " kg, but the model has no F/T sensor frame; expected unloaded rows "
+                             "only (a payload's wrench is read at the sensor)",
+                         "poses", planned.source_line);
+      }
+      Measurement m;
+      m.pose_id = planned.pose_id;
+      m.set = planned.load_kg == 0.0 ? RowSet::kGeometry : RowSet::kStiffness;
+      m.load_kg = planned.load_kg;
+      m.q_rad = planned.q_rad;
+      m.has_wrench = sensor;  // a mounted sensor reads every row, unloaded ones too
+      m.has_orientation = orientation;
+      // Measured at the campaign's mean temperature, unknown if it recorded none.
+      if (temps > 0) m.temp_c = temp_sum / temps;
+      rows.push_back(std::move(m));
+    }
+    for (const Measurement& row : source.rows) {
+      if (row.set == RowSet::kValidation) rows.push_back(row);
+    }
+  } else {
+    rows = source.rows;
+  }
+
+  Rng noise_rng(options.seed, Stream::kModelTwinNoise);
+  const size_t planned_rows = has_plan ? options.planned_fit_rows.size() : 0;
+  int64_t seq = 1;
+  for (size_t i = 0; i < rows.size(); ++i) {
+    Measurement& m = rows[i];
+    const bool planned = i < planned_rows;
+    if (has_plan) m.seq = seq++;
+    const double temp_c = m.temp_c ? *m.temp_c : std::numeric_limits<double>::quiet_NaN();
+    // Every draw happens whatever the row, so a row's noise does not depend on the others'.
+    const Vec3 dp = noise_rng.normal3(sigma_p_m);
+    const Vec3 dr = noise_rng.normal3(sigma_r_rad);
+    const Vec3 df = noise_rng.normal3(options.ft_force_sigma_n);
+    const Vec3 dm = noise_rng.normal3(options.ft_moment_sigma_nm);
+    if (planned && m.has_wrench) {
+      m.wrench_Sensor =
+          robot.payloadReading(m.q_rad, m.load_kg, options.p_CoGInSensor_m, temp_c);
+      m.wrench_Sensor.head<3>() += df;
+      m.wrench_Sensor.tail<3>() += dm;
+    }
+    // The physical model's input is the reading, bias and noise included, as the runtime's is.
+    const Pose X_TrackerTip = robot.X_TrackerTip(m.q_rad, m.wrenchOrZero(), temp_c);
+    m.p_TipInTracker_m = X_TrackerTip.translation() + dp;
+    if (m.has_orientation) {
+      Eigen::Quaterniond quat(lie::expSO3(dr) * X_TrackerTip.linear());
+      quat.normalize();
+      if (quat.w() < 0.0) quat.coeffs() = -quat.coeffs();
+      m.q_TrackerTip = quat;
+    }
+    m.extra.clear();  // the real campaign's own columns say nothing of the twin's rows
+    m.source_line = 0;
+  }
+  campaign.rows = std::move(rows);
+
+  if (truth_out != nullptr) {
+    nlohmann::json mechanisms = nlohmann::json::array();
+    for (const Mechanism& m : model.mechanisms) mechanisms.push_back(describe(m));
+    *truth_out = {
+        {"format", kFormat},
+        {"model_path", options.model_path},
+        {"model_campaign_hash", model.provenance.campaign_hash},
+        {"campaign_dir", dir},
+        {"seed", options.seed},
+        {"planned_fit_rows", options.planned_fit_rows.size()},
+        {"noise",
+         {{"tracker_position_sigma_m", sigma_p_m},
+          {"tracker_orientation_sigma_rad", sigma_r_rad},
+          {"ft_force_sigma_n", options.ft_force_sigma_n},
+          {"ft_moment_sigma_nm", options.ft_moment_sigma_nm}}},
+        {"p_CoGInSensor_m",
+         {options.p_CoGInSensor_m.x(), options.p_CoGInSensor_m.y(), options.p_CoGInSensor_m.z()}},
+        {"compliance_rad_per_nm",
+         std::vector<double>(robot.physical().compliance_rad_per_nm.data(),
+                             robot.physical().compliance_rad_per_nm.data() +
+                                 robot.physical().compliance_rad_per_nm.size())},
+        {"mechanisms", mechanisms},
+    };
+  }
+  return campaign;
+}
+
+void writeModelSimulation(const ModelTwinOptions& options, const std::string& out_dir) {
+  nlohmann::json truth;
+  const Campaign campaign = simulateFromModel(options, &truth);
+  writeCampaign(campaign, out_dir);
+  const std::string path = out_dir + "/truth.json";
+  std::ofstream out(path);
+  out << truth.dump(2) << '\n';
+  if (!out) throw InputError("cannot write the truth file", path);
+}
+
+}  // namespace stepcal::twin

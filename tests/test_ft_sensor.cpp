@@ -15,7 +15,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/ftsim/simulator.hpp"
 #include "stepcal/runtime/ft_sensor.hpp"
-#include "support/allocation_counter.hpp"
+#include "stepcal/allocation_counter.hpp"
 #include "support/input_error.hpp"
 
 namespace {

@@ -38,7 +38,7 @@
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
 #include "support/command.hpp"
-#include "support/allocation_counter.hpp"
+#include "stepcal/allocation_counter.hpp"
 #include "support/files.hpp"
 #include "support/mechanisms.hpp"
 

@@ -3,7 +3,7 @@
 #   calibration.html, diagnosis.html              the simulated IRB4400, paper protocol, seed 1
 #   diagnosis-backlash.html                       the same robot hiding a backlash of joint 2 (seed 3)
 #   calibration-ur10C.html, diagnosis-ur10C.html  the real UR10, Series C (rows from 2000 held out)
-#   tools/make_example_reports.sh STEPCAL OUT_DIR SHARED_DATA_DIR
+#   tools/make_example_reports.sh STEPCAL OUT_DIR UR10_DATA_DIR   (tests/data/ipa-robot-accuracy)
 # Without the UR10 data, its reports get a .skip file saying why instead.
 set -euo pipefail
 
@@ -21,7 +21,7 @@ rm -rf "$out"/*
   --effect '{"name": "backlash", "joint": 2, "lost_motion_rad": 2e-4}' >/dev/null
 "$stepcal" diagnose "$out/backlash" --report "$out/diagnosis-backlash.html" >/dev/null
 
-series_c=$data/ipa-robot-accuracy/Series_C/measurements_random_poses.csv
+series_c=$data/Series_C/measurements_random_poses.csv
 if [[ -f $series_c ]]; then
   "$stepcal" import ipa "$series_c" --validation-from-row 2000 --out "$out/ur10C" >/dev/null
   "$stepcal" calibrate "$out/ur10C" --out "$out/ur10C.stepcal" --report "$out/calibration-ur10C.html" >/dev/null

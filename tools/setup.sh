@@ -18,6 +18,10 @@ packages=(
   qemu-system-x86 busybox-static can-utils kmod xz-utils iproute2
   # The HTML reports opened in a real browser (ctest label browser, tools/check_report_in_browser.sh).
   chromium
+  # The Python module (python/, built for Debian's /usr/bin/python3) and its pytest suite.
+  python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest
+  # The Debian packages (cpack -G DEB: dpkg-shlibdeps needs file; ctest deb_package).
+  file dpkg-dev
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -23,6 +23,7 @@
 #include "report_html/page.hpp"
 #include "stepcal/common/atomic_file.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/robots.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/trainer/plan.hpp"
@@ -155,7 +156,7 @@ int main(int argc, char** argv) {
       throw InputError("--planned '" + planned + "'; expected 'd-optimal' or 'random'");
     }
     twin::TwinOptions twin_options;
-    twin_options.urdf_path = std::string(STEPCAL_ROBOTS_DIR) + "/irb4400.urdf";
+    twin_options.urdf_path = shippedRobotsDir() + "/irb4400.urdf";
     const KinematicChain chain = chainFromUrdfFile(twin_options.urdf_path, twin_options.base_link,
                                                    twin_options.tip_link, {twin_options.sensor_link});
     std::string seed_list;

@@ -26,6 +26,7 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/robots.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/common/urdf_export.hpp"
 #include "stepcal/importers/ipa.hpp"
@@ -53,7 +54,7 @@ struct SimulateArgs {
 };
 
 std::string robotUrdf(const std::string& robot) {
-  return std::string(STEPCAL_ROBOTS_DIR) + "/" + robot + ".urdf";
+  return shippedRobotsDir() + "/" + robot + ".urdf";
 }
 
 void runSimulate(const SimulateArgs& a) {

@@ -4,6 +4,7 @@
 
 #include "internal.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/robots.hpp"
 #include "stepcal/common/urdf.hpp"
 
 namespace stepcal::twin {
@@ -39,7 +40,7 @@ std::vector<JointSampleRange> defaultIrb4400PoseRanges() {
 }
 
 std::string resolvedUrdfPath(const TwinOptions& options) {
-  return options.urdf_path.empty() ? std::string(STEPCAL_TWIN_DEFAULT_URDF) : options.urdf_path;
+  return options.urdf_path.empty() ? shippedRobotsDir() + "/irb4400.urdf" : options.urdf_path;
 }
 
 KinematicChain nominalChain(const std::string& urdf_xml, const TwinOptions& options,

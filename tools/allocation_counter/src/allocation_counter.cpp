@@ -1,13 +1,9 @@
-// Counts heap allocations made by this process while a counter is armed.
-//
-// Interposes malloc/calloc/realloc/aligned_alloc/posix_memalign (Eigen allocates with
-// malloc, operator new goes through malloc too) and forwards to glibc's __libc_* entry
-// points. Include from exactly one translation unit of a test executable.
-#pragma once
+// The allocation counter (see allocation_counter.hpp): malloc and its kin interposed.
+#include "stepcal/allocation_counter.hpp"
 
 #include <atomic>
+#include <cerrno>
 #include <cstddef>
-#include <cstring>
 
 extern "C" {
 void* __libc_malloc(size_t);
@@ -17,24 +13,23 @@ void* __libc_memalign(size_t, size_t);
 }
 
 namespace stepcal::test {
+namespace {
 
-inline std::atomic<bool> g_counting{false};
-inline std::atomic<long> g_allocations{0};
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};
 
-/// Counts allocations made between construction and count() (all threads).
-class AllocationCounter {
- public:
-  AllocationCounter() {
-    g_allocations = 0;
-    g_counting = true;
-  }
-  ~AllocationCounter() { g_counting = false; }
-  long count() const { return g_allocations.load(); }
-};
-
-inline void noteAllocation() {
+void noteAllocation() {
   if (g_counting.load(std::memory_order_relaxed)) ++g_allocations;
 }
+
+}  // namespace
+
+AllocationCounter::AllocationCounter() {
+  g_allocations = 0;
+  g_counting = true;
+}
+AllocationCounter::~AllocationCounter() { g_counting = false; }
+long AllocationCounter::count() const { return g_allocations.load(); }
 
 }  // namespace stepcal::test
 
@@ -58,6 +53,6 @@ void* aligned_alloc(size_t alignment, size_t size) {
 int posix_memalign(void** out, size_t alignment, size_t size) {
   stepcal::test::noteAllocation();
   *out = __libc_memalign(alignment, size);
-  return *out ? 0 : 12;  // ENOMEM
+  return *out ? 0 : ENOMEM;
 }
 }

@@ -27,10 +27,11 @@ if(STEPCAL_BUILD_TRAINER)
   install(DIRECTORY common/include/ trainer/include/
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT dev)
 else()
-  list(TRANSFORM common_io_headers PREPEND "stepcal/common/")
-  list(TRANSFORM common_io_headers REPLACE "^(.*)$" "PATTERN;\\1;EXCLUDE")
-  install(DIRECTORY common/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT dev
-          ${common_io_headers})
+  set(exclude)
+  foreach(header IN LISTS common_io_headers)
+    list(APPEND exclude PATTERN ${header} EXCLUDE)
+  endforeach()
+  install(DIRECTORY common/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT dev ${exclude})
 endif()
 install(DIRECTORY runtime/include/ runtime/service/include/
         DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT dev)

@@ -10,7 +10,6 @@ set(CPACK_GENERATOR DEB)
 set(CPACK_PACKAGE_NAME stepcal)
 set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})
 set(CPACK_PACKAGE_VENDOR "stepcal")
-set(CPACK_PACKAGE_DESCRIPTION_SUMMARY "stepwise calibration of heavy-duty serial robots")
 set(STEPCAL_DEB_MAINTAINER "stepcal developers <stepcal@localhost>" CACHE STRING
   "Maintainer field of the Debian packages")
 set(CPACK_PACKAGE_CONTACT "${STEPCAL_DEB_MAINTAINER}")
@@ -37,13 +36,15 @@ set(CPACK_DEBIAN_STEPCAL_PACKAGE_NAME stepcal)
 set(CPACK_DEBIAN_STEPCAL_PACKAGE_SHLIBDEPS ON)
 set(CPACK_DEBIAN_STEPCAL_PACKAGE_DEPENDS "adduser")
 set(CPACK_DEBIAN_STEPCAL_PACKAGE_SUGGESTS "stepcal-dev, python3-stepcal")
+# Descriptions: the first line is the synopsis; CPack indents the others (at most 80 columns).
 set(CPACK_DEBIAN_STEPCAL_DESCRIPTION "stepwise calibration of heavy-duty serial robots
- The stepcal command calibrates a robot from a measurement campaign (geometry with a local
- product-of-exponentials model, joint compliance, a Gaussian process on the residual), diagnoses
- what the physical model gets wrong, and writes one binary model file. The daemon
- stepcal-runtime corrects commanded poses and inverts desired poses with that model over LCM,
- the wrench read live from an F/T sensor on CAN; it runs as the systemd service
- stepcal-runtime@CELL, configured in /etc/stepcal/CELL.conf.")
+The stepcal command calibrates a robot from a measurement campaign (geometry
+with a local product-of-exponentials model, joint compliance, a Gaussian
+process on the residual), diagnoses what the physical model gets wrong, and
+writes one binary model file. The daemon stepcal-runtime corrects commanded
+poses and inverts desired poses with that model over LCM, the wrench read live
+from an F/T sensor on CAN; it runs as the systemd service stepcal-runtime@CELL,
+configured in /etc/stepcal/CELL.conf.")
 set(CPACK_DEBIAN_STEPCAL_PACKAGE_CONTROL_EXTRA
   ${PROJECT_SOURCE_DIR}/cmake/debian/postinst ${PROJECT_SOURCE_DIR}/cmake/debian/prerm
   ${PROJECT_SOURCE_DIR}/cmake/debian/postrm ${PROJECT_SOURCE_DIR}/cmake/debian/conffiles)
@@ -56,17 +57,19 @@ if(STEPCAL_BUILD_TRAINER)
 endif()
 string(JOIN ", " CPACK_DEBIAN_DEV_PACKAGE_DEPENDS ${stepcal_dev_depends})
 set(CPACK_DEBIAN_DEV_DESCRIPTION "stepwise calibration of heavy-duty robots - development files
- The static libraries (position-independent code) and headers of stepcal: the real-time runtime
- (stepcal::runtime: correctForward, solveInverse with a model file, in process), the daemon's
- service and LCM types, the trainer; the CMake package (find_package(stepcal COMPONENTS runtime))
- and the pkg-config file stepcal-runtime.")
+The static libraries (position-independent code) and headers of stepcal: the
+real-time runtime (stepcal::runtime: correctForward, solveInverse with a model
+file, in process), the daemon's service and LCM types, the trainer; the CMake
+package (find_package(stepcal COMPONENTS runtime)) and the pkg-config file
+stepcal-runtime.")
 
 set(CPACK_DEBIAN_PYTHON_PACKAGE_NAME python3-stepcal)
 set(CPACK_DEBIAN_PYTHON_PACKAGE_SECTION python)
 set(CPACK_DEBIAN_PYTHON_PACKAGE_SHLIBDEPS ON)
 set(CPACK_DEBIAN_PYTHON_PACKAGE_DEPENDS "python3 (>= ${STEPCAL_PYTHON_VERSION}), python3 (<< ${STEPCAL_PYTHON_NEXT_VERSION}), python3-numpy")
 set(CPACK_DEBIAN_PYTHON_DESCRIPTION "stepwise calibration of heavy-duty robots - Python module
- The Python module stepcal: campaigns, calibration and diagnosis with their results as numpy
- arrays, model files, the runtime's forward correction and inverse vectorised over numpy arrays,
- and requests to the stepcal-runtime daemon over LCM through LCM's C library.")
+The Python module stepcal: campaigns, calibration and diagnosis with their
+results as numpy arrays, model files, the runtime's forward correction and
+inverse vectorised over numpy arrays, and requests to the stepcal-runtime
+daemon over LCM through LCM's C library.")
 include(CPack)

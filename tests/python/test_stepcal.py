@@ -205,7 +205,7 @@ def test_the_docs_example_runs(tmp_path):
 # ---- the daemon from Python, over real UDP multicast (ctest python_client, in a netns) ----------
 
 needs_netns = pytest.mark.skipif(not os.environ.get("STEPCAL_NETNS"),
-                                 reason="needs a private network namespace (tools/in_netns.sh)")
+                                 reason="needs a private network namespace (tests/system/in_netns.sh)")
 
 
 @needs_netns

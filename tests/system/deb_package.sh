@@ -3,7 +3,7 @@
 # build folder, what dpkg-deb says about each package (control fields, maintainer scripts,
 # conffiles, the files that must be there), then the stepcal package unpacked with `dpkg -x` into
 # a temporary root and its stepcal-runtime and stepcal-client run from there against a model,
-# over real UDP multicast in a private network namespace (tools/in_netns.sh). Nothing is
+# over real UDP multicast in a private network namespace (tests/system/in_netns.sh). Nothing is
 # installed on the host.
 #
 # Usage: tests/system/deb_package.sh BUILD_DIR MODEL CAMPAIGN_DIR WORK_DIR
@@ -70,7 +70,7 @@ dpkg -x "$deb" "$work/root"
 read -r -a row < <("$root/tests/system/campaign_row.sh" "$campaign")
 bin=$work/root/usr/bin
 set +e
-"$root/tools/in_netns.sh" bash -c '
+"$root/tests/system/in_netns.sh" bash -c '
   set -euo pipefail
   bin=$1 conf=$2 model=$3 log=$4
   shift 4

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Smoke check of the CAN environment that tools/vcan_run.sh gives a command:
-#   tools/vcan_run.sh tools/vcan_smoke.sh
+# Smoke check of the CAN environment that tests/system/vcan_run.sh gives a command:
+#   tests/system/vcan_run.sh tests/system/vcan_smoke.sh
 # Checks: vcan0 is up; a data frame sent with cansend reaches candump; a CAN error frame
 # (CAN_ERR_FLAG 0x20000000 in the id) sent from userspace on vcan0 reaches a CAN_RAW socket
 # that enabled error frames (CAN_RAW_ERR_FILTER, candump's ",#FFFFFFFF") and not one that did

@@ -3,7 +3,7 @@
 # network namespace (loopback only, nothing leaves the machine), against a raw LCM ping-pong of
 # the same message size between two stepcal-client processes: the ratio is the daemon's cost.
 #
-# Usage (root): tools/lcm_roundtrip.sh MODEL [CAMPAIGN] [N]
+# Usage (root): tests/system/lcm_roundtrip.sh MODEL [CAMPAIGN] [N]
 #   MODEL      model file, e.g. out/demo-campaign/model.stepcal (stepcal demo)
 #   CAMPAIGN   campaign whose validation rows become the requests (default: MODEL's folder)
 #   N          requests and pings (default 100000)
@@ -15,7 +15,7 @@
 # Exit status: 0, 1 when a request or ping got no reply, 2 usage, 77 skipped (no `unshare -n`).
 set -euo pipefail
 
-root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 if [[ $# -lt 1 || $# -gt 3 ]]; then
   sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//' >&2
   exit 2

@@ -3,7 +3,7 @@
 #   calibration.html, diagnosis.html              the simulated IRB4400, paper protocol, seed 1
 #   diagnosis-backlash.html                       the same robot hiding a backlash of joint 2 (seed 3)
 #   calibration-ur10C.html, diagnosis-ur10C.html  the real UR10, Series C (rows from 2000 held out)
-#   tools/make_example_reports.sh STEPCAL OUT_DIR UR10_DATA_DIR   (tests/data/ipa-robot-accuracy)
+#   tests/system/make_example_reports.sh STEPCAL OUT_DIR UR10_DATA_DIR   (tests/data/ipa-robot-accuracy)
 # Without the UR10 data, its reports get a .skip file saying why instead.
 set -euo pipefail
 

@@ -22,17 +22,17 @@
 # right calibration), and the daemon is alive at the end and exits 0 on SIGTERM. Prints the table
 # fault → statuses during it → time from its end to the first fresh OK (docs/can-sensor.md).
 #
-# Usage: tools/can_faults.sh MODEL OUT
+# Usage: tests/system/can_faults.sh MODEL OUT
 #   MODEL  a model file (stepcal calibrate --out)
 #   OUT    folder for the replies (client.json), the fault times (faults.json) and the logs
-# Needs IFACE up (tools/vcan_run.sh provides one), root for ip link, cangen (can-utils), jq and
+# Needs IFACE up (tests/system/vcan_run.sh provides one), root for ip link, cangen (can-utils), jq and
 # UDP multicast on the loopback. Environment: STEPCAL_BIN_DIR, STEPCAL_CAN_IFACE, LCM_URL as for
 # can_e2e.sh. Under the emulated VM (STEPCAL_IN_VCAN_VM=1) programs run 100 to 400 times slower:
 # there 250 Hz polls, a 1 s age limit, a 100 ms budget and 10 requests/s, else 1000 Hz, 200 ms,
 # 200 µs and 50/s; faults last 3 s either way.
 set -euo pipefail
 
-root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 if [[ $# -ne 2 ]]; then
   sed -n '2,/^set -e/{/^set -e/d;s/^# \{0,1\}//;p}' "$0" >&2
   exit 2
@@ -41,7 +41,7 @@ model=$(realpath "$1")
 out=$2
 mkdir -p "$out"
 out=$(realpath "$out")
-source "$root/tools/can_lib.sh"
+source "$root/tests/system/can_lib.sh"
 if [[ ${STEPCAL_IN_VCAN_VM:-0} == 1 ]]; then
   rate_hz=250 max_age_ms=1000 budget_us=100000 request_hz=10
 else

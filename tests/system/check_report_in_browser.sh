@@ -3,7 +3,7 @@
 # nothing, so any is an error, e.g. an exception) or when the report's own check on load
 # (tools/cli/report_html/page.hpp) finds a chart without data or a file the page refers to; saves
 # a screenshot of the whole page. Every host name resolves to nothing: the check runs offline.
-#   tools/check_report_in_browser.sh REPORT.html SCREENSHOT.png
+#   tests/system/check_report_in_browser.sh REPORT.html SCREENSHOT.png
 # Exit 0: passed; 1: failed; 77 (ctest's SKIP_RETURN_CODE): no chromium, or REPORT.html.skip says
 # why the report was not made.
 set -euo pipefail

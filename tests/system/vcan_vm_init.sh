@@ -1,7 +1,7 @@
 #!/bin/sh
-# /init of the small CAN VM that tools/vcan_run.sh boots (busybox ash, PID 1, no udev, no systemd).
+# /init of the small CAN VM that tests/system/vcan_run.sh boots (busybox ash, PID 1, no udev, no systemd).
 #
-# tools/vcan_run.sh copies this file into the cached initramfs next to a static busybox and the
+# tests/system/vcan_run.sh copies this file into the cached initramfs next to a static busybox and the
 # kernel modules listed in /lib/vcan/modules.list (dependency order, already decompressed). It
 # then boots the VM with three kinds of 9p shares:
 #   hostroot  the host's / (read-only)            -> /host, the chroot the command runs in

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds one libFuzzer target of tests/fuzz (clang++, libFuzzer + ASan + UBSan) and runs it.
 #
-# Usage: tools/fuzz.sh TARGET [SECONDS]    (default 30)
+# Usage: tests/system/fuzz.sh TARGET [SECONDS]    (default 30)
 #   TARGET: model_file       parseModel (the model file)
 #           request_decoder  the runtime's decodeRequest
 #           campaign         readCampaign (campaign.yaml + measurements.csv) and writeCampaign
@@ -25,7 +25,7 @@ if (($# < 1)); then
 fi
 target=$1
 seconds=${2:-30}
-root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 out=${STEPCAL_FUZZ_DIR:-$root/build-fuzz-$target}
 shared_obj=${STEPCAL_FUZZ_OBJ_DIR:-$out/obj}
 mkdir -p "$out/obj" "$shared_obj" "$out/corpus" "$out/seeds" "$out/artifacts"

@@ -7,11 +7,11 @@
 # live and offline agree row by row (statuses, GPR std) and in accuracy within the F/T noise,
 # that few rows inside the GPR's training loads are OUT_OF_DOMAIN, and reports the latencies.
 #
-# Usage: tools/can_e2e.sh CAMPAIGN MODEL [OUT]
+# Usage: tests/system/can_e2e.sh CAMPAIGN MODEL [OUT]
 #   CAMPAIGN  simulated campaign folder with truth.json (stepcal simulate)
 #   MODEL     its model file (stepcal calibrate --out)
 #   OUT       folder for the JSON results and logs (default: a temporary one)
-# Needs a host with IFACE up (default vcan0; tools/vcan_run.sh provides one) and UDP multicast on
+# Needs a host with IFACE up (default vcan0; tests/system/vcan_run.sh provides one) and UDP multicast on
 # the loopback (route 224.0.0.0/4 dev lo). Environment (STEPCAL_ and LCM_ names cross into the
 # VM): STEPCAL_BIN_DIR (default build/bin), STEPCAL_CAN_IFACE (default vcan0), LCM_URL,
 # STEPCAL_E2E_MODE (forward | inverse, default forward), STEPCAL_E2E_RATE_HZ (sensor polls),
@@ -25,7 +25,7 @@
 # host's scheduling delays (in the VM one request once met a 500 ms limit).
 set -euo pipefail
 
-root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 if [[ $# -lt 2 || $# -gt 3 ]]; then
   sed -n '2,/^set -e/{/^set -e/d;s/^# \{0,1\}//;p}' "$0" >&2
   exit 2
@@ -34,7 +34,7 @@ campaign=$(realpath "$1")
 model=$(realpath "$2")
 out=${3:-$(mktemp -d /tmp/can_e2e.XXXXXX)}
 mkdir -p "$out"
-source "$root/tools/can_lib.sh"
+source "$root/tests/system/can_lib.sh"
 if [[ ${STEPCAL_IN_VCAN_VM:-0} == 1 ]]; then
   rate_hz=${STEPCAL_E2E_RATE_HZ:-250}
   max_age_ms=${STEPCAL_E2E_MAX_WRENCH_AGE_MS:-10000}

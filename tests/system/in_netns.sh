@@ -4,7 +4,7 @@
 # STEPCAL_NETNS=1 tells the command it is in one (tests that need real UDP multicast skip
 # without it).
 #
-# Usage (root): tools/in_netns.sh COMMAND [ARG ...]
+# Usage (root): tests/system/in_netns.sh COMMAND [ARG ...]
 # Exit status: the command's, 2 usage, 77 skipped (this machine does not permit `unshare -n`).
 set -euo pipefail
 

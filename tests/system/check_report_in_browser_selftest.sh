@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Shows that tools/check_report_in_browser.sh can fail: a good report, broken three ways (a chart
+# Shows that tests/system/check_report_in_browser.sh can fail: a good report, broken three ways (a chart
 # without data, a script error, an image from the network), must fail each time.
-#   tools/check_report_in_browser_selftest.sh GOOD_REPORT.html WORK_DIR
+#   tests/system/check_report_in_browser_selftest.sh GOOD_REPORT.html WORK_DIR
 # Exit 0: every broken copy failed; 1: one passed; 77: the checker skipped (no chromium).
 set -euo pipefail
 

@@ -9,7 +9,7 @@
 # daemon must refuse, keeping the model in service. Every reply is recomputed offline with the model it names
 # (stepcal-client --check-model); the daemon's VmRSS is sampled every second.
 #
-# Usage (root): tools/long_run.sh [REQUESTS]     (default 1000000)
+# Usage (root): tests/system/long_run.sh [REQUESTS]     (default 1000000)
 # Environment: STEPCAL_BIN_DIR (the `stepcal` command that makes the models; default build/bin),
 # STEPCAL_ASAN_DIR (the ASan build of daemon and client, configured and built here; default
 # build-asan), RATE_HZ (requests per second per client, default 500), SWAP_S (default 3),
@@ -19,7 +19,7 @@
 # machine does not permit `unshare -n`).
 set -euo pipefail
 
-root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 if [[ $# -gt 1 || ${1:-} == -* ]]; then
   sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//' >&2
   exit 2

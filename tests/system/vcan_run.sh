@@ -2,8 +2,8 @@
 # Runs a command where SocketCAN works: directly on a host that has vcan0, otherwise inside a
 # small qemu VM (TCG) whose Debian kernel has can, can-raw and vcan, with vcan0 up.
 #
-#   tools/vcan_run.sh [--timeout SECONDS] [--writable DIR]... [--] COMMAND [ARGS...]
-#   tools/vcan_run.sh --prepare      # download + cache the VM kernel now (tools/setup.sh does)
+#   tests/system/vcan_run.sh [--timeout SECONDS] [--writable DIR]... [--] COMMAND [ARGS...]
+#   tests/system/vcan_run.sh --prepare      # download + cache the VM kernel now (tools/setup.sh does)
 #
 # Exit status: COMMAND's; 124 on timeout (boot + command); 125 when the VM could not run it
 # (the reason is the last line on stderr, "vcan_run: ..."). docs/vcan.md: the VM, timings.
@@ -62,7 +62,7 @@ host_has_vcan() {
 # ---------------------------------------------------------------------------- VM kernel cache
 # $cache/kernels/<package>_<version>/ holds vmlinuz, release, modules/*.ko (decompressed),
 # modules.list (load order) and ready; $cache/current points at the one to boot. The initramfs
-# (busybox + modules + tools/vcan_vm_init.sh) sits next to the kernel, keyed by a hash of what
+# (busybox + modules + tests/system/vcan_vm_init.sh) sits next to the kernel, keyed by a hash of what
 # went in, so editing the init script rebuilds it without downloading anything.
 
 lock_cache() { # serialize preparation between concurrent runs (ctest -j, two checkouts)
@@ -230,7 +230,7 @@ ensure_kernel() {
         kdir=$(readlink -f "$cache/current")
         return
       fi
-      die 125 "apt-cache knows no $meta_pkg: run apt-get update (as root), then tools/vcan_run.sh --prepare"
+      die 125 "apt-cache knows no $meta_pkg: run apt-get update (as root), then tests/system/vcan_run.sh --prepare"
     fi
   fi
   kdir=$cache/kernels/${kpkg}_${kver//:/_}
@@ -390,7 +390,7 @@ done
     for n in "${env_prefixes[@]}"; do [[ $name == "$n"* ]] && keep=1; done
     ((keep)) && printf 'export %s=%q\n' "$name" "${!name}"
   done < <(compgen -e)
-  # So a command (tools/vcan_smoke.sh) can tell it runs in the VM.
+  # So a command (tests/system/vcan_smoke.sh) can tell it runs in the VM.
   printf 'export STEPCAL_IN_VCAN_VM=1\n'
   printf 'exec'
   printf ' %q' "$@"

@@ -2,13 +2,13 @@
 # Builds test_handoff with ThreadSanitizer (CMake option STEPCAL_TSAN: the runtime library and
 # the executables linking it) and runs it; any reported race fails the run.
 #
-# Usage: tools/tsan_check.sh [gtest arguments]
+# Usage: tests/system/tsan_check.sh [gtest arguments]
 # Build folder: $STEPCAL_TSAN_DIR, default build-tsan/ in the repository. Compiler: $CXX, else
 # CMake's default. Exit status 77 (skipped, with the reason) where the compiler has no TSan
 # runtime or TSan cannot run on this machine; ctest's tsan_handoff counts it as skipped.
 set -euo pipefail
 
-root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 out=${STEPCAL_TSAN_DIR:-$root/build-tsan}
 mkdir -p "$out"
 

@@ -1,11 +1,11 @@
-# StepcalVcan.cmake: ctest tests that need SocketCAN (vcan0), run through tools/vcan_run.sh.
+# StepcalVcan.cmake: ctest tests that need SocketCAN (vcan0), run through tests/system/vcan_run.sh.
 #
 #   include(cmake/StepcalVcan.cmake)
 #   stepcal_add_vcan_test(NAME <name> COMMAND <cmd> [args...]
 #                         [TIMEOUT <seconds>] [WRITABLE <dir>...]
 #                         [WORKING_DIRECTORY <dir>] [LABELS <label>...])
 #
-# Registers test <name> that runs <cmd> [args...] via tools/vcan_run.sh: directly on a host with
+# Registers test <name> that runs <cmd> [args...] via tests/system/vcan_run.sh: directly on a host with
 # vcan0, otherwise in the small qemu VM with vcan0 up (see docs/vcan.md).
 #   COMMAND      the command; an executable target's name as first word becomes its path.
 #   TIMEOUT      seconds the command may take, default 300: vcan_run.sh --timeout (exit 124,
@@ -21,7 +21,7 @@
 include_guard(GLOBAL)
 
 # Captured here: inside the function CMAKE_CURRENT_LIST_DIR is the caller's directory.
-set(STEPCAL_VCAN_RUN "${CMAKE_CURRENT_LIST_DIR}/../tools/vcan_run.sh")
+set(STEPCAL_VCAN_RUN "${CMAKE_CURRENT_LIST_DIR}/../tests/system/vcan_run.sh")
 cmake_path(NORMAL_PATH STEPCAL_VCAN_RUN)
 
 function(stepcal_add_vcan_test)

@@ -10,7 +10,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/urdf.hpp"
-#include "support/allocation_counter.hpp"
+#include "stepcal/allocation_counter.hpp"
 
 namespace stepcal {
 namespace {

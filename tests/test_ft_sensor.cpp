@@ -2,7 +2,7 @@
 //
 // Every driver test runs on two buses: a socketpair carrying can_frame records (always), and a
 // real SocketCAN interface when STEPCAL_CAN_IFACE names one (ctest label vcan runs this binary
-// inside tools/vcan_run.sh with STEPCAL_CAN_IFACE=vcan0). On CAN the kernel filters the sensor's
+// inside tests/system/vcan_run.sh with STEPCAL_CAN_IFACE=vcan0). On CAN the kernel filters the sensor's
 // ids; on the socketpair every frame reaches the driver.
 #include <gtest/gtest.h>
 #include <sys/socket.h>
@@ -15,7 +15,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/ftsim/simulator.hpp"
 #include "stepcal/runtime/ft_sensor.hpp"
-#include "support/allocation_counter.hpp"
+#include "stepcal/allocation_counter.hpp"
 #include "support/input_error.hpp"
 
 namespace {

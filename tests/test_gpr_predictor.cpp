@@ -15,7 +15,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/gpr_predictor.hpp"
 #include "stepcal/trainer/gpr.hpp"
-#include "support/allocation_counter.hpp"
+#include "stepcal/allocation_counter.hpp"
 #include "support/random_matrix.hpp"
 
 namespace stepcal {

@@ -1,7 +1,7 @@
 // Lock-free hand-offs under contention: the wrench seqlock never yields a torn or reordered
 // sample, a reader of the model handle never sees two models in one answer nor a freed one, no
 // model leaks, and the staleness rules of the live wrench. Run under ThreadSanitizer by
-// tools/tsan_check.sh.
+// tests/system/tsan_check.sh.
 #include <gtest/gtest.h>
 
 #include <array>

@@ -38,7 +38,7 @@
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
 #include "support/command.hpp"
-#include "support/allocation_counter.hpp"
+#include "stepcal/allocation_counter.hpp"
 #include "support/files.hpp"
 #include "support/mechanisms.hpp"
 
@@ -856,7 +856,7 @@ void drain(lcm_t* lcm) {
 }
 
 // Over real UDP multicast (udpm://; ctest net_lcm_queue runs this in a private network namespace
-// through tools/in_netns.sh): requests that arrive while the serving thread handles nothing (a
+// through tests/system/in_netns.sh): requests that arrive while the serving thread handles nothing (a
 // stall: the machine preempting it, slow answers under ASan) are all answered once it handles
 // again, and a client that handles nothing meanwhile still gets every reply. A subscription with
 // LCM's default queue capacity, stalled alike, keeps only 30 of them and drops the rest without
@@ -864,7 +864,7 @@ void drain(lcm_t* lcm) {
 TEST(LcmUdpm, MessagesQueuedDuringAStallAreAllHandled) {
   if (std::getenv("STEPCAL_NETNS") == nullptr) {
     GTEST_SKIP() << "needs a private network namespace with multicast on its loopback "
-                    "(tools/in_netns.sh; ctest -R net_lcm_queue)";
+                    "(tests/system/in_netns.sh; ctest -R net_lcm_queue)";
   }
   // 4 MB socket buffers hold the whole burst in the kernel, whatever the receive threads' pace:
   // what is tested is LCM's queue.

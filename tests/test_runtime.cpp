@@ -24,7 +24,7 @@
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
-#include "support/allocation_counter.hpp"
+#include "stepcal/allocation_counter.hpp"
 #include "support/files.hpp"
 #include "support/mechanisms.hpp"
 #include "support/random_gpr.hpp"

@@ -14,10 +14,14 @@ packages=(
   # The bench's side-by-side with KDL (stepcal-bench --compare-kdl) and the machine's own
   # latency baseline (cyclictest, docs/runtime.md).
   liborocos-kdl-dev rt-tests
-  # CAN tests without vcan in the host kernel: tools/vcan_run.sh boots a qemu VM (docs/vcan.md).
+  # CAN tests without vcan in the host kernel: tests/system/vcan_run.sh boots a qemu VM (docs/vcan.md).
   qemu-system-x86 busybox-static can-utils kmod xz-utils iproute2
-  # The HTML reports opened in a real browser (ctest label browser, tools/check_report_in_browser.sh).
+  # The HTML reports opened in a real browser (ctest label browser, tests/system/check_report_in_browser.sh).
   chromium
+  # The Python module (python/, built for Debian's /usr/bin/python3) and its pytest suite.
+  python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest
+  # The Debian packages (cpack -G DEB: dpkg-shlibdeps needs file; ctest deb_package).
+  file dpkg-dev
 )
 missing=()
 for p in "${packages[@]}"; do
@@ -36,4 +40,4 @@ cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j"$(nproc)"
 
 # The CAN tests' VM kernel, downloaded and cached once (one line; a host with vcan0 needs none).
-tools/vcan_run.sh --prepare
+tests/system/vcan_run.sh --prepare

@@ -1,18 +1,18 @@
 #!/usr/bin/env bash
-# The real UR10 across its four series (README, "On a real robot"): each source series is
+# The real UR10 across its four series (docs/diagnosis.md, "On the real UR10"): each source series is
 # calibrated (the geometric model, `poe`) and diagnosed (the extended model), and both are
 # validated on later rows of the same series, or on another series with the tracker and tool
 # frames fitted again there (`stepcal validate --refit-frames`): mean position error, mm, on all
 # rows and on the rows whose joint angles every transmission profile covers.
 #
 # Usage: tools/ur10_series.sh [DATA [OUT]]
-#   DATA  the IPA data set (default ../shared/data/ipa-robot-accuracy)
+#   DATA  the IPA data set (default tests/data/ipa-robot-accuracy)
 #   OUT   working folder (default out/ur10-series); the table is also written to OUT/table.md
 # Environment: STEPCAL_BIN_DIR (default build/bin).
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-data=$(realpath "${1:-$root/../shared/data/ipa-robot-accuracy}")
+data=$(realpath "${1:-$root/tests/data/ipa-robot-accuracy}")
 out=${2:-$root/out/ur10-series}
 bin=${STEPCAL_BIN_DIR:-$root/build/bin}
 command -v jq >/dev/null || { echo "ur10_series: needs jq (apt-get install jq)" >&2; exit 2; }

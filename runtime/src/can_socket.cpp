@@ -68,7 +68,7 @@ CanSocket CanSocket::open(const std::string& iface, const std::vector<can_filter
   if (fd < 0) {
     openFailed(iface, "socket(PF_CAN, SOCK_RAW, CAN_RAW)", errno,
                "this kernel has no SocketCAN (modprobe can can-raw), or run inside "
-               "tools/vcan_run.sh");
+               "tests/system/vcan_run.sh");
   }
   CanSocket socket(fd, iface);
   ifreq request{};

@@ -1,6 +1,6 @@
 // libFuzzer target for readCampaign (campaign.yaml + measurements.csv): no input may crash it,
 // hang, trip a sanitizer or throw anything but InputError. Not part of the CMake build (that
-// uses g++); build and run with `tools/fuzz.sh campaign SECONDS`.
+// uses g++); build and run with `tests/system/fuzz.sh campaign SECONDS`.
 //
 // An input is campaign.yaml, a NUL byte, then measurements.csv; robot.urdf beside them is a
 // fixed stub (the reader keeps the description's text, the URDF has its own target). A campaign

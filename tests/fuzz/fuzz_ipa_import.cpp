@@ -1,6 +1,6 @@
 // libFuzzer target for importIpaSeries (the IPA UR10 series CSV and its Trafo_TM_F_init.txt):
 // no input may crash it, hang, trip a sanitizer or throw anything but InputError. Not part of
-// the CMake build (that uses g++); build and run with `tools/fuzz.sh ipa_import SECONDS`.
+// the CMake build (that uses g++); build and run with `tests/system/fuzz.sh ipa_import SECONDS`.
 //
 // An input is the series CSV, a NUL byte, then Trafo_TM_F_init.txt; the robot is
 // robots/ur10.urdf (STEPCAL_ROBOTS_DIR). What the importer accepts, `stepcal import` writes as

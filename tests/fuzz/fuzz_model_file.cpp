@@ -1,6 +1,6 @@
 // libFuzzer target for parseModel: no input may crash it, read out of bounds, trip a sanitizer or
 // throw anything but InputError. Not part of the CMake build (that uses g++); build and run with
-// `tools/fuzz.sh model_file SECONDS`, or by hand from the repository root:
+// `tests/system/fuzz.sh model_file SECONDS`, or by hand from the repository root:
 //
 //   clang++ -std=c++17 -O2 -g -Icommon/include $(pkg-config --cflags eigen3) \
 //     -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \

@@ -1,6 +1,6 @@
 // libFuzzer target for readPoseList (poses.csv, six joints): no input may crash it, hang, trip a
 // sanitizer or throw anything but InputError. Not part of the CMake build (that uses g++); build
-// and run with `tools/fuzz.sh pose_list SECONDS`.
+// and run with `tests/system/fuzz.sh pose_list SECONDS`.
 //
 // A list that reads must also survive writePoseList: the written file must read back and write
 // again to the same bytes. Seeds: tests/fuzz/seeds/pose_list, the header and first rows of a

@@ -1,7 +1,7 @@
 // libFuzzer target for stepcal::service::decodeRequest (runtime/service): no input may crash it,
 // read out of bounds, trip a sanitizer or throw; what it accepts must be a well-formed request.
 // Not part of the CMake build (that uses g++); build and run with
-// `tools/fuzz.sh request_decoder SECONDS`.
+// `tests/system/fuzz.sh request_decoder SECONDS`.
 //
 // Each input is decoded twice: as given (the type fingerprint refuses nearly every mutation),
 // then with the fingerprint of correction_request_t stamped over its first 8 bytes, so the

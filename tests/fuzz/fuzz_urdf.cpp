@@ -1,7 +1,7 @@
 // libFuzzer target for the URDF loader (chainFromUrdf, bodyMassesFromUrdf): no input may crash
 // it, hang, trip a sanitizer, fail an invariant of KinematicChain or throw anything but
 // InputError. Not part of the CMake build (that uses g++); build and run with
-// `tools/fuzz.sh urdf SECONDS`.
+// `tests/system/fuzz.sh urdf SECONDS`.
 //
 // An input's first line names base_link, tip_link and any links to attach, separated by spaces;
 // the rest is the URDF text. Seeds: robots/*.urdf with their chains' names (fuzz.sh makes them).

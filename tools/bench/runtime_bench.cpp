@@ -46,8 +46,7 @@
 #ifdef STEPCAL_BENCH_WITH_KDL
 #include "kdl_compare.hpp"
 #endif
-// Last: it defines malloc & co., which must follow every system header's declarations.
-#include "allocation_counter.hpp"  // tests/support; interposes malloc (this TU only)
+#include "stepcal/allocation_counter.hpp"
 
 namespace {
 

@@ -1,17 +1,15 @@
 // stepcal-runtime: the real-time daemon beside the robot controller. Answers correction requests
 // over LCM with a calibrated model (docs/runtime.md).
 //
-//   stepcal-runtime --model MODEL [--lcm-url URL] [--budget-us 200] [--max-wrench-age-ms 20]
-//                   [--sensor lcm | can:IFACE] [--wrench-channel STEPCAL_WRENCH]
-//                   [--sensor-base-id 0x20] [--sensor-rate-hz 1000] [--sensor-calibration 0]
-//                   [--sensor-bias-samples 16] [--sensor-republish CHANNEL] [--realtime]
+//   stepcal-runtime [--config FILE] --model MODEL [--lcm-url URL] [--budget-us 200] …
 //
+// Every option, on the command line or as a key of the --config file: daemon_options.cpp's table
+// (`stepcal-runtime --help`).
 // One serving thread polls the LCM socket, a signalfd (SIGHUP reload, SIGINT/SIGTERM stop) and a
 // 10 Hz timerfd (status). With --sensor can:IFACE the F/T driver polls on its own thread
 // (created after --realtime's settings, so it inherits them). Reloads load the new file on their own thread and swap it in through
 // the service's ModelHandle, so requests keep being answered meanwhile; a refused file leaves the
 // model in service as it is.
-#include <CLI/CLI.hpp>
 #include <poll.h>
 #include <pthread.h>
 #include <sched.h>
@@ -30,6 +28,7 @@
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/service/channels.hpp"
+#include "stepcal/service/daemon_options.hpp"
 #include "stepcal/service/lcm_server.hpp"
 #include "stepcal/service/realtime.hpp"
 
@@ -120,14 +119,7 @@ class Fd {
   int fd_;
 };
 
-struct DaemonArgs {
-  std::string model_path;
-  std::string lcm_url = service::kDefaultLcmUrl;
-  int budget_us = 200;
-  double max_wrench_age_ms = 20.0;
-  service::SensorArgs sensor;
-  bool realtime = false;
-};
+using service::DaemonArgs;
 
 int serve(const DaemonArgs& args) {
   if (args.budget_us <= 0) throw InputError("--budget-us must be > 0");
@@ -199,43 +191,17 @@ int serve(const DaemonArgs& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"stepcal-runtime: corrects commanded poses and inverts desired poses over LCM"};
-  DaemonArgs args;
-  app.add_option("--model", args.model_path, "model file (stepcal calibrate --out)")->required();
-  app.add_option("--lcm-url", args.lcm_url, "LCM URL")->capture_default_str();
-  app.add_option("--budget-us", args.budget_us,
-                 "longest time from a request's arrival to its reply, us")
-      ->capture_default_str();
-  app.add_option("--max-wrench-age-ms", args.max_wrench_age_ms,
-                 "a live wrench older than this gives STALE_WRENCH, ms")
-      ->capture_default_str();
-  app.add_option("--sensor", args.sensor.sensor,
-                 "source of the live wrench: lcm (wrench_t on --wrench-channel) or can:IFACE (ATI "
-                 "Net CAN OEM F/T sensor on SocketCAN interface IFACE)")
-      ->capture_default_str();
-  app.add_option("--wrench-channel", args.sensor.wrench_channel,
-                 "--sensor lcm: channel of the live wrench_t samples")
-      ->capture_default_str();
-  app.add_option("--sensor-base-id", args.sensor.base_id,
-                 "--sensor can: the sensor's base id, 0 … 0x7F (CAN ids base << 4 | opcode)")
-      ->capture_default_str();
-  app.add_option("--sensor-rate-hz", args.sensor.rate_hz, "--sensor can: gauge polls per second")
-      ->capture_default_str();
-  app.add_option("--sensor-calibration", args.sensor.calibration_index,
-                 "--sensor can: calibration index made active at start-up, 0 … 15 (−1 keeps the "
-                 "sensor's)")
-      ->capture_default_str();
-  app.add_option("--sensor-bias-samples", args.sensor.bias_samples,
-                 "--sensor can: readings averaged per bias (sensor_command_t BIAS)")
-      ->capture_default_str();
-  app.add_option("--sensor-republish", args.sensor.republish_channel,
-                 "--sensor can: also publish every sample as wrench_t on this channel");
-  app.add_flag("--realtime", args.realtime,
-               "mlockall and SCHED_FIFO priority 80 (needs CAP_IPC_LOCK and CAP_SYS_NICE or the "
-               "matching rlimits)");
-  CLI11_PARSE(app, argc, argv);
   try {
-    return serve(args);
+    const service::DaemonCommandLine command_line = service::parseDaemonCommandLine(argc, argv);
+    if (command_line.help) {
+      std::fputs(service::daemonUsage().c_str(), stdout);
+      return 0;
+    }
+    if (command_line.print_config) {
+      std::fputs(service::daemonConfiguration(command_line.args).c_str(), stdout);
+      return 0;
+    }
+    return serve(command_line.args);
   } catch (const InputError& e) {
     std::fprintf(stderr, "stepcal-runtime: error: %s\n", e.what());
     return 2;

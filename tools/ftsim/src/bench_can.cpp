@@ -23,9 +23,8 @@
 
 #include "stepcal/ftsim/simulator.hpp"
 #include "stepcal/runtime/ft_sensor.hpp"
+#include "stepcal/allocation_counter.hpp"
 #include "stepcal/service/latency.hpp"
-
-#include "allocation_counter.hpp"  // tests/support; interposes malloc (this TU only), after Eigen
 
 namespace {
 

@@ -1,4 +1,4 @@
-// A measurement campaign (../shared/docs/campaign-format.md, format stepcal-campaign/1).
+// A measurement campaign (docs/campaign-format.md, format stepcal-campaign/1).
 //
 // In memory everything is SI: metres, radians, newtons, N·m. Millimetres and degrees exist
 // only in the files. Reading is strict: any bad file, line, column or value throws InputError

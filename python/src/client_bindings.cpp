@@ -1,0 +1,192 @@
+// stepcal.Client: requests to the stepcal-runtime daemon and their replies over LCM, through
+// LCM's C library and the generated C++ types (docs/python.md, "The daemon from Python").
+#include <poll.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <string>
+
+#include <lcm/lcm.h>
+#include <stepcal_lcm/correction_reply_t.hpp>
+#include <stepcal_lcm/correction_request_t.hpp>
+
+#include "bindings.hpp"
+#include "stepcal/common/error.hpp"
+#include "stepcal/runtime/corrector.hpp"
+#include "stepcal/service/channels.hpp"
+#include "stepcal/service/lcm_server.hpp"
+#include "stepcal/service/request.hpp"
+
+namespace stepcal::python {
+namespace {
+
+using stepcal_lcm::correction_reply_t;
+using stepcal_lcm::correction_request_t;
+using Clock = std::chrono::steady_clock;
+constexpr int kJoints = service::kMessageJoints;
+
+template <size_t N>
+py::array_t<double> arrayOf(const double (&values)[N]) {
+  py::array_t<double> out(static_cast<ssize_t>(N));
+  std::copy(values, values + N, out.mutable_data());
+  return out;
+}
+
+/// Copies `count` numbers of a Python sequence or array into out; ValueError names `what`.
+void copyValues(const py::handle& value, int count, double* out, const char* what) {
+  const auto array = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(value);
+  if (!array || array.ndim() != 1 || array.shape(0) != count) {
+    throw py::value_error(std::string(what) + ": expected " + std::to_string(count) + " numbers");
+  }
+  std::copy(array.data(), array.data() + count, out);
+}
+
+class Client {
+ public:
+  Client(std::string lcm_url, double timeout_ms)
+      : url_(std::move(lcm_url)), timeout_ms_(timeout_ms), lcm_(lcm_create(url_.c_str())) {
+    if (lcm_ == nullptr) throw InputError("lcm_url '" + url_ + "': LCM cannot open it");
+    if (!(timeout_ms_ > 0.0)) {
+      lcm_destroy(lcm_);
+      throw py::value_error("timeout_ms: expected a time > 0");
+    }
+    service::subscribeQueued(lcm_, service::kReplyChannel, &Client::onReply, this);
+    next_id_ = int64_t(getpid()) << 32;
+  }
+  ~Client() { lcm_destroy(lcm_); }
+  Client(const Client&) = delete;
+  Client& operator=(const Client&) = delete;
+
+  py::object forward(const py::handle& q, const py::object& wrench, double temp_c,
+                     int deadline_us) {
+    correction_request_t request = newRequest(wrench, temp_c, deadline_us);
+    request.mode = correction_request_t::MODE_FORWARD;
+    copyValues(q, kJoints, request.q_rad, "q");
+    return exchange(request);
+  }
+
+  py::object inverse(const py::handle& position_m, const py::handle& quaternion_wxyz,
+                     const py::handle& seed, const py::object& wrench, double temp_c,
+                     int deadline_us) {
+    correction_request_t request = newRequest(wrench, temp_c, deadline_us);
+    request.mode = correction_request_t::MODE_INVERSE;
+    copyValues(position_m, 3, request.desired_position_m, "position_m");
+    copyValues(quaternion_wxyz, 4, request.desired_quaternion_wxyz, "quaternion_wxyz");
+    copyValues(seed, kJoints, request.seed_q_rad, "seed");
+    return exchange(request);
+  }
+
+  const std::string& url() const { return url_; }
+
+ private:
+  correction_request_t newRequest(const py::object& wrench, double temp_c, int deadline_us) {
+    correction_request_t request{};
+    request.request_id = ++next_id_;
+    request.utime = std::chrono::duration_cast<std::chrono::microseconds>(
+                        std::chrono::system_clock::now().time_since_epoch())
+                        .count();
+    request.temp_c = temp_c;
+    request.deadline_us = deadline_us;
+    if (wrench.is_none()) {
+      request.wrench_source = correction_request_t::WRENCH_LIVE_SENSOR;
+    } else {
+      request.wrench_source = correction_request_t::WRENCH_GIVEN;
+      copyValues(wrench, 6, request.wrench, "wrench");
+    }
+    return request;
+  }
+
+  py::object exchange(const correction_request_t& request) {
+    std::vector<uint8_t> bytes(size_t(request.getEncodedSize()));
+    request.encode(bytes.data(), 0, int(bytes.size()));
+    awaited_ = request.request_id;
+    reply_.reset();
+    {
+      const py::gil_scoped_release unlocked;
+      if (lcm_publish(lcm_, service::kRequestChannel, bytes.data(), unsigned(bytes.size())) != 0) {
+        throw InputError("lcm_url '" + url_ + "': the request could not be sent");
+      }
+      const Clock::time_point until =
+          Clock::now() + std::chrono::microseconds(int64_t(timeout_ms_ * 1e3));
+      while (!reply_) {
+        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now());
+        if (left.count() <= 0) break;
+        pollfd fd{lcm_get_fileno(lcm_), POLLIN, 0};
+        if (poll(&fd, 1, int(left.count())) > 0) lcm_handle(lcm_);
+      }
+    }
+    if (!reply_) {
+      const std::string message = "no reply from stepcal-runtime on " + url_ + " within " +
+                                  std::to_string(int(timeout_ms_)) + " ms (request " +
+                                  std::to_string(request.request_id) + ")";
+      PyErr_SetString(PyExc_TimeoutError, message.c_str());
+      throw py::error_already_set();
+    }
+    return replyObject(*reply_);
+  }
+
+  static void onReply(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+    auto* self = static_cast<Client*>(user);
+    correction_reply_t reply;
+    if (reply.decode(rbuf->data, 0, int(rbuf->data_size)) != int(rbuf->data_size)) return;
+    if (reply.request_id == self->awaited_) self->reply_ = reply;
+  }
+
+  static py::object replyObject(const correction_reply_t& r) {
+    py::dict f;
+    f["request_id"] = r.request_id;
+    f["status"] = statusObject(r.status);
+    f["q_target_rad"] = arrayOf(r.q_target_rad);
+    f["commanded_position_m"] = arrayOf(r.commanded_position_m);
+    f["commanded_quaternion_wxyz"] = arrayOf(r.commanded_quaternion_wxyz);
+    f["predicted_position_m"] = arrayOf(r.predicted_position_m);
+    f["predicted_quaternion_wxyz"] = arrayOf(r.predicted_quaternion_wxyz);
+    f["gpr_std"] = arrayOf(r.gpr_std);
+    f["uncovered_joints"] = r.uncovered_joints;
+    f["iterations"] = r.iterations;
+    f["compute_ns"] = r.compute_ns;
+    f["wrench_stamp_ns"] = r.wrench_stamp_ns;
+    f["model_id"] = uint64_t(r.model_id);
+    f["residual_position_m"] = r.residual_position_m;
+    f["residual_orientation_rad"] = r.residual_orientation_rad;
+    return py::module_::import("types").attr("SimpleNamespace")(**f);
+  }
+
+  std::string url_;
+  double timeout_ms_;
+  lcm_t* lcm_;
+  int64_t next_id_ = 0;
+  int64_t awaited_ = -1;
+  std::optional<correction_reply_t> reply_;
+};
+
+}  // namespace
+
+void bindClient(py::module_& m) {
+  m.attr("DEFAULT_LCM_URL") = service::kDefaultLcmUrl;
+  py::class_<Client>(m, "Client",
+                     "The controller's side of the daemon's wire: one request at a time, the "
+                     "reply matched by its request id (LCM's C library; no Python LCM needed)")
+      .def(py::init<std::string, double>(), py::arg("lcm_url") = service::kDefaultLcmUrl,
+           py::arg("timeout_ms") = 100.0,
+           "Opens LCM at lcm_url (the daemon's); a reply later than timeout_ms raises TimeoutError")
+      .def_property_readonly("lcm_url", &Client::url)
+      .def("forward", &Client::forward, py::arg("q"), py::arg("wrench") = py::none(),
+           py::arg("temp_c") = std::numeric_limits<double>::quiet_NaN(),
+           py::arg("deadline_us") = 0,
+           "The pose the robot reaches at joints q (6 values, rad): the daemon's reply (status, "
+           "predicted_position_m, predicted_quaternion_wxyz, gpr_std, model_id, …). wrench: 6 "
+           "values on the F/T sensor [N, N·m], or None for the daemon's live sensor.")
+      .def("inverse", &Client::inverse, py::arg("position_m"), py::arg("quaternion_wxyz"),
+           py::arg("seed"), py::arg("wrench") = py::none(),
+           py::arg("temp_c") = std::numeric_limits<double>::quiet_NaN(),
+           py::arg("deadline_us") = 0,
+           "Joint targets that reach the desired tip pose (tracker frame, m, unit quaternion) from "
+           "seed (6 values, rad): the daemon's reply (status, q_target_rad, commanded_*, "
+           "predicted_*, iterations, residuals, …).");
+}
+
+}  // namespace stepcal::python

@@ -1,0 +1,244 @@
+"""The Python module stepcal against the C++ API and the command line (ctest python_bindings and,
+in a private network namespace, python_client; tests/CMakeLists.txt sets the environment):
+
+  STEPCAL_BIN_DIR      the build's executables (stepcal, stepcal-runtime)
+  STEPCAL_CAMPAIGN     a twin campaign (the can_e2e fixture's, seed 4) and
+  STEPCAL_MODEL        its calibrated model file
+  STEPCAL_REFERENCE    tests/python/runtime_reference: the C++ runtime's answers on that campaign
+  STEPCAL_DOCS_DIR     docs/, whose python.md holds the example script run here
+"""
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+import stepcal
+
+BIN = os.environ["STEPCAL_BIN_DIR"]
+CAMPAIGN = os.environ["STEPCAL_CAMPAIGN"]
+MODEL = os.environ["STEPCAL_MODEL"]
+TOLERANCE = 1e-12
+
+
+def run_json(*args):
+    out = subprocess.run([os.path.join(BIN, "stepcal"), *args, "--json"], check=True,
+                         capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def assert_same(python, cli, path="report"):
+    """Equal JSON-like trees: numbers within 1e-12 (relative above 1), wall times skipped."""
+    if isinstance(cli, dict):
+        assert isinstance(python, dict) and set(python) == set(cli), path
+        for key in cli:
+            if not key.startswith("seconds") and key != "timing_s":
+                assert_same(python[key], cli[key], path + "." + key)
+    elif isinstance(cli, list):
+        assert isinstance(python, list) and len(python) == len(cli), path
+        for i, (p, c) in enumerate(zip(python, cli)):
+            assert_same(p, c, "%s[%d]" % (path, i))
+    elif isinstance(cli, float) or isinstance(python, float):
+        assert abs(python - cli) <= TOLERANCE * max(1.0, abs(cli)), (path, python, cli)
+    else:
+        assert python == cli, (path, python, cli)
+
+
+@pytest.fixture(scope="module")
+def campaign():
+    return stepcal.Campaign.load(CAMPAIGN)
+
+
+@pytest.fixture(scope="module")
+def model():
+    return stepcal.Model.load(MODEL)
+
+
+def test_campaign_columns(campaign):
+    rows = campaign.measurements
+    n = len(campaign)
+    assert campaign.joint_count == 6
+    assert rows["q_rad"].shape == (n, 6) and rows["pose"].shape == (n, 4, 4)
+    assert set(rows["set"]) == {"geometry", "stiffness", "residual", "validation"}
+    np.testing.assert_array_equal(rows["pose"][:, :3, 3], rows["position_m"])
+
+
+def fresh_report(call):
+    """The report of stepcal.<call> in a new Python process, as the command line runs it: the
+    trainer's results depend in their last bits on whether a GPR fit already ran in the process
+    (it pins Eigen's cache sizes for the process: trainer/src/gpr.cpp), so that a calibration
+    followed by a diagnosis in one process differs from `stepcal diagnose` by up to ~1e-9 in
+    ill-conditioned candidates."""
+    code = ("import json, stepcal\n"
+            "c = stepcal.Campaign.load(%r)\n"
+            "print(json.dumps(stepcal.%s.report))" % (CAMPAIGN, call))
+    out = subprocess.run([os.environ.get("STEPCAL_PYTHON", "/usr/bin/python3"), "-c", code],
+                         check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def test_calibrate_gives_the_command_lines_numbers(campaign):
+    assert_same(fresh_report("calibrate(c)"), run_json("calibrate", CAMPAIGN))
+    calibration = stepcal.calibrate(campaign)
+    table = calibration.accuracy
+    assert len(table["method"]) == len(table["mean_position_mm"]) > 0
+    assert isinstance(table["mean_position_mm"], np.ndarray)
+    assert calibration.row_position_errors_mm["poe"].shape == (len(campaign),)
+    assert calibration.model.joint_count == 6
+
+
+def test_diagnose_gives_the_command_lines_numbers(campaign, model):
+    cli = run_json("diagnose", CAMPAIGN, "--model", MODEL)
+    assert_same(fresh_report("diagnose(c, model=stepcal.Model.load(%r))" % MODEL), cli)
+    diagnosis = stepcal.diagnose(campaign, model=model)
+    assert diagnosis.verdict == cli["verdict"]
+    assert [e["name"] for e in diagnosis.effects] == [e["name"] for e in cli["effects"]]
+    for effect in diagnosis.effects:  # each found effect with its parameters and 1-σ
+        assert "name" in effect and "parameters" in effect and "uncertainty" in effect
+    assert isinstance(diagnosis.gain["load_kg"], np.ndarray)
+
+
+def test_runtime_gives_the_cpp_apis_numbers(campaign, model):
+    reference = subprocess.run([os.environ["STEPCAL_REFERENCE"], MODEL, CAMPAIGN], check=True,
+                               capture_output=True, text=True).stdout.split("\n")
+    forward = np.array([line.split()[1:] for line in reference if line.startswith("F ")], float)
+    inverse = np.array([line.split()[1:] for line in reference if line.startswith("I ")], float)
+    rows = campaign.measurements
+    validation = np.array(rows["set"]) == "validation"
+    q = rows["q_rad"][validation]
+    wrench = np.nan_to_num(rows["wrench"][validation])
+    temp_c = rows["temp_c"][validation]
+    assert len(q) == len(forward) > 50
+
+    result = model.correct_forward(q, wrench=wrench, temp_c=temp_c)
+    np.testing.assert_array_equal(result.status, forward[:, 0])
+    np.testing.assert_allclose(result.position_m, forward[:, 1:4], rtol=0, atol=TOLERANCE)
+    np.testing.assert_allclose(result.quaternion_wxyz, forward[:, 4:8], rtol=0, atol=TOLERANCE)
+    np.testing.assert_allclose(result.gpr_std, forward[:, 8:14], rtol=0, atol=TOLERANCE)
+    np.testing.assert_allclose(result.pose[:, :3, 3], result.position_m, rtol=0, atol=0)
+
+    offsets = np.where(np.arange(len(q)) % 2 == 0, 2.0, -2.0) * math.pi / 180.0
+    seeds = q + offsets[:, None]
+    solved = model.solve_inverse(rows["pose"][validation], seed=seeds, wrench=wrench,
+                                 temp_c=temp_c)
+    np.testing.assert_array_equal(solved.status, inverse[:, 0])
+    np.testing.assert_allclose(solved.q_target_rad, inverse[:, 1:7], rtol=0, atol=TOLERANCE)
+    np.testing.assert_array_equal(solved.iterations, inverse[:, 7])
+    assert (solved.status == stepcal.Status.OK).mean() > 0.9
+
+    # One row in, one row's values out; statuses as the enum.
+    one = model.correct_forward(q[0], wrench=wrench[0], temp_c=temp_c[0])
+    assert one.status == stepcal.Status(int(forward[0, 0]))
+    np.testing.assert_allclose(one.position_m, forward[0, 1:4], rtol=0, atol=TOLERANCE)
+
+
+def test_statuses_per_row(model):
+    q = np.zeros((3, 6))
+    q[1, 2] = np.nan
+    result = model.correct_forward(q)
+    assert result.status[1] == stepcal.Status.BAD_REQUEST
+    assert stepcal.Status(int(result.status[0])) in (stepcal.Status.OK, stepcal.Status.OUT_OF_DOMAIN)
+    not_unit = np.array([1.0, 0.5, 1.0, 2.0, 0.0, 0.0, 0.0])  # quaternion of norm 2
+    assert model.solve_inverse(not_unit, seed=np.zeros(6)).status == stepcal.Status.BAD_REQUEST
+
+
+def test_model_files_round_trip(tmp_path, model, campaign):
+    copy = tmp_path / "copy.stepcal"
+    model.save(str(copy))
+    assert copy.read_bytes() == open(MODEL, "rb").read()
+    assert stepcal.Model.load(str(copy)).model_id == model.model_id
+    assert "joints" in model.describe()
+
+
+def test_bad_input_raises_with_the_same_message(tmp_path, model):
+    with pytest.raises(stepcal.InputError) as missing:
+        stepcal.Campaign.load(str(tmp_path / "none"))
+    assert str(tmp_path / "none") in str(missing.value)
+
+    broken = tmp_path / "broken"
+    shutil.copytree(CAMPAIGN, broken)
+    lines = (broken / "measurements.csv").read_text().split("\n")
+    header = lines[0].split(",")
+    cells = lines[3].split(",")
+    cells[header.index("x_mm")] = "12.5x"
+    lines[3] = ",".join(cells)
+    (broken / "measurements.csv").write_text("\n".join(lines))
+    with pytest.raises(stepcal.InputError) as bad_row:
+        stepcal.Campaign.load(str(broken))
+    error = bad_row.value
+    assert isinstance(error, ValueError)
+    assert error.line == 4 and error.column == "x_mm"
+    assert error.file.endswith("measurements.csv")
+    cli = subprocess.run([os.path.join(BIN, "stepcal"), "calibrate", str(broken)],
+                         capture_output=True, text=True)
+    assert cli.returncode == 2 and str(error) in cli.stderr
+
+    garbage = tmp_path / "garbage.stepcal"
+    garbage.write_bytes(b"not a model at all")
+    with pytest.raises(stepcal.InputError, match="not a stepcal model file"):
+        stepcal.Model.load(str(garbage))
+    with pytest.raises(ValueError, match=r"expected shape \(6,\) or \(N, 6\), got \(2, 5\)"):
+        model.correct_forward(np.zeros((2, 5)))
+    with pytest.raises(stepcal.InputError, match="gpr_points 1"):
+        stepcal.calibrate(stepcal.Campaign.load(CAMPAIGN), gpr_points=1)
+
+
+def test_the_docs_example_runs(tmp_path):
+    text = open(os.path.join(os.environ["STEPCAL_DOCS_DIR"], "python.md")).read()
+    match = re.search(r"<!-- example, run by tests/python -->\s*```python\n(.*?)```", text, re.S)
+    assert match, "docs/python.md: no example block"
+    script = match.group(1)
+    assert len(script.strip().split("\n")) <= 15
+    (tmp_path / "out").mkdir()
+    os.symlink(CAMPAIGN, tmp_path / "out" / "camp")
+    done = subprocess.run([os.environ.get("STEPCAL_PYTHON", "/usr/bin/python3"), "-c", script],
+                          cwd=tmp_path, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "mean error" in done.stdout
+
+
+# ---- the daemon from Python, over real UDP multicast (ctest python_client, in a netns) ----------
+
+needs_netns = pytest.mark.skipif(not os.environ.get("STEPCAL_NETNS"),
+                                 reason="needs a private network namespace (tests/system/in_netns.sh)")
+
+
+@needs_netns
+def test_client_gets_the_daemons_answers(tmp_path, campaign, model):
+    log = open(tmp_path / "daemon.log", "w+")
+    daemon = subprocess.Popen([os.path.join(BIN, "stepcal-runtime"), "--model", MODEL],
+                              stderr=log)
+    try:
+        for _ in range(100):
+            if "serving" in open(tmp_path / "daemon.log").read():
+                break
+            time.sleep(0.1)
+        client = stepcal.Client(timeout_ms=2000)
+        rows = campaign.measurements
+        i = list(rows["set"]).index("validation")
+        q, wrench = rows["q_rad"][i], np.nan_to_num(rows["wrench"][i])
+        reply = client.forward(q, wrench=wrench)
+        local = model.correct_forward(q, wrench=wrench)
+        assert reply.status == local.status
+        assert reply.model_id == model.model_id
+        np.testing.assert_allclose(reply.predicted_position_m, local.position_m, rtol=0,
+                                   atol=TOLERANCE)
+        seed = q + 2 * math.pi / 180
+        reply = client.inverse(rows["position_m"][i], rows["quaternion_wxyz"][i], seed,
+                               wrench=wrench)
+        assert reply.status in (stepcal.Status.OK, stepcal.Status.OUT_OF_DOMAIN)
+        assert reply.residual_position_m < 1e-5
+    finally:
+        daemon.terminate()
+        daemon.wait(timeout=10)
+    with pytest.raises(TimeoutError, match="no reply from stepcal-runtime"):
+        stepcal.Client(timeout_ms=50).forward(q, wrench=wrench)
+    with pytest.raises(stepcal.InputError, match="LCM cannot open it"):
+        stepcal.Client("nowhere://")
+    with pytest.raises(ValueError, match="q: expected 6 numbers"):
+        stepcal.Client().forward([0.0] * 5)

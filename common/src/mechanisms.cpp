@@ -404,11 +404,13 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
                         const Vec6& wrench_Sensor, double temp_c, ChainWorkspace& ws,
                         JointVector& theta_rad, JointVector& tau_nm,
                         JointVector* profile_slope, const PhysicalConstants* constants,
-                        const FixedPointStart* start) noexcept {
+                        const FixedPointStart* start, const PointPayload* payload) noexcept {
   const KinematicChain& chain = model.chain_Tracker;
   const int n = chain.dof();
-  const bool has_sensor =
-      model.sensor_frame >= 0 && model.sensor_frame < static_cast<int>(chain.frames().size());
+  // The wrench's torques: a measured wrench needs the sensor's frame, a payload none.
+  const bool has_sensor = payload == nullptr && model.sensor_frame >= 0 &&
+                          model.sensor_frame < static_cast<int>(chain.frames().size());
+  const bool has_payload = payload != nullptr && payload->mass_kg != 0.0;
   if (q_rad.size() != n || model.compliance_rad_per_nm.size() != n) return false;
 
   JointVector theta0 = q_rad;
@@ -477,7 +479,7 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
   };
   // Without a wrench or self weight every torque is zero and θ = θ₀: no passes. The passes move
   // θ by the deflection only (~1e-3 rad): sin and cos of θ₀ once, then by the angle sum.
-  const bool loaded = has_sensor || self_weight != nullptr;
+  const bool loaded = has_sensor || has_payload || self_weight != nullptr;
   const int passes = !loaded ? 0 : start != nullptr ? start->passes : kFixedPointPasses;
   theta_rad = theta0;
   if (loaded && start != nullptr && start->deflection_rad != nullptr) {
@@ -500,6 +502,14 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
     if (has_sensor) {
       spatialJacobian(chain, ws, J);
       tau_nm = jointTorques(J, wrenchInRoot(framePose(chain, ws, model.sensor_frame), wrench));
+    }
+    if (has_payload) {
+      // Every joint carries the payload: its weight at its centre of gravity, root axes.
+      Vec6 W_Root;
+      W_Root.head<3>() = payload->mass_kg * model.gravity_Tracker;
+      W_Root.tail<3>() =
+          (ws.X_RootFrame[static_cast<size_t>(n)] * payload->p_CoGInLast_m).cross(W_Root.head<3>());
+      for (int k = 1; k <= n; ++k) tau_nm(k - 1) = jointTwistInRoot(chain, ws, k).dot(W_Root);
     }
     if (self_weight != nullptr) {
       selfWeightTorques(chain, ws, model.gravity_Tracker, self_weight->parameters, tau_self);

@@ -54,6 +54,8 @@ struct TwinOptions {
   std::string base_link = "base_link";  ///< root of the chain
   std::string tip_link = "tmac";        ///< frame the tracker measures
   std::string sensor_link = "ft_sensor";  ///< F/T sensor frame; the payload hangs from it
+  /// The robot's mounting flange, named in the campaign (flange_link; empty: none).
+  std::string flange_link = "flange";
   /// "paper" (the reference protocol, 1070 rows) or "geometry" (its 80 + 50 unloaded rows).
   std::string protocol = "paper";
   /// Seeds every random draw; same seed, same campaign.

@@ -5,6 +5,7 @@
 //                   [--sensor lcm | can:IFACE] [--wrench-channel STEPCAL_WRENCH]
 //                   [--sensor-base-id 0x20] [--sensor-rate-hz 1000] [--sensor-calibration 0]
 //                   [--sensor-bias-samples 16] [--sensor-republish CHANNEL] [--realtime]
+//                   [--key-file FILE [--auth-window-ms 2000]]
 //
 // One serving thread polls the LCM socket, a signalfd (SIGHUP reload, SIGINT/SIGTERM stop) and a
 // 10 Hz timerfd (status). With --sensor can:IFACE the F/T driver polls on its own thread
@@ -29,6 +30,7 @@
 #include <thread>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/service/auth.hpp"
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/lcm_server.hpp"
 #include "stepcal/service/realtime.hpp"
@@ -127,6 +129,36 @@ struct DaemonArgs {
   double max_wrench_age_ms = 20.0;
   service::SensorArgs sensor;
   bool realtime = false;
+  // The cell key (auth.hpp): empty, none.
+  std::string key_file;
+  double auth_window_ms = double(service::kDefaultAuthWindowUs) * 1e-3;
+};
+
+/// The refusals the service counts, each logged once when it first happens (the status message
+/// counts them all).
+class RefusalLog {
+ public:
+  void update(const service::ServiceCounters& c) {
+    once(c.old_version, old_version_,
+         "refused a request in message version 1 (correction_request_v1_t): this daemon reads "
+         "correction_request_t version 2; update the client (docs/runtime.md, Messages); "
+         "counted in STEPCAL_STATUS old_version_requests");
+    once(c.forged, forged_,
+         "dropped a request whose authentication code does not verify (forged, or sent without "
+         "the cell key); counted in STEPCAL_STATUS forged_requests");
+    once(c.replayed, replayed_,
+         "dropped a request whose counter is not fresh (a replay, or a clock off by more than "
+         "--auth-window-ms); counted in STEPCAL_STATUS replayed_requests");
+  }
+
+ private:
+  static void once(int64_t count, bool& logged, const char* line) {
+    if (count > 0 && !logged) {
+      logLine("%s", line);
+      logged = true;
+    }
+  }
+  bool old_version_ = false, forged_ = false, replayed_ = false;
 };
 
 int serve(const DaemonArgs& args) {
@@ -135,6 +167,11 @@ int serve(const DaemonArgs& args) {
   service::ServiceOptions options;
   options.budget_ns = int64_t(args.budget_us) * 1000;
   options.max_wrench_age_ns = int64_t(args.max_wrench_age_ms * 1e6);
+  if (!args.key_file.empty()) {
+    if (!(args.auth_window_ms > 0.0)) throw InputError("--auth-window-ms must be > 0");
+    options.key = service::CellKey::load(args.key_file);
+    options.auth_window_us = int64_t(args.auth_window_ms * 1e3);
+  }
 
   // Signals go to the signalfd only; blocked before any thread starts, so every thread inherits it.
   sigset_t signals;
@@ -159,10 +196,16 @@ int serve(const DaemonArgs& args) {
   timerfd_settime(timer_fd.get(), 0, &period, nullptr);
 
   logLine("serving %s (model %016llx) on %s: budget %d us, live wrench %s (max age %g ms), "
-          "real-time %s, receive queues %d messages",
+          "real-time %s, receive queues %d messages, %s",
           args.model_path.c_str(), static_cast<unsigned long long>(service.modelId()),
           args.lcm_url.c_str(), args.budget_us, feed->describe().c_str(),
-          args.max_wrench_age_ms, realtime ? "on" : "off", service::kSubscriptionQueueCapacity);
+          args.max_wrench_age_ms, realtime ? "on" : "off", service::kSubscriptionQueueCapacity,
+          args.key_file.empty()
+              ? "no cell key (anyone who reaches the LCM group may send requests and sensor "
+                "commands)"
+              : ("cell key " + args.key_file + " (requests, replies and sensor commands "
+                 "authenticated)").c_str());
+  RefusalLog refusals;
 
   pollfd fds[3] = {{lcm_get_fileno(lcm), POLLIN, 0},
                    {signal_fd.get(), POLLIN, 0},
@@ -190,10 +233,22 @@ int serve(const DaemonArgs& args) {
       if (read(timer_fd.get(), &expirations, sizeof expirations) == sizeof expirations) {
         server.publishStatus(realtime);
         feed->publishStatus();
+        refusals.update(service.counters());
       }
     }
     if (fds[0].revents & POLLIN) lcm_handle(lcm);
   }
+}
+
+/// The cell key's options (auth.hpp, docs/runtime.md "Only the cell may talk to it").
+void addKeyOptions(CLI::App& app, DaemonArgs& args) {
+  app.add_option("--key-file", args.key_file,
+                 "the cell's shared key (32 bytes, mode 0600): requests and sensor commands must "
+                 "carry its code, replies carry the daemon's; without it, no authentication");
+  app.add_option("--auth-window-ms", args.auth_window_ms,
+                 "--key-file: how far a message's counter (its send time) may lie from this "
+                 "host's clock, ms")
+      ->capture_default_str();
 }
 
 }  // namespace
@@ -233,6 +288,7 @@ int main(int argc, char** argv) {
   app.add_flag("--realtime", args.realtime,
                "mlockall and SCHED_FIFO priority 80 (needs CAP_IPC_LOCK and CAP_SYS_NICE or the "
                "matching rlimits)");
+  addKeyOptions(app, args);
   CLI11_PARSE(app, argc, argv);
   try {
     return serve(args);

@@ -364,6 +364,20 @@ void selfWeightTorques(const KinematicChain& chain, const ChainWorkspace& ws,
 
 namespace {
 
+/// The joint torques of a payload's weight at the pose in ws, N·m: every joint carries it, its
+/// weight at its centre of gravity (root axes). Out of line: the fixed point's usual passes
+/// (measured wrench, self weight) stay as they were.
+[[gnu::noinline]] void payloadTorques(const KinematicChain& chain, const ChainWorkspace& ws,
+                                      const Vec3& gravity_Root, const PointPayload& payload,
+                                      JointVector& tau_nm) noexcept {
+  const int n = chain.dof();
+  Vec6 W_Root;
+  W_Root.head<3>() = payload.mass_kg * gravity_Root;
+  W_Root.tail<3>() =
+      (ws.X_RootFrame[static_cast<size_t>(n)] * payload.p_CoGInLast_m).cross(W_Root.head<3>());
+  for (int k = 1; k <= n; ++k) tau_nm(k - 1) = jointTwistInRoot(chain, ws, k).dot(W_Root);
+}
+
 /// δ = Σ_j g_j δ_j of the profiles' geometry (6(n+1) entries; mechanisms.hpp) at the gates g per
 /// joint (a joint without a profile has g 0); false when no profile moves the poses.
 bool profileGeometryDelta(const PhysicalModel& model, const std::array<double, kMaxJoints>& gate,
@@ -503,14 +517,7 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
       spatialJacobian(chain, ws, J);
       tau_nm = jointTorques(J, wrenchInRoot(framePose(chain, ws, model.sensor_frame), wrench));
     }
-    if (has_payload) {
-      // Every joint carries the payload: its weight at its centre of gravity, root axes.
-      Vec6 W_Root;
-      W_Root.head<3>() = payload->mass_kg * model.gravity_Tracker;
-      W_Root.tail<3>() =
-          (ws.X_RootFrame[static_cast<size_t>(n)] * payload->p_CoGInLast_m).cross(W_Root.head<3>());
-      for (int k = 1; k <= n; ++k) tau_nm(k - 1) = jointTwistInRoot(chain, ws, k).dot(W_Root);
-    }
+    if (has_payload) payloadTorques(chain, ws, model.gravity_Tracker, *payload, tau_nm);
     if (self_weight != nullptr) {
       selfWeightTorques(chain, ws, model.gravity_Tracker, self_weight->parameters, tau_self);
       tau_nm += tau_self;

@@ -79,7 +79,9 @@ std::pair<Vec3, double> reachSphere(const KinematicChain& chain) {
 /// A call's terms resolved against the model (prepare): what the steps use.
 struct Prepared {
   Pose X_TrackerFrame = Pose::Identity();  ///< the call's frame in the tracker frame
+  bool in_tracker = true;                  ///< X_TrackerFrame is the identity
   Pose X_TipTcp = Pose::Identity();        ///< the TCP in the calibrated target's frame
+  bool at_target = true;                   ///< X_TipTcp is the identity
   bool tool_offset = false;                ///< X_TipTcp moves the point (its translation ≠ 0)
   Pose X_ControllerFrameBase = Pose::Identity();  ///< base → controller frame (user frame⁻¹)
   Pose X_NominalRefTcp = Pose::Identity(); ///< the tool as given, from the nominal ref frame
@@ -106,7 +108,9 @@ Status prepare(const RuntimeModel& model, const CallTerms& terms, Prepared& out)
   out.from_flange = terms.tool_from == ToolFrom::kFlange;
   if (out.from_flange && !model.has_flange) return Status::kBadRequest;
   out.X_TrackerFrame = trackerFromFrame(model, terms.frame, terms.X_BaseUser);
+  out.in_tracker = terms.frame == PoseFrame::kTracker;
   out.X_TipTcp = out.from_flange ? Pose(model.X_TipFlange * terms.X_Tool) : terms.X_Tool;
+  out.at_target = out.X_TipTcp.matrix() == Eigen::Matrix4d::Identity();
   out.tool_offset = out.X_TipTcp.translation().squaredNorm() > 0.0;
   out.X_ControllerFrameBase =
       terms.frame == PoseFrame::kUser ? terms.X_BaseUser.inverse() : Pose::Identity();
@@ -610,63 +614,50 @@ Pose nominalTcp(const RuntimeModel& model, Workspace& ws, const JointVector& q_r
          call.X_NominalRefTcp;
 }
 
-ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                             const Vec6& wrench_Sensor, double temp_c) noexcept {
-  CallTerms terms;
-  terms.wrench_Sensor = wrench_Sensor;
-  return correctForward(model, ws, q_rad, terms, temp_c);
-}
+namespace {
 
-ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                             const CallTerms& terms, double temp_c) noexcept {
+/// correctForward with the terms resolved.
+ForwardResult forwardWith(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                          const Prepared& call, double temp_c) noexcept {
   ForwardResult result;
-  Prepared call;
   if (q_rad.size() != model.file.chain_Tracker.dof() || !q_rad.allFinite() ||
-      !validTemperature(temp_c) || !workspaceFits(model, ws) ||
-      prepare(model, terms, call) != Status::kOk) {
+      !call.wrench_Sensor.allFinite() || !validTemperature(temp_c) || !workspaceFits(model, ws)) {
     return result;
   }
   result.X_TrackerTip = correctedTip(model, ws, q_rad, call, temp_c, &result.wrench_Sensor);
-  result.X_FrameTcp = call.X_TrackerFrame.inverse() * result.X_TrackerTip * call.X_TipTcp;
+  result.X_FrameTcp = result.X_TrackerTip;
+  if (!call.at_target) result.X_FrameTcp = result.X_FrameTcp * call.X_TipTcp;
+  if (!call.in_tracker) result.X_FrameTcp = call.X_TrackerFrame.inverse() * result.X_FrameTcp;
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
   result.status = outOfDomain(model, result.gpr_std) ? Status::kOutOfDomain : Status::kOk;
   result.uncovered_joints = jointsOutsideCoverage(model.physical, q_rad);
   return result;
 }
 
-InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
-                           const Pose& X_TrackerTip_desired, const Vec6& wrench_Sensor,
-                           double temp_c, const JointVector& q_seed_rad,
-                           Clock::time_point deadline, const InverseOptions& options) noexcept {
-  CallTerms terms;
-  terms.wrench_Sensor = wrench_Sensor;
-  return solveInverse(model, ws, X_TrackerTip_desired, terms, temp_c, q_seed_rad, deadline,
-                      options);
-}
-
-InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
-                           const Pose& X_FrameTcp_desired, const CallTerms& terms, double temp_c,
-                           const JointVector& q_seed_rad, Clock::time_point deadline,
-                           const InverseOptions& options) noexcept {
+/// solveInverse with the terms resolved.
+InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& X_FrameTcp_desired,
+                          const Prepared& call, double temp_c, const JointVector& q_seed_rad,
+                          Clock::time_point deadline, const InverseOptions& options) noexcept {
   InverseResult result;
   const KinematicChain& chain = model.file.chain_Tracker;
-  Prepared call;
-  if (q_seed_rad.size() != chain.dof() || !q_seed_rad.allFinite() || !validTemperature(temp_c) ||
+  if (q_seed_rad.size() != chain.dof() || !q_seed_rad.allFinite() ||
+      !call.wrench_Sensor.allFinite() || !validTemperature(temp_c) ||
       !X_FrameTcp_desired.translation().allFinite() || !isRotation(X_FrameTcp_desired.linear()) ||
-      !validOptions(options) || !workspaceFits(model, ws) ||
-      prepare(model, terms, call) != Status::kOk) {
+      !validOptions(options) || !workspaceFits(model, ws)) {
     return result;
   }
   // Residuals, tolerances and the Jacobian are the TCP's, in the tracker frame.
-  const Pose X_TrackerTcp_desired = call.X_TrackerFrame * X_FrameTcp_desired;
+  const Pose X_TrackerTcp_desired =
+      call.in_tracker ? X_FrameTcp_desired : Pose(call.X_TrackerFrame * X_FrameTcp_desired);
 
   JointVector q_rad = q_seed_rad;
   clampToLimits(chain, q_rad);
   JointVector q_best_rad = q_rad;
+  const Vec3 p_TipDesired = call.at_target
+                               ? X_TrackerTcp_desired.translation()
+                               : (X_TrackerTcp_desired * call.X_TipTcp.inverse()).translation();
   const bool beyond_reach =
-      ((X_TrackerTcp_desired * call.X_TipTcp.inverse()).translation() -
-       model.p_ReachCentreInTracker_m)
-          .norm() > model.reach_radius_m;
+      (p_TipDesired - model.p_ReachCentreInTracker_m).norm() > model.reach_radius_m;
   bool converged = false, held_at_limit = false;
   double best_cost = std::numeric_limits<double>::infinity();
   JointVector dq_rad;
@@ -706,7 +697,8 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
     if ((!have_twist && result.iterations > 0) ||
         (have_twist && (q_rad - q_twist_rad).cwiseAbs().maxCoeff() > kFrozenTwistDistance_rad)) {
       xi_frozen = residualTwist(model, ws, q_rad, loadReading(model, ws, call), false);
-      exp_frozen_tcp = lie::expSE3(xi_frozen) * call.X_TipTcp;
+      exp_frozen_tcp = lie::expSE3(xi_frozen);
+      if (!call.at_target) exp_frozen_tcp = exp_frozen_tcp * call.X_TipTcp;
       q_twist_rad = q_rad;
       have_twist = true;
     }
@@ -725,11 +717,13 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
       reading_last = loadReading(model, ws, call);
       xi_frozen = residualTwist(model, ws, q_rad, reading_last, true);
       const Pose exp_twist = lie::expSE3(xi_frozen);
-      exp_frozen_tcp = exp_twist * call.X_TipTcp;
+      exp_frozen_tcp = call.at_target ? exp_twist : Pose(exp_twist * call.X_TipTcp);
       q_twist_rad = q_rad;
       have_twist = true;
       X_TrackerTip_last = Pose(X_physical * exp_twist);
-      e = poseResidual(X_TrackerTcp_desired, Pose(X_TrackerTip_last * call.X_TipTcp));
+      e = poseResidual(X_TrackerTcp_desired, call.at_target
+                                                 ? X_TrackerTip_last
+                                                 : Pose(X_TrackerTip_last * call.X_TipTcp));
       if (within(e)) {
         converged = true;
         q_best_rad = q_rad;
@@ -771,8 +765,12 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   }
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
   result.uncovered_joints = jointsOutsideCoverage(model.physical, q_best_rad);
-  const Pose X_TrackerTcp_predicted = result.X_TrackerTip_predicted * call.X_TipTcp;
-  result.X_FrameTcp_predicted = call.X_TrackerFrame.inverse() * X_TrackerTcp_predicted;
+  const Pose X_TrackerTcp_predicted = call.at_target
+                                          ? result.X_TrackerTip_predicted
+                                          : Pose(result.X_TrackerTip_predicted * call.X_TipTcp);
+  result.X_FrameTcp_predicted = call.in_tracker
+                                    ? X_TrackerTcp_predicted
+                                    : Pose(call.X_TrackerFrame.inverse() * X_TrackerTcp_predicted);
   const Vec6 e = poseResidual(X_TrackerTcp_desired, X_TrackerTcp_predicted);
   result.residual_position_m = e.head<3>().norm();
   result.residual_orientation_rad = e.tail<3>().norm();
@@ -798,8 +796,48 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
       call.from_flange ? Pose(ws.chain.X_RootFrame[static_cast<size_t>(chain.dof())] *
                               model.X_LastFlange_nominal)
                        : result.X_BaseTip_commanded;
-  result.X_ControllerTcp_commanded = call.X_ControllerFrameBase * X_BaseRef * call.X_NominalRefTcp;
+  result.X_ControllerTcp_commanded = X_BaseRef;
+  if (call.X_NominalRefTcp.matrix() != Eigen::Matrix4d::Identity()) {
+    result.X_ControllerTcp_commanded = result.X_ControllerTcp_commanded * call.X_NominalRefTcp;
+  }
+  if (!call.in_tracker) {
+    result.X_ControllerTcp_commanded = call.X_ControllerFrameBase * result.X_ControllerTcp_commanded;
+  }
   return result;
+}
+
+}  // namespace
+
+ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                             const Vec6& wrench_Sensor, double temp_c) noexcept {
+  Prepared call;  // the calibration's own terms
+  call.wrench_Sensor = wrench_Sensor;
+  return forwardWith(model, ws, q_rad, call, temp_c);
+}
+
+ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                             const CallTerms& terms, double temp_c) noexcept {
+  Prepared call;
+  if (prepare(model, terms, call) != Status::kOk) return ForwardResult{};
+  return forwardWith(model, ws, q_rad, call, temp_c);
+}
+
+InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
+                           const Pose& X_TrackerTip_desired, const Vec6& wrench_Sensor,
+                           double temp_c, const JointVector& q_seed_rad,
+                           Clock::time_point deadline, const InverseOptions& options) noexcept {
+  Prepared call;  // the calibration's own terms
+  call.wrench_Sensor = wrench_Sensor;
+  return inverseWith(model, ws, X_TrackerTip_desired, call, temp_c, q_seed_rad, deadline, options);
+}
+
+InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
+                           const Pose& X_FrameTcp_desired, const CallTerms& terms, double temp_c,
+                           const JointVector& q_seed_rad, Clock::time_point deadline,
+                           const InverseOptions& options) noexcept {
+  Prepared call;
+  if (prepare(model, terms, call) != Status::kOk) return InverseResult{};
+  return inverseWith(model, ws, X_FrameTcp_desired, call, temp_c, q_seed_rad, deadline, options);
 }
 
 }  // namespace stepcal::runtime

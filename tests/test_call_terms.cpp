@@ -10,11 +10,13 @@
 #include <stepcal_lcm/correction_reply_t.hpp>
 #include <stepcal_lcm/correction_request_t.hpp>
 
+#include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/service.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
+#include "support/files.hpp"
 
 namespace stepcal {
 namespace {
@@ -150,6 +152,13 @@ TEST(CallTerms, ToolFromTheTargetAndTheFlangeAgainstTheTwin) {
 TEST(CallTerms, BaseAndUserFramesRoundTrip) {
   const auto model = runtime::RuntimeModel::fromModel(cell().model, 1);
   runtime::Workspace ws = runtime::makeWorkspace(*model);
+  // What the base frame is: the nominal robot's registration, not the twin's true base_link (the
+  // registration takes up the nominal model's errors); printed for docs/runtime.md.
+  const twin::TwinRobot truth(cell().options);
+  const Pose X_TrueBaseModelBase = truth.X_TrackerBase().inverse() * model->file.X_TrackerBase;
+  std::printf("base frame (registration) against the twin's true base_link: %.3f mm, %.4f deg\n",
+              X_TrueBaseModelBase.translation().norm() * 1e3,
+              lie::angleBetween(Mat3::Identity(), X_TrueBaseModelBase.linear()) / kDeg);
   Pose X_BaseUser = rotated(translation(1.4, -0.3, 0.2), Vec3(0.2, 0.1, 1.0), 0.7);
   const auto rows = cell().campaign.rowsIn(RowSet::kValidation);
   for (size_t i = 0; i < rows.size(); i += 37) {
@@ -264,6 +273,29 @@ TEST(CallTerms, PayloadWrenchIsTheTwinsGravityWrench) {
   std::printf("payload wrench against the twin's gravity wrench: worst relative difference %.3g\n",
               worst_relative);
   EXPECT_LT(worst_relative, 1e-9);
+}
+
+// The flange comes from campaign.yaml's flange_link: written and read back, kept by the trainer
+// as the frame "flange" on the last joint's frame, refused when the URDF has no such link.
+TEST(CallTerms, TheCampaignNamesTheFlange) {
+  EXPECT_EQ(cell().campaign.flange_link, "flange");
+  const test::TempDir dir;
+  writeCampaign(cell().campaign, dir.path().string());
+  const Campaign read = readCampaign(dir.path().string());
+  EXPECT_EQ(read.flange_link, "flange");
+  const int flange = cell().model.nominal_Base.findFrame(kFlangeFrameName);
+  ASSERT_GE(flange, 0);
+  EXPECT_EQ(cell().model.nominal_Base.frames()[size_t(flange)].parent, 6);
+  EXPECT_EQ(cell().model.chain_Tracker.findFrame(kFlangeFrameName), flange);
+  EXPECT_EQ(cell().model.sensor_frame, 0) << "the sensor stays frame 0";
+  Campaign wrong = cell().campaign;
+  wrong.flange_link = "nosuch";
+  try {
+    trainer::campaignChain(wrong);
+    ADD_FAILURE() << "a flange_link the URDF lacks was taken";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'nosuch' is not a link"), std::string::npos) << e.what();
+  }
 }
 
 // Terms a model cannot serve are BAD_REQUEST, never a wrong answer.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <type_traits>
 #include <cmath>
 #include <cstdio>
 
@@ -365,9 +366,8 @@ void selfWeightTorques(const KinematicChain& chain, const ChainWorkspace& ws,
 namespace {
 
 /// The joint torques of a payload's weight at the pose in ws, N·m: every joint carries it, its
-/// weight at its centre of gravity (root axes). Out of line: the fixed point's usual passes
-/// (measured wrench, self weight) stay as they were.
-[[gnu::noinline]] void payloadTorques(const KinematicChain& chain, const ChainWorkspace& ws,
+/// weight at its centre of gravity (root axes).
+void payloadTorques(const KinematicChain& chain, const ChainWorkspace& ws,
                                       const Vec3& gravity_Root, const PointPayload& payload,
                                       JointVector& tau_nm) noexcept {
   const int n = chain.dof();
@@ -510,19 +510,30 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
       forwardKinematics(chain, theta_rad, ws, *initial, &trig);
     }
   };
-  for (int pass = 0; pass < passes; ++pass) {
-    evaluate();
-    tau_nm.setZero(n);
-    if (has_sensor) {
-      spatialJacobian(chain, ws, J);
-      tau_nm = jointTorques(J, wrenchInRoot(framePose(chain, ws, model.sensor_frame), wrench));
+  // The passes, with a payload's torques or without (a loop of its own each, so that the usual
+  // one, a measured wrench or none, is compiled as it was).
+  const auto runPasses = [&](auto with_payload) {
+    for (int pass = 0; pass < passes; ++pass) {
+      evaluate();
+      tau_nm.setZero(n);
+      if (has_sensor) {
+        spatialJacobian(chain, ws, J);
+        tau_nm = jointTorques(J, wrenchInRoot(framePose(chain, ws, model.sensor_frame), wrench));
+      }
+      if constexpr (decltype(with_payload)::value) {
+        payloadTorques(chain, ws, model.gravity_Tracker, *payload, tau_nm);
+      }
+      if (self_weight != nullptr) {
+        selfWeightTorques(chain, ws, model.gravity_Tracker, self_weight->parameters, tau_self);
+        tau_nm += tau_self;
+      }
+      deflect(tau_nm);
     }
-    if (has_payload) payloadTorques(chain, ws, model.gravity_Tracker, *payload, tau_nm);
-    if (self_weight != nullptr) {
-      selfWeightTorques(chain, ws, model.gravity_Tracker, self_weight->parameters, tau_self);
-      tau_nm += tau_self;
-    }
-    deflect(tau_nm);
+  };
+  if (has_payload) {
+    runPasses(std::true_type{});
+  } else {
+    runPasses(std::false_type{});
   }
   evaluate();
   if (start != nullptr && start->deflection_out_rad != nullptr) {

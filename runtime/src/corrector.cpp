@@ -88,8 +88,9 @@ struct Prepared {
   bool from_flange = false;                ///< the nominal ref frame is the flange, not the tip
   bool payload = false;                    ///< the load is a payload (point), not a wrench
   PointPayload point;
-  Vec6 wrench_Sensor = Vec6::Zero();       ///< the load is this wrench
 };
+/// The calibration's own terms: tracker frame, the measured target, a wrench.
+const Prepared kOwnTerms{};
 
 bool finitePose(const Pose& X) noexcept {
   return X.translation().allFinite() && isRotation(X.linear());
@@ -116,11 +117,7 @@ Status prepare(const RuntimeModel& model, const CallTerms& terms, Prepared& out)
       terms.frame == PoseFrame::kUser ? terms.X_BaseUser.inverse() : Pose::Identity();
   out.X_NominalRefTcp = terms.X_Tool;
   out.payload = terms.load_from == LoadFrom::kPayload;
-  if (!out.payload) {
-    if (!terms.wrench_Sensor.allFinite()) return Status::kBadRequest;
-    out.wrench_Sensor = terms.wrench_Sensor;
-    return Status::kOk;
-  }
+  if (!out.payload) return Status::kOk;
   const Payload& p = terms.payload;
   if (!std::isfinite(p.mass_kg) || p.mass_kg < 0.0 || !p.p_CoG_m.allFinite() ||
       (p.mass_kg > 0.0 && model.physical.gravity_Tracker.isZero(0.0))) {
@@ -164,9 +161,11 @@ Vec6 payloadReading(const RuntimeModel& model, const Workspace& ws,
   return reading + sensorBias(physical);
 }
 
-/// The wrench a call's answer and its GPR input use at the pose in ws.chain (after physicalTip).
-Vec6 loadReading(const RuntimeModel& model, const Workspace& ws, const Prepared& call) noexcept {
-  return call.payload ? payloadReading(model, ws, call.point) : call.wrench_Sensor;
+/// The wrench a call's answer and its GPR input use at the pose in ws.chain (after physicalTip):
+/// the payload's reading, or the call's wrench.
+Vec6 loadReading(const RuntimeModel& model, const Workspace& ws, const Prepared& call,
+                 const Vec6& wrench_Sensor) noexcept {
+  return call.payload ? payloadReading(model, ws, call.point) : wrench_Sensor;
 }
 
 /// How physicalTip evaluates the physical model's deflection.
@@ -182,7 +181,7 @@ enum class Deflection {
 /// evaluated there, ws.link_rad, ws.torque_nm (zero with kHeld: no pass), ws.deflection_rad and,
 /// with_slopes (for a Jacobian there), ws.profile_slope set. Sizes must have been checked.
 Pose physicalTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                 const Prepared& call, double temp_c, bool with_slopes,
+                 const Prepared& call, const Vec6& wrench_Sensor, double temp_c, bool with_slopes,
                  Deflection deflection = Deflection::kModel) noexcept {
   FixedPointStart start;
   start.deflection_out_rad = &ws.deflection_rad;
@@ -190,7 +189,7 @@ Pose physicalTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_
     start.passes = deflection == Deflection::kOnePass ? 1 : 0;
     start.deflection_rad = &ws.deflection_rad;
   }
-  const bool sized = physicalLinkAngles(model.physical, q_rad, call.wrench_Sensor, temp_c,
+  const bool sized = physicalLinkAngles(model.physical, q_rad, wrench_Sensor, temp_c,
                                         ws.chain, ws.link_rad, ws.torque_nm,
                                         with_slopes ? &ws.profile_slope : nullptr,
                                         &model.physical_constants, &start,
@@ -218,9 +217,10 @@ const Vec6& residualTwist(const RuntimeModel& model, Workspace& ws, const JointV
 /// The corrected tip T_C2 at q (METHOD.md eq. 32): the physical tip, then exp(ξ̂) of the GPR mean
 /// at (q, measured wrench), with its std bound in ws.gpr_std; the wrench used in *reading.
 Pose correctedTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                  const Prepared& call, double temp_c, Vec6* reading) noexcept {
-  const Pose X_physical = physicalTip(model, ws, q_rad, call, temp_c, false);
-  *reading = loadReading(model, ws, call);
+                  const Prepared& call, const Vec6& wrench_Sensor, double temp_c,
+                  Vec6* reading) noexcept {
+  const Pose X_physical = physicalTip(model, ws, q_rad, call, wrench_Sensor, temp_c, false);
+  *reading = loadReading(model, ws, call, wrench_Sensor);
   if (!model.file.gpr) return X_physical;
   return Pose(X_physical * lie::expSE3(residualTwist(model, ws, q_rad, *reading, true)));
 }
@@ -328,7 +328,8 @@ bool torqueCompliance(const PhysicalModel& model, const JointVector& tau_nm,
 /// (tipPointJacobian's columns). A payload's torques (no wrench held in sensor axes) are left
 /// out, as the self weight's.
 void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws, const Prepared& call,
-                         const Jacobian& twists_Tip, JointMatrix& dtheta_dq) noexcept {
+                         const Vec6& wrench_Sensor, const Jacobian& twists_Tip,
+                         JointMatrix& dtheta_dq) noexcept {
   const PhysicalModel& physical = model.physical;
   const KinematicChain& chain = physical.chain_Tracker;
   const int n = chain.dof();
@@ -343,7 +344,7 @@ void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws, const P
   // In root axes about the tip: brackets commute with the adjoint, so wᵀ [ξ_j, ξ_k] is the same
   // there, with the wrench's moment taken about the tip too.
   Vec6 wrench_Tip = wrenchInRoot(framePose(chain, ws.chain, physical.sensor_frame),
-                                 unbiasedWrench(physical, call.wrench_Sensor));
+                                 unbiasedWrench(physical, wrench_Sensor));
   wrench_Tip.tail<3>() -= tipPose(ws.chain).translation().cross(wrench_Tip.head<3>());
   const int p = chain.frames()[static_cast<size_t>(physical.sensor_frame)].parent;
   JointMatrix M = JointMatrix::Zero(n, n);
@@ -368,7 +369,8 @@ void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws, const P
 /// (linkAngleDerivative), its reference point moved to the call's TCP. The GPR's own derivative
 /// is left out (it is small: a quasi-Newton Jacobian; convergence is always judged on the full
 /// model).
-void correctedJacobian(const RuntimeModel& model, Workspace& ws, const Prepared& call) noexcept {
+void correctedJacobian(const RuntimeModel& model, Workspace& ws, const Prepared& call,
+                       const Vec6& wrench_Sensor) noexcept {
   Jacobian J_link;
   tipPointJacobian(model.physical.chain_Tracker, ws.chain, J_link);
   if ((model.physical.sensor_frame < 0 || call.payload) &&
@@ -377,7 +379,7 @@ void correctedJacobian(const RuntimeModel& model, Workspace& ws, const Prepared&
     ws.J.noalias() = J_link * (ws.profile_slope.array() + 1.0).matrix().asDiagonal();
   } else {
     JointMatrix dtheta_dq;
-    linkAngleDerivative(model, ws, call, J_link, dtheta_dq);
+    linkAngleDerivative(model, ws, call, wrench_Sensor, J_link, dtheta_dq);
     ws.J.noalias() = J_link * dtheta_dq;
   }
   if (call.tool_offset) {
@@ -618,13 +620,14 @@ namespace {
 
 /// correctForward with the terms resolved.
 ForwardResult forwardWith(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                          const Prepared& call, double temp_c) noexcept {
+                          const Prepared& call, const Vec6& wrench_Sensor, double temp_c) noexcept {
   ForwardResult result;
   if (q_rad.size() != model.file.chain_Tracker.dof() || !q_rad.allFinite() ||
-      !call.wrench_Sensor.allFinite() || !validTemperature(temp_c) || !workspaceFits(model, ws)) {
+      !wrench_Sensor.allFinite() || !validTemperature(temp_c) || !workspaceFits(model, ws)) {
     return result;
   }
-  result.X_TrackerTip = correctedTip(model, ws, q_rad, call, temp_c, &result.wrench_Sensor);
+  result.X_TrackerTip =
+      correctedTip(model, ws, q_rad, call, wrench_Sensor, temp_c, &result.wrench_Sensor);
   result.X_FrameTcp = result.X_TrackerTip;
   if (!call.at_target) result.X_FrameTcp = result.X_FrameTcp * call.X_TipTcp;
   if (!call.in_tracker) result.X_FrameTcp = call.X_TrackerFrame.inverse() * result.X_FrameTcp;
@@ -636,12 +639,13 @@ ForwardResult forwardWith(const RuntimeModel& model, Workspace& ws, const JointV
 
 /// solveInverse with the terms resolved.
 InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& X_FrameTcp_desired,
-                          const Prepared& call, double temp_c, const JointVector& q_seed_rad,
-                          Clock::time_point deadline, const InverseOptions& options) noexcept {
+                          const Prepared& call, const Vec6& wrench_Sensor, double temp_c,
+                          const JointVector& q_seed_rad, Clock::time_point deadline,
+                          const InverseOptions& options) noexcept {
   InverseResult result;
   const KinematicChain& chain = model.file.chain_Tracker;
   if (q_seed_rad.size() != chain.dof() || !q_seed_rad.allFinite() ||
-      !call.wrench_Sensor.allFinite() || !validTemperature(temp_c) ||
+      !wrench_Sensor.allFinite() || !validTemperature(temp_c) ||
       !X_FrameTcp_desired.translation().allFinite() || !isRotation(X_FrameTcp_desired.linear()) ||
       !validOptions(options) || !workspaceFits(model, ws)) {
     return result;
@@ -688,7 +692,7 @@ InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& 
   while (!beyond_reach) {
     bool full_model = full_model_next;
     const bool chord = chord_next;
-    Pose X_physical = physicalTip(model, ws, q_rad, call, temp_c, !chord,
+    Pose X_physical = physicalTip(model, ws, q_rad, call, wrench_Sensor, temp_c, !chord,
                                   chord        ? Deflection::kHeld
                                   : full_model ? Deflection::kModel
                                                : Deflection::kOnePass);
@@ -696,7 +700,8 @@ InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& 
     // first step goes without, the twist is evaluated after it, and again after long moves.
     if ((!have_twist && result.iterations > 0) ||
         (have_twist && (q_rad - q_twist_rad).cwiseAbs().maxCoeff() > kFrozenTwistDistance_rad)) {
-      xi_frozen = residualTwist(model, ws, q_rad, loadReading(model, ws, call), false);
+      xi_frozen =
+          residualTwist(model, ws, q_rad, loadReading(model, ws, call, wrench_Sensor), false);
       exp_frozen_tcp = lie::expSE3(xi_frozen);
       if (!call.at_target) exp_frozen_tcp = exp_frozen_tcp * call.X_TipTcp;
       q_twist_rad = q_rad;
@@ -708,13 +713,13 @@ InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& 
              r.tail<3>().norm() <= options.orientation_tolerance_rad;
     };
     if (!full_model && within(e)) {
-      X_physical = physicalTip(model, ws, q_rad, call, temp_c, true);
+      X_physical = physicalTip(model, ws, q_rad, call, wrench_Sensor, temp_c, true);
       full_model = true;
       e = poseResidual(X_TrackerTcp_desired, Pose(X_physical * exp_frozen_tcp));
     }
     if (within(e)) {  // the full model's physical tip here
       // The full model here: the twist at q_rad with its std (kept in ws.gpr_std).
-      reading_last = loadReading(model, ws, call);
+      reading_last = loadReading(model, ws, call, wrench_Sensor);
       xi_frozen = residualTwist(model, ws, q_rad, reading_last, true);
       const Pose exp_twist = lie::expSE3(xi_frozen);
       exp_frozen_tcp = call.at_target ? exp_twist : Pose(exp_twist * call.X_TipTcp);
@@ -739,7 +744,7 @@ InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& 
     if (chord) {
       detail::stepFromFactor(ws.J, factor.cholesky, e, dq_rad);
     } else {
-      correctedJacobian(model, ws, call);
+      correctedJacobian(model, ws, call, wrench_Sensor);
       sigma_min_last_step = detail::dampedStep(ws.J, e, options, dq_rad, factor);
     }
     last_step_chord = chord;
@@ -761,7 +766,7 @@ InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& 
     result.wrench_Sensor = reading_last;
   } else {
     result.X_TrackerTip_predicted =
-        correctedTip(model, ws, q_best_rad, call, temp_c, &result.wrench_Sensor);
+        correctedTip(model, ws, q_best_rad, call, wrench_Sensor, temp_c, &result.wrench_Sensor);
   }
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
   result.uncovered_joints = jointsOutsideCoverage(model.physical, q_best_rad);
@@ -780,7 +785,7 @@ InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& 
     // On the last step's Jacobian, taken within the tolerance of the answer (a fresh one when
     // the seed itself was the answer, or the last step a chord with the seed's Jacobian).
     if (result.iterations == 0 || last_step_chord) {
-      correctedJacobian(model, ws, call);
+      correctedJacobian(model, ws, call, wrench_Sensor);
       sigma_min_last_step =
           detail::smallestSingularValueOfJacobianOrFloor(ws.J, options.singular_value_threshold);
     }
@@ -810,25 +815,22 @@ InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& 
 
 ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
                              const Vec6& wrench_Sensor, double temp_c) noexcept {
-  Prepared call;  // the calibration's own terms
-  call.wrench_Sensor = wrench_Sensor;
-  return forwardWith(model, ws, q_rad, call, temp_c);
+  return forwardWith(model, ws, q_rad, kOwnTerms, wrench_Sensor, temp_c);
 }
 
 ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
                              const CallTerms& terms, double temp_c) noexcept {
   Prepared call;
   if (prepare(model, terms, call) != Status::kOk) return ForwardResult{};
-  return forwardWith(model, ws, q_rad, call, temp_c);
+  return forwardWith(model, ws, q_rad, call, terms.wrench_Sensor, temp_c);
 }
 
 InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
                            const Pose& X_TrackerTip_desired, const Vec6& wrench_Sensor,
                            double temp_c, const JointVector& q_seed_rad,
                            Clock::time_point deadline, const InverseOptions& options) noexcept {
-  Prepared call;  // the calibration's own terms
-  call.wrench_Sensor = wrench_Sensor;
-  return inverseWith(model, ws, X_TrackerTip_desired, call, temp_c, q_seed_rad, deadline, options);
+  return inverseWith(model, ws, X_TrackerTip_desired, kOwnTerms, wrench_Sensor, temp_c, q_seed_rad,
+                     deadline, options);
 }
 
 InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
@@ -837,7 +839,8 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
                            const InverseOptions& options) noexcept {
   Prepared call;
   if (prepare(model, terms, call) != Status::kOk) return InverseResult{};
-  return inverseWith(model, ws, X_FrameTcp_desired, call, temp_c, q_seed_rad, deadline, options);
+  return inverseWith(model, ws, X_FrameTcp_desired, call, terms.wrench_Sensor, temp_c, q_seed_rad,
+                     deadline, options);
 }
 
 }  // namespace stepcal::runtime

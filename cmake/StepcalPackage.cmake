@@ -51,7 +51,7 @@ set(CPACK_DEBIAN_STEPCAL_PACKAGE_CONTROL_EXTRA
 
 set(CPACK_DEBIAN_DEV_PACKAGE_NAME stepcal-dev)
 set(CPACK_DEBIAN_DEV_PACKAGE_SECTION libdevel)
-set(stepcal_dev_depends "libeigen3-dev (>= 3.4)" "liblcm-dev")
+set(stepcal_dev_depends "libeigen3-dev (>= 3.4)" "liblcm-dev" "libsodium-dev")
 if(STEPCAL_BUILD_TRAINER)
   list(APPEND stepcal_dev_depends libyaml-cpp-dev liburdfdom-dev libtinyxml-dev pkg-config)
 endif()

@@ -20,7 +20,9 @@
 
 #include <lcm/lcm.h>
 #include <stepcal_lcm/correction_reply_t.hpp>
+#include <stepcal_lcm/correction_reply_v1_t.hpp>
 #include <stepcal_lcm/correction_request_t.hpp>
+#include <stepcal_lcm/correction_request_v1_t.hpp>
 #include <stepcal_lcm/runtime_status_t.hpp>
 #include <stepcal_lcm/sensor_command_t.hpp>
 #include <stepcal_lcm/sensor_status_t.hpp>
@@ -99,6 +101,9 @@ ServiceOptions generousOptions() {
 correction_request_t forwardRequest(const Measurement& row, int64_t id) {
   correction_request_t msg{};
   msg.request_id = id;
+  msg.message_version = correction_request_t::VERSION;
+  msg.tool_quaternion_wxyz[0] = 1.0;
+  msg.user_frame_quaternion_wxyz[0] = 1.0;
   msg.mode = correction_request_t::MODE_FORWARD;
   msg.wrench_source = correction_request_t::WRENCH_GIVEN;
   msg.desired_quaternion_wxyz[0] = 1.0;
@@ -220,8 +225,12 @@ TEST(LcmService, DecodeRequestKeepsEveryField) {
   EXPECT_EQ(request.mode, Mode::kInverse);
   EXPECT_EQ(request.wrench_source, WrenchSource::kGiven);
   EXPECT_EQ(request.q_rad, row.q_rad);
-  EXPECT_EQ(request.wrench_Sensor, row.wrenchOrZero());
-  EXPECT_LT(poseDifference(request.X_TrackerTip_desired, row.X_TrackerTip()), 1e-15);
+  EXPECT_EQ(request.terms.wrench_Sensor, row.wrenchOrZero());
+  EXPECT_EQ(request.terms.load_from, runtime::LoadFrom::kWrench);
+  EXPECT_EQ(request.terms.frame, runtime::PoseFrame::kTracker);
+  EXPECT_EQ(request.terms.tool_from, runtime::ToolFrom::kTarget);
+  EXPECT_TRUE(request.terms.X_Tool.isApprox(Pose::Identity(), 0.0));
+  EXPECT_LT(poseDifference(request.X_FrameTcp_desired, row.X_TrackerTip()), 1e-15);
   EXPECT_EQ(request.seed_q_rad.size(), 6);
   EXPECT_DOUBLE_EQ(request.seed_q_rad[0], row.q_rad[0] + 2 * kDeg);
 
@@ -289,8 +298,10 @@ TEST(LcmService, ForwardReplyEqualsCorrectForward) {
         *model, ws, row.q_rad, row.wrenchOrZero(), runtime::kUnknownTemperature_c);
     ASSERT_EQ(expected.status, Status::kOk);
     EXPECT_EQ(r.request_id, int64_t(i));
+    EXPECT_EQ(r.message_version, correction_reply_t::VERSION);
     EXPECT_EQ(r.status, int8_t(Status::kOk));
     EXPECT_EQ(r.model_id, int64_t(kFirstModelId));
+    for (int k = 0; k < 6; ++k) EXPECT_EQ(r.wrench[k], row.wrenchOrZero()[k]) << "the wrench used";
     EXPECT_LT(poseDifference(poseOf(r.predicted_position_m, r.predicted_quaternion_wxyz),
                              expected.X_TrackerTip),
               1e-12);
@@ -318,7 +329,7 @@ TEST(LcmService, InverseReplyEqualsSolveInverse) {
     Request request;
     ASSERT_EQ(decodeRequest(encode(msg).data(), msg.getEncodedSize(), request), Status::kOk);
     const runtime::InverseResult expected = runtime::solveInverse(
-        *model, ws, request.X_TrackerTip_desired, request.wrench_Sensor,
+        *model, ws, request.X_FrameTcp_desired, request.terms.wrench_Sensor,
         runtime::kUnknownTemperature_c, request.seed_q_rad, Clock::now() + std::chrono::seconds(1));
     EXPECT_EQ(r.status, int8_t(expected.status));
     EXPECT_EQ(r.status, int8_t(Status::kOk));
@@ -416,6 +427,54 @@ TEST(LcmService, BadRequestsGetBadRequestOrAreCounted) {
   const std::vector<correction_reply_t> replies = memq.exchange(good);
   ASSERT_EQ(replies.size(), 1u);
   EXPECT_EQ(replies[0].status, int8_t(Status::kOk));
+}
+
+// A client of message version 1 (the layout before tools, frames and payloads) is refused by
+// name: a version-1 BAD_REQUEST reply it can read, counted as old_version_requests, never a
+// misread; with a key such requests are dropped (they carry no code), counted alike.
+TEST(LcmService, AVersion1RequestIsRefusedByName) {
+  const Measurement& row = validationRow();
+  stepcal_lcm::correction_request_v1_t old{};
+  old.request_id = 4242;
+  old.mode = stepcal_lcm::correction_request_v1_t::MODE_FORWARD;
+  old.wrench_source = stepcal_lcm::correction_request_v1_t::WRENCH_GIVEN;
+  old.desired_quaternion_wxyz[0] = 1.0;
+  old.temp_c = std::nan("");
+  for (int j = 0; j < 6; ++j) old.q_rad[j] = row.q_rad[j];
+  std::vector<uint8_t> bytes(size_t(old.getEncodedSize()));
+  ASSERT_EQ(old.encode(bytes.data(), 0, int(bytes.size())), int(bytes.size()));
+
+  Request request;
+  EXPECT_EQ(decodeRequest(bytes.data(), int(bytes.size()), request), Status::kBadRequest);
+  EXPECT_TRUE(request.old_version);
+  EXPECT_TRUE(request.request_id_known);
+  EXPECT_EQ(request.request_id, 4242);
+  ASSERT_NE(stepcal_lcm::correction_request_v1_t::getHash(), correction_request_t::getHash());
+
+  Service service(paperModel(), "paper.stepcal", generousOptions());
+  std::vector<uint8_t> reply(static_cast<size_t>(Service::replyBytes()));
+  const int size = service.handleRequest(bytes.data(), int(bytes.size()), Clock::now(),
+                                         reply.data(), int(reply.size()));
+  stepcal_lcm::correction_reply_v1_t refusal{};
+  ASSERT_GT(size, 0);
+  ASSERT_EQ(refusal.decode(reply.data(), 0, size), size) << "a reply the old client can read";
+  EXPECT_EQ(refusal.request_id, 4242);
+  EXPECT_EQ(refusal.status, stepcal_lcm::correction_reply_v1_t::STATUS_BAD_REQUEST);
+  EXPECT_EQ(refusal.model_id, int64_t(kFirstModelId));
+  EXPECT_EQ(service.counters().old_version, 1);
+  EXPECT_EQ(service.counters().status_counts[size_t(Status::kBadRequest)], 1);
+  EXPECT_EQ(service.status(false).old_version_requests, 1);
+  correction_reply_t as_new{};
+  EXPECT_LT(as_new.decode(reply.data(), 0, size), 0) << "and no new client misreads it";
+
+  ServiceOptions keyed = generousOptions();
+  keyed.key = CellKey::fromBytes({});
+  Service with_key(paperModel(), "paper.stepcal", keyed);
+  EXPECT_EQ(with_key.handleRequest(bytes.data(), int(bytes.size()), Clock::now(), reply.data(),
+                                   int(reply.size())),
+            0);
+  EXPECT_EQ(with_key.counters().old_version, 1);
+  EXPECT_EQ(with_key.counters().forged, 0);
 }
 
 TEST(LcmService, StaleLiveWrenchIsStaleWrench) {
@@ -704,6 +763,43 @@ TEST(LcmService, HandlingARequestAllocatesNothing) {
     mechanism_requests.push_back(encode(forward));
     mechanism_requests.push_back(encode(inverse));
   }
+  // In the controller's terms: a user frame, a tool from the flange, a payload.
+  const auto paper_model = paperModel();
+  runtime::Workspace paper_ws = runtime::makeWorkspace(*paper_model);
+  runtime::CallTerms terms;
+  terms.frame = runtime::PoseFrame::kUser;
+  terms.X_BaseUser.translation() = Vec3(1.2, 0.3, 0.1);
+  terms.tool_from = runtime::ToolFrom::kFlange;
+  terms.X_Tool.translation() = Vec3(0.0, 0.05, 0.3);
+  terms.load_from = runtime::LoadFrom::kPayload;
+  terms.payload.mass_kg = 30.0;
+  terms.payload.p_CoG_m = Vec3(0.0, 0.0, 0.1);
+  for (size_t i = 0; i < 10; ++i) {
+    const Measurement& row = validationRow(i * 3);
+    correction_request_t msg = forwardRequest(row, int64_t(100 + i));
+    msg.frame = correction_request_t::FRAME_USER;
+    msg.user_frame_position_m[0] = 1.2;
+    msg.user_frame_position_m[1] = 0.3;
+    msg.user_frame_position_m[2] = 0.1;
+    msg.tool_from = correction_request_t::TOOL_FROM_FLANGE;
+    msg.tool_position_m[1] = 0.05;
+    msg.tool_position_m[2] = 0.3;
+    msg.wrench_source = correction_request_t::WRENCH_PAYLOAD;
+    msg.payload_kg = 30.0;
+    msg.payload_cog_m[2] = 0.1;
+    requests.push_back(encode(msg));
+    const Pose X = runtime::correctForward(*paper_model, paper_ws, row.q_rad, terms,
+                                           runtime::kUnknownTemperature_c).X_FrameTcp;
+    correction_request_t inverse = inverseRequest(row, int64_t(200 + i), X);
+    std::copy(msg.user_frame_position_m, msg.user_frame_position_m + 3, inverse.user_frame_position_m);
+    inverse.frame = msg.frame;
+    inverse.tool_from = msg.tool_from;
+    std::copy(msg.tool_position_m, msg.tool_position_m + 3, inverse.tool_position_m);
+    inverse.wrench_source = msg.wrench_source;
+    inverse.payload_kg = msg.payload_kg;
+    inverse.payload_cog_m[2] = 0.1;
+    requests.push_back(encode(inverse));
+  }
   correction_request_t live = forwardRequest(validationRow(), 5);
   live.wrench_source = correction_request_t::WRENCH_LIVE_SENSOR;
   requests.push_back(encode(live));
@@ -715,7 +811,7 @@ TEST(LcmService, HandlingARequestAllocatesNothing) {
     for (const auto& bytes : all) {
       const int size = server.handleRequest(bytes.data(), int(bytes.size()), Clock::now(),
                                             reply.data(), int(reply.size()));
-      ok += size > 0 && reply[8 + 8 + 8] == uint8_t(Status::kOk);  // status after id and utime
+      ok += size > 0 && reply[8 + 8 + 2 + 8] == uint8_t(Status::kOk);  // after id, version, utime
     }
     return ok;
   };
@@ -729,7 +825,7 @@ TEST(LcmService, HandlingARequestAllocatesNothing) {
     allocations = counter.count();
   }
   EXPECT_EQ(allocations, 0);
-  EXPECT_EQ(ok, 40);
+  EXPECT_EQ(ok, 60);
   EXPECT_EQ(ok_mechanisms, 40);
 }
 

@@ -9,6 +9,8 @@ packages=(
   libeigen3-dev libgtest-dev libbenchmark-dev
   liburdfdom-dev libtinyxml-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev liblbfgspp-dev
   liblcm-dev liblcm-bin jq
+  # The runtime's message authentication (--key-file): libsodium's crypto_auth.
+  libsodium-dev
   # check_urdf, which the calibrated URDF export's test runs on its output.
   liburdfdom-tools
   # The bench's side-by-side with KDL (stepcal-bench --compare-kdl) and the machine's own

@@ -39,9 +39,9 @@ constexpr double kQuaternionNormTolerance = 1e-6;
 constexpr std::array<const char*, 6> kWrenchColumns = {"fx_n",  "fy_n",  "fz_n",
                                                        "mx_nm", "my_nm", "mz_nm"};
 constexpr std::array<const char*, 4> kQuaternionColumns = {"qw", "qx", "qy", "qz"};
-constexpr std::array<const char*, 8> kYamlKeys = {"format",   "robot",          "base_link",
-                                                  "tip_link", "sensor_link",    "measurements",
-                                                  "tracker",  "gravity_in_base"};
+constexpr std::array<const char*, 9> kYamlKeys = {"format",      "robot",          "base_link",
+                                                  "tip_link",    "sensor_link",    "flange_link",
+                                                  "measurements", "tracker",       "gravity_in_base"};
 constexpr std::array<const char*, 2> kTrackerKeys = {"position_sigma_mm", "orientation_sigma_deg"};
 
 // ---------------------------------------------------------------------------------------------
@@ -786,6 +786,7 @@ std::string yamlText(const Campaign& c, const std::string& file) {
   out << YAML::Key << "base_link" << YAML::Value << c.base_link;
   out << YAML::Key << "tip_link" << YAML::Value << c.tip_link;
   if (!c.sensor_link.empty()) out << YAML::Key << "sensor_link" << YAML::Value << c.sensor_link;
+  if (!c.flange_link.empty()) out << YAML::Key << "flange_link" << YAML::Value << c.flange_link;
   out << YAML::Key << "measurements" << YAML::Value << "measurements.csv";
   if (c.tracker.stated) {
     out << YAML::Key << "tracker" << YAML::Value << YAML::BeginMap;
@@ -887,6 +888,10 @@ Campaign readCampaign(const std::string& path) {
   c.measurements_file = yaml.text(measurements, "the measurements file's name");
   if (const auto it = keys.find("sensor_link"); it != keys.end()) {
     c.sensor_link = yaml.text(it->second, "a link name (omit the key if there is no F/T sensor)");
+  }
+  if (const auto it = keys.find("flange_link"); it != keys.end()) {
+    c.flange_link = yaml.text(it->second, "a link name (the robot's mounting flange; omit the "
+                                          "key if it is not in the robot description)");
   }
   if (const auto it = keys.find("tracker"); it != keys.end()) {
     const YamlEntry& tracker = it->second;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <type_traits>
 #include <cmath>
 #include <cstdio>
 
@@ -442,6 +443,19 @@ void selfWeightTorques(const KinematicChain& chain, const ChainWorkspace& ws,
 
 namespace {
 
+/// The joint torques of a payload's weight at the pose in ws, N·m: every joint carries it, its
+/// weight at its centre of gravity (root axes).
+void payloadTorques(const KinematicChain& chain, const ChainWorkspace& ws,
+                                      const Vec3& gravity_Root, const PointPayload& payload,
+                                      JointVector& tau_nm) noexcept {
+  const int n = chain.dof();
+  Vec6 W_Root;
+  W_Root.head<3>() = payload.mass_kg * gravity_Root;
+  W_Root.tail<3>() =
+      (ws.X_RootFrame[static_cast<size_t>(n)] * payload.p_CoGInLast_m).cross(W_Root.head<3>());
+  for (int k = 1; k <= n; ++k) tau_nm(k - 1) = jointTwistInRoot(chain, ws, k).dot(W_Root);
+}
+
 /// δ = Σ_j g_j δ_j of the profiles' geometry (6(n+1) entries; mechanisms.hpp) at the gates g per
 /// joint (a joint without a profile has g 0); false when no profile moves the poses.
 bool profileGeometryDelta(const PhysicalModel& model, const std::array<double, kMaxJoints>& gate,
@@ -482,11 +496,13 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
                         const Vec6& wrench_Sensor, double temp_c, ChainWorkspace& ws,
                         JointVector& theta_rad, JointVector& tau_nm,
                         JointVector* profile_slope, const PhysicalConstants* constants,
-                        const FixedPointStart* start) noexcept {
+                        const FixedPointStart* start, const PointPayload* payload) noexcept {
   const KinematicChain& chain = model.chain_Tracker;
   const int n = chain.dof();
-  const bool has_sensor =
-      model.sensor_frame >= 0 && model.sensor_frame < static_cast<int>(chain.frames().size());
+  // The wrench's torques: a measured wrench needs the sensor's frame, a payload none.
+  const bool has_sensor = payload == nullptr && model.sensor_frame >= 0 &&
+                          model.sensor_frame < static_cast<int>(chain.frames().size());
+  const bool has_payload = payload != nullptr && payload->mass_kg != 0.0;
   if (q_rad.size() != n || model.compliance_rad_per_nm.size() != n) return false;
 
   JointVector theta0 = q_rad;
@@ -549,7 +565,7 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
   };
   // Without a wrench or self weight every torque is zero and θ = θ₀: no passes. The passes move
   // θ by the deflection only (~1e-3 rad): sin and cos of θ₀ once, then by the angle sum.
-  const bool loaded = has_sensor || self_weight != nullptr;
+  const bool loaded = has_sensor || has_payload || self_weight != nullptr;
   const int passes = !loaded ? 0 : start != nullptr ? start->passes : kFixedPointPasses;
   theta_rad = theta0;
   if (loaded && start != nullptr && start->deflection_rad != nullptr) {
@@ -566,18 +582,30 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
       forwardKinematics(chain, theta_rad, ws, *initial, &trig);
     }
   };
-  for (int pass = 0; pass < passes; ++pass) {
-    evaluate();
-    tau_nm.setZero(n);
-    if (has_sensor) {
-      spatialJacobian(chain, ws, J);
-      tau_nm = jointTorques(J, wrenchInRoot(framePose(chain, ws, model.sensor_frame), wrench));
+  // The passes, with a payload's torques or without (a loop of its own each, so that the usual
+  // one, a measured wrench or none, is compiled as it was).
+  const auto runPasses = [&](auto with_payload) {
+    for (int pass = 0; pass < passes; ++pass) {
+      evaluate();
+      tau_nm.setZero(n);
+      if (has_sensor) {
+        spatialJacobian(chain, ws, J);
+        tau_nm = jointTorques(J, wrenchInRoot(framePose(chain, ws, model.sensor_frame), wrench));
+      }
+      if constexpr (decltype(with_payload)::value) {
+        payloadTorques(chain, ws, model.gravity_Tracker, *payload, tau_nm);
+      }
+      if (self_weight != nullptr) {
+        selfWeightTorques(chain, ws, model.gravity_Tracker, self_weight->parameters, tau_self);
+        tau_nm += tau_self;
+      }
+      deflect(tau_nm);
     }
-    if (self_weight != nullptr) {
-      selfWeightTorques(chain, ws, model.gravity_Tracker, self_weight->parameters, tau_self);
-      tau_nm += tau_self;
-    }
-    deflect(tau_nm);
+  };
+  if (has_payload) {
+    runPasses(std::true_type{});
+  } else {
+    runPasses(std::false_type{});
   }
   evaluate();
   if (start != nullptr && start->deflection_out_rad != nullptr) {

@@ -76,6 +76,98 @@ std::pair<Vec3, double> reachSphere(const KinematicChain& chain) {
   return {chain.initialPose(0).translation(), kReachMargin * radius_m};
 }
 
+/// A call's terms resolved against the model (prepare): what the steps use.
+struct Prepared {
+  Pose X_TrackerFrame = Pose::Identity();  ///< the call's frame in the tracker frame
+  bool in_tracker = true;                  ///< X_TrackerFrame is the identity
+  Pose X_TipTcp = Pose::Identity();        ///< the TCP in the calibrated target's frame
+  bool at_target = true;                   ///< X_TipTcp is the identity
+  bool tool_offset = false;                ///< X_TipTcp moves the point (its translation ≠ 0)
+  Pose X_ControllerFrameBase = Pose::Identity();  ///< base → controller frame (user frame⁻¹)
+  Pose X_NominalRefTcp = Pose::Identity(); ///< the tool as given, from the nominal ref frame
+  bool from_flange = false;                ///< the nominal ref frame is the flange, not the tip
+  bool payload = false;                    ///< the load is a payload (point), not a wrench
+  PointPayload point;
+};
+/// The calibration's own terms: tracker frame, the measured target, a wrench.
+const Prepared kOwnTerms{};
+
+bool finitePose(const Pose& X) noexcept {
+  return X.translation().allFinite() && isRotation(X.linear());
+}
+
+/// The terms against the model: kOk, or kBadRequest when they do not hold.
+Status prepare(const RuntimeModel& model, const CallTerms& terms, Prepared& out) noexcept {
+  const int frame = static_cast<int>(terms.frame), tool = static_cast<int>(terms.tool_from),
+            load = static_cast<int>(terms.load_from),
+            cog = static_cast<int>(terms.payload.frame);
+  if (frame < 0 || frame > 2 || tool < 0 || tool > 1 || load < 0 || load > 1 || cog < 0 ||
+      cog > 1 || !finitePose(terms.X_Tool) ||
+      (terms.frame == PoseFrame::kUser && !finitePose(terms.X_BaseUser))) {
+    return Status::kBadRequest;
+  }
+  out.from_flange = terms.tool_from == ToolFrom::kFlange;
+  if (out.from_flange && !model.has_flange) return Status::kBadRequest;
+  out.X_TrackerFrame = trackerFromFrame(model, terms.frame, terms.X_BaseUser);
+  out.in_tracker = terms.frame == PoseFrame::kTracker;
+  out.X_TipTcp = out.from_flange ? Pose(model.X_TipFlange * terms.X_Tool) : terms.X_Tool;
+  out.at_target = out.X_TipTcp.matrix() == Eigen::Matrix4d::Identity();
+  out.tool_offset = out.X_TipTcp.translation().squaredNorm() > 0.0;
+  out.X_ControllerFrameBase =
+      terms.frame == PoseFrame::kUser ? terms.X_BaseUser.inverse() : Pose::Identity();
+  out.X_NominalRefTcp = terms.X_Tool;
+  out.payload = terms.load_from == LoadFrom::kPayload;
+  if (!out.payload) return Status::kOk;
+  const Payload& p = terms.payload;
+  if (!std::isfinite(p.mass_kg) || p.mass_kg < 0.0 || !p.p_CoG_m.allFinite() ||
+      (p.mass_kg > 0.0 && model.physical.gravity_Tracker.isZero(0.0))) {
+    return Status::kBadRequest;
+  }
+  out.point.mass_kg = p.mass_kg;
+  if (p.mass_kg == 0.0) return Status::kOk;  // no load: nowhere to put it
+  if (p.frame == CogFrame::kFlange && !model.has_flange) return Status::kBadRequest;
+  const Pose X_LastCogFrame = p.frame == CogFrame::kFlange
+                                  ? Pose(model.X_LastTip * model.X_TipFlange)
+                                  : Pose(model.X_LastTip * out.X_TipTcp);
+  out.point.p_CoGInLast_m = X_LastCogFrame * p.p_CoG_m;
+  return Status::kOk;
+}
+
+/// The model's sensor_bias, if any, sensor axes: N, N·m.
+Vec6 sensorBias(const PhysicalModel& model) noexcept {
+  Vec6 bias = Vec6::Zero();
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kSensorBias) {
+      for (int i = 0; i < 6; ++i) bias(i) += m.parameters[static_cast<size_t>(i)];
+    }
+  }
+  return bias;
+}
+
+/// What a sensor tared unloaded reads from the payload at the pose in ws.chain: its weight in
+/// sensor axes, moment about the sensor's origin, plus the model's sensor bias; the model's
+/// unloaded wrench when it has no sensor frame. N, N·m.
+Vec6 payloadReading(const RuntimeModel& model, const Workspace& ws,
+                    const PointPayload& point) noexcept {
+  const PhysicalModel& physical = model.physical;
+  if (physical.sensor_frame < 0) return model.unloaded_wrench_Sensor;
+  const KinematicChain& chain = physical.chain_Tracker;
+  const Pose X_RootSensor = framePose(chain, ws.chain, physical.sensor_frame);
+  const Vec3 f_Root = point.mass_kg * physical.gravity_Tracker;
+  const Vec3 p_CoGRoot = ws.chain.X_RootFrame[static_cast<size_t>(chain.dof())] * point.p_CoGInLast_m;
+  Vec6 reading;
+  reading.head<3>() = X_RootSensor.linear().transpose() * f_Root;
+  reading.tail<3>() = (X_RootSensor.inverse() * p_CoGRoot).cross(reading.head<3>());
+  return reading + sensorBias(physical);
+}
+
+/// The wrench a call's answer and its GPR input use at the pose in ws.chain (after physicalTip):
+/// the payload's reading, or the call's wrench.
+Vec6 loadReading(const RuntimeModel& model, const Workspace& ws, const Prepared& call,
+                 const Vec6& wrench_Sensor) noexcept {
+  return call.payload ? payloadReading(model, ws, call.point) : wrench_Sensor;
+}
+
 /// How physicalTip evaluates the physical model's deflection.
 enum class Deflection {
   kModel,      ///< the model itself: the fixed point's passes from θ₀
@@ -89,7 +181,7 @@ enum class Deflection {
 /// evaluated there, ws.link_rad, ws.torque_nm (zero with kHeld: no pass), ws.deflection_rad and,
 /// with_slopes (for a Jacobian there), ws.profile_slope set. Sizes must have been checked.
 Pose physicalTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                 const Vec6& wrench_Sensor, double temp_c, bool with_slopes,
+                 const Prepared& call, const Vec6& wrench_Sensor, double temp_c, bool with_slopes,
                  Deflection deflection = Deflection::kModel) noexcept {
   FixedPointStart start;
   start.deflection_out_rad = &ws.deflection_rad;
@@ -97,10 +189,11 @@ Pose physicalTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_
     start.passes = deflection == Deflection::kOnePass ? 1 : 0;
     start.deflection_rad = &ws.deflection_rad;
   }
-  const bool sized = physicalLinkAngles(model.physical, q_rad, wrench_Sensor, temp_c, ws.chain,
-                                        ws.link_rad, ws.torque_nm,
+  const bool sized = physicalLinkAngles(model.physical, q_rad, wrench_Sensor, temp_c,
+                                        ws.chain, ws.link_rad, ws.torque_nm,
                                         with_slopes ? &ws.profile_slope : nullptr,
-                                        &model.physical_constants, &start);
+                                        &model.physical_constants, &start,
+                                        call.payload ? &call.point : nullptr);
   STEPCAL_INVARIANT(sized, "the physical model and q were checked to have the chain's size");
   return tipPose(ws.chain);
 }
@@ -122,12 +215,14 @@ const Vec6& residualTwist(const RuntimeModel& model, Workspace& ws, const JointV
 }
 
 /// The corrected tip T_C2 at q (METHOD.md eq. 32): the physical tip, then exp(ξ̂) of the GPR mean
-/// at (q, measured wrench), with its std bound in ws.gpr_std.
+/// at (q, measured wrench), with its std bound in ws.gpr_std; the wrench used in *reading.
 Pose correctedTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                  const Vec6& wrench_Sensor, double temp_c) noexcept {
-  const Pose X_physical = physicalTip(model, ws, q_rad, wrench_Sensor, temp_c, false);
+                  const Prepared& call, const Vec6& wrench_Sensor, double temp_c,
+                  Vec6* reading) noexcept {
+  const Pose X_physical = physicalTip(model, ws, q_rad, call, wrench_Sensor, temp_c, false);
+  *reading = loadReading(model, ws, call, wrench_Sensor);
   if (!model.file.gpr) return X_physical;
-  return Pose(X_physical * lie::expSE3(residualTwist(model, ws, q_rad, wrench_Sensor, true)));
+  return Pose(X_physical * lie::expSE3(residualTwist(model, ws, q_rad, *reading, true)));
 }
 
 /// σ/σ_f from the per-output std bound (raw units) that predictMeanAndBoundInto wrote: the
@@ -227,8 +322,9 @@ bool torqueCompliance(const PhysicalModel& model, const JointVector& tau_nm,
 /// joint k's twist in sensor axes, so ∂τ_k/∂θ_j = ([j ≤ k] − [j ≤ p]) wᵀ [ξ_j, ξ_k], p the
 /// sensor's parent joint. The self_weight torques' derivative is left out (solveInverse).
 /// twists_Tip: the joints' twists at the link angles with the tip as reference point, root axes
-/// (tipPointJacobian's columns).
-void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws,
+/// (tipPointJacobian's columns). A payload's torques (no wrench held in sensor axes) are left
+/// out, as the self weight's.
+void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws, const Prepared& call,
                          const Vec6& wrench_Sensor, const Jacobian& twists_Tip,
                          JointMatrix& dtheta_dq) noexcept {
   const PhysicalModel& physical = model.physical;
@@ -237,7 +333,7 @@ void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws,
   JointMatrix dtheta0_dq;
   const bool commanded = commandedAngleDerivative(physical, ws.profile_slope, dtheta0_dq);
   JointVector dtheta_dtau;
-  const bool has_sensor = physical.sensor_frame >= 0;
+  const bool has_sensor = physical.sensor_frame >= 0 && !call.payload;
   if (!has_sensor || !torqueCompliance(physical, ws.torque_nm, dtheta_dtau)) {
     dtheta_dq = dtheta0_dq;
     return;
@@ -267,20 +363,29 @@ void linkAngleDerivative(const RuntimeModel& model, const Workspace& ws,
 
 /// Jacobian of the corrected tip by the commanded joints into ws.J, at the q of the last
 /// physicalTip: the tip point Jacobian at the link angles in ws.chain times dθ/dq
-/// (linkAngleDerivative). The GPR's own derivative is left out (it is small: a quasi-Newton
-/// Jacobian; convergence is always judged on the full model).
-void correctedJacobian(const RuntimeModel& model, Workspace& ws,
+/// (linkAngleDerivative), its reference point moved to the call's TCP. The GPR's own derivative
+/// is left out (it is small: a quasi-Newton Jacobian; convergence is always judged on the full
+/// model).
+void correctedJacobian(const RuntimeModel& model, Workspace& ws, const Prepared& call,
                        const Vec6& wrench_Sensor) noexcept {
   Jacobian J_link;
   tipPointJacobian(model.physical.chain_Tracker, ws.chain, J_link);
-  if (model.physical.sensor_frame < 0 && !model.physical.has(MechanismKind::kJointCoupling)) {
+  if ((model.physical.sensor_frame < 0 || call.payload) &&
+      !model.physical.has(MechanismKind::kJointCoupling)) {
     // No wrench torques and no coupling: dθ/dq = I + diag(profile slopes), a column scaling.
     ws.J.noalias() = J_link * (ws.profile_slope.array() + 1.0).matrix().asDiagonal();
-    return;
+  } else {
+    JointMatrix dtheta_dq;
+    linkAngleDerivative(model, ws, call, wrench_Sensor, J_link, dtheta_dq);
+    ws.J.noalias() = J_link * dtheta_dq;
   }
-  JointMatrix dtheta_dq;
-  linkAngleDerivative(model, ws, wrench_Sensor, J_link, dtheta_dq);
-  ws.J.noalias() = J_link * dtheta_dq;
+  if (call.tool_offset) {
+    // ṗ_Tcp = ṗ_Tip + ω × r, r from the tip to the TCP (root axes).
+    const Vec3 r = tipPose(ws.chain).linear() * call.X_TipTcp.translation();
+    for (int j = 0; j < ws.J.cols(); ++j) {
+      ws.J.block<3, 1>(0, j) += ws.J.block<3, 1>(3, j).cross(r);
+    }
+  }
 }
 
 /// The OUT_OF_DOMAIN threshold on σ/σ_f: √(1 − kDomainVarianceShare · (1 − s²)), s the largest
@@ -295,6 +400,66 @@ double outOfDomainThreshold(const GprPredictor& gpr) {
     s = std::max(s, gpr.relativeStdBound(x_raw.data(), ws));
   }
   return std::sqrt(1.0 - kDomainVarianceShare * (1.0 - s * s));
+}
+
+/// Whether the physical model turns a measured wrench into deflection.
+bool physicalNeedsWrench(const CalibratedModel& file) noexcept {
+  if (file.sensor_frame < 0) return false;
+  for (const Mechanism& m : file.mechanisms) {
+    if (m.kind == MechanismKind::kBacklash || m.kind == MechanismKind::kNonlinearStiffness) {
+      return true;
+    }
+  }
+  return file.compliance_rad_per_nm.size() > 0 && !file.compliance_rad_per_nm.isZero(0.0);
+}
+
+/// Whether the GPR's training wrenches vary (its wrench inputs are the last six); when not, the
+/// constant they take, sensor axes.
+bool gprNeedsWrench(const GprParameters& gpr, int dof, Vec6& constant_wrench) noexcept {
+  const Eigen::MatrixXd& x = gpr.inputs_normalised;
+  for (int i = 0; i < 6; ++i) {
+    const Eigen::Index d = dof + i;
+    if (x.rows() > 0 && x.col(d).maxCoeff() != x.col(d).minCoeff()) return true;
+    constant_wrench(i) = x.rows() > 0 ? gpr.input_offset(d) + gpr.input_scale(d) * x(0, d) : 0.0;
+  }
+  return false;
+}
+
+/// The screw part of a small correction δ (v, ω) of an initial pose along a joint's twist s:
+/// a s + b (ω_s, 0), the rotation about and the translation along its axis (the least-squares
+/// projection onto the two), as a twist.
+Vec6 screwPartAlong(const Vec6& delta, const Vec6& twist) {
+  Vec6 along_axis = Vec6::Zero();
+  along_axis.head<3>() = twist.tail<3>();
+  Eigen::Matrix<double, 6, 2> basis;
+  basis << twist, along_axis;
+  const Eigen::Vector2d coefficients = (basis.transpose() * basis).ldlt().solve(basis.transpose() * delta);
+  return basis * coefficients;
+}
+
+/// The model's flange in its calibrated target's frame (RuntimeModel::X_TipFlange), from the
+/// nominal chain's flange frame, which hangs from frame n. Throws InputError when it hangs from
+/// another frame.
+Pose calibratedTipFlange(const CalibratedModel& file, const AttachedFrame& flange,
+                         const std::string& source) {
+  const int n = file.chain_Tracker.dof();
+  if (flange.parent != n) {
+    throw InputError(std::string("the model's frame '") + kFlangeFrame + "' hangs from chain frame " +
+                         std::to_string(flange.parent) + "; a flange moves with the last joint (" +
+                         std::to_string(n) + ")",
+                     source);
+  }
+  // T_{n−1,n}: calibrated = nominal · exp(δ). Its screw along joint n's axis trades with
+  // T_{n,tip} and is not identified; taken as nominal, it moves to the target's side.
+  Pose X_LastFlange = flange.X_ParentFrame;
+  if (n >= 2) {
+    const Pose deviation = file.nominal_Base.initialPose(n - 1).inverse() *
+                           file.chain_Tracker.initialPose(n - 1);
+    const Vec6 screw = screwPartAlong(
+        lie::logSE3(deviation), file.chain_Tracker.joints()[static_cast<size_t>(n - 1)].twist_Local);
+    X_LastFlange = lie::expSE3(screw).inverse() * X_LastFlange;
+  }
+  return file.chain_Tracker.initialPose(n).inverse() * X_LastFlange;
 }
 
 std::unique_ptr<const RuntimeModel> build(CalibratedModel file, uint64_t model_id,
@@ -350,6 +515,19 @@ std::unique_ptr<const RuntimeModel> build(CalibratedModel file, uint64_t model_i
   }
   std::tie(model->p_ReachCentreInTracker_m, model->reach_radius_m) =
       reachSphere(file.chain_Tracker);
+  model->needs_wrench = physicalNeedsWrench(file);
+  if (file.gpr && gprNeedsWrench(*file.gpr, n, model->unloaded_wrench_Sensor)) {
+    model->needs_wrench = true;
+  }
+  if (model->needs_wrench) model->unloaded_wrench_Sensor.setZero();
+  model->X_LastTip = file.chain_Tracker.initialPose(n);
+  const int flange = file.nominal_Base.findFrame(kFlangeFrame);
+  if (flange >= 0) {
+    const AttachedFrame& frame = file.nominal_Base.frames()[static_cast<size_t>(flange)];
+    model->X_TipFlange = calibratedTipFlange(file, frame, source);
+    model->X_LastFlange_nominal = frame.X_ParentFrame;
+    model->has_flange = true;
+  }
   model->file = std::move(file);
   model->model_id = model_id;
   return model;
@@ -406,40 +584,81 @@ bool workspaceFits(const RuntimeModel& model, const Workspace& ws) noexcept {
          ws.gpr.subset_column.size() == model.gpr.boundSubsetSize();
 }
 
-ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                             const Vec6& wrench_Sensor, double temp_c) noexcept {
+Pose trackerFromFrame(const RuntimeModel& model, PoseFrame frame, const Pose& X_BaseUser) noexcept {
+  switch (frame) {
+    case PoseFrame::kTracker: return Pose::Identity();
+    case PoseFrame::kBase: return model.file.X_TrackerBase;
+    case PoseFrame::kUser: return Pose(model.file.X_TrackerBase * X_BaseUser);
+  }
+  return Pose::Identity();
+}
+
+bool withinDomain(const RuntimeModel& model, const Vec6& gpr_std) noexcept {
+  return !outOfDomain(model, gpr_std);
+}
+
+Pose nominalTcp(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                const CallTerms& terms) noexcept {
+  Prepared call;
+  if (q_rad.size() != model.file.nominal_Base.dof() || !q_rad.allFinite() ||
+      prepare(model, terms, call) != Status::kOk) {
+    return Pose::Identity();
+  }
+  forwardKinematics(model.file.nominal_Base, q_rad, ws.chain);
+  const Pose X_BaseRef =
+      call.from_flange ? Pose(ws.chain.X_RootFrame[static_cast<size_t>(q_rad.size())] *
+                              model.X_LastFlange_nominal)
+                       : tipPose(ws.chain);
+  return call.X_TrackerFrame.inverse() * model.file.X_TrackerBase * X_BaseRef *
+         call.X_NominalRefTcp;
+}
+
+namespace {
+
+/// correctForward with the terms resolved.
+ForwardResult forwardWith(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                          const Prepared& call, const Vec6& wrench_Sensor, double temp_c) noexcept {
   ForwardResult result;
   if (q_rad.size() != model.file.chain_Tracker.dof() || !q_rad.allFinite() ||
       !wrench_Sensor.allFinite() || !validTemperature(temp_c) || !workspaceFits(model, ws)) {
     return result;
   }
-  result.X_TrackerTip = correctedTip(model, ws, q_rad, wrench_Sensor, temp_c);
+  result.X_TrackerTip =
+      correctedTip(model, ws, q_rad, call, wrench_Sensor, temp_c, &result.wrench_Sensor);
+  result.X_FrameTcp = result.X_TrackerTip;
+  if (!call.at_target) result.X_FrameTcp = result.X_FrameTcp * call.X_TipTcp;
+  if (!call.in_tracker) result.X_FrameTcp = call.X_TrackerFrame.inverse() * result.X_FrameTcp;
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
   result.status = outOfDomain(model, result.gpr_std) ? Status::kOutOfDomain : Status::kOk;
   result.uncovered_joints = jointsOutsideCoverage(model.physical, q_rad);
   return result;
 }
 
-InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
-                           const Pose& X_TrackerTip_desired, const Vec6& wrench_Sensor,
-                           double temp_c, const JointVector& q_seed_rad,
-                           Clock::time_point deadline, const InverseOptions& options) noexcept {
+/// solveInverse with the terms resolved.
+InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& X_FrameTcp_desired,
+                          const Prepared& call, const Vec6& wrench_Sensor, double temp_c,
+                          const JointVector& q_seed_rad, Clock::time_point deadline,
+                          const InverseOptions& options) noexcept {
   InverseResult result;
   const KinematicChain& chain = model.file.chain_Tracker;
   if (q_seed_rad.size() != chain.dof() || !q_seed_rad.allFinite() ||
       !wrench_Sensor.allFinite() || !validTemperature(temp_c) ||
-      !X_TrackerTip_desired.translation().allFinite() ||
-      !isRotation(X_TrackerTip_desired.linear()) || !validOptions(options) ||
-      !workspaceFits(model, ws)) {
+      !X_FrameTcp_desired.translation().allFinite() || !isRotation(X_FrameTcp_desired.linear()) ||
+      !validOptions(options) || !workspaceFits(model, ws)) {
     return result;
   }
+  // Residuals, tolerances and the Jacobian are the TCP's, in the tracker frame.
+  const Pose X_TrackerTcp_desired =
+      call.in_tracker ? X_FrameTcp_desired : Pose(call.X_TrackerFrame * X_FrameTcp_desired);
 
   JointVector q_rad = q_seed_rad;
   clampToLimits(chain, q_rad);
   JointVector q_best_rad = q_rad;
+  const Vec3 p_TipDesired = call.at_target
+                               ? X_TrackerTcp_desired.translation()
+                               : (X_TrackerTcp_desired * call.X_TipTcp.inverse()).translation();
   const bool beyond_reach =
-      (X_TrackerTip_desired.translation() - model.p_ReachCentreInTracker_m).norm() >
-      model.reach_radius_m;
+      (p_TipDesired - model.p_ReachCentreInTracker_m).norm() > model.reach_radius_m;
   bool converged = false, held_at_limit = false;
   double best_cost = std::numeric_limits<double>::infinity();
   JointVector dq_rad;
@@ -450,10 +669,11 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   // converged. There the full model decides: converged, or the steps go on with that twist. Two
   // GPR evaluations per call instead of one per step.
   Vec6 xi_frozen = Vec6::Zero();
-  Pose exp_frozen = Pose::Identity();  // exp(ξ̂) of xi_frozen
+  Pose exp_frozen_tcp = call.X_TipTcp;  // exp(ξ̂) of xi_frozen, then the tool
   bool have_twist = false;
   JointVector q_twist_rad = q_rad;  // where xi_frozen was evaluated
   Pose X_TrackerTip_last = Pose::Identity();  // the full model's at q_best_rad when converged
+  Vec6 reading_last = Vec6::Zero();           // the wrench used there
   // The iterates are evaluated with the physical model's one-pass approximation (physicalTip),
   // started from the deflection of the iterate before (the seed's from θ₀); where that is within
   // the tolerances, or after a short step, with the full model, which alone decides convergence.
@@ -469,7 +689,7 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   while (!beyond_reach) {
     bool full_model = full_model_next;
     const bool chord = chord_next;
-    Pose X_physical = physicalTip(model, ws, q_rad, wrench_Sensor, temp_c, !chord,
+    Pose X_physical = physicalTip(model, ws, q_rad, call, wrench_Sensor, temp_c, !chord,
                                   chord        ? Deflection::kHeld
                                   : full_model ? Deflection::kModel
                                                : Deflection::kOnePass);
@@ -477,29 +697,35 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
     // first step goes without, the twist is evaluated after it, and again after long moves.
     if ((!have_twist && result.iterations > 0) ||
         (have_twist && (q_rad - q_twist_rad).cwiseAbs().maxCoeff() > kFrozenTwistDistance_rad)) {
-      xi_frozen = residualTwist(model, ws, q_rad, wrench_Sensor, false);
-      exp_frozen = lie::expSE3(xi_frozen);
+      xi_frozen =
+          residualTwist(model, ws, q_rad, loadReading(model, ws, call, wrench_Sensor), false);
+      exp_frozen_tcp = lie::expSE3(xi_frozen);
+      if (!call.at_target) exp_frozen_tcp = exp_frozen_tcp * call.X_TipTcp;
       q_twist_rad = q_rad;
       have_twist = true;
     }
-    Vec6 e = poseResidual(X_TrackerTip_desired, Pose(X_physical * exp_frozen));
+    Vec6 e = poseResidual(X_TrackerTcp_desired, Pose(X_physical * exp_frozen_tcp));
     const auto within = [&](const Vec6& r) {
       return r.head<3>().norm() <= options.position_tolerance_m &&
              r.tail<3>().norm() <= options.orientation_tolerance_rad;
     };
     if (!full_model && within(e)) {
-      X_physical = physicalTip(model, ws, q_rad, wrench_Sensor, temp_c, true);
+      X_physical = physicalTip(model, ws, q_rad, call, wrench_Sensor, temp_c, true);
       full_model = true;
-      e = poseResidual(X_TrackerTip_desired, Pose(X_physical * exp_frozen));
+      e = poseResidual(X_TrackerTcp_desired, Pose(X_physical * exp_frozen_tcp));
     }
     if (within(e)) {  // the full model's physical tip here
       // The full model here: the twist at q_rad with its std (kept in ws.gpr_std).
-      xi_frozen = residualTwist(model, ws, q_rad, wrench_Sensor, true);
-      exp_frozen = lie::expSE3(xi_frozen);
+      reading_last = loadReading(model, ws, call, wrench_Sensor);
+      xi_frozen = residualTwist(model, ws, q_rad, reading_last, true);
+      const Pose exp_twist = lie::expSE3(xi_frozen);
+      exp_frozen_tcp = call.at_target ? exp_twist : Pose(exp_twist * call.X_TipTcp);
       q_twist_rad = q_rad;
       have_twist = true;
-      X_TrackerTip_last = Pose(X_physical * exp_frozen);
-      e = poseResidual(X_TrackerTip_desired, X_TrackerTip_last);
+      X_TrackerTip_last = Pose(X_physical * exp_twist);
+      e = poseResidual(X_TrackerTcp_desired, call.at_target
+                                                 ? X_TrackerTip_last
+                                                 : Pose(X_TrackerTip_last * call.X_TipTcp));
       if (within(e)) {
         converged = true;
         q_best_rad = q_rad;
@@ -515,7 +741,7 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
     if (chord) {
       detail::stepFromFactor(ws.J, factor.cholesky, e, dq_rad);
     } else {
-      correctedJacobian(model, ws, wrench_Sensor);
+      correctedJacobian(model, ws, call, wrench_Sensor);
       sigma_min_last_step = detail::dampedStep(ws.J, e, options, dq_rad, factor);
     }
     last_step_chord = chord;
@@ -532,11 +758,22 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   }
 
   result.q_target_rad = q_best_rad;
-  result.X_TrackerTip_predicted =
-      converged ? X_TrackerTip_last : correctedTip(model, ws, q_best_rad, wrench_Sensor, temp_c);
+  if (converged) {
+    result.X_TrackerTip_predicted = X_TrackerTip_last;
+    result.wrench_Sensor = reading_last;
+  } else {
+    result.X_TrackerTip_predicted =
+        correctedTip(model, ws, q_best_rad, call, wrench_Sensor, temp_c, &result.wrench_Sensor);
+  }
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
   result.uncovered_joints = jointsOutsideCoverage(model.physical, q_best_rad);
-  const Vec6 e = poseResidual(X_TrackerTip_desired, result.X_TrackerTip_predicted);
+  const Pose X_TrackerTcp_predicted = call.at_target
+                                          ? result.X_TrackerTip_predicted
+                                          : Pose(result.X_TrackerTip_predicted * call.X_TipTcp);
+  result.X_FrameTcp_predicted = call.in_tracker
+                                    ? X_TrackerTcp_predicted
+                                    : Pose(call.X_TrackerFrame.inverse() * X_TrackerTcp_predicted);
+  const Vec6 e = poseResidual(X_TrackerTcp_desired, X_TrackerTcp_predicted);
   result.residual_position_m = e.head<3>().norm();
   result.residual_orientation_rad = e.tail<3>().norm();
   if (!converged) {
@@ -545,7 +782,7 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
     // On the last step's Jacobian, taken within the tolerance of the answer (a fresh one when
     // the seed itself was the answer, or the last step a chord with the seed's Jacobian).
     if (result.iterations == 0 || last_step_chord) {
-      correctedJacobian(model, ws, wrench_Sensor);
+      correctedJacobian(model, ws, call, wrench_Sensor);
       sigma_min_last_step =
           detail::smallestSingularValueOfJacobianOrFloor(ws.J, options.singular_value_threshold);
     }
@@ -557,7 +794,50 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
   }
   forwardKinematics(model.file.nominal_Base, q_best_rad, ws.chain);
   result.X_BaseTip_commanded = tipPose(ws.chain);
+  const Pose X_BaseRef =
+      call.from_flange ? Pose(ws.chain.X_RootFrame[static_cast<size_t>(chain.dof())] *
+                              model.X_LastFlange_nominal)
+                       : result.X_BaseTip_commanded;
+  result.X_ControllerTcp_commanded = X_BaseRef;
+  if (call.X_NominalRefTcp.matrix() != Eigen::Matrix4d::Identity()) {
+    result.X_ControllerTcp_commanded = result.X_ControllerTcp_commanded * call.X_NominalRefTcp;
+  }
+  if (!call.in_tracker) {
+    result.X_ControllerTcp_commanded = call.X_ControllerFrameBase * result.X_ControllerTcp_commanded;
+  }
   return result;
+}
+
+}  // namespace
+
+ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                             const Vec6& wrench_Sensor, double temp_c) noexcept {
+  return forwardWith(model, ws, q_rad, kOwnTerms, wrench_Sensor, temp_c);
+}
+
+ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                             const CallTerms& terms, double temp_c) noexcept {
+  Prepared call;
+  if (prepare(model, terms, call) != Status::kOk) return ForwardResult{};
+  return forwardWith(model, ws, q_rad, call, terms.wrench_Sensor, temp_c);
+}
+
+InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
+                           const Pose& X_TrackerTip_desired, const Vec6& wrench_Sensor,
+                           double temp_c, const JointVector& q_seed_rad,
+                           Clock::time_point deadline, const InverseOptions& options) noexcept {
+  return inverseWith(model, ws, X_TrackerTip_desired, kOwnTerms, wrench_Sensor, temp_c, q_seed_rad,
+                     deadline, options);
+}
+
+InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
+                           const Pose& X_FrameTcp_desired, const CallTerms& terms, double temp_c,
+                           const JointVector& q_seed_rad, Clock::time_point deadline,
+                           const InverseOptions& options) noexcept {
+  Prepared call;
+  if (prepare(model, terms, call) != Status::kOk) return InverseResult{};
+  return inverseWith(model, ws, X_FrameTcp_desired, call, terms.wrench_Sensor, temp_c, q_seed_rad,
+                     deadline, options);
 }
 
 }  // namespace stepcal::runtime

@@ -3,9 +3,10 @@
 // Not part of the CMake build (that uses g++); build and run with
 // `tests/system/fuzz.sh request_decoder SECONDS`.
 //
-// Each input is decoded twice: as given (the type fingerprint refuses nearly every mutation),
-// then with the fingerprint of correction_request_t stamped over its first 8 bytes, so the
-// fuzzer reaches the field checks.
+// Each input is decoded three times: as given (the type fingerprint refuses nearly every
+// mutation), then with the fingerprint of correction_request_t stamped over its first 8 bytes,
+// so the fuzzer reaches the field checks, and with that of version 1, which is always refused by
+// name.
 //
 // Built with -DSTEPCAL_FUZZ_SEED_MAIN (and without -fsanitize=fuzzer) the same file is instead
 // a seed generator: `make_seeds FOLDER` writes valid forward and inverse requests.
@@ -16,6 +17,7 @@
 #include <vector>
 
 #include <stepcal_lcm/correction_request_t.hpp>
+#include <stepcal_lcm/correction_request_v1_t.hpp>
 
 #include "stepcal/service/request.hpp"
 
@@ -30,9 +32,14 @@ using stepcal::service::Request;
 
 constexpr size_t kFingerprintBytes = 8;
 
-void stampFingerprint(uint8_t* bytes) {
-  const auto hash = static_cast<uint64_t>(correction_request_t::getHash());
+void stampFingerprint(uint8_t* bytes, int64_t fingerprint) {
+  const auto hash = static_cast<uint64_t>(fingerprint);
   for (size_t i = 0; i < kFingerprintBytes; ++i) bytes[i] = uint8_t(hash >> (56 - 8 * i));
+}
+
+bool isRotation(const stepcal::Mat3& R) {
+  return (R.transpose() * R - stepcal::Mat3::Identity()).cwiseAbs().maxCoeff() < 1e-9 &&
+         std::abs(R.determinant() - 1.0) < 1e-9;
 }
 
 void check(bool condition) {
@@ -52,16 +59,30 @@ void decodeAndCheck(const uint8_t* data, size_t size) {
   check(request.mode == stepcal::service::Mode::kForward ||
         request.mode == stepcal::service::Mode::kInverse);
   check(request.q_rad.size() == stepcal::service::kMessageJoints && request.q_rad.allFinite());
-  check(request.seed_q_rad.allFinite() && request.wrench_Sensor.allFinite());
+  check(!request.old_version);
+  check(msg.message_version == correction_request_t::VERSION);
+  const stepcal::runtime::CallTerms& terms = request.terms;
+  check(request.seed_q_rad.allFinite() && terms.wrench_Sensor.allFinite());
+  check(terms.X_Tool.translation().allFinite() && isRotation(terms.X_Tool.linear()));
+  check(terms.frame != stepcal::runtime::PoseFrame::kUser ||
+        (terms.X_BaseUser.translation().allFinite() && isRotation(terms.X_BaseUser.linear())));
+  check(terms.load_from != stepcal::runtime::LoadFrom::kPayload ||
+        (std::isfinite(terms.payload.mass_kg) && terms.payload.mass_kg >= 0.0 &&
+         terms.payload.p_CoG_m.allFinite()));
   check(std::isnan(request.temp_c) ||
         (request.temp_c >= stepcal::runtime::kMinTemperature_c &&
          request.temp_c <= stepcal::runtime::kMaxTemperature_c));
   check(std::isnan(request.temp_c) ? std::isnan(msg.temp_c) : msg.temp_c == request.temp_c);
-  const stepcal::Pose& X = request.X_TrackerTip_desired;
-  check(X.translation().allFinite());
-  check((X.linear().transpose() * X.linear() - stepcal::Mat3::Identity()).cwiseAbs().maxCoeff() <
-        1e-9);
-  check(std::abs(X.linear().determinant() - 1.0) < 1e-9);
+  const stepcal::Pose& X = request.X_FrameTcp_desired;
+  check(X.translation().allFinite() && isRotation(X.linear()));
+}
+
+/// Version-1 bytes with a readable id: always refused by name, never decoded.
+void checkOldVersion(const uint8_t* data, size_t size) {
+  Request request;
+  const Status status = stepcal::service::decodeRequest(data, static_cast<int>(size), request);
+  check(status == Status::kBadRequest);
+  check(request.old_version == (size >= 16));
 }
 
 }  // namespace
@@ -70,8 +91,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   decodeAndCheck(data, size);
   if (size < kFingerprintBytes) return 0;
   std::vector<uint8_t> stamped(data, data + size);
-  stampFingerprint(stamped.data());
+  stampFingerprint(stamped.data(), correction_request_t::getHash());
   decodeAndCheck(stamped.data(), stamped.size());
+  stampFingerprint(stamped.data(), stepcal_lcm::correction_request_v1_t::getHash());
+  checkOldVersion(stamped.data(), stamped.size());
   return 0;
 }
 
@@ -99,6 +122,9 @@ int main(int argc, char** argv) {
   }
   const std::string folder = argv[1];
   correction_request_t forward{};
+  forward.message_version = correction_request_t::VERSION;
+  forward.tool_quaternion_wxyz[0] = 1.0;
+  forward.user_frame_quaternion_wxyz[0] = 1.0;
   forward.request_id = 1;
   forward.utime = 1700000000000000;
   forward.mode = correction_request_t::MODE_FORWARD;
@@ -123,6 +149,24 @@ int main(int argc, char** argv) {
   std::memcpy(inverse.desired_quaternion_wxyz, q_wxyz, sizeof q_wxyz);
   std::memcpy(inverse.seed_q_rad, q_rad, sizeof q_rad);
   writeSeed(folder + "/inverse.request", inverse);
+
+  // In the controller's terms: a user frame, a tool from the flange, a payload.
+  correction_request_t terms = inverse;
+  terms.request_id = 3;
+  terms.frame = correction_request_t::FRAME_USER;
+  const double user_p_m[3] = {1.2, 0.4, 0.1};
+  const double user_q_wxyz[4] = {0.9238795325112867, 0.0, 0.0, 0.3826834323650898};
+  std::memcpy(terms.user_frame_position_m, user_p_m, sizeof user_p_m);
+  std::memcpy(terms.user_frame_quaternion_wxyz, user_q_wxyz, sizeof user_q_wxyz);
+  terms.tool_from = correction_request_t::TOOL_FROM_FLANGE;
+  const double tool_p_m[3] = {0.0, 0.05, 0.3};
+  std::memcpy(terms.tool_position_m, tool_p_m, sizeof tool_p_m);
+  terms.wrench_source = correction_request_t::WRENCH_PAYLOAD;
+  terms.payload_kg = 40.0;
+  terms.payload_cog_frame = correction_request_t::COG_IN_TOOL;
+  const double cog_m[3] = {0.0, 0.0, -0.1};
+  std::memcpy(terms.payload_cog_m, cog_m, sizeof cog_m);
+  writeSeed(folder + "/terms.request", terms);
   return 0;
 }
 

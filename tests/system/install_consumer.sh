@@ -66,7 +66,7 @@ cmake --build "$work/subdirectory" -j"$(nproc)" >>"$work/subdirectory.log"
 daemon=$work/subdirectory/stepcal/bin/stepcal-runtime
 "$daemon" --help >/dev/null
 # Packages of the headers compiled (the compiler's depfiles) and of the daemon's shared libraries.
-allowed='^(libeigen3-dev|liblcm-dev|liblcm1|libglib2.0-0|libpcre2-8-0|libc6|libc6-dev|linux-libc-dev|libstdc\+\+-[0-9]+-dev|libstdc\+\+6|libgcc-[0-9]+-dev|libgcc-s1|gcc-[0-9]+|cpp-[0-9]+)$'
+allowed='^(libeigen3-dev|liblcm-dev|liblcm1|libsodium-dev|libsodium23|libglib2.0-0|libpcre2-8-0|libc6|libc6-dev|linux-libc-dev|libstdc\+\+-[0-9]+-dev|libstdc\+\+6|libgcc-[0-9]+-dev|libgcc-s1|gcc-[0-9]+|cpp-[0-9]+)$'
 headers=$(find "$work/subdirectory" -name '*.o.d' -exec cat {} + | tr ' \\' '\n\n' |
           grep -E '^/usr/' | sort -u)
 libraries=$(ldd "$daemon" | awk '$3 ~ /^\// { print $3 }')

@@ -11,7 +11,8 @@
 # udpm://239.255.76.67:7667?ttl=0), MODE (forward | inverse, default forward), REALTIME=1
 # (daemon with --realtime), RATE_HZ (requests and pings on a fixed schedule at this rate; default
 # one in flight at a time), TIMEOUT_MS (a reply later than this is lost, default 100), OUT
-# (folder for the JSON results, default a temporary one).
+# (folder for the JSON results, default a temporary one), KEY_FILE (a cell key: the daemon and
+# the requests' client with --key-file; the raw pings stay as they are).
 # Exit status: 0, 1 when a request or ping got no reply, 2 usage, 77 skipped (no `unshare -n`).
 set -euo pipefail
 
@@ -51,7 +52,9 @@ cleanup() {
 }
 trap cleanup EXIT
 
-daemon_args=(--model "$model" --lcm-url "$url")
+key_args=()
+[[ -n ${KEY_FILE:-} ]] && key_args=(--key-file "$(realpath "$KEY_FILE")")
+daemon_args=(--model "$model" --lcm-url "$url" "${key_args[@]}")
 [[ ${REALTIME:-0} == 1 ]] && daemon_args+=(--realtime)
 "$bin/stepcal-runtime" "${daemon_args[@]}" 2>"$out/daemon.log" &
 pids+=($!)
@@ -61,7 +64,7 @@ pids+=($!)
 # Ready when a request gets any reply (STALE_WRENCH: no live sensor here) and a ping a pong.
 for _ in $(seq 50); do
   if "$bin/stepcal-client" --lcm-url "$url" --forward 0 0 0 0 0.5 0 --timeout-ms 100 \
-      >/dev/null 2>&1 &&
+      "${key_args[@]}" >/dev/null 2>&1 &&
     "$bin/stepcal-client" --lcm-url "$url" --ping 1 --timeout-ms 100 >/dev/null 2>&1; then
     ready=1
     break
@@ -76,7 +79,7 @@ rate_args=(--timeout-ms "${TIMEOUT_MS:-100}")
 "$bin/stepcal-client" --lcm-url "$url" --ping "$count" "${rate_args[@]}" --json >"$out/ping.json"
 echo "$count $mode requests (stepcal-client --campaign $campaign ↔ stepcal-runtime) ..."
 request_args=(--lcm-url "$url" --campaign "$campaign" --mode "$mode" --count "$count" --json
-  "${rate_args[@]}")
+  "${rate_args[@]}" "${key_args[@]}")
 # Inverse answers are checked against the twin's truth when the campaign was simulated.
 [[ $mode == inverse && -f $campaign/truth.json ]] && request_args+=(--truth "$campaign/truth.json")
 "$bin/stepcal-client" "${request_args[@]}" >"$out/requests.json"

@@ -26,6 +26,11 @@
 // stepcal/service/realtime.hpp), so that other processes do not preempt the calls.
 // --answers writes every bench pose's answers (forward pose, inverse status and joint targets)
 // at full precision, untimed, so that two builds' answers can be compared (tools/bench/compare_answers.sh).
+// Beside the two calls in the calibration's terms: the inverse in a controller's terms
+// (`inverse_terms`: a user frame, a TCP 0.3 m out from the flange, or from the target when the
+// model knows no flange, a 30 kg payload instead of the wrench), and what the cell key costs the
+// daemon per request (`authentication`: checking a sealed request's code and counter, and
+// sealing the reply; runtime/service/auth.hpp), on the messages' real sizes.
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
@@ -40,9 +45,14 @@
 #include <nlohmann/json.hpp>
 
 #include "stepcal/common/error.hpp"
+#include <stepcal_lcm/correction_reply_t.hpp>
+#include <stepcal_lcm/correction_request_t.hpp>
+
 #include "stepcal/runtime/corrector.hpp"
+#include "stepcal/service/auth.hpp"
 #include "stepcal/service/latency.hpp"
 #include "stepcal/service/realtime.hpp"
+#include "stepcal/service/service.hpp"
 #ifdef STEPCAL_BENCH_WITH_KDL
 #include "kdl_compare.hpp"
 #endif
@@ -67,7 +77,30 @@ struct BenchPose {
   Vec6 wrench_Sensor;
   Pose X_TrackerTip_target;  ///< forward correction at (q, wrench), m
   JointVector seed_q_rad;    ///< q ± 2°, rad
+  Pose X_FrameTcp_target;    ///< forward correction at q in benchTerms, m
 };
+
+/// A controller's terms for inverse_terms: a user frame, a TCP 0.3 m beyond the target (from
+/// the flange when the model knows it), a 30 kg payload 0.1 m before the TCP.
+runtime::CallTerms benchTerms(const runtime::RuntimeModel& model) {
+  runtime::CallTerms terms;
+  terms.frame = runtime::PoseFrame::kUser;
+  terms.X_BaseUser.translation() = Vec3(1.2, -0.4, 0.3);
+  terms.X_BaseUser.linear() = Eigen::AngleAxisd(0.6, Vec3::UnitZ()).toRotationMatrix();
+  Pose X_TargetTcp = Pose::Identity();
+  X_TargetTcp.translation() = Vec3(0.0, 0.0, 0.3);
+  if (model.has_flange) {
+    terms.tool_from = runtime::ToolFrom::kFlange;
+    terms.X_Tool = model.X_TipFlange.inverse() * X_TargetTcp;
+  } else {
+    terms.X_Tool = X_TargetTcp;
+  }
+  terms.load_from = runtime::LoadFrom::kPayload;
+  terms.payload.mass_kg = 30.0;
+  terms.payload.frame = runtime::CogFrame::kTool;
+  terms.payload.p_CoG_m = Vec3(0.0, 0.0, -0.1);
+  return terms;
+}
 
 std::vector<BenchPose> workspacePoses(const runtime::RuntimeModel& model,
                                       runtime::Workspace& ws, double temp_c,
@@ -90,6 +123,8 @@ std::vector<BenchPose> workspacePoses(const runtime::RuntimeModel& model,
         runtime::correctForward(model, ws, pose.q_rad, pose.wrench_Sensor, temp_c);
     if (forward.status != runtime::Status::kOk) continue;  // only poses answered plainly
     pose.X_TrackerTip_target = forward.X_TrackerTip;
+    pose.X_FrameTcp_target =
+        runtime::correctForward(model, ws, pose.q_rad, benchTerms(model), temp_c).X_FrameTcp;
     poses.push_back(pose);
   }
   if (poses.empty()) throw InputError("no GPR training input gives a forward correction", path);
@@ -275,12 +310,43 @@ int main(int argc, char** argv) {
       }
     }
 
-    CallStats forward, inverse, one_pose, kdl;
-    for (CallStats* stats : {&forward, &inverse, &one_pose, &kdl}) {
+    CallStats forward, inverse, one_pose, kdl, inverse_terms, authentication;
+    for (CallStats* stats : {&forward, &inverse, &one_pose, &kdl, &inverse_terms, &authentication}) {
       stats->latency_us.resize(static_cast<size_t>(calls));
     }
     inverse.iterations.resize(static_cast<size_t>(runtime::InverseOptions{}.max_iterations) + 1);
     one_pose.iterations.resize(inverse.iterations.size());
+    inverse_terms.iterations.resize(inverse.iterations.size());
+    const runtime::CallTerms terms = benchTerms(*model);
+    // The cell key's cost: a request sealed by the controller (before the timing, one per call
+    // ever made: every counter fresh), checked, and the reply sealed.
+    std::array<uint8_t, service::kKeyBytes> key_bytes{};
+    randombytes_buf(key_bytes.data(), key_bytes.size());
+    const service::CellKey key = service::CellKey::fromBytes(key_bytes);
+    service::MessageSigner controller(key), daemon(key);
+    service::MessageVerifier verifier(key, 3'600'000'000);  // an hour: the pool is sealed once
+    stepcal_lcm::correction_request_t request_msg{};
+    request_msg.message_version = stepcal_lcm::correction_request_t::VERSION;
+    std::vector<uint8_t> reply_bytes(size_t(service::Service::replyBytes()));
+    const int reply_size = stepcal_lcm::correction_reply_t{}.getEncodedSize();
+    const size_t request_size = size_t(request_msg.getEncodedSize());
+    const size_t sealed_count =
+        size_t(calls + (calls / kRoundCalls + 1) * kRoundWarmupCalls + kWarmupCalls);
+    std::vector<uint8_t> sealed_requests(sealed_count * request_size);
+    for (size_t i = 0; i < sealed_count; ++i) {
+      request_msg.request_id = int64_t(i);
+      uint8_t* bytes = sealed_requests.data() + i * request_size;
+      request_msg.encode(bytes, 0, int(request_size));
+      controller.seal(bytes, int(request_size));
+    }
+    size_t next_sealed = 0;
+    const auto runAuthentication = [&](int) {
+      const uint8_t* bytes = sealed_requests.data() + (next_sealed++ % sealed_count) * request_size;
+      const service::Verdict verdict = verifier.verify(bytes, int(request_size), service::unixMicroseconds());
+      daemon.seal(reply_bytes.data(), reply_size);
+      return verdict == service::Verdict::kAuthentic ? runtime::Status::kOk
+                                                     : runtime::Status::kBadRequest;
+    };
     const auto runForward = [&](int call) {
       const BenchPose& p = pose(call);
       return runtime::correctForward(*model, ws, p.q_rad, p.wrench_Sensor, temp_c).status;
@@ -290,6 +356,14 @@ int main(int argc, char** argv) {
       const runtime::InverseResult r =
           runtime::solveInverse(*model, ws, p.X_TrackerTip_target, p.wrench_Sensor, temp_c,
                                 p.seed_q_rad, runtime::Clock::now() + std::chrono::seconds(1));
+      iterations = r.iterations;
+      return r.status;
+    };
+    const auto runInverseTerms = [&](int call, int& iterations) {
+      const BenchPose& p = pose(call);
+      const runtime::InverseResult r =
+          runtime::solveInverse(*model, ws, p.X_FrameTcp_target, terms, temp_c, p.seed_q_rad,
+                                runtime::Clock::now() + std::chrono::seconds(1));
       iterations = r.iterations;
       return r.status;
     };
@@ -305,6 +379,8 @@ int main(int argc, char** argv) {
       runForward(call);
       runInverse(call, iterations);
       ++warmup_iterations[size_t(iterations)];
+      runInverseTerms(call, iterations);
+      runAuthentication(call);
       if (compare_kdl) runKdl(call);
     }
     // The pose of the machine's baseline: the first whose iteration count is the most common.
@@ -338,6 +414,9 @@ int main(int argc, char** argv) {
         timeCalls(inverse, first, last, [&](int call) { return runInverse(call, iterations); });
         timeCalls(one_pose, first, last,
                   [&](int) { return runInverse(baseline_call, iterations); });
+        timeCalls(inverse_terms, first, last,
+                  [&](int call) { return runInverseTerms(call, iterations); });
+        timeCalls(authentication, first, last, runAuthentication);
         allocations += counter.count();
       }
       if (compare_kdl) timeCalls(kdl, first, last, runKdl);
@@ -351,6 +430,8 @@ int main(int argc, char** argv) {
                                    {"forward", toJson(forward, false)},
                                    {"inverse", toJson(inverse, true)},
                                    {"inverse_one_pose", toJson(one_pose, true)},
+                                   {"inverse_terms", toJson(inverse_terms, true)},
+                                   {"authentication", toJson(authentication, false)},
                                    {"allocations", allocations},
                                    {"realtime", realtime_report}};
     if (compare_kdl) {
@@ -365,7 +446,8 @@ int main(int argc, char** argv) {
     if (json) {
       std::cout << report.dump(2) << "\n";
     } else {
-      for (const char* name : {"forward", "inverse", "inverse_one_pose"}) {
+      for (const char* name :
+           {"forward", "inverse", "inverse_one_pose", "inverse_terms", "authentication"}) {
         const nlohmann::json& r = report[name];
         std::cout << name << ": " << r["calls"] << " calls, p50 " << r["p50_us"].get<double>()
                   << " us, p99 " << r["p99_us"].get<double>() << " us, max "

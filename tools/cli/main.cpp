@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "correct.hpp"
 #include "diagnosis_report.hpp"
 #include "report.hpp"
 #include "report_html.hpp"
@@ -683,6 +684,9 @@ int main(int argc, char** argv) {
   demo->add_option("--out", demo_out, "where the simulated campaign goes")->capture_default_str();
   demo->add_option("--seed", demo_seed, "random seed of the twin")->capture_default_str();
 
+  cli::CorrectArgs correct_args;
+  CLI::App* correct = cli::addCorrectCommand(app, correct_args);
+
   CLI11_PARSE(app, argc, argv);
   sim.position_sigma_given = simulate->count("--tracker-position-sigma-mm") > 0;
   sim.orientation_sigma_given = simulate->count("--tracker-orientation-sigma-deg") > 0;
@@ -711,6 +715,8 @@ int main(int argc, char** argv) {
       runExportUrdf(export_model, export_campaign, export_out);
     } else if (*validate) {
       runValidate(validate_model, validate_dir, refit_frames, covered_by, validate_json);
+    } else if (*correct) {
+      cli::runCorrect(correct_args);
     } else if (*demo) {
       SimulateArgs paper;
       paper.seed = demo_seed;

@@ -8,11 +8,20 @@
 //                                                        send time, status and wrench age;
 //                                                        SIGINT/SIGTERM stops it early
 //   stepcal-client --inverse x y z qw qx qy qz [--seed q1 … q6] [--wrench …] [--temp-c T]
-//                                                        m, unit quaternion
+//                                                        m, unit quaternion, in --frame
 //   stepcal-client --campaign DIR [--set validation] [--mode forward|inverse] [--count N]
 //                  [--rate HZ] [--truth truth.json] [--live-wrench [--wrench-channel C]] [--json]
 //   stepcal-client --ping N [--json]     raw LCM round trips to a `stepcal-client --echo`
 //   stepcal-client --echo                answers STEPCAL_PING on STEPCAL_PONG until SIGINT/SIGTERM
+//   stepcal-client --sensor-command bias|clear-bias|reset
+//                                        one sensor_command_t to the daemon's CAN sensor
+//
+// Single requests in the controller's terms (docs/runtime.md, "Integration"): --frame
+// tracker|base|user [--user-frame x y z qw qx qy qz] (the user frame in the base frame, m),
+// --tool x y z qw qx qy qz [--tool-from target|flange] (the TCP, m), --payload KG [--cog x y z]
+// [--cog-frame flange|tool] (the load data: mass and centre of gravity, m) instead of --wrench.
+// --key-file FILE: requests and sensor commands carry the cell key's code, and replies whose
+// code does not verify or whose counter is not fresh are rejected (counted, never matched).
 //
 // Replies are matched to requests by request_id; a reply later than --timeout-ms counts as lost.
 // Without --rate one request is in flight at a time (the next goes when the reply arrives or
@@ -57,8 +66,10 @@
 #include <lcm/lcm.h>
 #include <nlohmann/json.hpp>
 #include <stepcal_lcm/correction_reply_t.hpp>
+#include <stepcal_lcm/correction_reply_v1_t.hpp>
 #include <stepcal_lcm/correction_request_t.hpp>
 #include <stepcal_lcm/robot_state_t.hpp>
+#include <stepcal_lcm/sensor_command_t.hpp>
 #include <stepcal_lcm/wrench_t.hpp>
 
 #include "stepcal/common/campaign.hpp"
@@ -66,6 +77,7 @@
 #include "stepcal/common/lie.hpp"
 #include "stepcal/runtime/can_socket.hpp"
 #include "stepcal/runtime/corrector.hpp"
+#include "stepcal/service/auth.hpp"
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/latency.hpp"
 #include "stepcal/service/lcm_server.hpp"
@@ -99,6 +111,65 @@ struct Args {
   bool live_wrench = false;
   std::string wrench_channel = service::kWrenchChannel;
   std::vector<std::string> check_models;
+  // Single requests in the controller's terms.
+  std::string frame = "tracker", tool_from = "target", cog_frame = "flange";
+  std::vector<double> user_frame, tool, cog_m;
+  double payload_kg = -1.0;  ///< < 0: no payload
+  std::string sensor_command;
+  std::string key_file;
+};
+
+int64_t bigEndian64(const uint8_t* bytes);
+
+/// The cell key's signer and verifier (--key-file), or none.
+struct Authentication {
+  std::optional<service::MessageSigner> signer;
+  std::optional<service::MessageVerifier> verifier;
+  long rejected_forged = 0, rejected_replayed = 0;  ///< replies refused
+  long old_version = 0;  ///< replies in message version 1: a daemon that predates this client
+
+  explicit Authentication(const std::string& key_file) {
+    if (key_file.empty()) return;
+    const service::CellKey key = service::CellKey::load(key_file);
+    signer.emplace(key);
+    verifier.emplace(key);
+  }
+  /// Seals an encoded message when there is a key.
+  void seal(uint8_t* bytes, int size) {
+    if (signer) signer->seal(bytes, size);
+  }
+  /// Whether a received message may be used (always without a key); counts refusals.
+  bool accept(const lcm_recv_buf_t* rbuf) {
+    if (rbuf->data_size >= 8 && bigEndian64(static_cast<const uint8_t*>(rbuf->data)) ==
+                                    stepcal_lcm::correction_reply_v1_t::getHash()) {
+      ++old_version;
+      return false;
+    }
+    if (!verifier) return true;
+    const service::Verdict verdict = verifier->verify(static_cast<const uint8_t*>(rbuf->data),
+                                                      int(rbuf->data_size), service::unixMicroseconds());
+    if (verdict == service::Verdict::kForged) ++rejected_forged;
+    if (verdict == service::Verdict::kReplayed) ++rejected_replayed;
+    return verdict == service::Verdict::kAuthentic;
+  }
+  nlohmann::json toJson() const {
+    return {{"key", signer.has_value()}, {"rejected_forged_replies", rejected_forged},
+            {"rejected_replayed_replies", rejected_replayed},
+            {"old_version_replies", old_version}};
+  }
+  /// Why no reply came, when the replies say (stderr).
+  void explainSilence() const {
+    if (old_version > 0) {
+      std::cerr << "stepcal-client: the daemon answered in message version 1 "
+                   "(correction_reply_v1_t): it predates this client's version 2; update "
+                   "stepcal-runtime\n";
+    }
+    if (rejected_forged + rejected_replayed > 0) {
+      std::cerr << "stepcal-client: rejected " << rejected_forged
+                << " replies whose code does not verify and " << rejected_replayed
+                << " whose counter is not fresh (--key-file: is it the daemon's key?)\n";
+    }
+  }
 };
 
 /// An LCM instance for the lifetime of the object.
@@ -236,10 +307,58 @@ std::string latencyText(const nlohmann::json& j) {
 
 correction_request_t emptyRequest(const Args& args) {
   correction_request_t msg{};
+  msg.message_version = correction_request_t::VERSION;
   msg.desired_quaternion_wxyz[0] = 1.0;
+  msg.user_frame_quaternion_wxyz[0] = 1.0;
+  msg.tool_quaternion_wxyz[0] = 1.0;
   msg.temp_c = runtime::kUnknownTemperature_c;
   msg.deadline_us = args.deadline_us;
   return msg;
+}
+
+/// One of `names` (the index), or an InputError naming the option and the choices.
+int8_t choice(const std::string& option, const std::string& value,
+              const std::vector<std::string>& names) {
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (value == names[i]) return int8_t(i);
+  }
+  std::string list;
+  for (const std::string& n : names) list += (list.empty() ? "" : " | ") + n;
+  throw InputError(option + " '" + value + "': expected " + list);
+}
+
+/// x y z qw qx qy qz (m, unit quaternion) into a message's position and quaternion fields.
+void setPose(const std::string& option, const std::vector<double>& v, double* position_m,
+             double* quaternion_wxyz) {
+  const double norm = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
+  if (!(std::abs(norm - 1.0) <= service::kQuaternionNormTolerance)) {
+    throw InputError(option + ": the quaternion qw qx qy qz has norm " + std::to_string(norm) +
+                     "; expected a unit quaternion (within 1e-6)");
+  }
+  std::copy(v.begin(), v.begin() + 3, position_m);
+  std::copy(v.begin() + 3, v.end(), quaternion_wxyz);
+}
+
+/// The frame, tool and payload options of a single request into its message.
+void setTerms(const Args& args, correction_request_t& msg) {
+  msg.frame = choice("--frame", args.frame, {"tracker", "base", "user"});
+  if ((msg.frame == correction_request_t::FRAME_USER) != !args.user_frame.empty()) {
+    throw InputError("--user-frame x y z qw qx qy qz goes with --frame user, and --frame user needs it");
+  }
+  if (!args.user_frame.empty()) {
+    setPose("--user-frame", args.user_frame, msg.user_frame_position_m, msg.user_frame_quaternion_wxyz);
+  }
+  msg.tool_from = choice("--tool-from", args.tool_from, {"target", "flange"});
+  if (!args.tool.empty()) setPose("--tool", args.tool, msg.tool_position_m, msg.tool_quaternion_wxyz);
+  msg.payload_cog_frame = choice("--cog-frame", args.cog_frame, {"flange", "tool"});
+  if (args.payload_kg >= 0.0) {
+    if (!args.wrench.empty()) throw InputError("--payload and --wrench: give one load, not both");
+    msg.wrench_source = correction_request_t::WRENCH_PAYLOAD;
+    msg.payload_kg = args.payload_kg;
+    if (!args.cog_m.empty()) std::copy(args.cog_m.begin(), args.cog_m.end(), msg.payload_cog_m);
+  } else if (!args.cog_m.empty()) {
+    throw InputError("--cog goes with --payload");
+  }
 }
 
 void setWrench(correction_request_t& msg, const Vec6& wrench_Sensor) {
@@ -309,14 +428,18 @@ std::optional<int64_t> replyId(const lcm_recv_buf_t* rbuf) {
   return reply.request_id;
 }
 
-/// Requests sent with Exchange, their replies kept. before_send(i), when given, runs before
+/// Requests sent with Exchange (sealed with the key, if any), their replies kept: only replies
+/// that decode as version 2 and, with a key, verify. before_send(i), when given, runs before
 /// request i leaves; its time does not count in the round trip.
 std::vector<correction_reply_t> sendRequests(
     lcm_t* lcm, const Args& args, std::vector<correction_request_t> requests, Exchange& exchange,
-    const std::function<void(size_t)>& before_send = nullptr) {
+    Authentication& auth, const std::function<void(size_t)>& before_send = nullptr) {
   std::vector<correction_reply_t> replies(requests.size());
   exchange.timeout_s = args.timeout_ms * 1e-3;
-  exchange.id_of = replyId;
+  exchange.id_of = [&auth](const lcm_recv_buf_t* rbuf) -> std::optional<int64_t> {
+    if (!auth.accept(rbuf)) return std::nullopt;
+    return replyId(rbuf);
+  };
   exchange.keep = [&](size_t i, const lcm_recv_buf_t* rbuf) {
     replies[i].decode(rbuf->data, 0, int(rbuf->data_size));
   };
@@ -331,6 +454,7 @@ std::vector<correction_reply_t> sendRequests(
                 msg.request_id = id;
                 msg.utime = unixMicroseconds();
                 const int size = msg.encode(buffer.data(), 0, int(buffer.size()));
+                auth.seal(buffer.data(), size);
                 lcm_publish(lcm, service::kRequestChannel, buffer.data(), unsigned(size));
               });
   return replies;
@@ -373,6 +497,7 @@ nlohmann::json replyJson(const correction_reply_t& r, bool inverse) {
       {"predicted_position_m", array(r.predicted_position_m, 3)},
       {"predicted_quaternion_wxyz", array(r.predicted_quaternion_wxyz, 4)},
       {"gpr_std", array(r.gpr_std, 6)},
+      {"wrench", array(r.wrench, 6)},
       {"uncovered_joints", uncoveredJoints(r.uncovered_joints)}};
   if (inverse) {
     j["q_target_rad"] = array(r.q_target_rad, 6);
@@ -385,7 +510,8 @@ nlohmann::json replyJson(const correction_reply_t& r, bool inverse) {
   return j;
 }
 
-void printReply(const correction_reply_t& r, double round_trip_us, bool inverse) {
+void printReply(const correction_reply_t& r, double round_trip_us, bool inverse,
+                const std::string& frame) {
   std::printf("request %lld: %s, model %016llx, compute %.1f us, round trip %.1f us\n",
               static_cast<long long>(r.request_id),
               runtime::toString(static_cast<runtime::Status>(r.status)),
@@ -395,13 +521,14 @@ void printReply(const correction_reply_t& r, double round_trip_us, bool inverse)
     std::printf("q_target_rad              %s\n", vectorText(r.q_target_rad, 6).c_str());
     std::printf("q_target_deg              %s\n",
                 vectorText(r.q_target_rad, 6, kRadToDeg).c_str());
-    std::printf("commanded (base) p_m      %s  q_wxyz %s\n",
+    std::printf("commanded (%s) p_m %s  q_wxyz %s\n", frame == "user" ? "user   " : "base   ",
                 vectorText(r.commanded_position_m, 3).c_str(),
                 vectorText(r.commanded_quaternion_wxyz, 4).c_str());
   }
-  std::printf("predicted (tracker) p_m   %s  q_wxyz %s\n",
+  std::printf("predicted (%-7s) p_m %s  q_wxyz %s\n", frame.c_str(),
               vectorText(r.predicted_position_m, 3).c_str(),
               vectorText(r.predicted_quaternion_wxyz, 4).c_str());
+  std::printf("wrench used (N, N m)      %s\n", vectorText(r.wrench, 6, 1.0, "%.3f").c_str());
   std::printf("gpr_std (v m, w rad)      %s\n", vectorText(r.gpr_std, 6, 1.0, "%.3e").c_str());
   if (r.uncovered_joints != 0) {
     std::printf("outside the fitted angles of the profile of joint(s) %s\n",
@@ -441,8 +568,10 @@ int runRepeated(const Args& args, const correction_request_t& msg) {
   Exchange exchange;
   const Clock::time_point steady_origin = Clock::now();
   const double unix_origin_s = double(unixMicroseconds()) * 1e-6;
-  const std::vector<correction_reply_t> replies = sendRequests(
-      lcm.get(), args, std::vector<correction_request_t>(size_t(args.count), msg), exchange);
+  Authentication auth(args.key_file);
+  const std::vector<correction_reply_t> replies =
+      sendRequests(lcm.get(), args, std::vector<correction_request_t>(size_t(args.count), msg),
+                   exchange, auth);
   nlohmann::json rows = nlohmann::json::array();
   long status_counts[kStatusCount] = {};
   int sent = 0;
@@ -466,7 +595,8 @@ int runRepeated(const Args& args, const correction_request_t& msg) {
   const nlohmann::json report = {{"requests", sent},   {"replies", exchange.answered},
                                  {"lost", sent - exchange.answered},
                                  {"rate_hz", args.rate_hz},  {"statuses", statuses},
-                                 {"rows", rows}};
+                                 {"authentication", auth.toJson()}, {"rows", rows}};
+  if (exchange.answered == 0) auth.explainSilence();
   if (args.json) {
     std::cout << report.dump(1) << "\n";
   } else {
@@ -481,6 +611,7 @@ int runSingle(const Args& args) {
   const bool inverse = !args.inverse_pose.empty();
   correction_request_t msg = emptyRequest(args);
   if (!args.wrench.empty()) setWrench(msg, Vec6(args.wrench.data()));
+  setTerms(args, msg);
   msg.temp_c = args.temp_c;
   if (inverse) {
     msg.mode = correction_request_t::MODE_INVERSE;
@@ -494,10 +625,13 @@ int runSingle(const Args& args) {
   }
   const Lcm lcm(args.lcm_url);
   Exchange exchange;
-  const std::vector<correction_reply_t> replies = sendRequests(lcm.get(), args, {msg}, exchange);
+  Authentication auth(args.key_file);
+  const std::vector<correction_reply_t> replies =
+      sendRequests(lcm.get(), args, {msg}, exchange, auth);
   if (exchange.answered == 0) {
     std::cerr << "stepcal-client: no reply within " << args.timeout_ms
               << " ms (is stepcal-runtime running on " << args.lcm_url << "?)\n";
+    auth.explainSilence();
     return 1;
   }
   if (args.json) {
@@ -505,7 +639,7 @@ int runSingle(const Args& args) {
     j["round_trip_us"] = exchange.round_trip_us[0];
     std::cout << j.dump(2) << "\n";
   } else {
-    printReply(replies[0], exchange.round_trip_us[0], inverse);
+    printReply(replies[0], exchange.round_trip_us[0], inverse, args.frame);
   }
   return 0;
 }
@@ -656,7 +790,7 @@ class ReplyChecker {
     if (expected.status != int8_t(runtime::Status::kOk)) return expected;
     if (decoded.mode == service::Mode::kForward) {
       const runtime::ForwardResult r = runtime::correctForward(
-          *known.model, known.workspace, decoded.q_rad, decoded.wrench_Sensor, decoded.temp_c);
+          *known.model, known.workspace, decoded.q_rad, decoded.terms, decoded.temp_c);
       expected.status = int8_t(r.status);
       service::writeAnswer(r, expected);
       return expected;
@@ -664,7 +798,7 @@ class ReplyChecker {
     runtime::InverseOptions options;
     options.max_iterations = reply.iterations;
     const runtime::InverseResult r = runtime::solveInverse(
-        *known.model, known.workspace, decoded.X_TrackerTip_desired, decoded.wrench_Sensor,
+        *known.model, known.workspace, decoded.X_FrameTcp_desired, decoded.terms,
         decoded.temp_c, decoded.seed_q_rad, runtime::Clock::time_point::max(), options);
     expected.status = int8_t(r.status);
     service::writeAnswer(r, expected);
@@ -768,9 +902,11 @@ int runCampaign(Args args) {
     while (echo.seen && fresh.count < 2 && Clock::now() < give_up) handleUntil(lcm.get(), give_up);
     if (!echo.seen || fresh.count < 2) ++echo.missing;
   };
+  Authentication auth(args.key_file);
   const std::vector<correction_reply_t> replies =
-      sendRequests(lcm.get(), args, requests, exchange,
+      sendRequests(lcm.get(), args, requests, exchange, auth,
                    args.live_wrench ? std::function<void(size_t)>(publishRobotState) : nullptr);
+  if (exchange.answered == 0) auth.explainSilence();
   lcm_unsubscribe(lcm.get(), applied);
   if (samples) lcm_unsubscribe(lcm.get(), samples);
 
@@ -835,6 +971,7 @@ int runCampaign(Args args) {
       {"statuses", statuses},
       {"accuracy",
        accuracy.toJson(inverse ? (truth ? "twin truth" : "solver residual") : "measured pose")}};
+  report["authentication"] = auth.toJson();
   report["rows"] = per_row;
   if (inverse) {
     report["mean_iterations"] = accuracy.poses ? iterations / accuracy.poses : 0.0;
@@ -952,6 +1089,28 @@ int runEcho(const Args& args) {
   return 0;
 }
 
+// ---- sensor commands ------------------------------------------------------------------------
+
+/// Publishes one sensor_command_t (sealed with the key, if any) to the daemon's CAN sensor.
+int runSensorCommand(const Args& args) {
+  stepcal_lcm::sensor_command_t command{};
+  command.utime = unixMicroseconds();
+  command.command = int8_t(1 + choice("--sensor-command", args.sensor_command,
+                                      {"bias", "clear-bias", "reset"}));
+  const Lcm lcm(args.lcm_url);
+  Authentication auth(args.key_file);
+  std::vector<uint8_t> bytes(size_t(command.getEncodedSize()));
+  const int size = command.encode(bytes.data(), 0, int(bytes.size()));
+  auth.seal(bytes.data(), size);
+  if (lcm_publish(lcm.get(), service::kSensorCommandChannel, bytes.data(), unsigned(size)) != 0) {
+    throw InputError("--sensor-command: LCM could not publish on " +
+                     std::string(service::kSensorCommandChannel));
+  }
+  std::cout << "sent " << args.sensor_command << " on " << service::kSensorCommandChannel
+            << (auth.signer ? " (authenticated)" : "") << "\n";
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -961,8 +1120,9 @@ int main(int argc, char** argv) {
   app.add_option("--forward", args.forward_q_rad, "one forward request: joints q1..q6, rad")
       ->expected(6);
   app.add_option("--inverse", args.inverse_pose,
-                 "one inverse request: tip position x y z (m) and quaternion qw qx qy qz in the "
-                 "tracker frame")
+                 "one inverse request: TCP position x y z (m) and quaternion qw qx qy qz in "
+                 "--frame (default: the tracker frame; the TCP is the measured target without "
+                 "--tool)")
       ->expected(7);
   app.add_option("--seed", args.seed_q_rad, "inverse: joints to start from, rad (default 0)")
       ->expected(6);
@@ -999,13 +1159,45 @@ int main(int argc, char** argv) {
                  "campaign: recompute every reply with the model file whose id it carries; "
                  "repeat for every model the daemon may serve")
       ->take_all();
+  app.add_option("--frame", args.frame,
+                 "single request: frame of its poses: tracker | base | user")->capture_default_str();
+  app.add_option("--user-frame", args.user_frame,
+                 "--frame user: the user frame in the robot base frame, x y z (m) qw qx qy qz")
+      ->expected(7);
+  app.add_option("--tool", args.tool, "single request: the TCP, x y z (m) qw qx qy qz, from "
+                                      "--tool-from (default: none, the measured target)")
+      ->expected(7);
+  app.add_option("--tool-from", args.tool_from,
+                 "what --tool is given from: target (the measured target) | flange (the "
+                 "controller's tool data)")
+      ->capture_default_str();
+  app.add_option("--payload", args.payload_kg,
+                 "single request: the payload's mass, kg (its weight replaces --wrench)");
+  app.add_option("--cog", args.cog_m, "--payload: centre of gravity x y z, m, in --cog-frame")
+      ->expected(3);
+  app.add_option("--cog-frame", args.cog_frame, "--cog's frame: flange | tool")
+      ->capture_default_str();
+  app.add_option("--sensor-command", args.sensor_command,
+                 "send one sensor_command_t: bias | clear-bias | reset");
+  app.add_option("--key-file", args.key_file,
+                 "the cell's key (32 bytes, mode 0600): seal requests and sensor commands, "
+                 "verify replies");
   CLI11_PARSE(app, argc, argv);
 
   try {
     const int modes = int(!args.forward_q_rad.empty()) + int(!args.inverse_pose.empty()) +
-                      int(!args.campaign_dir.empty()) + int(args.ping_count > 0) + int(args.echo);
+                      int(!args.campaign_dir.empty()) + int(args.ping_count > 0) + int(args.echo) +
+                      int(!args.sensor_command.empty());
     if (modes != 1) {
-      throw InputError("choose exactly one of --forward, --inverse, --campaign, --ping N, --echo");
+      throw InputError("choose exactly one of --forward, --inverse, --campaign, --ping N, --echo, "
+                       "--sensor-command");
+    }
+    const bool single = !args.forward_q_rad.empty() || !args.inverse_pose.empty();
+    if (!single && (args.frame != "tracker" || !args.user_frame.empty() || !args.tool.empty() ||
+                    args.tool_from != "target" || args.payload_kg >= 0.0 || !args.cog_m.empty() ||
+                    args.cog_frame != "flange")) {
+      throw InputError("--frame, --user-frame, --tool, --tool-from, --payload, --cog and "
+                       "--cog-frame go with --forward or --inverse");
     }
     if (!(args.timeout_ms > 0.0)) throw InputError("--timeout-ms must be > 0");
     if (!(args.rate_hz >= 0.0)) throw InputError("--rate must be ≥ 0");
@@ -1028,6 +1220,7 @@ int main(int argc, char** argv) {
                        " °C (campaign rows carry their own)");
     }
     if (args.echo) return runEcho(args);
+    if (!args.sensor_command.empty()) return runSensorCommand(args);
     if (args.ping_count > 0) return runPing(args);
     if (!args.campaign_dir.empty()) return runCampaign(args);
     return runSingle(args);

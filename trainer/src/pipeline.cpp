@@ -118,8 +118,15 @@ KinematicChain campaignChain(const Campaign& campaign, int* sensor_frame) {
       campaign.directory.empty() ? campaign.robot_file : campaign.directory + "/" + campaign.robot_file;
   std::vector<std::string> attached;
   if (!campaign.sensor_link.empty()) attached.push_back(campaign.sensor_link);
+  if (!campaign.flange_link.empty()) attached.push_back(campaign.flange_link);
   KinematicChain chain =
       chainFromUrdf(campaign.urdf_xml, campaign.base_link, campaign.tip_link, attached, source);
+  if (!campaign.flange_link.empty()) {
+    // The model names its flange by the frame's name, whatever the link's (runtime kFlangeFrame).
+    std::vector<AttachedFrame> frames = chain.frames();
+    frames.back().name = kFlangeFrameName;
+    chain = KinematicChain(chain.joints(), chain.initialPoses(), frames);
+  }
   if (chain.dof() != campaign.joint_count) {
     throw InputError("the robot chain from '" + campaign.base_link + "' to '" + campaign.tip_link +
                          "' has " + std::to_string(chain.dof()) +

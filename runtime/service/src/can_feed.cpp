@@ -28,6 +28,9 @@ CanWrenchFeed::CanWrenchFeed(lcm_t* lcm, runtime::CanSocket socket,
       service_(service),
       driver_(std::move(socket), options) {
   wrench_buffer_.resize(size_t(stepcal_lcm::wrench_t{}.getEncodedSize()));
+  if (service.options().key) {
+    verifier_.emplace(*service.options().key, service.options().auth_window_us);
+  }
   subscription_ = subscribeQueued(lcm_, kSensorCommandChannel, &CanWrenchFeed::onCommand, this);
   const runtime::FtSensorIdentity& identity = driver_.identity();
   status_.interface_name = iface_;
@@ -71,6 +74,15 @@ void CanWrenchFeed::onCommand(const lcm_recv_buf_t* rbuf, const char*, void* use
   auto* self = static_cast<CanWrenchFeed*>(user);
   stepcal_lcm::sensor_command_t command{};
   const int size = int(rbuf->data_size);
+  if (self->verifier_) {
+    // A tare while a payload hangs on the sensor would offset every later correction.
+    const Verdict verdict = self->verifier_->verify(static_cast<const uint8_t*>(rbuf->data),
+                                                    size, unixMicroseconds());
+    if (verdict != Verdict::kAuthentic) {
+      ++(verdict == Verdict::kForged ? self->forged_commands_ : self->replayed_commands_);
+      return;
+    }
+  }
   if (command.decode(rbuf->data, 0, size) != size) {
     ++self->refused_commands_;
     return;
@@ -105,6 +117,9 @@ void CanWrenchFeed::publishStatus() {
   status_.restarts = c.restarts;
   status_.send_failures = c.send_failures;
   status_.resets = c.resets;
+  status_.refused_commands = refused_commands_;
+  status_.forged_commands = forged_commands_;
+  status_.replayed_commands = replayed_commands_;
   const int size = status_.getEncodedSize();
   if (status_buffer_.size() < size_t(size)) status_buffer_.resize(size_t(size));
   const int bytes = status_.encode(status_buffer_.data(), 0, size);

@@ -27,6 +27,7 @@
 #include <thread>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/service/auth.hpp"
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/daemon_options.hpp"
 #include "stepcal/service/lcm_server.hpp"
@@ -120,6 +121,32 @@ class Fd {
 };
 
 using service::DaemonArgs;
+/// The refusals the service counts, each logged once when it first happens (the status message
+/// counts them all).
+class RefusalLog {
+ public:
+  void update(const service::ServiceCounters& c) {
+    once(c.old_version, old_version_,
+         "refused a request in message version 1 (correction_request_v1_t): this daemon reads "
+         "correction_request_t version 2; update the client (docs/runtime.md, Messages); "
+         "counted in STEPCAL_STATUS old_version_requests");
+    once(c.forged, forged_,
+         "dropped a request whose authentication code does not verify (forged, or sent without "
+         "the cell key); counted in STEPCAL_STATUS forged_requests");
+    once(c.replayed, replayed_,
+         "dropped a request whose counter is not fresh (a replay, or a clock off by more than "
+         "--auth-window-ms); counted in STEPCAL_STATUS replayed_requests");
+  }
+
+ private:
+  static void once(int64_t count, bool& logged, const char* line) {
+    if (count > 0 && !logged) {
+      logLine("%s", line);
+      logged = true;
+    }
+  }
+  bool old_version_ = false, forged_ = false, replayed_ = false;
+};
 
 int serve(const DaemonArgs& args) {
   if (args.budget_us <= 0) throw InputError("--budget-us must be > 0");
@@ -127,6 +154,11 @@ int serve(const DaemonArgs& args) {
   service::ServiceOptions options;
   options.budget_ns = int64_t(args.budget_us) * 1000;
   options.max_wrench_age_ns = int64_t(args.max_wrench_age_ms * 1e6);
+  if (!args.key_file.empty()) {
+    if (!(args.auth_window_ms > 0.0)) throw InputError("--auth-window-ms must be > 0");
+    options.key = service::CellKey::load(args.key_file);
+    options.auth_window_us = int64_t(args.auth_window_ms * 1e3);
+  }
 
   // Signals go to the signalfd only; blocked before any thread starts, so every thread inherits it.
   sigset_t signals;
@@ -151,10 +183,16 @@ int serve(const DaemonArgs& args) {
   timerfd_settime(timer_fd.get(), 0, &period, nullptr);
 
   logLine("serving %s (model %016llx) on %s: budget %d us, live wrench %s (max age %g ms), "
-          "real-time %s, receive queues %d messages",
+          "real-time %s, receive queues %d messages, %s",
           args.model_path.c_str(), static_cast<unsigned long long>(service.modelId()),
           args.lcm_url.c_str(), args.budget_us, feed->describe().c_str(),
-          args.max_wrench_age_ms, realtime ? "on" : "off", service::kSubscriptionQueueCapacity);
+          args.max_wrench_age_ms, realtime ? "on" : "off", service::kSubscriptionQueueCapacity,
+          args.key_file.empty()
+              ? "no cell key (anyone who reaches the LCM group may send requests and sensor "
+                "commands)"
+              : ("cell key " + args.key_file + " (requests, replies and sensor commands "
+                 "authenticated)").c_str());
+  RefusalLog refusals;
 
   pollfd fds[3] = {{lcm_get_fileno(lcm), POLLIN, 0},
                    {signal_fd.get(), POLLIN, 0},
@@ -182,6 +220,7 @@ int serve(const DaemonArgs& args) {
       if (read(timer_fd.get(), &expirations, sizeof expirations) == sizeof expirations) {
         server.publishStatus(realtime);
         feed->publishStatus();
+        refusals.update(service.counters());
       }
     }
     if (fds[0].revents & POLLIN) lcm_handle(lcm);

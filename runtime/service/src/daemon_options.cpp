@@ -1,6 +1,8 @@
 // The daemon's options (see daemon_options.hpp).
 #include "stepcal/service/daemon_options.hpp"
 
+#include "stepcal/service/auth.hpp"
+
 #include <getopt.h>
 
 #include <charconv>
@@ -16,6 +18,9 @@
 #include "stepcal/common/text_number.hpp"
 
 namespace stepcal::service {
+
+static_assert(kDaemonAuthWindowMs * 1000 == kDefaultAuthWindowUs,
+              "the daemon's default window is the verifier's");
 namespace {
 
 // ---- values -------------------------------------------------------------------------------------
@@ -132,6 +137,8 @@ const std::vector<DaemonOption>& options() {
       {"sensor-bias-samples", "N", "sensor can: readings averaged per bias (sensor_command_t BIAS)", field<&A::sensor, &S::bias_samples>()},
       {"sensor-republish", "CHANNEL", "sensor can: also publish every sample as wrench_t on this channel (empty: none)", field<&A::sensor, &S::republish_channel>()},
       {"realtime", "true|false", "mlockall and SCHED_FIFO priority 80 (needs CAP_IPC_LOCK and CAP_SYS_NICE or the matching rlimits)", field<&A::realtime>()},
+      {"key-file", "FILE", "the cell's shared key (32 bytes, mode 0600): requests and sensor commands must carry its code, replies carry the daemon's; empty: no authentication", field<&A::key_file>()},
+      {"auth-window-ms", "MS", "key-file: how far a message's counter (its send time) may lie from this host's clock, ms", field<&A::auth_window_ms>()},
   };
   return table;
 }

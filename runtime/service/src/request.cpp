@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include <stepcal_lcm/correction_request_t.hpp>
+#include <stepcal_lcm/correction_request_v1_t.hpp>
 
 namespace stepcal::service {
 namespace {
@@ -28,8 +29,26 @@ bool allFinite(const double* values, int count) noexcept {
 
 bool allFinite(const correction_request_t& msg) noexcept {
   return allFinite(msg.q_rad, kMessageJoints) && allFinite(msg.desired_position_m, 3) &&
-         allFinite(msg.desired_quaternion_wxyz, 4) && allFinite(msg.wrench, 6) &&
+         allFinite(msg.desired_quaternion_wxyz, 4) && allFinite(msg.user_frame_position_m, 3) &&
+         allFinite(msg.user_frame_quaternion_wxyz, 4) && allFinite(msg.tool_position_m, 3) &&
+         allFinite(msg.tool_quaternion_wxyz, 4) && allFinite(msg.wrench, 6) &&
+         allFinite(&msg.payload_kg, 1) && allFinite(msg.payload_cog_m, 3) &&
          allFinite(msg.seed_q_rad, kMessageJoints);
+}
+
+/// A pose from a position and a quaternion whose norm is 1 within kQuaternionNormTolerance
+/// (normalised); false otherwise.
+bool readPose(const double* position_m, const double* quaternion_wxyz, Pose& X) noexcept {
+  const Eigen::Quaterniond q(quaternion_wxyz[0], quaternion_wxyz[1], quaternion_wxyz[2],
+                             quaternion_wxyz[3]);
+  if (!(std::abs(q.norm() - 1.0) <= kQuaternionNormTolerance)) return false;
+  X.linear() = q.normalized().toRotationMatrix();
+  X.translation() = Vec3(position_m[0], position_m[1], position_m[2]);
+  return true;
+}
+
+bool inRange(int8_t value, int8_t first, int8_t last) noexcept {
+  return value >= first && value <= last;
 }
 
 }  // namespace
@@ -38,7 +57,14 @@ Status decodeRequest(const void* data, int size, Request& out) noexcept {
   out = Request{};
   if (data == nullptr || size < kFingerprintBytes + kRequestIdBytes) return Status::kBadRequest;
   const auto* bytes = static_cast<const uint8_t*>(data);
-  if (bigEndian64(bytes) != correction_request_t::getHash()) return Status::kBadRequest;
+  const int64_t fingerprint = bigEndian64(bytes);
+  if (fingerprint == stepcal_lcm::correction_request_v1_t::getHash()) {
+    out.request_id_known = true;
+    out.old_version = true;
+    out.request_id = bigEndian64(bytes + kFingerprintBytes);
+    return Status::kBadRequest;
+  }
+  if (fingerprint != correction_request_t::getHash()) return Status::kBadRequest;
   out.request_id_known = true;
   out.request_id = bigEndian64(bytes + kFingerprintBytes);
 
@@ -46,34 +72,47 @@ Status decodeRequest(const void* data, int size, Request& out) noexcept {
   if (msg.decode(data, 0, size) != size) return Status::kBadRequest;  // truncated or too long
   out.utime = msg.utime;
   out.deadline_us = msg.deadline_us;
-  if (msg.mode != correction_request_t::MODE_FORWARD &&
-      msg.mode != correction_request_t::MODE_INVERSE) {
+  if (msg.message_version != correction_request_t::VERSION ||
+      !inRange(msg.mode, correction_request_t::MODE_FORWARD, correction_request_t::MODE_INVERSE) ||
+      !inRange(msg.frame, correction_request_t::FRAME_TRACKER, correction_request_t::FRAME_USER) ||
+      !inRange(msg.tool_from, correction_request_t::TOOL_FROM_TARGET,
+               correction_request_t::TOOL_FROM_FLANGE) ||
+      !inRange(msg.wrench_source, correction_request_t::WRENCH_LIVE_SENSOR,
+               correction_request_t::WRENCH_PAYLOAD) ||
+      !inRange(msg.payload_cog_frame, correction_request_t::COG_IN_FLANGE,
+               correction_request_t::COG_IN_TOOL)) {
     return Status::kBadRequest;
   }
-  if (msg.wrench_source != correction_request_t::WRENCH_LIVE_SENSOR &&
-      msg.wrench_source != correction_request_t::WRENCH_GIVEN) {
+  if (!allFinite(msg) || !runtime::validTemperature(msg.temp_c) || msg.payload_kg < 0.0) {
     return Status::kBadRequest;
   }
-  if (!allFinite(msg) || !runtime::validTemperature(msg.temp_c)) return Status::kBadRequest;
   out.mode = static_cast<Mode>(msg.mode);
   out.wrench_source = static_cast<WrenchSource>(msg.wrench_source);
   for (int i = 0; i < kMessageJoints; ++i) {
     out.q_rad[i] = msg.q_rad[i];
     out.seed_q_rad[i] = msg.seed_q_rad[i];
   }
-  for (int i = 0; i < 6; ++i) out.wrench_Sensor[i] = msg.wrench[i];
   out.temp_c = msg.temp_c;
-  if (out.mode == Mode::kInverse) {
-    const Eigen::Quaterniond q_TrackerTip(msg.desired_quaternion_wxyz[0],
-                                          msg.desired_quaternion_wxyz[1],
-                                          msg.desired_quaternion_wxyz[2],
-                                          msg.desired_quaternion_wxyz[3]);
-    if (!(std::abs(q_TrackerTip.norm() - 1.0) <= kQuaternionNormTolerance)) {
-      return Status::kBadRequest;
-    }
-    out.X_TrackerTip_desired.linear() = q_TrackerTip.normalized().toRotationMatrix();
-    out.X_TrackerTip_desired.translation() =
-        Vec3(msg.desired_position_m[0], msg.desired_position_m[1], msg.desired_position_m[2]);
+  runtime::CallTerms& terms = out.terms;
+  terms.frame = static_cast<runtime::PoseFrame>(msg.frame);
+  terms.tool_from = static_cast<runtime::ToolFrom>(msg.tool_from);
+  if (!readPose(msg.tool_position_m, msg.tool_quaternion_wxyz, terms.X_Tool)) {
+    return Status::kBadRequest;
+  }
+  if (terms.frame == runtime::PoseFrame::kUser &&
+      !readPose(msg.user_frame_position_m, msg.user_frame_quaternion_wxyz, terms.X_BaseUser)) {
+    return Status::kBadRequest;
+  }
+  for (int i = 0; i < 6; ++i) terms.wrench_Sensor[i] = msg.wrench[i];
+  if (out.wrench_source == WrenchSource::kPayload) {
+    terms.load_from = runtime::LoadFrom::kPayload;
+    terms.payload.mass_kg = msg.payload_kg;
+    terms.payload.frame = static_cast<runtime::CogFrame>(msg.payload_cog_frame);
+    terms.payload.p_CoG_m = Vec3(msg.payload_cog_m[0], msg.payload_cog_m[1], msg.payload_cog_m[2]);
+  }
+  if (out.mode == Mode::kInverse &&
+      !readPose(msg.desired_position_m, msg.desired_quaternion_wxyz, out.X_FrameTcp_desired)) {
+    return Status::kBadRequest;
   }
   return Status::kOk;
 }

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <utility>
 
+#include <stepcal_lcm/correction_reply_v1_t.hpp>
+
 #include "stepcal/common/error.hpp"
 #include "stepcal/service/latency.hpp"
 
@@ -41,18 +43,20 @@ bool carriesAnswer(Status status) noexcept {
 
 void writeAnswer(const runtime::ForwardResult& r, stepcal_lcm::correction_reply_t& reply) noexcept {
   if (!carriesAnswer(r.status)) return;
-  writePose(r.X_TrackerTip, reply.predicted_position_m, reply.predicted_quaternion_wxyz);
+  writePose(r.X_FrameTcp, reply.predicted_position_m, reply.predicted_quaternion_wxyz);
   writeVector(r.gpr_std, reply.gpr_std);
+  writeVector(r.wrench_Sensor, reply.wrench);
   reply.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);
 }
 
 void writeAnswer(const runtime::InverseResult& r, stepcal_lcm::correction_reply_t& reply) noexcept {
   if (!carriesAnswer(r.status)) return;
   for (int i = 0; i < kMessageJoints; ++i) reply.q_target_rad[i] = r.q_target_rad[i];
-  writePose(r.X_BaseTip_commanded, reply.commanded_position_m, reply.commanded_quaternion_wxyz);
-  writePose(r.X_TrackerTip_predicted, reply.predicted_position_m,
-            reply.predicted_quaternion_wxyz);
+  writePose(r.X_ControllerTcp_commanded, reply.commanded_position_m,
+            reply.commanded_quaternion_wxyz);
+  writePose(r.X_FrameTcp_predicted, reply.predicted_position_m, reply.predicted_quaternion_wxyz);
   writeVector(r.gpr_std, reply.gpr_std);
+  writeVector(r.wrench_Sensor, reply.wrench);
   reply.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);
   reply.iterations = r.iterations;
   reply.residual_position_m = r.residual_position_m;
@@ -77,8 +81,12 @@ void checkMessageJoints(const runtime::RuntimeModel& model, const std::string& s
 
 Service::Service(std::unique_ptr<const runtime::RuntimeModel> model, std::string model_path,
                  ServiceOptions options)
-    : options_(options) {
+    : options_(std::move(options)) {
   STEPCAL_INVARIANT(model != nullptr, "a service needs a model");
+  if (options_.key) {
+    verifier_.emplace(*options_.key, options_.auth_window_us);
+    signer_.emplace(*options_.key);
+  }
   checkMessageJoints(*model, model_path);
   slots_[0].workspace = runtime::makeWorkspace(*model);
   slots_[0].model_path = std::move(model_path);
@@ -87,7 +95,21 @@ Service::Service(std::unique_ptr<const runtime::RuntimeModel> model, std::string
 }
 
 int Service::replyBytes() noexcept {
-  static const int bytes = stepcal_lcm::correction_reply_t{}.getEncodedSize();
+  static const int bytes = std::max(stepcal_lcm::correction_reply_t{}.getEncodedSize(),
+                                    stepcal_lcm::correction_reply_v1_t{}.getEncodedSize());
+  return bytes;
+}
+
+int Service::refuseOldVersion(int64_t request_id, uint8_t* reply, int capacity) noexcept {
+  stepcal_lcm::correction_reply_v1_t refusal{};
+  refusal.request_id = request_id;
+  refusal.utime = unixMicroseconds();
+  refusal.status = stepcal_lcm::correction_reply_v1_t::STATUS_BAD_REQUEST;
+  refusal.model_id = static_cast<int64_t>(models_.currentModelId());
+  const int bytes = refusal.encode(reply, 0, capacity);
+  if (bytes <= 0) return 0;
+  ++counters_.replies;
+  ++counters_.status_counts[static_cast<size_t>(Status::kBadRequest)];
   return bytes;
 }
 
@@ -103,12 +125,27 @@ int Service::handleRequest(const void* data, int size, Clock::time_point receive
   ++counters_.requests;
   Request request;
   Status status = decodeRequest(data, size, request);
+  if (request.old_version) {
+    // Refused by name before any key: a version-1 client can carry no code.
+    ++counters_.old_version;
+    if (verifier_ || capacity < replyBytes()) return 0;
+    return refuseOldVersion(request.request_id, reply, capacity);
+  }
+  if (verifier_) {
+    const Verdict verdict =
+        verifier_->verify(static_cast<const uint8_t*>(data), size, unixMicroseconds());
+    if (verdict != Verdict::kAuthentic) {
+      ++(verdict == Verdict::kForged ? counters_.forged : counters_.replayed);
+      return 0;
+    }
+  }
   if (!request.request_id_known) {
     ++counters_.unaddressable;
     return 0;
   }
   if (capacity < replyBytes()) return 0;
   reply_ = stepcal_lcm::correction_reply_t{};
+  reply_.message_version = stepcal_lcm::correction_reply_t::VERSION;
   reply_.request_id = request.request_id;
   {
     const runtime::ModelHandle::Guard model = models_.acquire(kServingReaderSlot);
@@ -128,22 +165,29 @@ int Service::handleRequest(const void* data, int size, Clock::time_point receive
   ++counters_.status_counts[static_cast<size_t>(status)];
   const int bytes = reply_.encode(reply, 0, capacity);
   if (bytes <= 0) return 0;
+  if (signer_) signer_->seal(reply, bytes);
   ++counters_.replies;
   return bytes;
 }
 
 Status Service::answer(const Request& request, const runtime::RuntimeModel& model,
                        runtime::Workspace& ws, Clock::time_point received) noexcept {
-  Vec6 wrench_Sensor = request.wrench_Sensor;
+  runtime::CallTerms terms = request.terms;
   if (request.wrench_source == WrenchSource::kLiveSensor) {
-    const Status wrench_status =
-        runtime::wrenchFor(wrench_, steadyNanoseconds(Clock::now()),
-                           options_.max_wrench_age_ns, wrench_Sensor, &reply_.wrench_stamp_ns);
-    if (wrench_status != Status::kOk) return wrench_status;
+    // A model that needs no wrench takes none: never STALE_WRENCH for a missing sensor.
+    if (!model.needs_wrench) {
+      terms.wrench_Sensor = model.unloaded_wrench_Sensor;
+    } else {
+      const Status wrench_status =
+          runtime::wrenchFor(wrench_, steadyNanoseconds(Clock::now()),
+                             options_.max_wrench_age_ns, terms.wrench_Sensor,
+                             &reply_.wrench_stamp_ns);
+      if (wrench_status != Status::kOk) return wrench_status;
+    }
   }
   if (request.mode == Mode::kForward) {
     const runtime::ForwardResult r =
-        runtime::correctForward(model, ws, request.q_rad, wrench_Sensor, request.temp_c);
+        runtime::correctForward(model, ws, request.q_rad, terms, request.temp_c);
     writeAnswer(r, reply_);
     return r.status;
   }
@@ -151,9 +195,9 @@ Status Service::answer(const Request& request, const runtime::RuntimeModel& mode
       request.deadline_us > 0 ? int64_t(request.deadline_us) * 1000 : options_.budget_ns;
   const Clock::time_point deadline =
       received + std::chrono::nanoseconds(std::min(request_budget_ns, options_.budget_ns));
-  const runtime::InverseResult r = runtime::solveInverse(
-      model, ws, request.X_TrackerTip_desired, wrench_Sensor, request.temp_c, request.seed_q_rad,
-      deadline);
+  const runtime::InverseResult r =
+      runtime::solveInverse(model, ws, request.X_FrameTcp_desired, terms, request.temp_c,
+                            request.seed_q_rad, deadline);
   writeAnswer(r, reply_);
   return r.status;
 }
@@ -208,6 +252,10 @@ const stepcal_lcm::runtime_status_t& Service::status(bool realtime) {
   status_.p99_us = window.p99_us;
   status_.max_us = window_max_us_;
   status_.realtime = realtime ? 1 : 0;
+  status_.old_version_requests = counters_.old_version;
+  status_.authenticated = verifier_ ? 1 : 0;
+  status_.forged_requests = counters_.forged;
+  status_.replayed_requests = counters_.replayed;
   window_count_ = 0;
   window_max_us_ = 0.0;
   return status_;

@@ -288,6 +288,7 @@ Campaign importIpaSeries(const std::string& series_csv, int validation_from_row,
   checkChain(c.urdf_xml, ur10_urdf_path);
   c.base_link = "base_link";
   c.tip_link = "tmac";
+  c.flange_link = "tool0";  // the UR10's flange (DH frame 6), the frame of its TCP settings
   c.tracker.position_sigma_m = kTrackerPositionSigma_m;
   c.tracker.orientation_sigma_rad = kTrackerOrientationSigma_rad;
   c.tracker.stated = true;

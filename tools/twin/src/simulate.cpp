@@ -102,6 +102,7 @@ Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out)
   campaign.base_link = options.base_link;
   campaign.tip_link = options.tip_link;
   campaign.sensor_link = options.sensor_link;
+  campaign.flange_link = options.flange_link;
   campaign.tracker.position_sigma_m = options.tracker_position_sigma_m;
   campaign.tracker.orientation_sigma_rad = options.tracker_orientation_sigma_rad;
   // A zero sigma is no statement a weighting could use.

@@ -57,6 +57,9 @@ struct Campaign {
   std::string base_link;
   std::string tip_link;
   std::string sensor_link;              ///< empty: no F/T sensor
+  /// The robot's mounting flange, the frame of the controller's tool data (ROS-Industrial
+  /// tool0); empty: not named. The model keeps it (runtime: tools given from the flange).
+  std::string flange_link;
   std::string measurements_file = "measurements.csv";
   TrackerNoise tracker;
   std::optional<Vec3> gravity_in_base;  ///< m/s², base_link axes

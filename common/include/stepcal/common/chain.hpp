@@ -16,6 +16,10 @@
 
 namespace stepcal {
 
+/// Name of the attached frame that is the robot's mounting flange (campaign.yaml flange_link):
+/// the frame of a controller's tool data.
+inline constexpr const char* kFlangeFrameName = "flange";
+
 /// A frame rigidly attached to the chain (for example the F/T sensor or the flange).
 struct AttachedFrame {
   std::string name;

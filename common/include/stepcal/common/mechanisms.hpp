@@ -184,19 +184,31 @@ struct FixedPointStart {
   JointVector* deflection_out_rad = nullptr;    ///< gets θ − θ₀ (may be deflection_rad)
 };
 
+/// A payload as the controller knows it (its load data): a point mass on the last link. Its
+/// weight loads the joints at the deflected pose, inside the fixed point, in place of a measured
+/// wrench.
+struct PointPayload {
+  double mass_kg = 0.0;
+  Vec3 p_CoGInLast_m = Vec3::Zero();  ///< centre of gravity in frame n (after joint n's motion), m
+};
+
 /// Link angles θ [rad] and joint torques τ [N·m] of the physical model at commanded angles q,
 /// a measured wrench (sensor axes; zero when unloaded or no sensor) and a temperature (NaN:
 /// unknown). Leaves ws evaluated at θ (with the thermal length scale). profile_slope, when
 /// given, gets per joint the derivative of its transmission profile's offset (gate included) by
 /// its commanded angle, 0 without one. constants, when given, must be physicalConstants(model).
-/// start, when given, changes the fixed point's start and passes (FixedPointStart).
+/// start, when given, changes the fixed point's start and passes (FixedPointStart). payload,
+/// when given, loads the joints by its weight (model.gravity_Tracker) at each pass instead of the
+/// measured wrench (wrench_Sensor and the sensor bias are then unused): τ_k = ξ_kᵀ (m g, p × m g),
+/// p its centre of gravity in the root at the pass's θ.
 /// Allocation-free; false when sizes disagree.
 bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
                         const Vec6& wrench_Sensor, double temp_c, ChainWorkspace& ws,
                         JointVector& theta_rad, JointVector& tau_nm,
                         JointVector* profile_slope = nullptr,
                         const PhysicalConstants* constants = nullptr,
-                        const FixedPointStart* start = nullptr) noexcept;
+                        const FixedPointStart* start = nullptr,
+                        const PointPayload* payload = nullptr) noexcept;
 
 /// Joints whose commanded angle lies (partly, within the fade) outside the coverage of their
 /// transmission profile: bit j set for joint j (0-based). There the profile's correction is

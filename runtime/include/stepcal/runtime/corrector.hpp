@@ -49,6 +49,49 @@ inline bool validTemperature(double temp_c) noexcept {
   return std::isnan(temp_c) || (temp_c >= kMinTemperature_c && temp_c <= kMaxTemperature_c);
 }
 
+/// The frame in which a call's poses are given and answered (docs/runtime.md, "Integration").
+enum class PoseFrame : int8_t {
+  kTracker = 0,  ///< the tracker (work) frame of the calibration campaign
+  kBase = 1,     ///< the robot's base frame: the nominal robot where the model registered it
+                 ///< (CalibratedModel::X_TrackerBase), the frame of the controller's kinematics
+  kUser = 2,     ///< a user frame given in the base frame (CallTerms::X_BaseUser), as a
+                 ///< controller's work object (ABB wobjdata, KUKA BASE_DATA)
+};
+/// What a call's tool transform is given from.
+enum class ToolFrom : int8_t {
+  kTarget = 0,  ///< from the measured target (the calibrated chain's tip)
+  kFlange = 1,  ///< from the robot's flange: the controller's tool data (needs a model whose
+                ///< campaign named its flange_link, RuntimeModel::has_flange)
+};
+/// The frame in which a payload's centre of gravity is given.
+enum class CogFrame : int8_t { kFlange = 0, kTool = 1 };
+/// Where a call's wrench comes from.
+enum class LoadFrom : int8_t {
+  kWrench = 0,   ///< a wrench on the F/T sensor, sensor axes (measured or given)
+  kPayload = 1,  ///< a payload's mass and centre of gravity (the controller's load data)
+};
+
+/// A payload as the controller's load data gives it.
+struct Payload {
+  double mass_kg = 0.0;            ///< ≥ 0, kg
+  Vec3 p_CoG_m = Vec3::Zero();     ///< centre of gravity in `frame`, m
+  CogFrame frame = CogFrame::kFlange;
+};
+
+/// A call in the controller's terms: the frame of its poses, its tool, its load. The default is
+/// the calibration's own terms: tracker frame, the measured target, a wrench on the sensor.
+struct CallTerms {
+  PoseFrame frame = PoseFrame::kTracker;
+  Pose X_BaseUser = Pose::Identity();  ///< kUser: the user frame in the base frame, m
+  ToolFrom tool_from = ToolFrom::kTarget;
+  /// The tool centre point (TCP) in the frame it is given from: X_TargetTcp or X_FlangeTcp, m.
+  /// Identity with kTarget: the measured target itself.
+  Pose X_Tool = Pose::Identity();
+  LoadFrom load_from = LoadFrom::kWrench;
+  Vec6 wrench_Sensor = Vec6::Zero();  ///< kWrench: (f [N], m [N·m]), sensor axes
+  Payload payload;                    ///< kPayload
+};
+
 /// Everything the runtime needs, built once from a model file (off the real-time path).
 struct RuntimeModel {
   CalibratedModel file;         ///< as loaded
@@ -71,6 +114,26 @@ struct RuntimeModel {
   /// Its radius, m: Σ_k (‖p of T_{k,k+1}(0)‖ + 2 · axis offset of joint k) over joints 1..n,
   /// plus 5 % for the deflection and the residual twist. A desired tip beyond it is UNREACHABLE.
   double reach_radius_m = 0.0;
+  /// Whether a call's answer depends on the wrench: the physical model turns the sensor's wrench
+  /// into deflection (a sensor frame with compliance, backlash or nonlinear stiffness), or the
+  /// GPR's training wrenches vary. When not, a call asking for the live sensor is answered with
+  /// unloaded_wrench_Sensor and never STALE_WRENCH.
+  bool needs_wrench = true;
+  /// The wrench of a model that needs none: the GPR's training wrench (constant), else zero.
+  Vec6 unloaded_wrench_Sensor = Vec6::Zero();
+  /// Whether the model knows the robot's flange (an attached frame named kFlangeFrame).
+  bool has_flange = false;
+  /// The flange in the calibrated target's frame (has_flange), m. The calibration identifies the
+  /// target, not the flange: the flange is placed on the calibrated joint-n frame by the nominal
+  /// chain's X_nFlange, with the joint-n frame's unidentifiable part (a rotation about and a
+  /// translation along joint n's axis, traded between T_{n−1,n} and T_{n,tip}) taken as
+  /// nominal: that part of the calibration's correction belongs to the target's mounting.
+  Pose X_TipFlange = Pose::Identity();
+  /// The flange in the nominal chain's frame n, m (the controller's view, for the pre-distorted
+  /// pose).
+  Pose X_LastFlange_nominal = Pose::Identity();
+  /// The calibrated T_{n,tip}(0): the target in the calibrated joint-n frame, m.
+  Pose X_LastTip = Pose::Identity();
 
   /// Loads and validates a model file. Throws InputError.
   static std::unique_ptr<const RuntimeModel> load(const std::string& path);
@@ -100,9 +163,18 @@ Workspace makeWorkspace(const RuntimeModel& model);
 /// caller that swaps models must make a new workspace when this turns false.
 bool workspaceFits(const RuntimeModel& model, const Workspace& ws) noexcept;
 
+/// Name of the attached frame of a model's chains that is the robot's flange: the frame of the
+/// controller's tool data (campaign.yaml flange_link).
+inline constexpr const char* kFlangeFrame = kFlangeFrameName;
+
 struct ForwardResult {
   Status status = Status::kBadRequest;
   Pose X_TrackerTip = Pose::Identity();  ///< corrected pose, T_C2 (METHOD.md eq. 32), m
+  /// The TCP (the target with CallTerms' defaults) in the call's frame, m.
+  Pose X_FrameTcp = Pose::Identity();
+  /// The wrench the answer used, as a sensor tared unloaded reads it (sensor axes, N and N·m):
+  /// the given or live one, or a payload's weight at the deflected pose plus the sensor bias.
+  Vec6 wrench_Sensor = Vec6::Zero();
   Vec6 gpr_std = Vec6::Zero();           ///< predictive 1-σ of the residual twist (v [m], ω [rad])
   ///< (gpr_std is an upper bound on the exact predictive std: GprPredictor::predictMeanAndBoundInto)
   /// Bit j: joint j's angle lies outside the angles its transmission profile was fitted on, so
@@ -119,6 +191,13 @@ struct ForwardResult {
 /// throws.
 ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
                              const Vec6& wrench_Sensor, double temp_c) noexcept;
+/// The same in the controller's terms: the TCP's pose X_FrameTcp in terms.frame, with the tool
+/// hung rigidly from the corrected target (T_C2 · X_TipTcp); with a payload its weight deflects
+/// the joints at the deflected pose (physicalLinkAngles' fixed point), and the GPR gets the
+/// wrench a sensor would read there. BAD_REQUEST also for terms that do not hold (non-finite,
+/// not a rotation, a negative mass, a flange the model lacks, a payload without gravity).
+ForwardResult correctForward(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                             const CallTerms& terms, double temp_c) noexcept;
 
 struct InverseOptions {
   int max_iterations = 8;
@@ -138,9 +217,16 @@ struct InverseResult {
   JointVector q_target_rad;                      ///< joint targets (empty on BAD_REQUEST), rad
   Pose X_BaseTip_commanded = Pose::Identity();   ///< pre-distorted pose: nominal FK at q_target, base frame, m
   Pose X_TrackerTip_predicted = Pose::Identity();  ///< where the real robot ends up (forward model)
+  /// The pre-distorted TCP for a controller that takes poses: the nominal chain's target or
+  /// flange (as the tool is given) at q_target times the tool, in the controller's frame (the
+  /// user frame for kUser, else the base frame), m.
+  Pose X_ControllerTcp_commanded = Pose::Identity();
+  /// Where the real robot's TCP ends up, in the call's frame, m.
+  Pose X_FrameTcp_predicted = Pose::Identity();
+  Vec6 wrench_Sensor = Vec6::Zero();             ///< as ForwardResult::wrench_Sensor, at q_target
   Vec6 gpr_std = Vec6::Zero();                   ///< at q_target, as ForwardResult::gpr_std
   int iterations = 0;                            ///< steps taken (Newton steps and the chord)
-  double residual_position_m = 0.0;              ///< ‖p_desired − p_predicted‖ at q_target, m
+  double residual_position_m = 0.0;              ///< ‖p_desired − p_predicted‖ at q_target (TCP), m
   double residual_orientation_rad = 0.0;         ///< angle between the two rotations, rad
   uint32_t uncovered_joints = 0;                 ///< at q_target, as ForwardResult::uncovered_joints
 };
@@ -178,5 +264,29 @@ InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
                            const Pose& X_TrackerTip_desired, const Vec6& wrench_Sensor,
                            double temp_c, const JointVector& q_seed_rad,
                            Clock::time_point deadline, const InverseOptions& options = {}) noexcept;
+/// The same in the controller's terms: joint targets that bring the real robot's TCP to
+/// X_FrameTcp_desired (terms.frame); the residual, the tolerances and the Jacobian are the TCP's.
+/// A payload's weight deflects the joints inside the model the steps invert, so the answer is
+/// exact for it; its torques' change with the pose is left out of the Jacobian (as the self
+/// weight's). BAD_REQUEST also for terms that do not hold (as correctForward).
+InverseResult solveInverse(const RuntimeModel& model, Workspace& ws,
+                           const Pose& X_FrameTcp_desired, const CallTerms& terms, double temp_c,
+                           const JointVector& q_seed_rad, Clock::time_point deadline,
+                           const InverseOptions& options = {}) noexcept;
+
+/// The pose of a call's frame in the tracker frame: identity, X_TrackerBase, or X_TrackerBase ·
+/// X_BaseUser, m.
+Pose trackerFromFrame(const RuntimeModel& model, PoseFrame frame, const Pose& X_BaseUser) noexcept;
+
+/// Where the controller's nominal kinematics put the TCP at joints q [rad], in the call's frame:
+/// the nominal chain's target or flange (as terms' tool is given) at q times the tool, placed in
+/// the tracker frame by X_TrackerBase for kTracker, m. What an offline program's joint targets
+/// mean to reach. Identity for terms or joints that do not hold. Allocation-free.
+Pose nominalTcp(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                const CallTerms& terms) noexcept;
+
+/// Whether a GPR std bound (a result's gpr_std) lies within the model's domain: the
+/// OUT_OF_DOMAIN test, whatever the call's status. Always true without a GPR.
+bool withinDomain(const RuntimeModel& model, const Vec6& gpr_std) noexcept;
 
 }  // namespace stepcal::runtime

@@ -105,8 +105,9 @@ ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measur
                           const std::string& set_name, const TrackerNoise& noise,
                           const CalibrationOptions& options);
 
-/// Builds the campaign's chain from its URDF (base_link → tip_link, sensor_link attached).
-/// Throws InputError naming the robot file when it does not fit the campaign.
+/// Builds the campaign's chain from its URDF (base_link → tip_link, sensor_link attached as
+/// frame 0, flange_link, if named, after it as the frame kFlangeFrameName). Throws InputError
+/// naming the robot file when it does not fit the campaign.
 KinematicChain campaignChain(const Campaign& campaign, int* sensor_frame = nullptr);
 
 /// Runs every calibration step that exists on the campaign. Throws InputError.

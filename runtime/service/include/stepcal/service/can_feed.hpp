@@ -1,10 +1,12 @@
 // The live wrench from an ATI Net CAN OEM F/T sensor on a SocketCAN interface (--sensor
 // can:IFACE): the driver (runtime/ft_sensor.hpp) polls on its own thread and hands every sample
 // to the Service; optionally each sample is also published as wrench_t. Commands (bias, reset)
-// arrive as sensor_command_t; the driver's health leaves as sensor_status_t.
+// arrive as sensor_command_t (with the service's cell key: only authentic, fresh ones); the
+// driver's health leaves as sensor_status_t.
 #pragma once
 
 #include <atomic>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -31,6 +33,10 @@ class CanWrenchFeed final : public WrenchFeed, private runtime::WrenchSink {
   runtime::FtSensorDriver& driver() noexcept { return driver_; }
   /// sensor_command_t messages that did not decode or named no known command (serving thread).
   int64_t refusedCommands() const noexcept { return refused_commands_; }
+  /// With the service's key: commands dropped because their code did not verify, and because
+  /// their counter was not fresh (serving thread).
+  int64_t forgedCommands() const noexcept { return forged_commands_; }
+  int64_t replayedCommands() const noexcept { return replayed_commands_; }
 
  private:
   /// Driver thread: to the Service, and to LCM when republishing. Allocation-free.
@@ -47,6 +53,8 @@ class CanWrenchFeed final : public WrenchFeed, private runtime::WrenchSink {
   stepcal_lcm::sensor_status_t status_{};
   std::vector<uint8_t> status_buffer_;
   int64_t refused_commands_ = 0;
+  int64_t forged_commands_ = 0, replayed_commands_ = 0;
+  std::optional<MessageVerifier> verifier_;  ///< with the service's key
   std::thread thread_;
 };
 

@@ -11,6 +11,9 @@
 
 namespace stepcal::service {
 
+/// The daemon's default --auth-window-ms (auth.hpp's kDefaultAuthWindowUs).
+inline constexpr int kDaemonAuthWindowMs = 2000;
+
 /// What the daemon runs with.
 struct DaemonArgs {
   std::string model_path;
@@ -19,6 +22,9 @@ struct DaemonArgs {
   double max_wrench_age_ms = 20.0;
   SensorArgs sensor;
   bool realtime = false;
+  /// The cell key (auth.hpp, docs/runtime.md "Only the cell may talk to it"): empty, none.
+  std::string key_file;
+  double auth_window_ms = kDaemonAuthWindowMs;
 };
 
 /// The outcome of parsing the daemon's arguments.

@@ -18,32 +18,42 @@ inline constexpr double kQuaternionNormTolerance = 1e-6;
 /// What a request asks for (correction_request_t.mode).
 enum class Mode : int8_t { kForward = 0, kInverse = 1 };
 /// Where a request's wrench comes from (correction_request_t.wrench_source).
-enum class WrenchSource : int8_t { kLiveSensor = 0, kGiven = 1 };
+enum class WrenchSource : int8_t { kLiveSensor = 0, kGiven = 1, kPayload = 2 };
 
 /// A decoded, validated request in the runtime's types.
 struct Request {
   bool request_id_known = false;  ///< false: the bytes are not a request (no reply is due)
+  /// A request in message version 1 (correction_request_v1_t): refused by name, with a version-1
+  /// BAD_REQUEST reply.
+  bool old_version = false;
   int64_t request_id = 0;
   int64_t utime = 0;  ///< send time, µs since the Unix epoch
   Mode mode = Mode::kForward;
   JointVector q_rad = JointVector::Zero(kMessageJoints);  ///< forward: commanded joints, rad
-  /// Inverse: desired tip pose in the tracker (work) frame, m; quaternion normalised.
-  Pose X_TrackerTip_desired = Pose::Identity();
+  /// Inverse: desired TCP pose in the request's frame (terms.frame), m; quaternion normalised.
+  Pose X_FrameTcp_desired = Pose::Identity();
   WrenchSource wrench_source = WrenchSource::kLiveSensor;
-  Vec6 wrench_Sensor = Vec6::Zero();  ///< given wrench, sensor axes: (f [N], m [N·m])
+  /// Frame, user frame, tool and load (the given wrench, or the payload; the service fills the
+  /// live wrench in).
+  runtime::CallTerms terms;
   /// Structure temperature, °C; NaN: not measured (no thermal correction).
   double temp_c = runtime::kUnknownTemperature_c;
   JointVector seed_q_rad = JointVector::Zero(kMessageJoints);  ///< inverse: start, rad
   int32_t deadline_us = 0;  ///< ≤ 0: the daemon's budget alone, µs
 };
 
-/// Decodes the LCM bytes of a correction_request_t and validates them: kOk, or kBadRequest when
-/// the bytes are truncated, too long or of another type, the mode or wrench source is unknown,
-/// a double other than temp_c is NaN or infinite, temp_c is neither NaN nor within
-/// runtime::kMinTemperature_c … kMaxTemperature_c (runtime::validTemperature), or (inverse) the
-/// quaternion's norm is off by more than kQuaternionNormTolerance. out.request_id_known says
-/// whether a reply can be addressed (the type's fingerprint matches and the id's bytes are
-/// present). Never allocates, never throws, never reads outside [data, data + size).
+/// Decodes the LCM bytes of a correction_request_t (message version 2) and validates them: kOk,
+/// or kBadRequest when the bytes are truncated, too long or of another type, message_version is
+/// not 2, the mode, frame, tool origin, wrench source or centre-of-gravity frame is unknown, a
+/// double other than temp_c is NaN or infinite, temp_c is neither NaN nor within
+/// runtime::kMinTemperature_c … kMaxTemperature_c (runtime::validTemperature), the payload's
+/// mass is negative, or a quaternion in use (the tool's always, the user frame's with
+/// FRAME_USER, the desired pose's for an inverse) has a norm off by more than
+/// kQuaternionNormTolerance. Bytes with the fingerprint of version 1 (correction_request_v1_t)
+/// give kBadRequest with out.old_version set. out.request_id_known says whether a reply can be
+/// addressed (a known fingerprint and the id's bytes present). What the model must provide (a
+/// flange, gravity) is checked by the runtime's calls. Never allocates, never throws, never reads
+/// outside [data, data + size).
 runtime::Status decodeRequest(const void* data, int size, Request& out) noexcept;
 
 }  // namespace stepcal::service

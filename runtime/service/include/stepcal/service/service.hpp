@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 
 #include <stepcal_lcm/correction_reply_t.hpp>
@@ -20,6 +21,7 @@
 
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/runtime/handoff.hpp"
+#include "stepcal/service/auth.hpp"
 #include "stepcal/service/request.hpp"
 
 namespace stepcal::service {
@@ -30,6 +32,11 @@ struct ServiceOptions {
   int64_t budget_ns = 200'000;
   /// A live wrench older than this (on the serving thread's steady clock) gives STALE_WRENCH, ns.
   int64_t max_wrench_age_ns = 20'000'000;
+  /// The cell's key (--key-file): requests must carry its code and a fresh counter, replies
+  /// carry the daemon's. None: no authentication (anyone who reaches the LCM group may ask).
+  std::optional<CellKey> key;
+  /// How far a counter may lie from the daemon's clock, µs (--auth-window-ms).
+  int64_t auth_window_us = kDefaultAuthWindowUs;
 };
 
 /// Counters since start; read on the serving thread.
@@ -40,6 +47,9 @@ struct ServiceCounters {
   /// reply. Malformed requests with a readable id get a BAD_REQUEST reply instead.
   int64_t unaddressable = 0;
   std::array<int64_t, 7> status_counts{};  ///< replies per runtime::Status value
+  int64_t old_version = 0;  ///< requests in message version 1, refused by name
+  int64_t forged = 0;       ///< with a key: dropped, their code did not verify
+  int64_t replayed = 0;     ///< with a key: dropped, their counter was not fresh
 };
 
 /// Answers correction requests with the model in service.
@@ -62,8 +72,10 @@ class Service {
 
   /// Handles the LCM bytes of one request received at `received` (steady clock) and encodes its
   /// reply into reply[0 .. capacity). Returns the reply's size in bytes, or 0 when no reply is due
-  /// (the bytes are not a correction_request_t) or capacity < replyBytes(). Serving thread only;
-  /// allocation-free, lock-free, never throws.
+  /// (the bytes are not a correction_request_t; with a key, they fail its check) or capacity <
+  /// replyBytes(). A version-1 request gets a correction_reply_v1_t BAD_REQUEST (none with a key).
+  /// With a key the reply is sealed (auth.hpp). Serving thread only; allocation-free, lock-free,
+  /// never throws.
   int handleRequest(const void* data, int size, runtime::Clock::time_point received,
                     uint8_t* reply, int capacity) noexcept;
 
@@ -80,6 +92,7 @@ class Service {
   /// model_id of the model in service.
   uint64_t modelId() const noexcept { return models_.currentModelId(); }
   const ServiceCounters& counters() const noexcept { return counters_; }
+  const ServiceOptions& options() const noexcept { return options_; }
 
   /// The status message now: counters, compute-time percentiles over the requests since the
   /// previous call (then a new window starts), the model in service. Serving thread only;
@@ -102,7 +115,12 @@ class Service {
   WorkspaceSlot& slotOf(const runtime::RuntimeModel* model) noexcept;
   void recordCompute(double compute_us) noexcept;
 
+  /// A version-1 BAD_REQUEST reply to request_id into reply (capacity ≥ replyBytes()).
+  int refuseOldVersion(int64_t request_id, uint8_t* reply, int capacity) noexcept;
+
   ServiceOptions options_;
+  std::optional<MessageVerifier> verifier_;  ///< with a key
+  std::optional<MessageSigner> signer_;      ///< with a key
   runtime::ModelHandle models_;
   runtime::WrenchSlot wrench_;
   std::array<WorkspaceSlot, 2> slots_;

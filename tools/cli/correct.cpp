@@ -1,0 +1,574 @@
+#include "correct.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "stepcal/common/atomic_file.hpp"
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/lie.hpp"
+#include "stepcal/common/text_number.hpp"
+#include "stepcal/common/urdf.hpp"
+#include "stepcal/runtime/corrector.hpp"
+#include "stepcal/twin/twin.hpp"
+#include "text_format.hpp"
+
+namespace stepcal::cli {
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+constexpr double kQuaternionNormTolerance = 1e-6;
+constexpr int kStatusCount = 7;
+
+const std::array<const char*, 7> kPoseColumns = {"x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"};
+const std::array<const char*, 7> kToolColumns = {"tool_x_mm", "tool_y_mm", "tool_z_mm", "tool_qw",
+                                                 "tool_qx",   "tool_qy",   "tool_qz"};
+const std::array<const char*, 3> kCogColumns = {"cog_x_mm", "cog_y_mm", "cog_z_mm"};
+
+/// One target of the program, in SI.
+struct ProgramLine {
+  int line = 0;
+  std::string id;
+  bool joint_target = false;           ///< q_rad is a nominal joint target; else X_FrameTcp
+  JointVector q_rad;                   ///< joint target, rad
+  Pose X_FrameTcp = Pose::Identity();  ///< pose target in the program's frame, m
+  std::optional<JointVector> seed_rad;
+  runtime::CallTerms terms;
+  double temp_c = runtime::kUnknownTemperature_c;
+};
+
+/// The header's columns and a line's fields, with errors that name the file, line and column.
+class ProgramFile {
+ public:
+  ProgramFile(std::string path, std::string_view header) : path_(std::move(path)) {
+    names_ = split(header);
+    for (size_t i = 0; i < names_.size(); ++i) {
+      if (names_[i].empty()) {
+        fail(1, "", "column " + std::to_string(i + 1) + " has an empty name");
+      }
+      if (!index_.emplace(names_[i], int(i)).second) {
+        fail(1, names_[i], "appears twice (column " + std::to_string(i + 1) +
+                               "); expected each column once");
+      }
+    }
+  }
+
+  [[noreturn]] void fail(int line, const std::string& column, const std::string& what) const {
+    throw InputError(what, path_, line, column);
+  }
+  bool has(const std::string& name) const { return index_.count(name) > 0; }
+  const std::vector<std::string>& names() const { return names_; }
+
+  /// Splits a line into its fields; fails unless it has one per column.
+  void read(int line, std::string_view text) {
+    fields_ = split(text);
+    line_ = line;
+    if (fields_.size() != names_.size()) {
+      fail(line, "", std::to_string(fields_.size()) + " fields; expected " +
+                         std::to_string(names_.size()) + ", one per column of the header");
+    }
+  }
+  const std::string& field(const std::string& name) const {
+    return fields_[size_t(index_.at(name))];
+  }
+  /// Where a column is, for messages: "column 3".
+  std::string where(const std::string& name) const {
+    return "column " + std::to_string(index_.at(name) + 1);
+  }
+  double number(const std::string& name, const char* unit, int decimal_shift = 0) const {
+    const std::string& text = field(name);
+    const std::optional<double> value = parseFiniteShifted(text, decimal_shift);
+    if (!value) {
+      fail(line_, name, (text.empty() ? std::string("empty") : inQuotes(text) + " is not a number") +
+                            " (" + where(name) + "); expected a finite number in " + unit);
+    }
+    return *value;
+  }
+  /// Whether every named column is empty on this line (false if any is not); fails when only
+  /// some are.
+  template <typename Names>
+  bool allEmpty(const Names& columns, const std::string& what) const {
+    int empty = 0;
+    for (const auto& c : columns) empty += field(c).empty();
+    if (empty != 0 && empty != int(columns.size())) {
+      for (const auto& c : columns) {
+        if (field(c).empty()) fail(line_, c, "empty (" + where(c) + ") while other " + what +
+                                                 " columns are filled; expected all or none");
+      }
+    }
+    return empty == int(columns.size());
+  }
+  /// A pose from 3 mm columns and a unit quaternion's 4.
+  template <typename Names>
+  Pose pose(const Names& columns) const {
+    Pose X = Pose::Identity();
+    for (int a = 0; a < 3; ++a) X.translation()[a] = number(columns[size_t(a)], "mm", -3);
+    const Eigen::Quaterniond q(number(columns[3], "(unit quaternion)"),
+                               number(columns[4], "(unit quaternion)"),
+                               number(columns[5], "(unit quaternion)"),
+                               number(columns[6], "(unit quaternion)"));
+    if (!(std::abs(q.norm() - 1.0) <= kQuaternionNormTolerance)) {
+      fail(line_, columns[3], "the quaternion " + std::string(columns[3]) + " … " + columns[6] +
+                                  " has norm " + formatShortest(q.norm()) +
+                                  "; expected a unit quaternion (within 1e-6)");
+    }
+    X.linear() = q.normalized().toRotationMatrix();
+    return X;
+  }
+  /// One of `words` (its index).
+  int word(const std::string& name, const std::vector<std::string>& words) const {
+    const std::string& text = field(name);
+    for (size_t i = 0; i < words.size(); ++i) {
+      if (text == words[i]) return int(i);
+    }
+    std::string list;
+    for (const std::string& w : words) list += (list.empty() ? "" : " or ") + w;
+    fail(line_, name, inQuotes(text) + " (" + where(name) + "); expected " + list);
+  }
+  int line() const { return line_; }
+
+ private:
+  static std::vector<std::string> split(std::string_view text) {
+    std::vector<std::string> out;
+    size_t start = 0;
+    for (;;) {
+      const size_t comma = text.find(',', start);
+      out.emplace_back(text.substr(start, comma - start));
+      if (comma == std::string_view::npos) return out;
+      start = comma + 1;
+    }
+  }
+
+  std::string path_;
+  std::vector<std::string> names_;
+  std::map<std::string, int> index_;
+  std::vector<std::string> fields_;
+  int line_ = 0;
+};
+
+std::string jointColumn(const char* prefix, int j) {
+  return std::string(prefix) + "q" + std::to_string(j + 1) + "_deg";
+}
+
+std::vector<std::string> jointColumns(const char* prefix, int dof) {
+  std::vector<std::string> columns;
+  for (int j = 0; j < dof; ++j) columns.push_back(jointColumn(prefix, j));
+  return columns;
+}
+
+/// The columns a program may have (for the unknown-column message).
+std::vector<std::string> knownColumns(int dof) {
+  std::vector<std::string> known = {"id"};
+  known.insert(known.end(), kPoseColumns.begin(), kPoseColumns.end());
+  for (const char* prefix : {"", "seed_"}) {
+    const std::vector<std::string> joints = jointColumns(prefix, dof);
+    known.insert(known.end(), joints.begin(), joints.end());
+  }
+  known.emplace_back("tool_from");
+  known.insert(known.end(), kToolColumns.begin(), kToolColumns.end());
+  known.emplace_back("payload_kg");
+  known.insert(known.end(), kCogColumns.begin(), kCogColumns.end());
+  known.emplace_back("cog_frame");
+  known.emplace_back("temp_c");
+  return known;
+}
+
+/// Whether a header has all or none of a group; fails when it has some.
+template <typename Names>
+bool headerHasGroup(const ProgramFile& file, const Names& columns, const std::string& what) {
+  int present = 0;
+  for (const auto& c : columns) present += file.has(c);
+  if (present != 0 && present != int(columns.size())) {
+    for (const auto& c : columns) {
+      if (!file.has(c)) {
+        file.fail(1, c, "missing while other " + what + " columns are there; expected all of " +
+                            std::string(columns[0]) + " … " + std::string(columns[columns.size() - 1]));
+      }
+    }
+  }
+  return present != 0;
+}
+
+std::vector<std::string_view> splitLines(std::string_view text, const std::string& path) {
+  std::vector<std::string_view> lines;
+  size_t start = 0;
+  while (start < text.size()) {
+    size_t end = text.find('\n', start);
+    if (end == std::string_view::npos) end = text.size();
+    std::string_view line = text.substr(start, end - start);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    lines.push_back(line);
+    start = end + 1;
+  }
+  for (size_t i = 0; i < lines.size(); ++i) {
+    if (lines[i].find('\0') != std::string_view::npos) {
+      throw InputError("holds a NUL byte; expected text", path, int(i + 1));
+    }
+  }
+  return lines;
+}
+
+/// Reads a program strictly: every error names the file, the line and the column.
+std::vector<ProgramLine> readProgram(const std::string& path, int dof,
+                                     const runtime::CallTerms& frame_terms, bool have_seed_option) {
+  const std::string text = readTextFile(path);
+  const std::vector<std::string_view> lines = splitLines(text, path);
+  if (lines.empty() || lines[0].empty()) {
+    throw InputError("the header line is empty; expected the column names (x_mm,…,qz or "
+                     "q1_deg,… and the optional ones, docs/runtime.md)",
+                     path, 1);
+  }
+  ProgramFile file(path, lines[0]);
+  const std::vector<std::string> known = knownColumns(dof);
+  for (const std::string& name : file.names()) {
+    if (std::find(known.begin(), known.end(), name) == known.end()) {
+      std::string list;
+      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+      file.fail(1, name, "unknown column; expected only " + list);
+    }
+  }
+  const std::vector<std::string> joints = jointColumns("", dof), seeds = jointColumns("seed_", dof);
+  const bool has_pose = headerHasGroup(file, kPoseColumns, "pose");
+  const bool has_joints = headerHasGroup(file, joints, "joint target");
+  const bool has_seed = headerHasGroup(file, seeds, "seed");
+  const bool has_tool = headerHasGroup(file, kToolColumns, "tool");
+  const bool has_cog = headerHasGroup(file, kCogColumns, "centre of gravity");
+  if (!has_pose && !has_joints) {
+    file.fail(1, "", "no target columns; expected the pose x_mm,y_mm,z_mm,qw,qx,qy,qz or the "
+                     "joint targets q1_deg … q" + std::to_string(dof) + "_deg (or both)");
+  }
+  if (file.has("tool_from") && !has_tool) {
+    file.fail(1, "tool_from", "without the tool columns tool_x_mm … tool_qz");
+  }
+  if (has_cog && !file.has("payload_kg")) file.fail(1, "cog_x_mm", "without payload_kg");
+  if (file.has("cog_frame") && !has_cog) file.fail(1, "cog_frame", "without cog_x_mm … cog_z_mm");
+
+  std::vector<ProgramLine> program;
+  size_t last = lines.size();
+  if (last > 1 && lines[last - 1].empty()) --last;  // the final newline
+  for (size_t i = 1; i < last; ++i) {
+    const int line = int(i + 1);
+    if (lines[i].empty()) file.fail(line, "", "empty line; expected a target");
+    file.read(line, lines[i]);
+    ProgramLine p;
+    p.line = line;
+    if (file.has("id")) p.id = file.field("id");
+    const bool pose_empty = !has_pose || file.allEmpty(kPoseColumns, "pose");
+    const bool joints_empty = !has_joints || file.allEmpty(joints, "joint target");
+    if (pose_empty == joints_empty) {
+      file.fail(line, "", pose_empty ? "no target: expected the pose (x_mm … qz) or the joint "
+                                       "target (q1_deg …) filled"
+                                     : "both a pose and a joint target; expected one per line");
+    }
+    p.terms = frame_terms;
+    if (has_tool) {
+      p.terms.X_Tool = file.pose(kToolColumns);
+      if (file.has("tool_from")) {
+        p.terms.tool_from = runtime::ToolFrom(file.word("tool_from", {"target", "flange"}));
+      }
+    }
+    p.terms.load_from = runtime::LoadFrom::kPayload;  // unloaded unless payload_kg says
+    if (file.has("payload_kg")) {
+      p.terms.payload.mass_kg = file.number("payload_kg", "kg");
+      if (p.terms.payload.mass_kg < 0.0) {
+        file.fail(line, "payload_kg", "negative (" + file.where("payload_kg") +
+                                          "); expected a mass ≥ 0 kg");
+      }
+    }
+    if (has_cog) {
+      for (int a = 0; a < 3; ++a) p.terms.payload.p_CoG_m[a] = file.number(kCogColumns[size_t(a)], "mm", -3);
+      if (file.has("cog_frame")) {
+        p.terms.payload.frame = runtime::CogFrame(file.word("cog_frame", {"flange", "tool"}));
+      }
+    }
+    if (file.has("temp_c") && !file.field("temp_c").empty()) {
+      p.temp_c = file.number("temp_c", "°C");
+      if (!runtime::validTemperature(p.temp_c)) {
+        file.fail(line, "temp_c", formatShortest(p.temp_c) + " °C (" + file.where("temp_c") +
+                                      "); expected −50 … 150, or empty when not measured");
+      }
+    }
+    if (has_seed && !file.allEmpty(seeds, "seed")) {
+      JointVector seed(dof);
+      for (int j = 0; j < dof; ++j) seed[j] = file.number(seeds[size_t(j)], "degrees") * kDegToRad;
+      p.seed_rad = seed;
+    }
+    p.joint_target = pose_empty;
+    if (p.joint_target) {
+      p.q_rad.resize(dof);
+      for (int j = 0; j < dof; ++j) p.q_rad[j] = file.number(joints[size_t(j)], "degrees") * kDegToRad;
+    } else {
+      p.X_FrameTcp = file.pose(kPoseColumns);
+      if (!p.seed_rad && program.empty() && !have_seed_option) {
+        file.fail(line, "x_mm", "a pose target needs a seed where the search starts: give "
+                                "seed_q1_deg … on this line, a line before it, or --seed");
+      }
+    }
+    program.push_back(std::move(p));
+  }
+  if (program.empty()) throw InputError("no targets after the header", path, 1);
+  return program;
+}
+
+/// Where the twin's true robot puts a line's TCP at joints q [rad], tracker frame.
+Pose trueTcp(const twin::TwinRobot& truth, const runtime::RuntimeModel& model,
+             const ProgramLine& line, const JointVector& q_rad) {
+  const double load_kg = line.terms.payload.mass_kg;
+  if (line.terms.tool_from == runtime::ToolFrom::kTarget) {
+    return truth.X_TrackerTip(q_rad, load_kg, line.temp_c) * line.terms.X_Tool;
+  }
+  // The twin's flange keeps its nominal place on the joint-n frame (as its sensor does).
+  ChainWorkspace ws;
+  const JointVector theta = truth.linkAngles(q_rad, load_kg, line.temp_c);
+  forwardKinematics(truth.trueChain(), theta, ws);
+  return truth.X_TrackerBase() * ws.X_RootFrame[size_t(theta.size())] *
+         model.X_LastFlange_nominal * line.terms.X_Tool;
+}
+
+/// The controller's own inverse: the model's nominal chain where the model registered it, no
+/// compliance, no GPR (what it would command without a correction).
+std::unique_ptr<const runtime::RuntimeModel> nominalModel(const runtime::RuntimeModel& model) {
+  CalibratedModel nominal;
+  nominal.nominal_Base = model.file.nominal_Base;
+  nominal.chain_Tracker = model.file.nominal_Base.rerooted(model.file.X_TrackerBase);
+  nominal.X_TrackerBase = model.file.X_TrackerBase;
+  nominal.sensor_frame = model.file.sensor_frame;
+  nominal.gravity_Base = model.file.gravity_Base;
+  return runtime::RuntimeModel::fromModel(nominal, 0);
+}
+
+struct PoseError {
+  double position_m = 0.0, orientation_rad = 0.0;
+};
+PoseError errorBetween(const Pose& a, const Pose& b) {
+  return {(a.translation() - b.translation()).norm(), lie::angleBetween(a.linear(), b.linear())};
+}
+
+struct ErrorStats {
+  int count = 0;
+  double sum_m = 0.0, max_m = 0.0, sum_rad = 0.0;
+  void add(const PoseError& e) {
+    ++count;
+    sum_m += e.position_m;
+    max_m = std::max(max_m, e.position_m);
+    sum_rad += e.orientation_rad;
+  }
+  nlohmann::json toJson() const {
+    return {{"targets", count},
+            {"mean_position_mm", count ? sum_m / count * 1e3 : 0.0},
+            {"max_position_mm", max_m * 1e3},
+            {"mean_orientation_deg", count ? sum_rad / count / kDegToRad : 0.0}};
+  }
+};
+
+std::string number(double v, const char* fmt = "%.6f") { return format(fmt, v); }
+
+void appendPose(std::string& out, const Pose& X) {
+  const Eigen::Quaterniond q(X.linear());
+  for (int a = 0; a < 3; ++a) out += "," + number(X.translation()[a] * 1e3, "%.6f");
+  for (const double c : {q.w(), q.x(), q.y(), q.z()}) out += "," + number(c, "%.9f");
+}
+
+runtime::PoseFrame parseFrame(const std::string& frame) {
+  if (frame == "tracker") return runtime::PoseFrame::kTracker;
+  if (frame == "base") return runtime::PoseFrame::kBase;
+  if (frame == "user") return runtime::PoseFrame::kUser;
+  throw InputError("--frame '" + frame + "': expected tracker, base or user");
+}
+
+}  // namespace
+
+CLI::App* addCorrectCommand(CLI::App& app, CorrectArgs& args) {
+  CLI::App* correct = app.add_subcommand(
+      "correct", "correct an offline program's targets: joint targets and pre-distorted poses");
+  correct->add_option("model", args.model, "model file")->required();
+  correct->add_option("program", args.program,
+                      "program CSV: a target per line (docs/runtime.md, \"Correcting an "
+                      "offline program\")")
+      ->required();
+  correct->add_option("--out", args.out, "corrected program CSV to write")->required();
+  correct->add_option("--frame", args.frame, "frame of the pose targets: tracker | base | user")
+      ->capture_default_str();
+  correct->add_option("--user-frame", args.user_frame,
+                      "--frame user: the user frame in the robot base frame, x y z (mm) qw qx qy qz")
+      ->expected(7);
+  correct->add_option("--seed", args.seed_deg,
+                      "where the first pose target's search starts, q1 … qn (deg), when the "
+                      "file gives no seed")
+      ->expected(1, 16);
+  correct->add_option("--truth", args.truth,
+                      "the twin's truth.json: run every target on the simulated robot, as "
+                      "commanded and as corrected (its payload at the twin's own centre of gravity)");
+  correct->add_flag("--json", args.json, "print the summary as JSON");
+  return correct;
+}
+
+void runCorrect(const CorrectArgs& args) {
+  const std::unique_ptr<const runtime::RuntimeModel> model = runtime::RuntimeModel::load(args.model);
+  const int dof = model->file.chain_Tracker.dof();
+  runtime::Workspace ws = runtime::makeWorkspace(*model);
+
+  runtime::CallTerms frame_terms;
+  frame_terms.frame = parseFrame(args.frame);
+  if ((frame_terms.frame == runtime::PoseFrame::kUser) != !args.user_frame.empty()) {
+    throw InputError("--user-frame x y z qw qx qy qz goes with --frame user, and --frame user needs it");
+  }
+  if (!args.user_frame.empty()) {
+    const std::vector<double>& u = args.user_frame;
+    const Eigen::Quaterniond q(u[3], u[4], u[5], u[6]);
+    if (!(std::abs(q.norm() - 1.0) <= kQuaternionNormTolerance)) {
+      throw InputError("--user-frame: the quaternion has norm " + formatShortest(q.norm()) +
+                       "; expected a unit quaternion (within 1e-6)");
+    }
+    frame_terms.X_BaseUser.linear() = q.normalized().toRotationMatrix();
+    frame_terms.X_BaseUser.translation() = Vec3(u[0], u[1], u[2]) * 1e-3;
+  }
+  std::optional<JointVector> seed_option;
+  if (!args.seed_deg.empty()) {
+    if (int(args.seed_deg.size()) != dof) {
+      throw InputError("--seed has " + std::to_string(args.seed_deg.size()) +
+                       " angles; the model has " + std::to_string(dof) + " joints");
+    }
+    seed_option = JointVector(dof);
+    for (int j = 0; j < dof; ++j) (*seed_option)[j] = args.seed_deg[size_t(j)] * kDegToRad;
+  }
+  const std::vector<ProgramLine> program =
+      readProgram(args.program, dof, frame_terms, seed_option.has_value());
+  for (const ProgramLine& p : program) {
+    if (p.terms.tool_from == runtime::ToolFrom::kFlange && !model->has_flange) {
+      throw InputError("tool_from flange, but the model knows no flange (its campaign.yaml names "
+                       "no flange_link); give the tool from the measured target, or calibrate "
+                       "with flange_link",
+                       args.program, p.line, "tool_from");
+    }
+    if (p.terms.payload.mass_kg > 0.0 && p.terms.payload.frame == runtime::CogFrame::kFlange &&
+        !model->has_flange) {
+      throw InputError("a centre of gravity in the flange frame, but the model knows no flange; "
+                       "give cog_frame tool",
+                       args.program, p.line, "payload_kg");
+    }
+  }
+  std::optional<twin::TwinRobot> truth;
+  std::unique_ptr<const runtime::RuntimeModel> nominal;
+  std::optional<runtime::Workspace> nominal_ws;
+  if (!args.truth.empty()) {
+    std::ifstream in(args.truth);
+    if (!in) throw InputError("--truth: cannot read the file", args.truth);
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::exception& e) {
+      throw InputError(std::string("--truth: not JSON: ") + e.what(), args.truth);
+    }
+    truth = twin::TwinRobot::fromTruthJson(j);
+    nominal = nominalModel(*model);
+    nominal_ws = runtime::makeWorkspace(*nominal);
+  }
+
+  std::string out = "line,id,target,status";
+  for (int j = 0; j < dof; ++j) out += ",q" + std::to_string(j + 1) + "_deg";
+  out += ",x_mm,y_mm,z_mm,qw,qx,qy,qz,residual_mm,residual_deg,gpr_std_mm,in_coverage,"
+         "uncovered_joints,iterations";
+  if (truth) out += ",error_commanded_mm,error_commanded_deg,error_corrected_mm,error_corrected_deg";
+  out += "\n";
+
+  std::array<long, kStatusCount> statuses{};
+  long in_coverage = 0;
+  ErrorStats before, after;
+  std::optional<JointVector> previous_rad = seed_option;
+  for (const ProgramLine& p : program) {
+    const Pose X_FrameTcp_desired =
+        p.joint_target ? runtime::nominalTcp(*model, ws, p.q_rad, p.terms) : p.X_FrameTcp;
+    const JointVector seed = p.seed_rad ? *p.seed_rad : p.joint_target ? p.q_rad : *previous_rad;
+    const runtime::InverseResult r =
+        runtime::solveInverse(*model, ws, X_FrameTcp_desired, p.terms, p.temp_c, seed,
+                              runtime::Clock::time_point::max());
+    ++statuses[size_t(r.status)];
+    const bool answered = r.status != runtime::Status::kBadRequest;
+    previous_rad = answered ? r.q_target_rad : seed;
+    out += std::to_string(p.line) + "," + p.id + "," + (p.joint_target ? "joints" : "pose") + "," +
+           runtime::toString(r.status);
+    if (!answered) {
+      out += std::string(size_t(dof + 13 + (truth ? 4 : 0)), ',') + "\n";
+      continue;
+    }
+    for (int j = 0; j < dof; ++j) out += "," + number(r.q_target_rad[j] / kDegToRad, "%.8f");
+    appendPose(out, r.X_ControllerTcp_commanded);
+    const bool covered = runtime::withinDomain(*model, r.gpr_std) && r.uncovered_joints == 0;
+    in_coverage += covered;
+    std::string uncovered;
+    for (int j = 0; j < dof; ++j) {
+      if ((r.uncovered_joints >> j) & 1u) uncovered += (uncovered.empty() ? "" : ";") + std::to_string(j + 1);
+    }
+    out += "," + number(r.residual_position_m * 1e3, "%.6f") + "," +
+           number(r.residual_orientation_rad / kDegToRad, "%.6f") + "," +
+           number(r.gpr_std.head<3>().norm() * 1e3, "%.6f") + "," + (covered ? "yes" : "no") +
+           "," + uncovered + "," + std::to_string(r.iterations);
+    if (truth) {
+      const Pose X_TrackerTcp_desired =
+          runtime::trackerFromFrame(*model, p.terms.frame, p.terms.X_BaseUser) * X_FrameTcp_desired;
+      JointVector commanded_rad = p.q_rad;
+      if (!p.joint_target) {
+        commanded_rad = runtime::solveInverse(*nominal, *nominal_ws, X_FrameTcp_desired, p.terms,
+                                              p.temp_c, seed, runtime::Clock::time_point::max())
+                            .q_target_rad;
+      }
+      const PoseError e_before = errorBetween(trueTcp(*truth, *model, p, commanded_rad),
+                                              X_TrackerTcp_desired);
+      const PoseError e_after = errorBetween(trueTcp(*truth, *model, p, r.q_target_rad),
+                                             X_TrackerTcp_desired);
+      before.add(e_before);
+      after.add(e_after);
+      out += "," + number(e_before.position_m * 1e3) + "," +
+             number(e_before.orientation_rad / kDegToRad) + "," +
+             number(e_after.position_m * 1e3) + "," + number(e_after.orientation_rad / kDegToRad);
+    }
+    out += "\n";
+  }
+  writeFileAtomically(args.out, out.data(), out.size(), "corrected program");
+
+  nlohmann::json summary = {{"program", args.program}, {"out", args.out},
+                            {"lines", program.size()}, {"in_coverage", in_coverage}};
+  nlohmann::json by_status = nlohmann::json::object();
+  for (int k = 0; k < kStatusCount; ++k) {
+    by_status[runtime::toString(runtime::Status(k))] = statuses[size_t(k)];
+  }
+  summary["statuses"] = by_status;
+  if (truth) {
+    summary["error_commanded"] = before.toJson();
+    summary["error_corrected"] = after.toJson();
+    for (const ValidationFigure& v : model->file.provenance.validation) {
+      summary["model_validation"].push_back({{"method", v.method},
+                                             {"load_kg", v.load_kg},
+                                             {"rows", v.rows},
+                                             {"mean_position_mm", v.mean_position_m * 1e3},
+                                             {"max_position_mm", v.max_position_m * 1e3}});
+    }
+  }
+  if (args.json) {
+    std::cout << summary.dump(2) << "\n";
+    return;
+  }
+  std::cout << "wrote " << args.out << ": " << program.size() << " lines: " << statuses[0]
+            << " OK, " << statuses[3] << " OUT_OF_DOMAIN, " << statuses[4] << " UNREACHABLE, "
+            << statuses[1] << " NOT_CONVERGED, " << statuses[5] << " NEAR_SINGULAR, "
+            << statuses[6] << " BAD_REQUEST; " << in_coverage << " in the model's coverage\n";
+  if (truth) {
+    for (const auto& [name, stats] : {std::pair{"as commanded", &before}, std::pair{"as corrected", &after}}) {
+      const nlohmann::json j = stats->toJson();
+      std::cout << format("on the twin, %s: mean %.4f mm, max %.4f mm, mean %.4f deg over %d targets\n",
+                          name, j["mean_position_mm"].get<double>(),
+                          j["max_position_mm"].get<double>(),
+                          j["mean_orientation_deg"].get<double>(), stats->count);
+    }
+  }
+}
+
+}  // namespace stepcal::cli

@@ -34,7 +34,7 @@
 #include "stepcal/service/service.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
-#include "support/allocation_counter.hpp"
+#include "stepcal/allocation_counter.hpp"
 #include "support/command.hpp"
 #include "support/files.hpp"
 

@@ -359,11 +359,15 @@ TEST(CallTerms, TermsThatDoNotHoldAreBadRequest) {
 
 // A model without compliance whose GPR saw no wrench (a campaign without an F/T sensor, as the
 // UR10's): a request for the live sensor is answered without one, never STALE_WRENCH; a model
-// that turns the wrench into deflection still refuses a missing sample.
+// that turns the wrench into deflection still refuses a missing sample. The arm's own weight,
+// which the geometric layer cannot take, gives the GPR something to learn, so it is taken.
 TEST(CallTerms, AModelThatNeedsNoWrenchAnswersWithoutOne) {
   twin::TwinOptions options;
   options.protocol = "geometry";
   options.seed = 5;
+  options.hidden_effects.push_back(nlohmann::json::parse(
+      R"({"name":"self_weight","links":[{"link":2,"mass_kg":40,"com_m":[0.3,0,0.1]},)"
+      R"({"link":3,"mass_kg":30,"com_m":[0.2,0,0.05]}]})"));
   Campaign campaign = twin::simulateCampaign(options, nullptr);
   campaign.sensor_link.clear();
   for (Measurement& row : campaign.rows) {

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "stepcal/common/types.hpp"
+#include "stepcal/runtime/corrector.hpp"
 
 namespace stepcal::python {
 
@@ -16,6 +17,16 @@ void bindErrors(py::module_& m);
 void bindTrainer(py::module_& m);
 void bindRuntime(py::module_& m);
 void bindClient(py::module_& m);
+void bindCallTerms(py::module_& m);
+
+/// A pose given as a (4, 4) homogeneous matrix or 7 numbers x, y, z [m], qw, qx, qy, qz; throws
+/// ValueError naming `what` when it is neither, not finite, or its rotation is not one.
+Pose poseOf(const py::handle& value, const char* what);
+/// The runtime's terms of a call's `terms` argument: a stepcal.CallTerms, or None for the
+/// calibration's own (tracker frame, the measured target, a wrench on the sensor).
+runtime::CallTerms termsOf(const py::object& terms);
+/// Throws ValueError when terms ask for what the model lacks (a flange, gravity for a payload).
+void checkTermsForModel(const runtime::RuntimeModel& model, const runtime::CallTerms& terms);
 
 /// A JSON value as Python objects: dict, list, float, int, str, bool, None.
 py::object toPython(const nlohmann::json& value);

@@ -15,6 +15,7 @@
 
 #include "bindings.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/service/auth.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/lcm_server.hpp"
@@ -27,6 +28,16 @@ using stepcal_lcm::correction_reply_t;
 using stepcal_lcm::correction_request_t;
 using Clock = std::chrono::steady_clock;
 constexpr int kJoints = service::kMessageJoints;
+
+/// A pose into a message's position (m) and unit quaternion (w, x, y, z).
+void setPose(const Pose& X, double* position_m, double* quaternion_wxyz) {
+  const Eigen::Quaterniond q(X.linear());
+  for (int k = 0; k < 3; ++k) position_m[k] = X.translation()(k);
+  quaternion_wxyz[0] = q.w();
+  quaternion_wxyz[1] = q.x();
+  quaternion_wxyz[2] = q.y();
+  quaternion_wxyz[3] = q.z();
+}
 
 template <size_t N>
 py::array_t<double> arrayOf(const double (&values)[N]) {
@@ -46,13 +57,16 @@ void copyValues(const py::handle& value, int count, double* out, const char* wha
 
 class Client {
  public:
-  Client(std::string lcm_url, double timeout_ms)
-      : url_(std::move(lcm_url)), timeout_ms_(timeout_ms), lcm_(lcm_create(url_.c_str())) {
-    if (lcm_ == nullptr) throw InputError("lcm_url '" + url_ + "': LCM cannot open it");
-    if (!(timeout_ms_ > 0.0)) {
-      lcm_destroy(lcm_);
-      throw py::value_error("timeout_ms: expected a time > 0");
+  Client(std::string lcm_url, double timeout_ms, const py::object& key_file)
+      : url_(std::move(lcm_url)), timeout_ms_(timeout_ms) {
+    if (!(timeout_ms_ > 0.0)) throw py::value_error("timeout_ms: expected a time > 0");
+    if (!key_file.is_none()) {
+      const service::CellKey key = service::CellKey::load(py::str(key_file).cast<std::string>());
+      signer_.emplace(key);
+      verifier_.emplace(key);
     }
+    lcm_ = lcm_create(url_.c_str());
+    if (lcm_ == nullptr) throw InputError("lcm_url '" + url_ + "': LCM cannot open it");
     service::subscribeQueued(lcm_, service::kReplyChannel, &Client::onReply, this);
     next_id_ = int64_t(getpid()) << 32;
   }
@@ -61,8 +75,8 @@ class Client {
   Client& operator=(const Client&) = delete;
 
   py::object forward(const py::handle& q, const py::object& wrench, double temp_c,
-                     int deadline_us) {
-    correction_request_t request = newRequest(wrench, temp_c, deadline_us);
+                     int deadline_us, const py::object& terms) {
+    correction_request_t request = newRequest(wrench, temp_c, deadline_us, terms);
     request.mode = correction_request_t::MODE_FORWARD;
     copyValues(q, kJoints, request.q_rad, "q");
     return exchange(request);
@@ -70,8 +84,8 @@ class Client {
 
   py::object inverse(const py::handle& position_m, const py::handle& quaternion_wxyz,
                      const py::handle& seed, const py::object& wrench, double temp_c,
-                     int deadline_us) {
-    correction_request_t request = newRequest(wrench, temp_c, deadline_us);
+                     int deadline_us, const py::object& terms) {
+    correction_request_t request = newRequest(wrench, temp_c, deadline_us, terms);
     request.mode = correction_request_t::MODE_INVERSE;
     copyValues(position_m, 3, request.desired_position_m, "position_m");
     copyValues(quaternion_wxyz, 4, request.desired_quaternion_wxyz, "quaternion_wxyz");
@@ -82,15 +96,30 @@ class Client {
   const std::string& url() const { return url_; }
 
  private:
-  correction_request_t newRequest(const py::object& wrench, double temp_c, int deadline_us) {
+  /// A version-2 request with the call's terms; the pose fields of the mode are the caller's.
+  correction_request_t newRequest(const py::object& wrench, double temp_c, int deadline_us,
+                                  const py::object& terms_arg) {
+    const runtime::CallTerms terms = termsOf(terms_arg);
     correction_request_t request{};
+    request.message_version = correction_request_t::VERSION;
+    request.desired_quaternion_wxyz[0] = 1.0;
     request.request_id = ++next_id_;
     request.utime = std::chrono::duration_cast<std::chrono::microseconds>(
                         std::chrono::system_clock::now().time_since_epoch())
                         .count();
     request.temp_c = temp_c;
     request.deadline_us = deadline_us;
-    if (wrench.is_none()) {
+    request.frame = int8_t(terms.frame);
+    setPose(terms.X_BaseUser, request.user_frame_position_m, request.user_frame_quaternion_wxyz);
+    request.tool_from = int8_t(terms.tool_from);
+    setPose(terms.X_Tool, request.tool_position_m, request.tool_quaternion_wxyz);
+    if (terms.load_from == runtime::LoadFrom::kPayload) {
+      if (!wrench.is_none()) throw py::value_error("wrench and terms.payload_kg: give one load, not both");
+      request.wrench_source = correction_request_t::WRENCH_PAYLOAD;
+      request.payload_kg = terms.payload.mass_kg;
+      request.payload_cog_frame = int8_t(terms.payload.frame);
+      for (int k = 0; k < 3; ++k) request.payload_cog_m[k] = terms.payload.p_CoG_m(k);
+    } else if (wrench.is_none()) {
       request.wrench_source = correction_request_t::WRENCH_LIVE_SENSOR;
     } else {
       request.wrench_source = correction_request_t::WRENCH_GIVEN;
@@ -102,6 +131,7 @@ class Client {
   py::object exchange(const correction_request_t& request) {
     std::vector<uint8_t> bytes(size_t(request.getEncodedSize()));
     request.encode(bytes.data(), 0, int(bytes.size()));
+    if (signer_) signer_->seal(bytes.data(), int(bytes.size()));
     awaited_ = request.request_id;
     reply_.reset();
     {
@@ -130,6 +160,11 @@ class Client {
 
   static void onReply(const lcm_recv_buf_t* rbuf, const char*, void* user) {
     auto* self = static_cast<Client*>(user);
+    if (self->verifier_ &&
+        self->verifier_->verify(static_cast<const uint8_t*>(rbuf->data), int(rbuf->data_size),
+                                service::unixMicroseconds()) != service::Verdict::kAuthentic) {
+      return;  // not the cell's daemon (another key, none, a replay): never an answer
+    }
     correction_reply_t reply;
     if (reply.decode(rbuf->data, 0, int(rbuf->data_size)) != int(rbuf->data_size)) return;
     if (reply.request_id == self->awaited_) self->reply_ = reply;
@@ -149,6 +184,7 @@ class Client {
     f["iterations"] = r.iterations;
     f["compute_ns"] = r.compute_ns;
     f["wrench_stamp_ns"] = r.wrench_stamp_ns;
+    f["wrench"] = arrayOf(r.wrench);
     f["model_id"] = uint64_t(r.model_id);
     f["residual_position_m"] = r.residual_position_m;
     f["residual_orientation_rad"] = r.residual_orientation_rad;
@@ -157,7 +193,9 @@ class Client {
 
   std::string url_;
   double timeout_ms_;
-  lcm_t* lcm_;
+  std::optional<service::MessageSigner> signer_;
+  std::optional<service::MessageVerifier> verifier_;
+  lcm_t* lcm_ = nullptr;
   int64_t next_id_ = 0;
   int64_t awaited_ = -1;
   std::optional<correction_reply_t> reply_;
@@ -170,23 +208,27 @@ void bindClient(py::module_& m) {
   py::class_<Client>(m, "Client",
                      "The controller's side of the daemon's wire: one request at a time, the "
                      "reply matched by its request id (LCM's C library; no Python LCM needed)")
-      .def(py::init<std::string, double>(), py::arg("lcm_url") = service::kDefaultLcmUrl,
-           py::arg("timeout_ms") = 100.0,
-           "Opens LCM at lcm_url (the daemon's); a reply later than timeout_ms raises TimeoutError")
+      .def(py::init<std::string, double, py::object>(), py::arg("lcm_url") = service::kDefaultLcmUrl,
+           py::arg("timeout_ms") = 100.0, py::arg("key_file") = py::none(),
+           "Opens LCM at lcm_url (the daemon's); a reply later than timeout_ms raises "
+           "TimeoutError. key_file: the cell key of a daemon run with --key-file (requests are "
+           "signed with it, and only replies it verifies are taken); None: no authentication.")
       .def_property_readonly("lcm_url", &Client::url)
       .def("forward", &Client::forward, py::arg("q"), py::arg("wrench") = py::none(),
            py::arg("temp_c") = std::numeric_limits<double>::quiet_NaN(),
-           py::arg("deadline_us") = 0,
-           "The pose the robot reaches at joints q (6 values, rad): the daemon's reply (status, "
-           "predicted_position_m, predicted_quaternion_wxyz, gpr_std, model_id, …). wrench: 6 "
-           "values on the F/T sensor [N, N·m], or None for the daemon's live sensor.")
+           py::arg("deadline_us") = 0, py::arg("terms") = py::none(),
+           "The pose the robot's TCP reaches at joints q (6 values, rad): the daemon's reply "
+           "(status, predicted_position_m, predicted_quaternion_wxyz, gpr_std, wrench, model_id, "
+           "…). wrench: 6 values on the F/T sensor [N, N·m], or None for the daemon's live "
+           "sensor (or the payload of terms). terms: a stepcal.CallTerms (frame, tool, payload), "
+           "None for the tracker frame and the measured target.")
       .def("inverse", &Client::inverse, py::arg("position_m"), py::arg("quaternion_wxyz"),
            py::arg("seed"), py::arg("wrench") = py::none(),
            py::arg("temp_c") = std::numeric_limits<double>::quiet_NaN(),
-           py::arg("deadline_us") = 0,
-           "Joint targets that reach the desired tip pose (tracker frame, m, unit quaternion) from "
-           "seed (6 values, rad): the daemon's reply (status, q_target_rad, commanded_*, "
-           "predicted_*, iterations, residuals, …).");
+           py::arg("deadline_us") = 0, py::arg("terms") = py::none(),
+           "Joint targets that bring the TCP to the desired pose (m, unit quaternion; in the "
+           "frame of terms, None: the tracker frame) from seed (6 values, rad): the daemon's "
+           "reply (status, q_target_rad, commanded_*, predicted_*, iterations, residuals, …).");
 }
 
 }  // namespace stepcal::python

@@ -33,6 +33,7 @@ PYBIND11_MODULE(stepcal, m) {
       "over numpy arrays), and requests to the stepcal-runtime daemon over LCM.";
   m.attr("__version__") = STEPCAL_VERSION;
   bindErrors(m);
+  bindCallTerms(m);
   bindRuntime(m);
   bindTrainer(m);
   bindClient(m);

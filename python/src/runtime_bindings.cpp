@@ -9,13 +9,13 @@
 #include "report.hpp"
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/runtime/corrector.hpp"
+#include "stepcal/service/request.hpp"
 
 namespace stepcal::python {
 namespace {
 
 using runtime::Status;
 
-constexpr double kQuaternionNormTolerance = 1e-6;  // the daemon's (service/request.hpp)
 
 /// A per-row value given once for every row or once per row: scalars and (N,) arrays.
 struct PerRow {
@@ -99,7 +99,7 @@ DesiredPoses desiredPosesOf(const py::handle& value) {
     } else {
       const double* r = data + 7 * i;
       const Eigen::Quaterniond q(r[3], r[4], r[5], r[6]);
-      valid = std::abs(q.norm() - 1.0) <= kQuaternionNormTolerance;
+      valid = std::abs(q.norm() - 1.0) <= service::kQuaternionNormTolerance;
       if (valid) X.linear() = q.normalized().toRotationMatrix();
       X.translation() = Vec3(r[0], r[1], r[2]);
     }
@@ -127,9 +127,21 @@ py::object resultObject(const py::dict& fields) {
   return py::module_::import("types").attr("SimpleNamespace")(**fields);
 }
 
+/// The terms of a call, checked against the model; a payload and a wrench are one load, not two.
+runtime::CallTerms callTermsFor(const runtime::RuntimeModel& model, const py::object& terms,
+                                const py::object& wrench) {
+  runtime::CallTerms out = termsOf(terms);
+  checkTermsForModel(model, out);
+  if (out.load_from == runtime::LoadFrom::kPayload && !wrench.is_none()) {
+    throw py::value_error("wrench and terms.payload_kg: give one load, not both");
+  }
+  return out;
+}
+
 py::object correctForward(const ModelHandle& model, const py::handle& q, const py::object& wrench,
-                          const py::object& temp_c) {
+                          const py::object& temp_c, const py::object& terms_arg) {
   const RuntimeModelPtr& rt = model.runtime();
+  runtime::CallTerms terms = callTermsFor(*rt, terms_arg, wrench);
   const ssize_t n = rt->file.chain_Tracker.dof();
   const Rows joints = rowsOf(q, n, "q");
   const ssize_t rows = joints.rows;
@@ -142,9 +154,11 @@ py::object correctForward(const ModelHandle& model, const py::handle& q, const p
   py::array_t<double> quaternion = outputArray(rows, false, {4});
   py::array_t<double> pose = outputArray(rows, false, {4, 4});
   py::array_t<double> gpr_std = outputArray(rows, false, {6});
+  py::array_t<double> wrench_used = outputArray(rows, false, {6});
   {
     int8_t* status_out = status.mutable_data();
     uint32_t* uncovered_out = uncovered.mutable_data();
+    double* wrench_out = wrench_used.mutable_data();
     double* position_out = position.mutable_data();
     double* quaternion_out = quaternion.mutable_data();
     double* pose_out = pose.mutable_data();
@@ -154,12 +168,13 @@ py::object correctForward(const ModelHandle& model, const py::handle& q, const p
     JointVector q_rad(n);
     for (ssize_t i = 0; i < rows; ++i) {
       q_rad = Eigen::Map<const Eigen::VectorXd>(joints.row(i), n);
-      const Vec6 w = wrenches.row(i, 6);
-      const runtime::ForwardResult r = runtime::correctForward(*rt, ws, q_rad, w, temps.value(i));
+      terms.wrench_Sensor = wrenches.row(i, 6);
+      const runtime::ForwardResult r = runtime::correctForward(*rt, ws, q_rad, terms, temps.value(i));
       status_out[i] = int8_t(r.status);
       uncovered_out[i] = r.uncovered_joints;
-      writePose(r.X_TrackerTip, position_out + 3 * i, quaternion_out + 4 * i, pose_out + 16 * i);
+      writePose(r.X_FrameTcp, position_out + 3 * i, quaternion_out + 4 * i, pose_out + 16 * i);
       for (int k = 0; k < 6; ++k) std_out[6 * i + k] = r.gpr_std(k);
+      for (int k = 0; k < 6; ++k) wrench_out[6 * i + k] = r.wrench_Sensor(k);
     }
   }
   const bool single = joints.single;
@@ -170,13 +185,16 @@ py::object correctForward(const ModelHandle& model, const py::handle& q, const p
   fields["pose"] = scalarOr(pose, single);
   fields["gpr_std"] = scalarOr(gpr_std, single);
   fields["uncovered_joints"] = scalarOr(uncovered, single);
+  fields["wrench"] = scalarOr(wrench_used, single);
   return resultObject(fields);
 }
 
 py::object solveInverse(const ModelHandle& model, const py::handle& pose, const py::handle& seed,
                         const py::object& wrench, const py::object& temp_c,
-                        const py::object& budget_us, const runtime::InverseOptions& options) {
+                        const py::object& budget_us, const runtime::InverseOptions& options,
+                        const py::object& terms_arg) {
   const RuntimeModelPtr& rt = model.runtime();
+  runtime::CallTerms terms = callTermsFor(*rt, terms_arg, wrench);
   const ssize_t n = rt->file.chain_Tracker.dof();
   const DesiredPoses desired = desiredPosesOf(pose);
   const auto rows = ssize_t(desired.poses.size());
@@ -200,7 +218,9 @@ py::object solveInverse(const ModelHandle& model, const py::handle& pose, const 
   py::array_t<double> gpr_std = outputArray(rows, false, {6});
   py::array_t<double> residual_position = outputArray(rows, false, {});
   py::array_t<double> residual_orientation = outputArray(rows, false, {});
+  py::array_t<double> wrench_used = outputArray(rows, false, {6});
   {
+    double* wrench_out = wrench_used.mutable_data();
     int8_t* status_out = status.mutable_data();
     int32_t* iterations_out = iterations.mutable_data();
     uint32_t* uncovered_out = uncovered.mutable_data();
@@ -219,14 +239,14 @@ py::object solveInverse(const ModelHandle& model, const py::handle& pose, const 
     JointVector seed_rad(n);
     for (ssize_t i = 0; i < rows; ++i) {
       seed_rad = seeds.row(i, n);
-      const Vec6 w = wrenches.row(i, 6);
+      terms.wrench_Sensor = wrenches.row(i, 6);
       const runtime::Clock::time_point until =
           deadline ? runtime::Clock::now() + std::chrono::nanoseconds(int64_t(budget * 1e3))
                    : runtime::Clock::time_point::max();
       runtime::InverseResult r;
       if (desired.valid[size_t(i)]) {
-        r = runtime::solveInverse(*rt, ws, desired.poses[size_t(i)], w, temps.value(i), seed_rad,
-                                  until, options);
+        r = runtime::solveInverse(*rt, ws, desired.poses[size_t(i)], terms, temps.value(i),
+                                  seed_rad, until, options);
       }
       status_out[i] = int8_t(r.status);
       iterations_out[i] = r.iterations;
@@ -235,9 +255,10 @@ py::object solveInverse(const ModelHandle& model, const py::handle& pose, const 
         q_out[n * i + k] = r.q_target_rad.size() == n ? r.q_target_rad(k)
                                                       : std::numeric_limits<double>::quiet_NaN();
       }
-      writePose(r.X_TrackerTip_predicted, pp + 3 * i, pq + 4 * i, pm + 16 * i);
-      writePose(r.X_BaseTip_commanded, cp + 3 * i, cq + 4 * i, cm + 16 * i);
+      writePose(r.X_FrameTcp_predicted, pp + 3 * i, pq + 4 * i, pm + 16 * i);
+      writePose(r.X_ControllerTcp_commanded, cp + 3 * i, cq + 4 * i, cm + 16 * i);
       for (int k = 0; k < 6; ++k) std_out[6 * i + k] = r.gpr_std(k);
+      for (int k = 0; k < 6; ++k) wrench_out[6 * i + k] = r.wrench_Sensor(k);
       rp[i] = r.residual_position_m;
       ro[i] = r.residual_orientation_rad;
     }
@@ -257,6 +278,7 @@ py::object solveInverse(const ModelHandle& model, const py::handle& pose, const 
   fields["residual_position_m"] = scalarOr(residual_position, single);
   fields["residual_orientation_rad"] = scalarOr(residual_orientation, single);
   fields["uncovered_joints"] = scalarOr(uncovered, single);
+  fields["wrench"] = scalarOr(wrench_used, single);
   return resultObject(fields);
 }
 
@@ -313,26 +335,34 @@ void bindRuntime(py::module_& m) {
       .def_property_readonly("has_gpr", [](const ModelHandle& self) {
              return self.runtime()->file.gpr.has_value();
            })
+      .def_property_readonly("has_flange", [](const ModelHandle& self) {
+             return self.runtime()->has_flange;
+           }, "whether the model knows the robot's flange (its campaign's flange_link), so that "
+              "tools and centres of gravity may be given from it")
       .def("describe", [](const ModelHandle& self) {
              return cli::formatModel(self.runtime()->file, serializeModel(self.runtime()->file).size());
            }, "what the model holds, as `stepcal inspect` prints it")
       .def("correct_forward", &correctForward, py::arg("q"), py::arg("wrench") = py::none(),
            py::arg("temp_c") = std::numeric_limits<double>::quiet_NaN(),
-           "Pose the robot reaches at commanded joints q [rad], shape (n,) or (N, n), under the "
-           "wrench on the F/T sensor [N, N·m] (shape (6,) or (N, 6); None: zero) at structure "
-           "temperature temp_c [°C; NaN: not measured]. Returns status (Status, or an int8 "
-           "array of Status values), position_m, quaternion_wxyz, pose (4×4), gpr_std (v [m], "
-           "ω [rad]), uncovered_joints (bit j-1: joint j outside its profile's coverage). "
-           "The GIL is released while the rows are computed.")
+           py::arg("terms") = py::none(),
+           "Pose the robot's TCP reaches at commanded joints q [rad], shape (n,) or (N, n), under "
+           "the wrench on the F/T sensor [N, N·m] (shape (6,) or (N, 6); None: zero) or the "
+           "payload of terms, at structure temperature temp_c [°C; NaN: not measured], in the "
+           "frame and for the tool of terms (a stepcal.CallTerms; None: the tracker frame and the "
+           "measured target). Returns status (Status, or an int8 array of Status values), "
+           "position_m, quaternion_wxyz, pose (4×4), gpr_std (v [m], ω [rad]), wrench (the one "
+           "used, sensor axes), uncovered_joints (bit j-1: joint j outside its profile's "
+           "coverage). The GIL is released while the rows are computed.")
       .def("solve_inverse",
            [](const ModelHandle& self, const py::handle& pose, const py::handle& seed,
               const py::object& wrench, const py::object& temp_c, const py::object& budget_us,
-              int max_iterations, double position_tolerance_m, double orientation_tolerance_rad) {
+              int max_iterations, double position_tolerance_m, double orientation_tolerance_rad,
+              const py::object& terms) {
              runtime::InverseOptions options;
              options.max_iterations = max_iterations;
              options.position_tolerance_m = position_tolerance_m;
              options.orientation_tolerance_rad = orientation_tolerance_rad;
-             return solveInverse(self, pose, seed, wrench, temp_c, budget_us, options);
+             return solveInverse(self, pose, seed, wrench, temp_c, budget_us, options, terms);
            },
            py::arg("pose"), py::arg("seed"), py::arg("wrench") = py::none(),
            py::arg("temp_c") = std::numeric_limits<double>::quiet_NaN(),
@@ -340,12 +370,15 @@ void bindRuntime(py::module_& m) {
            py::arg("max_iterations") = runtime::InverseOptions{}.max_iterations,
            py::arg("position_tolerance_m") = runtime::InverseOptions{}.position_tolerance_m,
            py::arg("orientation_tolerance_rad") = runtime::InverseOptions{}.orientation_tolerance_rad,
-           "Joint targets [rad] that make the real robot reach the desired tip pose in the "
-           "tracker frame: (4, 4) / (N, 4, 4) matrices or (7,) / (N, 7) rows x, y, z [m], qw, "
-           "qx, qy, qz; from seed [rad], (n,) or (N, n). budget_us: the time per pose (None: no "
-           "deadline, the iteration cap alone). Returns status, q_target_rad, predicted_* (where "
-           "the real robot ends up, tracker frame), commanded_* (nominal FK at the targets, base "
-           "frame), gpr_std, iterations, residual_position_m, residual_orientation_rad, "
+           py::arg("terms") = py::none(),
+           "Joint targets [rad] that make the real robot's TCP reach the desired pose in the frame "
+           "of terms (a stepcal.CallTerms; None: the measured target in the tracker frame): "
+           "(4, 4) / (N, 4, 4) matrices or (7,) / (N, 7) rows x, y, z [m], qw, qx, qy, qz; from "
+           "seed [rad], (n,) or (N, n). budget_us: the time per pose (None: no deadline, the "
+           "iteration cap alone). Returns status, q_target_rad, predicted_* (where the real "
+           "robot's TCP ends up, in the call's frame), commanded_* (the nominal kinematics' TCP "
+           "at the targets, in the controller's frame: the user frame, else the base frame), "
+           "gpr_std, wrench, iterations, residual_position_m, residual_orientation_rad, "
            "uncovered_joints. The GIL is released while the rows are computed.");
 }
 

@@ -147,6 +147,86 @@ def test_statuses_per_row(model):
     assert model.solve_inverse(not_unit, seed=np.zeros(6)).status == stepcal.Status.BAD_REQUEST
 
 
+def matrix_of(row):
+    """A (4, 4) transform of x, y, z [m], qw, qx, qy, qz."""
+    w, x, y, z = row[3:]
+    out = np.eye(4)
+    out[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                   [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                   [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
+    out[:3, 3] = row[:3]
+    return out
+
+
+TOOL = np.array([0.05, -0.02, 0.3, math.cos(0.2), 0.0, math.sin(0.2), 0.0])  # 0.3 m out, 23° tilt
+USER_FRAME = np.array([1.1, -0.4, 0.2, math.cos(0.4), 0.0, 0.0, math.sin(0.4)])
+
+
+def validation_joints(campaign, count):
+    rows = campaign.measurements
+    return rows["q_rad"][np.array(rows["set"]) == "validation"][:count]
+
+
+def test_call_terms_tool_frame_and_payload(model, campaign):
+    q = validation_joints(campaign, 20)
+    own = model.correct_forward(q)
+    tooled = model.correct_forward(q, terms=stepcal.CallTerms(tool=TOOL))
+    # The tool hangs rigidly from the corrected target.
+    np.testing.assert_allclose(tooled.pose, own.pose @ matrix_of(TOOL), rtol=0, atol=1e-12)
+    # The base frame is the tracker frame moved by one fixed transform, the same for every row.
+    base = model.correct_forward(q, terms=stepcal.CallTerms(frame="base", tool=TOOL))
+    X_TrackerBase = tooled.pose[0] @ np.linalg.inv(base.pose[0])
+    np.testing.assert_allclose(X_TrackerBase @ base.pose, tooled.pose, rtol=0, atol=1e-9)
+    user = model.correct_forward(q, terms=stepcal.CallTerms(frame="user", user_frame=USER_FRAME,
+                                                            tool=TOOL))
+    np.testing.assert_allclose(matrix_of(USER_FRAME) @ user.pose, base.pose, rtol=0, atol=1e-12)
+
+    # A payload is its weight at the deflected pose: the wrench the call reports gives the same
+    # pose when it is given as a wrench, and it weighs the payload's mass.
+    load = dict(tool=TOOL, payload_kg=40.0, cog_m=[0.0, 0.0, 0.1], cog_frame="tool")
+    loaded = model.correct_forward(q, terms=stepcal.CallTerms(**load))
+    given = model.correct_forward(q, wrench=loaded.wrench, terms=stepcal.CallTerms(tool=TOOL))
+    np.testing.assert_allclose(given.pose, loaded.pose, rtol=0, atol=1e-9)
+    unloaded = model.correct_forward(q, terms=stepcal.CallTerms(tool=TOOL, payload_kg=0.0))
+    weight_N = np.linalg.norm(loaded.wrench[:, :3] - unloaded.wrench[:, :3], axis=1)
+    np.testing.assert_allclose(weight_N, 40.0 * 9.80665, rtol=2e-3)
+    assert np.abs(loaded.position_m - tooled.position_m).max() > 1e-5  # the twin is compliant
+
+    # The inverse in the same terms returns to the joints.
+    seeds = q + 2 * math.pi / 180
+    for terms, poses in ((stepcal.CallTerms(frame="base", tool=TOOL), base.pose),
+                         (stepcal.CallTerms(**load), loaded.pose)):
+        solved = model.solve_inverse(poses, seed=seeds, terms=terms)
+        assert np.isin(solved.status, [stepcal.Status.OK, stepcal.Status.OUT_OF_DOMAIN]).all()
+        np.testing.assert_allclose(solved.q_target_rad, q, rtol=0, atol=1e-5)
+        np.testing.assert_allclose(solved.predicted_position_m, poses[:, :3, 3], rtol=0, atol=1e-6)
+
+
+def test_call_terms_refuse_what_does_not_hold(model):
+    for kwargs, message in (
+            (dict(frame="world"), "frame 'world': expected tracker | base | user"),
+            (dict(frame="user"), "user_frame goes with frame='user'"),
+            (dict(user_frame=USER_FRAME), "user_frame goes with frame='user'"),
+            (dict(tool=[0, 0, 0, 2, 0, 0, 0]), "tool: quaternion of norm 2"),
+            (dict(tool=np.eye(4)[:3]), "tool: expected a (4, 4) matrix or 7 numbers"),
+            (dict(tool=2 * np.eye(4)), "tool: expected a homogeneous transform"),
+            (dict(tool_from="wrist"), "tool_from 'wrist': expected target | flange"),
+            (dict(payload_kg=-1.0), "payload_kg -1"),
+            (dict(cog_m=[0, 0, 0.1]), "cog_m goes with payload_kg"),
+            (dict(payload_kg=1.0, cog_m=[0, 0]), "cog_m: expected shape (3,)")):
+        with pytest.raises(ValueError, match=re.escape(message)):
+            stepcal.CallTerms(**kwargs)
+    with pytest.raises(TypeError):
+        stepcal.CallTerms("base")  # keywords only
+    with pytest.raises(ValueError, match="give one load, not both"):
+        model.correct_forward(np.zeros(6), wrench=np.zeros(6),
+                              terms=stepcal.CallTerms(payload_kg=1.0))
+    with pytest.raises(TypeError, match="terms: expected a stepcal.CallTerms"):
+        model.correct_forward(np.zeros(6), terms="base")
+    assert repr(stepcal.CallTerms(frame="base", payload_kg=2.0)).startswith(
+        "stepcal.CallTerms(frame='base'")
+
+
 def test_model_files_round_trip(tmp_path, model, campaign):
     copy = tmp_path / "copy.stepcal"
     model.save(str(copy))
@@ -208,20 +288,36 @@ needs_netns = pytest.mark.skipif(not os.environ.get("STEPCAL_NETNS"),
                                  reason="needs a private network namespace (tests/system/in_netns.sh)")
 
 
+class Daemon:
+    """stepcal-runtime on the fixture's model, serving until the block ends. Its budget is long
+    (0.1 s): these tests check answers, and a loaded machine's first inverse may take more than
+    the default 200 µs (the latency is measured by tests/system/lcm_roundtrip.sh)."""
+
+    def __init__(self, tmp_path, *args):
+        self.log_path = tmp_path / "daemon.log"
+        self.args = [os.path.join(BIN, "stepcal-runtime"), "--model", MODEL, "--budget-us",
+                     "100000", *args]
+
+    def __enter__(self):
+        self.process = subprocess.Popen(self.args, stderr=open(self.log_path, "w"))
+        for _ in range(100):
+            if "serving" in self.log_path.read_text():
+                return self
+            time.sleep(0.1)
+        raise AssertionError("the daemon did not start: " + self.log_path.read_text())
+
+    def __exit__(self, *exc):
+        self.process.terminate()
+        self.process.wait(timeout=10)
+
+
 @needs_netns
 def test_client_gets_the_daemons_answers(tmp_path, campaign, model):
-    log = open(tmp_path / "daemon.log", "w+")
-    daemon = subprocess.Popen([os.path.join(BIN, "stepcal-runtime"), "--model", MODEL],
-                              stderr=log)
-    try:
-        for _ in range(100):
-            if "serving" in open(tmp_path / "daemon.log").read():
-                break
-            time.sleep(0.1)
+    rows = campaign.measurements
+    i = list(rows["set"]).index("validation")
+    q, wrench = rows["q_rad"][i], np.nan_to_num(rows["wrench"][i])
+    with Daemon(tmp_path):
         client = stepcal.Client(timeout_ms=2000)
-        rows = campaign.measurements
-        i = list(rows["set"]).index("validation")
-        q, wrench = rows["q_rad"][i], np.nan_to_num(rows["wrench"][i])
         reply = client.forward(q, wrench=wrench)
         local = model.correct_forward(q, wrench=wrench)
         assert reply.status == local.status
@@ -233,12 +329,45 @@ def test_client_gets_the_daemons_answers(tmp_path, campaign, model):
                                wrench=wrench)
         assert reply.status in (stepcal.Status.OK, stepcal.Status.OUT_OF_DOMAIN)
         assert reply.residual_position_m < 1e-5
-    finally:
-        daemon.terminate()
-        daemon.wait(timeout=10)
+
+        # In the controller's terms: a user frame, a tool and a payload, as the local call.
+        terms = stepcal.CallTerms(frame="user", user_frame=USER_FRAME, tool=TOOL, payload_kg=40.0,
+                                  cog_m=[0.0, 0.0, 0.1], cog_frame="tool")
+        reply = client.forward(q, terms=terms)
+        local = model.correct_forward(q, terms=terms)
+        assert reply.status == local.status
+        np.testing.assert_allclose(reply.predicted_position_m, local.position_m, rtol=0,
+                                   atol=TOLERANCE)
+        np.testing.assert_allclose(reply.predicted_quaternion_wxyz, local.quaternion_wxyz,
+                                   rtol=0, atol=TOLERANCE)
+        np.testing.assert_allclose(reply.wrench, local.wrench, rtol=0, atol=1e-9)
+        reply = client.inverse(local.position_m, local.quaternion_wxyz, seed, terms=terms)
+        assert reply.status in (stepcal.Status.OK, stepcal.Status.OUT_OF_DOMAIN)
+        np.testing.assert_allclose(reply.q_target_rad, q, rtol=0, atol=1e-5)
     with pytest.raises(TimeoutError, match="no reply from stepcal-runtime"):
         stepcal.Client(timeout_ms=50).forward(q, wrench=wrench)
     with pytest.raises(stepcal.InputError, match="LCM cannot open it"):
         stepcal.Client("nowhere://")
     with pytest.raises(ValueError, match="q: expected 6 numbers"):
         stepcal.Client().forward([0.0] * 5)
+
+
+@needs_netns
+def test_client_with_the_cell_key(tmp_path, campaign):
+    key = tmp_path / "cell.key"
+    key.write_bytes(os.urandom(32))
+    os.chmod(key, 0o600)
+    other = tmp_path / "other.key"
+    other.write_bytes(os.urandom(32))
+    os.chmod(other, 0o600)
+    q = validation_joints(campaign, 1)[0]
+    with Daemon(tmp_path, "--key-file", str(key)):
+        reply = stepcal.Client(timeout_ms=2000, key_file=str(key)).forward(q, wrench=np.zeros(6))
+        assert reply.status in (stepcal.Status.OK, stepcal.Status.OUT_OF_DOMAIN)
+        for stranger in (stepcal.Client(timeout_ms=300),
+                         stepcal.Client(timeout_ms=300, key_file=str(other))):
+            with pytest.raises(TimeoutError):  # the daemon answers only the cell
+                stranger.forward(q, wrench=np.zeros(6))
+    os.chmod(key, 0o644)
+    with pytest.raises(stepcal.InputError, match="cell.key"):
+        stepcal.Client(key_file=str(key))

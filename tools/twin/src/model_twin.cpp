@@ -147,6 +147,7 @@ Campaign simulateFromModel(const ModelTwinOptions& options, nlohmann::json* trut
   campaign.base_link = source.base_link;
   campaign.tip_link = source.tip_link;
   campaign.sensor_link = source.sensor_link;
+  campaign.flange_link = source.flange_link;
   campaign.tracker.position_sigma_m = sigma_p_m;
   campaign.tracker.orientation_sigma_rad = sigma_r_rad;
   campaign.tracker.stated = sigma_p_m > 0.0 && sigma_r_rad > 0.0;

@@ -58,6 +58,8 @@ TwinOptions twinOptionsForRobot(const std::string& urdf_path, const std::string&
   o.base_link = base_link;
   o.tip_link = tip_link;
   o.sensor_link = sensor_link;
+  // A robot's flange is named in its campaign only when its description has one by that name.
+  if (!urdfHasLink(urdf_xml, o.flange_link, urdf_path)) o.flange_link.clear();
   o.protocol = sensor_link.empty() ? "geometry" : "paper";
   if (urdfRobotName(urdf_xml, urdf_path) == kPaperRobotName) return o;
 

@@ -69,7 +69,8 @@ struct TwinOptions {
   /// known weight, written as the reading). Empty: none, so every row is unloaded and has no
   /// wrench (protocol "geometry", or a pose list at 0 kg).
   std::string sensor_link = "ft_sensor";
-  /// The robot's mounting flange, named in the campaign (flange_link; empty: none).
+  /// The robot's mounting flange, named in the campaign (flange_link; empty: none;
+  /// twinOptionsForRobot empties it when the robot's description has no link of that name).
   std::string flange_link = "flange";
   /// "paper" (the reference protocol, 1070 rows; needs sensor_link) or "geometry" (its 80 + 50
   /// unloaded rows).

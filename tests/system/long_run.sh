@@ -10,9 +10,9 @@
 # (stepcal-client --check-model); the daemon's VmRSS is sampled every second.
 #
 # Usage (root): tests/system/long_run.sh [REQUESTS]     (default 1000000)
-# Environment: STEPCAL_BIN_DIR (the `stepcal` command that makes the models; default build/bin),
-# STEPCAL_ASAN_DIR (the ASan build of daemon and client, configured and built here; default
-# build-asan), RATE_HZ (requests per second per client, default 500), SWAP_S (default 3),
+# Environment: STEPCAL_BIN_DIR (the `stepcal` command that makes the models and the clients;
+# default build/bin), STEPCAL_ASAN_DIR (the ASan build of the daemon, configured and built here;
+# default build-asan), RATE_HZ (requests per second per client, default 500), SWAP_S (default 3),
 # CHUNK (requests per client process, default 50000: a client keeps all its requests and replies),
 # RSS_GROWTH_LIMIT_MB (default 32), OUT (results; the models are kept there and reused; default
 # a temporary folder). Exit status: 0 every check passed, 1 one failed, 2 usage, 77 skipped (this
@@ -56,16 +56,17 @@ if [[ -z ${STEPCAL_IN_NETNS:-} ]]; then
   stepcal=$(realpath "${STEPCAL_BIN_DIR:-$root/build/bin}")/stepcal
   [[ -x $stepcal ]] || { echo "long_run: $stepcal: not built (set STEPCAL_BIN_DIR)" >&2; exit 2; }
 
-  echo "ASan build of stepcal-runtime and stepcal-client in $asan ..."
+  echo "ASan build of stepcal-runtime in $asan ..."
   # -O1 -g1: what ASan needs (every access instrumented, line numbers in its reports) at about
   # half the compile time of RelWithDebInfo's -O2 -g (docs/runtime.md). Configured every time, so
-  # that a folder made with other flags is brought to these; only the two executables and the
-  # libraries they link are built.
+  # that a folder made with other flags is brought to these; only the daemon and the libraries
+  # it links are built (the clients, the test's harness, are the release build's: half the
+  # compilations, client.cpp with CLI11 and the twin among them).
   flags="-fsanitize=address -fno-omit-frame-pointer"
   cmake -S "$root" -B "$asan" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS="$flags" \
     -DCMAKE_C_FLAGS="$flags" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
     -DCMAKE_EXE_LINKER_FLAGS=-fsanitize=address >"$out/asan-configure.log"
-  cmake --build "$asan" -j"$(nproc)" --target stepcal-runtime stepcal-client >"$out/asan-build.log"
+  cmake --build "$asan" -j"$(nproc)" --target stepcal-runtime >"$out/asan-build.log"
 
   mkdir -p "$models"
   for name in "${names[@]}"; do
@@ -85,12 +86,14 @@ if [[ -z ${STEPCAL_IN_NETNS:-} ]]; then
   printf "\\$(printf %03o $((255 - byte)))" |
     dd of="$models/corrupt.stepcal" bs=1 seek="$middle" conv=notrunc status=none
 
-  STEPCAL_IN_NETNS=1 STEPCAL_ASAN_DIR="$asan" OUT="$out" exec unshare -n "$0" "$requests"
+  STEPCAL_IN_NETNS=1 STEPCAL_ASAN_DIR="$asan" STEPCAL_BIN_DIR="$(dirname "$stepcal")" OUT="$out" \
+    exec unshare -n "$0" "$requests"
 fi
 
 ip link set lo up
 ip route add 224.0.0.0/4 dev lo
-bin=$asan/bin
+client=$STEPCAL_BIN_DIR/stepcal-client
+[[ -x $client ]] || { echo "long_run: $client: not built (set STEPCAL_BIN_DIR)" >&2; exit 2; }
 served=$out/served.stepcal
 rm -f "$out"/*.json "$out"/*.jsonl "$out"/*.log "$out"/rss.txt
 cp "$models/model-${names[0]}.stepcal" "$served"
@@ -105,7 +108,7 @@ trap cleanup EXIT
 # looking like growth.
 export ASAN_OPTIONS="detect_leaks=1:quarantine_size_mb=16:${ASAN_OPTIONS:-}"
 started=$(date +%s)
-"$bin/stepcal-runtime" --model "$served" --lcm-url "$url" 2>"$out/daemon.log" &
+"$asan/bin/stepcal-runtime" --model "$served" --lcm-url "$url" 2>"$out/daemon.log" &
 daemon=$!
 # Subscribed once it says it serves; then the probe's requests reach it (it counts them too).
 for _ in $(seq 300); do
@@ -115,7 +118,7 @@ done
 probes=0
 for _ in $(seq 100); do
   probes=$((probes + 1))
-  "$bin/stepcal-client" --lcm-url "$url" --forward 0 0 0 0 0.5 0 --timeout-ms 200 >/dev/null 2>&1 &&
+  "$client" --lcm-url "$url" --forward 0 0 0 0 0.5 0 --timeout-ms 200 >/dev/null 2>&1 &&
     { ready=1; break; }
   sleep 0.1
 done
@@ -157,7 +160,7 @@ client_loop() {  # mode: chunks of at most $chunk requests until $per_client are
   local mode=$1 sent=0 k=0 n status=0
   while [[ $sent -lt $per_client ]]; do
     n=$((per_client - sent < chunk ? per_client - sent : chunk))
-    "$bin/stepcal-client" --lcm-url "$url" --campaign "$campaign" --mode "$mode" --count "$n" \
+    "$client" --lcm-url "$url" --campaign "$campaign" --mode "$mode" --count "$n" \
       --rate "$rate_hz" --timeout-ms 2000 --json "${check_args[@]}" \
       >"$out/$mode-$k.json" 2>>"$out/$mode.log" || status=1
     sent=$((sent + n))

@@ -55,26 +55,60 @@ bool present(const PhysicalModel& model, MechanismKind kind, int joint, int sour
   return false;
 }
 
-// Appends columns to a growing screening matrix.
+// A screening column as a family builds it: its values, and for a joint's link-angle column
+// times a per-row feature, that feature (then only the feature is kept).
+struct BuiltColumn {
+  BuiltColumn(Eigen::VectorXd column) : values(std::move(column)) {}  // NOLINT: a stored column
+  Eigen::VectorXd values;
+  int joint = -1;
+  Eigen::VectorXd feature;  ///< per fit row, when joint ≥ 0
+};
+
+// Appends columns to a growing screening matrix: stored ones, one that repeats a stored column,
+// a feature's, or a profile's block (the last two made again where needed, never stored).
 struct ColumnSink {
-  std::vector<Eigen::VectorXd> columns;
-  std::vector<double> ridge;
-  Eigen::Index first;
-  Eigen::Index add(Eigen::VectorXd column, double column_ridge = 0.0) {
-    columns.push_back(std::move(column));
+  ScreeningColumns& out;
+  std::vector<double> ridge;  // per column
+  Eigen::Index add(BuiltColumn column, double column_ridge = 0.0) {
+    if (column.joint >= 0) {
+      out.features.push_back({column.joint, std::move(column.feature)});
+      return added({ColumnSource::Kind::kFeature, static_cast<Eigen::Index>(out.features.size()) - 1},
+                   column_ridge);
+    }
+    out.stored.push_back(std::move(column.values));
+    return added({ColumnSource::Kind::kStored, static_cast<Eigen::Index>(out.stored.size()) - 1},
+                 column_ridge);
+  }
+  Eigen::Index repeat(Eigen::Index column, double column_ridge) {
+    return added(out.source[static_cast<size_t>(column)], column_ridge);
+  }
+  std::vector<Eigen::Index> addProfile(int joint, const AngleCoverage& coverage, int order) {
+    out.blocks.push_back({out.size(), joint, coverage, order});
+    const ColumnSource source{ColumnSource::Kind::kProfile,
+                              static_cast<Eigen::Index>(out.blocks.size()) - 1};
+    std::vector<Eigen::Index> columns;
+    for (int k = 0; k < 2 * order; ++k) columns.push_back(added(source, 0.0));
+    return columns;
+  }
+
+ private:
+  Eigen::Index added(ColumnSource source, double column_ridge) {
+    out.source.push_back(source);
     ridge.push_back(column_ridge);
-    return first + static_cast<Eigen::Index>(columns.size()) - 1;
+    return out.size() - 1;
   }
 };
 
 // Link-angle column of joint j times a per-row feature.
-Eigen::VectorXd featureColumn(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
-                              const std::vector<double>& feature) {
-  Eigen::VectorXd c(fit.count);
+BuiltColumn featureColumn(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
+                          const std::vector<double>& feature) {
+  BuiltColumn c{Eigen::VectorXd(fit.count)};
   for (size_t i = 0; i < fit.rows.size(); ++i) {
     const int e = fit.start[i], k = fit.equations(i);
-    c.segment(e, k) = link_angle.block(e, joint, k, 1) * feature[i];
+    c.values.segment(e, k) = link_angle.block(e, joint, k, 1) * feature[i];
   }
+  c.joint = joint;
+  c.feature = Eigen::Map<const Eigen::VectorXd>(feature.data(), static_cast<Eigen::Index>(feature.size()));
   return c;
 }
 
@@ -126,11 +160,14 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
   const Eigen::VectorXd& r0 = start.evaluation.r;
   Screening s;
   const Eigen::Index geometry = start.linear.geometry.cols();
-  ColumnSink sink{{}, {}, geometry};
+  s.columns.link_angle = L;
+  ColumnSink sink{s.columns, {}};
 
   // Stage 1: geometry, then the global model's fitted parameters (their values kept for the
   // lumped masses' prior).
-  for (Eigen::Index c = 0; c < geometry; ++c) s.stage1.push_back(c);
+  for (Eigen::Index c = 0; c < geometry; ++c) {
+    s.stage1.push_back(sink.add(Eigen::VectorXd(start.linear.geometry.col(c))));
+  }
   std::vector<double> stage1_values;
   for (const Parameter& p : globalParameters(model)) {
     const bool lumped_mass =
@@ -147,9 +184,9 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
   // Stage 2: the geometry's change that goes with the profiles (every fit row lies inside every
   // profile's gate, so its columns are the geometry's), then the current profiles.
   for (Eigen::Index c = 0; c < geometry; ++c) {
-    const Eigen::VectorXd column = start.linear.geometry.col(c);
-    const double ridge = kProfileGeometryRidge * std::max(column.squaredNorm(), 1e-300);
-    s.stage2.push_back(sink.add(column, ridge));
+    const double ridge =
+        kProfileGeometryRidge * std::max(start.linear.geometry.col(c).squaredNorm(), 1e-300);
+    s.stage2.push_back(sink.repeat(c, ridge));
   }
   const int max_order = *std::max_element(options.profile_orders.begin(), options.profile_orders.end());
   for (const Profile& p : model.profiles) {
@@ -158,9 +195,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     f.mechanism = blank(MechanismKind::kTransmissionError, n, p.mechanism.joint, -1,
                         std::max(max_order, p.mechanism.order));
     f.mechanism.coverage = p.mechanism.coverage;
-    const Eigen::MatrixXd B =
-        profileColumns(L, fit, f.mechanism.joint, f.mechanism.coverage, f.mechanism.order);
-    for (Eigen::Index c = 0; c < B.cols(); ++c) f.columns.push_back(sink.add(B.col(c)));
+    f.columns = sink.addProfile(f.mechanism.joint, f.mechanism.coverage, f.mechanism.order);
     s.profiled.push_back(std::move(f));
   }
 
@@ -168,17 +203,17 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     return only == nullptr ||
            (only->kind == kind && only->joint == joint && only->source_joint == source);
   };
-  auto addGlobal = [&](Family family, std::vector<Eigen::VectorXd> columns,
+  auto addGlobal = [&](Family family, std::vector<BuiltColumn> columns,
                        std::vector<double> steps, double column_ridge = 0.0) {
     double effect = 0.0;
     for (size_t c = 0; c < columns.size(); ++c) {
-      effect = std::max(effect, columns[c].norm() * steps[c]);
+      effect = std::max(effect, columns[c].values.norm() * steps[c]);
     }
     if (effect < kNegligibleEffect) {
       s.untestable.push_back({describe(family.mechanism), "no effect on the tip at these rows"});
       return;
     }
-    for (Eigen::VectorXd& c : columns) family.columns.push_back(sink.add(std::move(c), column_ridge));
+    for (BuiltColumn& c : columns) family.columns.push_back(sink.add(std::move(c), column_ridge));
     s.families.push_back(std::move(family));
   };
 
@@ -274,7 +309,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
             f.mechanism = curve(0.0, with_lost ? smoothing : 0.0, knees);
             f.free = signConstrained(f.mechanism);
             f.chosen = static_cast<int>(knees.size());
-            std::vector<Eigen::VectorXd> columns;
+            std::vector<BuiltColumn> columns;
             std::vector<double> steps;
             if (with_lost) {
               columns.push_back(lostColumn());
@@ -364,7 +399,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
       selfWeightTorques(global.chain_Tracker, ws, global.gravity_Tracker, *body_masses, tau);
       for (size_t c = 0; c < f.compliance.size(); ++c) features[c].push_back(tau(f.compliance[c]));
     }
-    std::vector<Eigen::VectorXd> columns;
+    std::vector<BuiltColumn> columns;
     std::vector<double> steps;
     for (size_t c = 0; c < f.compliance.size(); ++c) {
       columns.push_back(featureColumn(L, fit, f.compliance[c], features[c]));
@@ -385,7 +420,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     PhysicalModel with = whole;
     with.mechanisms.push_back(f.mechanism);
     const int index = static_cast<int>(with.mechanisms.size()) - 1;
-    std::vector<Eigen::VectorXd> columns;
+    std::vector<BuiltColumn> columns;
     std::vector<double> steps;
     for (int i : freeParameters(f.mechanism, false)) {
       f.free.push_back(i);
@@ -405,7 +440,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     PhysicalModel with = whole;
     with.mechanisms.push_back(f.mechanism);
     const int index = static_cast<int>(with.mechanisms.size()) - 1;
-    std::vector<Eigen::VectorXd> columns;
+    std::vector<BuiltColumn> columns;
     std::vector<double> steps;
     for (int i = 0; i < 6; ++i) {
       f.free.push_back(i);
@@ -457,19 +492,12 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     f.mechanism = blank(MechanismKind::kTransmissionError, n, j, -1, max_order);
     f.mechanism.coverage = coverageOfAngles(angles, options.coverage_gap_deg * kDegToRad,
                                             options.coverage_fade_deg * kDegToRad);
-    const Eigen::MatrixXd B = profileColumns(L, fit, j, f.mechanism.coverage, max_order);
-    for (Eigen::Index c = 0; c < B.cols(); ++c) f.columns.push_back(sink.add(B.col(c)));
+    f.columns = sink.addProfile(j, f.mechanism.coverage, max_order);
     s.families.push_back(std::move(f));
   }
 
-  const Eigen::Index total = geometry + static_cast<Eigen::Index>(sink.columns.size());
-  s.A.resize(fit.count, total);
-  s.A.leftCols(geometry) = start.linear.geometry;
-  s.ridge = Eigen::VectorXd::Zero(total);
-  for (size_t c = 0; c < sink.columns.size(); ++c) {
-    s.A.col(geometry + static_cast<Eigen::Index>(c)) = sink.columns[c];
-    s.ridge(geometry + static_cast<Eigen::Index>(c)) = sink.ridge[c];
-  }
+  const Eigen::Index total = s.columns.size();
+  s.ridge = Eigen::Map<const Eigen::VectorXd>(sink.ridge.data(), total);
   s.current = Eigen::VectorXd::Zero(total);
   for (size_t k = 0; k < stage1_values.size(); ++k) {
     s.current(s.stage1[static_cast<size_t>(geometry) + k]) = stage1_values[k];

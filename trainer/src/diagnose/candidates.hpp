@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 
+#include "cross_validation.hpp"
 #include "fit_rows.hpp"
 #include "model.hpp"
 #include "stepcal/trainer/diagnose.hpp"
@@ -38,7 +39,8 @@ struct Family {
 
 /// One round's screening matrix: the current model's columns and every family's.
 struct Screening {
-  Eigen::MatrixXd A;                    ///< count × columns, the residual's weighting
+  /// Its columns (the residual's weighting), geometry first; handed to FoldGrams.
+  ScreeningColumns columns;
   Eigen::VectorXd ridge;                ///< per column (lumped masses' prior, profiles' ridges)
   /// Per column, the parameter's value in the model the round starts from (0: a candidate).
   Eigen::VectorXd current;

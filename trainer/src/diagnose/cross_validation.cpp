@@ -1,11 +1,16 @@
 #include "cross_validation.hpp"
 
+#include "chunked_gram.hpp"
 #include "parallel.hpp"
+#include "profiles.hpp"
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include <Eigen/Eigenvalues>
+
+#include "stepcal/common/error.hpp"
 
 namespace stepcal::trainer::diagnosis {
 namespace {
@@ -24,54 +29,195 @@ std::vector<Eigen::Index> joined(const std::vector<Eigen::Index>& a,
 
 double upperTailP(double z) { return 0.5 * std::erfc(z / std::sqrt(2.0)); }
 
-FoldGrams::FoldGrams(Eigen::MatrixXd A, const Eigen::VectorXd& r0, const FitRows& fit) {
-  const Eigen::Index p = A.cols();
-  const int folds = fit.folds;
-  rows_of_fold.assign(static_cast<size_t>(folds), {});
+namespace {
+
+ScreeningColumns allStored(const Eigen::MatrixXd& A) {
+  ScreeningColumns columns;
+  for (Eigen::Index c = 0; c < A.cols(); ++c) {
+    columns.stored.emplace_back(A.col(c));
+    columns.source.push_back({ColumnSource::Kind::kStored, c});
+  }
+  return columns;
+}
+
+}  // namespace
+
+FoldGrams::FoldGrams(const Eigen::MatrixXd& A, const Eigen::VectorXd& r0, const FitRows& fit)
+    : FoldGrams(allStored(A), r0, fit) {}
+
+FoldGrams::FoldGrams(ScreeningColumns columns, const Eigen::VectorXd& r0, const FitRows& fit) {
+  const Eigen::Index p = columns.size();
+  const size_t folds = static_cast<size_t>(fit.folds);
+  const Eigen::Index n = columns.link_angle.cols();
+  const Eigen::Index stored = static_cast<Eigen::Index>(columns.stored.size());
+  const Eigen::Index features = static_cast<Eigen::Index>(columns.features.size());
+  rows_of_fold.assign(folds, {});
   for (size_t i = 0; i < fit.rows.size(); ++i) {
     rows_of_fold[static_cast<size_t>(fit.fold[i])].push_back(static_cast<int>(i));
   }
-  G.assign(static_cast<size_t>(folds) + 1, Eigen::MatrixXd::Zero(p, p));
-  b.assign(static_cast<size_t>(folds) + 1, Eigen::VectorXd::Zero(p));
-  e0.assign(static_cast<size_t>(folds), 0.0);
-  A_fold.resize(static_cast<size_t>(folds));
-  r0_fold.resize(static_cast<size_t>(folds));
-  parallelFor(static_cast<size_t>(folds), [&](size_t fold) {
-    const int f = static_cast<int>(fold);
+  auto by_fold = std::make_shared<Columns>();
+  Columns& c = *by_fold;
+  c.source = std::move(columns.source);
+  c.blocks = std::move(columns.blocks);
+  for (const FeatureColumn& feature : columns.features) c.feature_joint.push_back(feature.joint);
+  for (const ColumnSource& s : c.source) {
+    const Eigen::Index count = s.kind == ColumnSource::Kind::kStored    ? stored
+                               : s.kind == ColumnSource::Kind::kFeature ? features
+                                                                        : static_cast<Eigen::Index>(c.blocks.size());
+    STEPCAL_INVARIANT(s.index >= 0 && s.index < count, "every screening column has its source");
+  }
+  const bool made = features > 0 || !c.blocks.empty();
+  c.stored_by_fold.resize(folds);
+  c.link_angle_by_fold.resize(folds);
+  c.q_by_fold.resize(folds);
+  c.feature_by_fold.resize(folds);
+  c.start_by_fold.resize(folds);
+  r0_fold.resize(folds);
+  for (size_t f = 0; f < folds; ++f) {
+    const Eigen::Index rows = static_cast<Eigen::Index>(rows_of_fold[f].size());
     Eigen::Index count = 0;
-    for (int i : rows_of_fold[static_cast<size_t>(f)]) count += fit.equations(static_cast<size_t>(i));
-    Eigen::MatrixXd& Af = A_fold[fold];
-    Eigen::VectorXd& rf = r0_fold[fold];
-    Af.resize(count, p);
-    rf.resize(count);
+    c.start_by_fold[f].push_back(0);
+    for (int i : rows_of_fold[f]) {
+      count += fit.equations(static_cast<size_t>(i));
+      c.start_by_fold[f].push_back(count);
+    }
+    c.stored_by_fold[f].resize(count, stored);
+    r0_fold[f].resize(count);
+    c.link_angle_by_fold[f].resize(made ? count : 0, n);
+    c.q_by_fold[f].resize(c.blocks.empty() ? 0 : rows, n);
+    c.feature_by_fold[f].resize(rows, features);
+    for (Eigen::Index r = 0; r < rows; ++r) {
+      const size_t i = static_cast<size_t>(rows_of_fold[f][static_cast<size_t>(r)]);
+      for (Eigen::Index j = 0; j < c.q_by_fold[f].cols() && !c.blocks.empty(); ++j) {
+        c.q_by_fold[f](r, j) = fit.rows[i]->q_rad(j);
+      }
+      for (Eigen::Index k = 0; k < features; ++k) {
+        c.feature_by_fold[f](r, k) = columns.features[static_cast<size_t>(k)].feature(static_cast<Eigen::Index>(i));
+      }
+    }
+  }
+  columns.features.clear();
+  // Column by column into the folds, each column released once sorted: it is held once.
+  const auto sortInto = [&](const auto& from, size_t fold, auto&& to) {
     Eigen::Index e = 0;
-    for (int i : rows_of_fold[static_cast<size_t>(f)]) {
+    for (int i : rows_of_fold[fold]) {
       const int k = fit.equations(static_cast<size_t>(i));
-      Af.middleRows(e, k) = A.middleRows(fit.start[static_cast<size_t>(i)], k);
-      rf.segment(e, k) = r0.segment(fit.start[static_cast<size_t>(i)], k);
+      to.middleRows(e, k) = from.middleRows(fit.start[static_cast<size_t>(i)], k);
       e += k;
     }
-    Eigen::MatrixXd& Gf = G[static_cast<size_t>(f)];
-    Gf.selfadjointView<Eigen::Lower>().rankUpdate(Af.transpose());
-    Gf.triangularView<Eigen::StrictlyUpper>() = Gf.transpose();
-    b[static_cast<size_t>(f)] = Af.transpose() * rf;
-    e0[static_cast<size_t>(f)] = rf.squaredNorm();
-  });
-  for (int f = 0; f < folds; ++f) {
-    G[static_cast<size_t>(folds)] += G[static_cast<size_t>(f)];
-    b[static_cast<size_t>(folds)] += b[static_cast<size_t>(f)];
+  };
+  for (Eigen::Index s = 0; s < stored; ++s) {
+    Eigen::VectorXd& column = columns.stored[static_cast<size_t>(s)];
+    STEPCAL_INVARIANT(column.size() == fit.count,
+                      "every screening column has an entry per fit equation");
+    for (size_t f = 0; f < folds; ++f) sortInto(column, f, c.stored_by_fold[f].col(s));
+    column = Eigen::VectorXd();
   }
-  scale = G[static_cast<size_t>(folds)].diagonal().cwiseSqrt();
-  for (Eigen::Index c = 0; c < p; ++c) {
-    if (!(scale(c) > 0.0)) scale(c) = 1.0;
+  for (size_t f = 0; f < folds; ++f) {
+    sortInto(r0, f, r0_fold[f]);
+    if (made) sortInto(columns.link_angle, f, c.link_angle_by_fold[f]);
+  }
+  columns_ = std::move(by_fold);
+
+  G.assign(folds + 1, Eigen::MatrixXd::Zero(p, p));
+  b.assign(folds + 1, Eigen::VectorXd::Zero(p));
+  e0.assign(folds, 0.0);
+  // Per fold, chunk by chunk of its rows: A is never made whole.
+  parallelFor(folds, [&](size_t f) {
+    const Eigen::VectorXd& rf = r0_fold[f];
+    Eigen::MatrixXd& Gf = G[f];
+    const size_t rows = rows_of_fold[f].size();
+    for (size_t begin = 0; begin < rows; begin += kGramChunkRows) {
+      const size_t end = std::min(rows, begin + kGramChunkRows);
+      const Eigen::MatrixXd A = foldRows(f, begin, end);
+      const Eigen::Index e = c.start_by_fold[f][begin];
+      Gf.selfadjointView<Eigen::Lower>().rankUpdate(A.transpose());
+      b[f].noalias() += A.transpose() * rf.segment(e, A.rows());
+    }
+    Gf.triangularView<Eigen::StrictlyUpper>() = Gf.transpose();
+    e0[f] = rf.squaredNorm();
+  });
+  for (size_t f = 0; f < folds; ++f) {
+    G[folds] += G[f];
+    b[folds] += b[f];
+  }
+  scale = G[folds].diagonal().cwiseSqrt();
+  for (Eigen::Index col = 0; col < p; ++col) {
+    if (!(scale(col) > 0.0)) scale(col) = 1.0;
   }
 }
 
+Eigen::MatrixXd FoldGrams::blockColumns(size_t f, Eigen::Index b, int width, size_t begin,
+                                        size_t end) const {
+  const Columns& c = *columns_;
+  const ProfileBlock& block = c.blocks[static_cast<size_t>(b)];
+  const Eigen::MatrixXd& L = c.link_angle_by_fold[f];
+  const std::vector<Eigen::Index>& start = c.start_by_fold[f];
+  Eigen::MatrixXd B(start[end] - start[begin], width);
+  Eigen::VectorXd features(2 * block.order);
+  for (size_t r = begin; r < end; ++r) {
+    profileFeatures(block.coverage, block.order,
+                    c.q_by_fold[f](static_cast<Eigen::Index>(r), block.joint), features.data());
+    const Eigen::Index e = start[r], k = start[r + 1] - e;
+    B.middleRows(e - start[begin], k) =
+        L.block(e, block.joint, k, 1) * features.head(width).transpose();
+  }
+  return B;
+}
+
+Eigen::MatrixXd FoldGrams::blockColumns(size_t f, Eigen::Index b, int width) const {
+  return blockColumns(f, b, width, 0, rows_of_fold[f].size());
+}
+
+void FoldGrams::subtractFeatureColumn(size_t f, Eigen::Index k, double x, Eigen::VectorXd& e) const {
+  const Columns& c = *columns_;
+  const Eigen::MatrixXd& L = c.link_angle_by_fold[f];
+  const std::vector<Eigen::Index>& start = c.start_by_fold[f];
+  const int joint = c.feature_joint[static_cast<size_t>(k)];
+  for (size_t r = 0; r + 1 < start.size(); ++r) {
+    const double feature = c.feature_by_fold[f](static_cast<Eigen::Index>(r), k);
+    for (Eigen::Index i = start[r]; i < start[r + 1]; ++i) e(i) -= x * (L(i, joint) * feature);
+  }
+}
+
+Eigen::MatrixXd FoldGrams::foldRows(size_t f, size_t begin, size_t end) const {
+  const Columns& c = *columns_;
+  const Eigen::Index p = static_cast<Eigen::Index>(c.source.size());
+  const std::vector<Eigen::Index>& start = c.start_by_fold[f];
+  const Eigen::Index first = start[begin], count = start[end] - first;
+  Eigen::MatrixXd A(count, p);
+  for (Eigen::Index col = 0; col < p; ++col) {
+    const ColumnSource& s = c.source[static_cast<size_t>(col)];
+    if (s.kind == ColumnSource::Kind::kStored) {
+      A.col(col) = c.stored_by_fold[f].col(s.index).segment(first, count);
+    } else if (s.kind == ColumnSource::Kind::kFeature) {
+      const int joint = c.feature_joint[static_cast<size_t>(s.index)];
+      for (size_t r = begin; r < end; ++r) {
+        const Eigen::Index e = start[r], k = start[r + 1] - e;
+        A.col(col).segment(e - first, k) =
+            c.link_angle_by_fold[f].block(e, joint, k, 1) *
+            c.feature_by_fold[f](static_cast<Eigen::Index>(r), s.index);
+      }
+    }
+  }
+  for (size_t b = 0; b < c.blocks.size(); ++b) {
+    A.middleCols(c.blocks[b].first, 2 * c.blocks[b].order) =
+        blockColumns(f, static_cast<Eigen::Index>(b), 2 * c.blocks[b].order, begin, end);
+  }
+  return A;
+}
+
 void FoldGrams::takeOut(const Eigen::VectorXd& v) {
-  const size_t folds = A_fold.size();
+  const size_t folds = r0_fold.size();
   b[folds].setZero();
   for (size_t f = 0; f < folds; ++f) {
-    r0_fold[f] += A_fold[f] * v;
+    const std::vector<Eigen::Index>& start = columns_->start_by_fold[f];
+    const size_t rows = rows_of_fold[f].size();
+    for (size_t begin = 0; begin < rows; begin += kGramChunkRows) {
+      const size_t end = std::min(rows, begin + kGramChunkRows);
+      r0_fold[f].segment(start[begin], start[end] - start[begin]).noalias() +=
+          foldRows(f, begin, end) * v;
+    }
     b[f] += G[f] * v;
     b[folds] += b[f];
     e0[f] = r0_fold[f].squaredNorm();
@@ -260,8 +406,33 @@ CrossValidation::Outcome CrossValidation::heldOut(const Correction& correction) 
     // The fold's residual over just the correction's columns (column by column: A streams once).
     Eigen::VectorXd e = grams_.r0_fold[k];
     const Eigen::VectorXd& x = correction.x[k];
+    // A profile block's columns are made once per run of them, as many as the correction uses.
+    Eigen::MatrixXd block;
+    Eigen::Index made = -1;
     for (size_t a = 0; a < correction.columns.size(); ++a) {
-      e.noalias() -= x(static_cast<Eigen::Index>(a)) * grams_.A_fold[k].col(correction.columns[a]);
+      const ColumnSource& source = grams_.source(correction.columns[a]);
+      if (source.kind == ColumnSource::Kind::kStored) {
+        e.noalias() -= x(static_cast<Eigen::Index>(a)) * grams_.storedColumn(k, source.index);
+        continue;
+      }
+      if (source.kind == ColumnSource::Kind::kFeature) {
+        grams_.subtractFeatureColumn(k, source.index, x(static_cast<Eigen::Index>(a)), e);
+        continue;
+      }
+      const Eigen::Index first = grams_.block(source.index).first;
+      const Eigen::Index offset = correction.columns[a] - first;
+      if (source.index != made || offset >= block.cols()) {
+        Eigen::Index width = offset + 1;
+        for (size_t later = a + 1; later < correction.columns.size(); ++later) {
+          const ColumnSource& other = grams_.source(correction.columns[later]);
+          if (other.kind == ColumnSource::Kind::kProfile && other.index == source.index) {
+            width = std::max(width, correction.columns[later] - first + 1);
+          }
+        }
+        block = grams_.blockColumns(k, source.index, static_cast<int>(width));
+        made = source.index;
+      }
+      e.noalias() -= x(static_cast<Eigen::Index>(a)) * block.col(offset);
     }
     Eigen::Index at = 0;
     for (int i : grams_.rows_of_fold[k]) {

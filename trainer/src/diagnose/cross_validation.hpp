@@ -14,34 +14,104 @@
 // judged on this one.
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 
 #include "fit_rows.hpp"
+#include "stepcal/common/mechanisms.hpp"
 
 namespace stepcal::trainer::diagnosis {
+
+/// A block of a transmission profile's columns in a screening matrix, never stored: made from
+/// the fit rows when needed (profileColumns: joint j's link-angle column times each gated basis
+/// function), columns first … first + 2·order − 1.
+struct ProfileBlock {
+  Eigen::Index first = 0;
+  int joint = 0;
+  AngleCoverage coverage;
+  int order = 0;
+};
+
+/// A column of a screening matrix that is a joint's link-angle column times a per-row feature
+/// (a torque-driven part, a coupling's angle, a gravity torque), held as that feature.
+struct FeatureColumn {
+  int joint = 0;
+  Eigen::VectorXd feature;  ///< per fit row
+};
+
+/// Where a column of a screening matrix comes from.
+struct ColumnSource {
+  enum class Kind { kStored, kFeature, kProfile };
+  Kind kind = Kind::kStored;
+  Eigen::Index index = 0;  ///< in stored (two columns may share one), features or blocks
+};
+
+/// The columns of a screening matrix A (count × p, the residual's weighting) as they are handed
+/// to FoldGrams: stored ones, and the features' and the profiles' columns (most of them), which
+/// are made again from the link-angle columns where needed, so that A takes a few stored columns
+/// per equation, not several hundred.
+struct ScreeningColumns {
+  std::vector<Eigen::VectorXd> stored;  ///< count each
+  std::vector<FeatureColumn> features;
+  std::vector<ProfileBlock> blocks;
+  std::vector<ColumnSource> source;  ///< per column of A
+  Eigen::MatrixXd link_angle;        ///< count × n (Linearisation::link_angle)
+  Eigen::Index size() const { return static_cast<Eigen::Index>(source.size()); }
+};
 
 /// The columns of one screening matrix A (count × p, the residual's weighting) against the
 /// model's residual r0, summed per fold: what every cross-validated fit on them needs. Built
 /// whenever the model changes.
 struct FoldGrams {
-  FoldGrams(Eigen::MatrixXd A, const Eigen::VectorXd& r0, const FitRows& fit);
+  /// The stored columns are released one by one as they are sorted into the folds.
+  FoldGrams(ScreeningColumns columns, const Eigen::VectorXd& r0, const FitRows& fit);
+  /// Every column stored.
+  FoldGrams(const Eigen::MatrixXd& A, const Eigen::VectorXd& r0, const FitRows& fit);
   /// Moves r0 to r0 + A·v: the linearised model with a part of it (values v in its columns, 0
   /// elsewhere) taken out (−v: a change put in).
   void takeOut(const Eigen::VectorXd& v);
-  /// A copy with takeOut(v).
+  /// A copy with takeOut(v); it shares A's rows with this one.
   FoldGrams without(const Eigen::VectorXd& v) const;
   std::vector<Eigen::MatrixXd> G;  ///< per fold AᵀA of its rows, then the total (index folds)
   std::vector<Eigen::VectorXd> b;  ///< per fold Aᵀ r0, then the total
   std::vector<double> e0;          ///< per fold Σ r0²
   Eigen::VectorXd scale;           ///< √ of the total Gram's diagonal (1 where it is 0)
-  /// Per fold, its equations: A's rows and r0, and the fit rows they belong to (in order, each
-  /// row's equations together), for row-by-row held-out errors over just the columns used.
-  std::vector<Eigen::MatrixXd> A_fold;
+  /// Per fold, its equations' r0 and the fit rows they belong to (in order, each row's equations
+  /// together), for row-by-row held-out errors over just the columns used.
   std::vector<Eigen::VectorXd> r0_fold;
   std::vector<std::vector<int>> rows_of_fold;
+
+  /// Rows [begin, end) of fold f (indices into rows_of_fold[f]) of A, every column: the stored
+  /// ones and the profiles' blocks made (their equations × p).
+  Eigen::MatrixXd foldRows(size_t f, size_t begin, size_t end) const;
+  /// Fold f's equations of profile block b's leading `width` columns (count_f × width), or of its
+  /// rows [begin, end) only.
+  Eigen::MatrixXd blockColumns(size_t f, Eigen::Index b, int width) const;
+  Eigen::MatrixXd blockColumns(size_t f, Eigen::Index b, int width, size_t begin, size_t end) const;
+  const ColumnSource& source(Eigen::Index c) const { return columns_->source[static_cast<size_t>(c)]; }
+  const ProfileBlock& block(Eigen::Index b) const { return columns_->blocks[static_cast<size_t>(b)]; }
+  /// Fold f's equations of stored column s.
+  auto storedColumn(size_t f, Eigen::Index s) const { return columns_->stored_by_fold[f].col(s); }
+  /// e −= x · (fold f's equations of feature column k), count_f.
+  void subtractFeatureColumn(size_t f, Eigen::Index k, double x, Eigen::VectorXd& e) const;
+
+ private:
+  /// A's columns by fold, shared by the copies (without()) and never changed.
+  struct Columns {
+    std::vector<Eigen::MatrixXd> stored_by_fold;      ///< count_f × stored
+    std::vector<Eigen::MatrixXd> link_angle_by_fold;  ///< count_f × n
+    std::vector<Eigen::MatrixXd> q_by_fold;           ///< per fold row, its joint angles, rad
+    std::vector<Eigen::MatrixXd> feature_by_fold;     ///< per fold row, each feature
+    /// Per fold row, its first equation in the fold; then count_f.
+    std::vector<std::vector<Eigen::Index>> start_by_fold;
+    std::vector<int> feature_joint;
+    std::vector<ProfileBlock> blocks;
+    std::vector<ColumnSource> source;
+  };
+  std::shared_ptr<const Columns> columns_;
 };
 
 class CrossValidation {

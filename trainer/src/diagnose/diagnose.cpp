@@ -92,8 +92,7 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
     const double rho = options.profile_ridges[options.profile_ridges.size() / 2];
     for (Profile& p : dm.profiles) {
       const Mechanism& m = p.mechanism;
-      const Eigen::MatrixXd B = profileColumns(lin.link_angle, fit, m.joint, m.coverage, m.order);
-      p.ridge = rho * B.colwise().squaredNorm().mean();
+      p.ridge = rho * profileRidgeScale(lin.link_angle, m, fit);
     }
   }
 

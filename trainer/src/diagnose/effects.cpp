@@ -56,8 +56,7 @@ void describeEffects(Search& search) {
       f.rms_rad = profileRms(m, fit);
       f.largest_amplitude_rad = largestAmplitude(m);
       f.harmonics_separable = harmonicsSeparable(m, f.rms_rad);
-      f.geometry_share = geometryShare(
-          lin.geometry, profileColumns(lin.link_angle, fit, m.joint, m.coverage, m.order));
+      f.geometry_share = geometryShare(lin.link_angle, lin.geometry, m, fit);
     } else if (isTorqueDeflection(m.kind)) {
       for (const JointVector& tau : whole.tau_nm) {
         f.max_torque_nm = std::max(f.max_torque_nm, std::abs(tau(m.joint)));

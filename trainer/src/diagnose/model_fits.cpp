@@ -145,10 +145,11 @@ void buildScreening(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpt
                     const std::optional<std::vector<double>>& body_masses, Screening& sc,
                     std::unique_ptr<FoldGrams>& grams, JointVector& compliance_sigma,
                     const Mechanism* only) {
+  grams.reset();  // the Grams it replaces go first: at most one screening matrix is held
   const RoundStart start = roundStart(model, fit);
   sc = screening(model, fit, start, options, body_masses, only);
-  grams = std::make_unique<FoldGrams>(std::move(sc.A), start.evaluation.r, fit);
-  sc.A.resize(0, 0);
+  grams = std::make_unique<FoldGrams>(std::move(sc.columns), start.evaluation.r, fit);
+  sc.columns = ScreeningColumns();
   if (!model.profiles.empty()) {
     jointStep(model, sc, *grams, fit, 6 * (model.global.chain_Tracker.dof() + 1), compliance_sigma);
   }

@@ -6,6 +6,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
+#include "chunked_gram.hpp"
 #include "stepcal/common/error.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -82,12 +83,19 @@ void profileFeatures(const AngleCoverage& coverage, int order, double q_rad, dou
 
 Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
                                const AngleCoverage& coverage, int order) {
-  Eigen::MatrixXd B(fit.count, 2 * order);
+  return profileColumns(link_angle, fit, joint, coverage, order, 0, fit.rows.size());
+}
+
+Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
+                               const AngleCoverage& coverage, int order, size_t begin,
+                               size_t end) {
+  const Eigen::Index first = equationOf(fit, begin);
+  Eigen::MatrixXd B(equationOf(fit, end) - first, 2 * order);
   Eigen::VectorXd f(2 * order);
-  for (size_t i = 0; i < fit.rows.size(); ++i) {
+  for (size_t i = begin; i < end; ++i) {
     profileFeatures(coverage, order, fit.rows[i]->q_rad(joint), f.data());
     const int e = fit.start[i], k = fit.equations(i);
-    B.middleRows(e, k) = link_angle.block(e, joint, k, 1) * f.transpose();
+    B.middleRows(e - first, k) = link_angle.block(e, joint, k, 1) * f.transpose();
   }
   return B;
 }
@@ -129,23 +137,33 @@ void fitProfiles(DiagnosisModel& model, const FitRows& fit) {
   // the Jacobian's change it causes moves the tip by ~1 µm at most.
   const Eigen::VectorXd r_global = residuals(model.global, fit);
   const Linearisation lin = linearise(model.global, fit, r_global);
-  Eigen::MatrixXd A(fit.count, width);
-  A.leftCols(geometry) = lin.geometry;
+  // The geometry and every profile's columns, chunk by chunk of rows.
+  const auto rowsOfA = [&](size_t begin, size_t end) {
+    const Eigen::Index e = equationOf(fit, begin), count = equationOf(fit, end) - e;
+    Eigen::MatrixXd A(count, width);
+    A.leftCols(geometry) = lin.geometry.middleRows(e, count);
+    Eigen::Index c = geometry;
+    for (const Profile& p : model.profiles) {
+      const Mechanism& m = p.mechanism;
+      A.middleCols(c, 2 * m.order) =
+          profileColumns(lin.link_angle, fit, m.joint, m.coverage, m.order, begin, end);
+      c += 2 * m.order;
+    }
+    return A;
+  };
   Eigen::VectorXd ridge(width);
   ridge.head(geometry) =
       kProfileGeometryRidge * lin.geometry.colwise().squaredNorm().transpose().cwiseMax(1e-300);
   Eigen::Index c = geometry;
   for (const Profile& p : model.profiles) {
-    const Mechanism& m = p.mechanism;
-    A.middleCols(c, 2 * m.order) = profileColumns(lin.link_angle, fit, m.joint, m.coverage, m.order);
-    ridge.segment(c, 2 * m.order).setConstant(p.ridge);
-    c += 2 * m.order;
+    ridge.segment(c, 2 * p.mechanism.order).setConstant(p.ridge);
+    c += 2 * p.mechanism.order;
   }
-  Eigen::MatrixXd H = A.transpose() * A;
-  H.diagonal() += ridge;
-  const Eigen::VectorXd x = H.llt().solve(A.transpose() * r_global);
-  const double sse = (r_global - A * x).squaredNorm();
-  storeStage2(model, H, x, sse / std::max<double>(1.0, double(fit.count - width)));
+  ChunkedGram gram = chunkedGram(fit, width, r_global, rowsOfA);
+  gram.H.diagonal() += ridge;
+  const Eigen::VectorXd x = gram.H.llt().solve(gram.rhs);
+  const double sse = chunkedSse(fit, r_global, x, rowsOfA);
+  storeStage2(model, gram.H, x, sse / std::max<double>(1.0, double(fit.count - width)));
 }
 
 double profileRms(const Mechanism& profile, const FitRows& fit) {
@@ -170,27 +188,53 @@ bool harmonicsSeparable(const Mechanism& profile, double rms_rad) {
   return largestAmplitude(profile) <= 3.0 * rms_rad;
 }
 
-std::vector<double> geometryShare(const Eigen::MatrixXd& geometry,
-                                  const Eigen::MatrixXd& profile) {
-  // P_G B = G (GᵀG)⁺ GᵀB, the pseudo-inverse truncated as step 1 truncates the geometry.
-  const Eigen::VectorXd scale = geometry.colwise().norm().transpose().cwiseMax(1e-300);
-  const Eigen::MatrixXd Gs = geometry * scale.cwiseInverse().asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Gs.transpose() * Gs);
+std::vector<double> geometryShare(const Eigen::MatrixXd& link_angle,
+                                  const Eigen::MatrixXd& geometry, const Mechanism& profile,
+                                  const FitRows& fit) {
+  // GᵀG, GᵀB and B's columns' squared norms, chunk by chunk of rows (B is never whole).
+  const Eigen::Index g = geometry.cols(), w = 2 * profile.order;
+  const ChunkedGram gram =
+      chunkedGram(fit, g + w, Eigen::VectorXd::Zero(fit.count), [&](size_t begin, size_t end) {
+        const Eigen::Index e = equationOf(fit, begin), count = equationOf(fit, end) - e;
+        Eigen::MatrixXd A(count, g + w);
+        A << geometry.middleRows(e, count),
+            profileColumns(link_angle, fit, profile.joint, profile.coverage, profile.order, begin, end);
+        return A;
+      });
+  // P_G B = G (GᵀG)⁺ GᵀB, the pseudo-inverse truncated as step 1 truncates the geometry, on the
+  // geometry's columns scaled to unit norm.
+  const Eigen::VectorXd scale = gram.H.diagonal().head(g).cwiseSqrt().cwiseMax(1e-300);
+  const Eigen::MatrixXd GsTGs =
+      scale.cwiseInverse().asDiagonal() * gram.H.topLeftCorner(g, g) * scale.cwiseInverse().asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(GsTGs);
   const Eigen::VectorXd& lambda = eig.eigenvalues();
   const double cutoff = 1e-15 * lambda.maxCoeff();
-  const Eigen::MatrixXd GtB = Gs.transpose() * profile;
+  const Eigen::MatrixXd GtB = scale.cwiseInverse().asDiagonal() * gram.H.topRightCorner(g, w);
   std::vector<double> share;
-  for (Eigen::Index k = 0; k + 1 < profile.cols(); k += 2) {
+  for (Eigen::Index k = 0; k + 1 < w; k += 2) {
     double reached = 0.0;
     for (Eigen::Index i = 0; i < lambda.size(); ++i) {
       if (lambda(i) <= cutoff) continue;
       const Eigen::RowVector2d proj = eig.eigenvectors().col(i).transpose() * GtB.middleCols(k, 2);
       reached += proj.squaredNorm() / lambda(i);
     }
-    const double total = profile.middleCols(k, 2).squaredNorm();
+    const double total = gram.H(g + k, g + k) + gram.H(g + k + 1, g + k + 1);
     share.push_back(total > 0.0 ? std::min(1.0, reached / total) : 0.0);
   }
   return share;
+}
+
+double profileRidgeScale(const Eigen::MatrixXd& link_angle, const Mechanism& profile,
+                         const FitRows& fit) {
+  std::vector<double> sum(kGramSlices, 0.0);
+  forEachChunk(fit, [&](size_t slice, size_t begin, size_t end) {
+    sum[slice] += profileColumns(link_angle, fit, profile.joint, profile.coverage, profile.order,
+                                 begin, end)
+                      .squaredNorm();
+  });
+  double total = 0.0;
+  for (double s : sum) total += s;
+  return total / static_cast<double>(2 * profile.order);
 }
 
 }  // namespace stepcal::trainer::diagnosis

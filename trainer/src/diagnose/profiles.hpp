@@ -26,6 +26,10 @@ void profileFeatures(const AngleCoverage& coverage, int order, double q_rad, dou
 /// gated basis function, count × 2·order.
 Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
                                const AngleCoverage& coverage, int order);
+/// The same for fit rows [begin, end) only: their equations × 2·order.
+Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
+                               const AngleCoverage& coverage, int order, size_t begin,
+                               size_t end);
 
 /// Stores a solved stage 2 in the model's profiles. Stage-2 columns: the geometry's 6(n+1), then
 /// each profile's in model order; H their Gram with the ridges, x the coefficients, variance the
@@ -51,6 +55,15 @@ bool harmonicsSeparable(const Mechanism& profile, double rms_rad);
 
 /// Per harmonic of a profile, the share of its columns' squared norm that the geometry columns
 /// reach (1: a geometric error explains it entirely, 0: orthogonal to every geometric error).
-std::vector<double> geometryShare(const Eigen::MatrixXd& geometry, const Eigen::MatrixXd& profile);
+/// geometry: the geometry's columns (Linearisation::geometry), link_angle the link angles' on the
+/// fit rows; the profile's columns are made chunk by chunk of rows.
+std::vector<double> geometryShare(const Eigen::MatrixXd& link_angle,
+                                  const Eigen::MatrixXd& geometry, const Mechanism& profile,
+                                  const FitRows& fit);
+
+/// The mean squared norm of a profile's columns on the fit rows (what its relative ridge ρ
+/// scales), weighted-residual units per rad².
+double profileRidgeScale(const Eigen::MatrixXd& link_angle, const Mechanism& profile,
+                         const FitRows& fit);
 
 }  // namespace stepcal::trainer::diagnosis

@@ -6,6 +6,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "chunked_gram.hpp"
 #include "profiles.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -75,13 +76,12 @@ std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fi
 
   // The model's columns (geometry, global parameters, every profile's coefficients), as the
   // joint fit holds them, with their ridges and values.
-  Eigen::MatrixXd A(fit.count, width);
+  Eigen::MatrixXd parameter_columns(fit.count, static_cast<Eigen::Index>(params.size()));
   Eigen::VectorXd ridge = Eigen::VectorXd::Zero(width), value = Eigen::VectorXd::Zero(width);
-  A.leftCols(geometry) = lin.geometry;
   for (size_t c = 0; c < params.size(); ++c) {
     const Parameter& p = params[c];
     const Eigen::Index column = geometry + static_cast<Eigen::Index>(c);
-    A.col(column) = parameterColumn(whole, fit, e.r, p);
+    parameter_columns.col(static_cast<Eigen::Index>(c)) = parameterColumn(whole, fit, e.r, p);
     if (p.mechanism < 0) {
       value(column) = model.global.compliance_rad_per_nm(p.index);
       continue;
@@ -96,18 +96,32 @@ std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fi
   for (const Profile& p : model.profiles) {
     const Mechanism& m = p.mechanism;
     const Eigen::Index w = 2 * m.order;
-    A.middleCols(at, w) = profileColumns(lin.link_angle, fit, m.joint, m.coverage, m.order);
     for (Eigen::Index k = 0; k < w; ++k) {
       ridge(at + k) = p.ridge;
       value(at + k) = m.parameters[static_cast<size_t>(k)];
     }
     at += w;
   }
+  // The model's columns chunk by chunk of rows: the profiles' are made, never held whole.
+  const auto rowsOfA = [&](size_t begin, size_t end) {
+    const Eigen::Index first = equationOf(fit, begin), count = equationOf(fit, end) - first;
+    Eigen::MatrixXd A(count, width);
+    A.leftCols(geometry) = lin.geometry.middleRows(first, count);
+    A.middleCols(geometry, parameter_columns.cols()) = parameter_columns.middleRows(first, count);
+    Eigen::Index c = geometry + parameter_columns.cols();
+    for (const Profile& p : model.profiles) {
+      const Mechanism& m = p.mechanism;
+      A.middleCols(c, 2 * m.order) =
+          profileColumns(lin.link_angle, fit, m.joint, m.coverage, m.order, begin, end);
+      c += 2 * m.order;
+    }
+    return A;
+  };
 
   // Normalised to a unit diagonal, ridges and priors in (1 for a column nothing sees), so the
   // tolerance means the same for every column and a prior on a column the rows barely see
   // cannot dwarf the rest.
-  Eigen::MatrixXd H = A.transpose() * A;
+  Eigen::MatrixXd H = chunkedGram(fit, width, e.r, rowsOfA).H;
   H.diagonal() += ridge;
   const Eigen::VectorXd scale =
       H.diagonal().unaryExpr([](double h) { return h > 0.0 ? std::sqrt(h) : 1.0; });

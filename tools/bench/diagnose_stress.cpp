@@ -13,11 +13,6 @@
 // Prints one line per seed and a summary table; --json FILE writes every seed's outcome. Exit
 // status 1 on any abort, and with --strict also on a wrong named set or a load above 1.5× the
 // floor; 2 on bad options.
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -34,13 +29,13 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "child_process.hpp"
 #include "stepcal/twin/draws.hpp"
 
 namespace fs = std::filesystem;
 using stepcal::MechanismKind;
 using stepcal::twin::DrawnMechanism;
 
-extern char** environ;
 
 namespace {
 
@@ -48,21 +43,7 @@ constexpr double kFloorLimit = 1.5;
 
 // Runs argv with stdout and stderr to files; the shell-style status (128 + signal when killed).
 int run(const std::vector<std::string>& argv, const fs::path& out, const fs::path& err) {
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&actions, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  std::vector<char*> args;
-  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-  args.push_back(nullptr);
-  pid_t pid = 0;
-  const int spawned = posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  if (spawned != 0) return 127;
-  int status = 0;
-  waitpid(pid, &status, 0);
-  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 255;
+  return stepcal::bench::runChild(argv, out, err).status;
 }
 
 bool torqueDriven(const std::string& name) {
@@ -230,7 +211,7 @@ std::vector<uint64_t> parseSeeds(const std::string& text) {
 int main(int argc, char** argv) {
   CLI::App app{"stepcal-diagnose-stress: the diagnosis on random mixes of hidden mechanisms"};
   std::string seeds_text = "1-10", work = "out/diagnose-stress", json_out;
-  std::string stepcal = (fs::canonical("/proc/self/exe").parent_path() / "stepcal").string();
+  std::string stepcal = stepcal::bench::stepcalBesideThis();
   int jobs = 1;
   bool strict = false;
   app.add_option("--seeds", seeds_text, "seeds, e.g. 1-200 or 3,7,11")->capture_default_str();
@@ -248,11 +229,7 @@ int main(int argc, char** argv) {
               << "'; expected seeds and ranges such as 1-200 or 3,7,11\n";
     return 2;
   }
-  if (access(stepcal.c_str(), X_OK) != 0) {
-    std::cerr << "stepcal-diagnose-stress: error: --stepcal '" << stepcal
-              << "' is not an executable; expected the stepcal command (build/bin/stepcal)\n";
-    return 2;
-  }
+  if (!stepcal::bench::stepcalIsExecutable("stepcal-diagnose-stress", stepcal)) return 2;
 
   std::vector<Outcome> outcomes(seeds.size());
   std::atomic<size_t> next{0};

@@ -9,13 +9,6 @@
 // size's memory per row predicts above --max-rss-gb is not run, and says so.
 // Prints a markdown table; --json FILE writes every measurement, --html FILE a page with the
 // log–log plots, --svg FILE the plots as one image. Exit status 1 when a command fails, 2 on bad options.
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -28,49 +21,16 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "child_process.hpp"
 #include "stepcal/twin/twin.hpp"
 
 namespace fs = std::filesystem;
-
-extern char** environ;
+using stepcal::bench::ChildRun;
+using stepcal::bench::runChild;
 
 namespace {
 
 constexpr double kPathSeconds = 300.0;
-
-// One child's run: its status (128 + signal when killed), wall time and peak resident memory.
-struct Run {
-  int status = 0;
-  double wall_s = 0.0;
-  double max_rss_mb = 0.0;
-};
-
-Run run(const std::vector<std::string>& argv, const fs::path& out, const fs::path& err) {
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&actions, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  std::vector<char*> args;
-  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-  args.push_back(nullptr);
-  Run r;
-  const auto start = std::chrono::steady_clock::now();
-  pid_t pid = 0;
-  const int spawned = posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  if (spawned != 0) {
-    r.status = 127;
-    return r;
-  }
-  int status = 0;
-  rusage usage{};
-  wait4(pid, &status, 0, &usage);
-  r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  r.max_rss_mb = static_cast<double>(usage.ru_maxrss) / 1024.0;  // ru_maxrss is in kB on Linux
-  r.status = WIFSIGNALED(status) ? 128 + WTERMSIG(status)
-                                 : (WIFEXITED(status) ? WEXITSTATUS(status) : 255);
-  return r;
-}
 
 // The robot's path: 5 minutes, each joint mid + half-range · sin(2π f_j t + φ_j)
 // within the IRB4400's pose ranges (a joint kept away from zero, the wrist, on its positive side),
@@ -118,19 +78,19 @@ std::vector<long> parseSizes(const std::string& text) {
 
 struct Measured {
   long rows = 0;
-  Run simulate, calibrate, diagnose;
+  ChildRun simulate, calibrate, diagnose;
   bool skipped = false;
   double predicted_gb = 0.0;
 };
 
 // A log–log plot of one quantity against rows for calibrate and diagnose, as inline SVG.
 std::string plot(const std::vector<Measured>& all, const char* title, const char* unit,
-                 double (*value)(const Run&)) {
+                 double (*value)(const ChildRun&)) {
   const double W = 460, H = 300, L = 60, R = 20, T = 30, B = 45;
   double x0 = 1e300, x1 = 0, y0 = 1e300, y1 = 0;
   for (const Measured& m : all) {
     if (m.skipped) continue;
-    for (const Run* r : {&m.calibrate, &m.diagnose}) {
+    for (const ChildRun* r : {&m.calibrate, &m.diagnose}) {
       x0 = std::min(x0, std::log10(static_cast<double>(m.rows)));
       x1 = std::max(x1, std::log10(static_cast<double>(m.rows)));
       y0 = std::min(y0, std::log10(std::max(value(*r), 1e-3)));
@@ -164,7 +124,7 @@ std::string plot(const std::vector<Measured>& all, const char* title, const char
     s << "<polyline fill='none' stroke='" << colours[k] << "' stroke-width='2' points='";
     for (const Measured& m : all) {
       if (m.skipped) continue;
-      const Run& r = k == 0 ? m.calibrate : m.diagnose;
+      const ChildRun& r = k == 0 ? m.calibrate : m.diagnose;
       s << px(std::log10(static_cast<double>(m.rows))) << ","
         << py(std::log10(std::max(value(r), 1e-3))) << " ";
     }
@@ -180,7 +140,7 @@ std::string plot(const std::vector<Measured>& all, const char* title, const char
 int main(int argc, char** argv) {
   CLI::App app{"stepcal-bench-scale: calibrate and diagnose against the number of rows"};
   std::string sizes_text = "1000,3000,10000,30000", work = "out/scale", json_out, html_out, svg_out;
-  std::string stepcal = (fs::canonical("/proc/self/exe").parent_path() / "stepcal").string();
+  std::string stepcal = stepcal::bench::stepcalBesideThis();
   double max_rss_gb = 16.0;
   // A hidden cause, so that the search runs its rounds: a second-order transmission error of
   // joint 2 (the size of the docs' shoulder example).
@@ -207,11 +167,7 @@ int main(int argc, char** argv) {
               << "'; expected sizes from 10 to 1e8 separated by commas, such as 1e3,1e4,1e5\n";
     return 2;
   }
-  if (access(stepcal.c_str(), X_OK) != 0) {
-    std::cerr << "stepcal-bench-scale: error: --stepcal '" << stepcal
-              << "' is not an executable; expected the stepcal command (build/bin/stepcal)\n";
-    return 2;
-  }
+  if (!stepcal::bench::stepcalIsExecutable("stepcal-bench-scale", stepcal)) return 2;
 
   std::vector<Measured> all;
   double diagnose_mb_per_row = 0.0;
@@ -236,13 +192,13 @@ int main(int argc, char** argv) {
     std::vector<std::string> simulate = {stepcal, "simulate", "--seed", "1", "--poses",
                                          (dir / "poses.csv").string(), "--out", campaign};
     for (const std::string& e : effects) simulate.insert(simulate.end(), {"--effect", e});
-    m.simulate = run(simulate, dir / "simulate.out", dir / "simulate.err");
+    m.simulate = runChild(simulate, dir / "simulate.out", dir / "simulate.err");
     if (m.simulate.status == 0) {
-      m.calibrate = run({stepcal, "calibrate", campaign, "--out", poe}, dir / "calibrate.out",
+      m.calibrate = runChild({stepcal, "calibrate", campaign, "--out", poe}, dir / "calibrate.out",
                         dir / "calibrate.err");
     }
     if (m.simulate.status == 0 && m.calibrate.status == 0) {
-      m.diagnose = run({stepcal, "diagnose", campaign, "--model", poe, "--json", "--out",
+      m.diagnose = runChild({stepcal, "diagnose", campaign, "--model", poe, "--json", "--out",
                         (dir / "extended.stepcal").string()},
                        dir / "diagnose.json", dir / "diagnose.err");
     }
@@ -269,7 +225,7 @@ int main(int argc, char** argv) {
     for (const Measured& m : all) {
       nlohmann::json j{{"rows", m.rows}, {"skipped", m.skipped}};
       if (m.skipped) j["predicted_diagnose_gb"] = m.predicted_gb;
-      for (const auto& [name, r] : {std::pair<const char*, const Run&>{"simulate", m.simulate},
+      for (const auto& [name, r] : {std::pair<const char*, const ChildRun&>{"simulate", m.simulate},
                                     {"calibrate", m.calibrate},
                                     {"diagnose", m.diagnose}}) {
         if (!m.skipped) j[name] = {{"status", r.status}, {"wall_s", r.wall_s}, {"max_rss_mb", r.max_rss_mb}};
@@ -278,25 +234,22 @@ int main(int argc, char** argv) {
     }
     std::ofstream(json_out) << out.dump(2) << "\n";
   }
+  const std::string time_plot = plot(all, "wall time", "s", [](const ChildRun& r) { return r.wall_s; });
+  const std::string memory_plot =
+      plot(all, "peak resident memory", "MB", [](const ChildRun& r) { return r.max_rss_mb; });
   if (!html_out.empty()) {
     std::ofstream html(html_out);
     html << "<!doctype html><html><head><meta charset='utf-8'><title>stepcal: how calibrate and "
             "diagnose scale</title></head><body><h1>calibrate and diagnose against the rows</h1>"
             "<p>Dense campaigns of the simulated IRB4400 (a 5-minute path sampled evenly, three "
-            "loads), "
-            "stepcal-bench-scale.</p>"
-         << plot(all, "wall time", "s", [](const Run& r) { return r.wall_s; })
-         << plot(all, "peak resident memory", "MB", [](const Run& r) { return r.max_rss_mb; })
-         << "</body></html>\n";
+            "loads), stepcal-bench-scale.</p>"
+         << time_plot << memory_plot << "</body></html>\n";
   }
   if (!svg_out.empty()) {
     std::ofstream svg(svg_out);
     svg << "<svg xmlns='http://www.w3.org/2000/svg' width='920' height='300'><rect width='920' "
            "height='300' fill='white'/><g>"
-        << plot(all, "wall time", "s", [](const Run& r) { return r.wall_s; })
-        << "</g><g transform='translate(460,0)'>"
-        << plot(all, "peak resident memory", "MB", [](const Run& r) { return r.max_rss_mb; })
-        << "</g></svg>\n";
+        << time_plot << "</g><g transform='translate(460,0)'>" << memory_plot << "</g></svg>\n";
   }
   return failed ? 1 : 0;
 }

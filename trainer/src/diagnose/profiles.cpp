@@ -100,6 +100,21 @@ Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows&
   return B;
 }
 
+Eigen::MatrixXd profilesColumns(const std::vector<Profile>& profiles,
+                                const Eigen::MatrixXd& link_angle, const FitRows& fit,
+                                size_t begin, size_t end) {
+  Eigen::Index width = 0;
+  for (const Profile& p : profiles) width += 2 * p.mechanism.order;
+  Eigen::MatrixXd B(equationOf(fit, end) - equationOf(fit, begin), width);
+  Eigen::Index c = 0;
+  for (const Profile& p : profiles) {
+    const Mechanism& m = p.mechanism;
+    B.middleCols(c, 2 * m.order) = profileColumns(link_angle, fit, m.joint, m.coverage, m.order, begin, end);
+    c += 2 * m.order;
+  }
+  return B;
+}
+
 void storeStage2(DiagnosisModel& model, const Eigen::MatrixXd& H, const Eigen::VectorXd& x,
                  double variance) {
   const Eigen::Index geometry = 6 * (model.global.chain_Tracker.dof() + 1);
@@ -141,14 +156,8 @@ void fitProfiles(DiagnosisModel& model, const FitRows& fit) {
   const auto rowsOfA = [&](size_t begin, size_t end) {
     const Eigen::Index e = equationOf(fit, begin), count = equationOf(fit, end) - e;
     Eigen::MatrixXd A(count, width);
-    A.leftCols(geometry) = lin.geometry.middleRows(e, count);
-    Eigen::Index c = geometry;
-    for (const Profile& p : model.profiles) {
-      const Mechanism& m = p.mechanism;
-      A.middleCols(c, 2 * m.order) =
-          profileColumns(lin.link_angle, fit, m.joint, m.coverage, m.order, begin, end);
-      c += 2 * m.order;
-    }
+    A << lin.geometry.middleRows(e, count),
+        profilesColumns(model.profiles, lin.link_angle, fit, begin, end);
     return A;
   };
   Eigen::VectorXd ridge(width);

@@ -31,6 +31,12 @@ Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows&
                                const AngleCoverage& coverage, int order, size_t begin,
                                size_t end);
 
+/// Every profile's columns, in the model's order, for fit rows [begin, end): their equations ×
+/// Σ 2·order.
+Eigen::MatrixXd profilesColumns(const std::vector<Profile>& profiles,
+                                const Eigen::MatrixXd& link_angle, const FitRows& fit,
+                                size_t begin, size_t end);
+
 /// Stores a solved stage 2 in the model's profiles. Stage-2 columns: the geometry's 6(n+1), then
 /// each profile's in model order; H their Gram with the ridges, x the coefficients, variance the
 /// residual's. Each profile gets its coefficients, σ (from variance · H⁻¹) and size_chi2, and its

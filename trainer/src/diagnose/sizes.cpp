@@ -106,15 +106,8 @@ std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fi
   const auto rowsOfA = [&](size_t begin, size_t end) {
     const Eigen::Index first = equationOf(fit, begin), count = equationOf(fit, end) - first;
     Eigen::MatrixXd A(count, width);
-    A.leftCols(geometry) = lin.geometry.middleRows(first, count);
-    A.middleCols(geometry, parameter_columns.cols()) = parameter_columns.middleRows(first, count);
-    Eigen::Index c = geometry + parameter_columns.cols();
-    for (const Profile& p : model.profiles) {
-      const Mechanism& m = p.mechanism;
-      A.middleCols(c, 2 * m.order) =
-          profileColumns(lin.link_angle, fit, m.joint, m.coverage, m.order, begin, end);
-      c += 2 * m.order;
-    }
+    A << lin.geometry.middleRows(first, count), parameter_columns.middleRows(first, count),
+        profilesColumns(model.profiles, lin.link_angle, fit, begin, end);
     return A;
   };
 

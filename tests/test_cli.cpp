@@ -538,8 +538,9 @@ TEST(Cli, SimulateWithASensorBiasOffsetsEveryReading) {
 // chunk by chunk): tests/data/diagnosis/ur10-series-c.json is the JSON `stepcal diagnose` wrote
 // then (its timing left out, numbers to 9 digits). Strings, counts and flags must be equal; numbers
 // within 1e-4 relative, a signed-rank z and its p-value within 1e-2 (one rank's step moves z by
-// 3e-4 relative, and the far tail's p by 5e-5), gains and reductions also within 1e-7 absolute.
-// Measured when it was made: at most 2.3e-6 relative outside z, p, gains and reductions.
+// 6e-4 relative, and p by 2e-4), held-out gains and reductions also within 1e-5 absolute (mm, or a
+// fraction of the held-out error). Measured when it was made: at most 8e-6 relative outside those,
+// 9e-7 absolute on a reduction (the global refit's Gauss-Newton stops within 1e-6 of its cost).
 // After a change meant to change the answers, write the file again: `stepcal import ipa
 // tests/data/ipa-robot-accuracy/Series_C/measurements_random_poses.csv --out DIR`, then
 // `stepcal diagnose DIR --json`, without timing_s.
@@ -557,7 +558,7 @@ void expectSameAnswers(const nlohmann::json& stored, const nlohmann::json& now,
     const bool gain = key == "cv_gain_mm" || key == "relative_reduction";
     const double a = stored.get<double>(), b = now.get<double>();
     const double tolerance = (rank_statistic ? 1e-2 : 1e-4) * std::max(std::abs(a), std::abs(b)) +
-                             (gain ? 1e-7 : 1e-300);
+                             (gain ? 1e-5 : 1e-300);
     if (!(std::abs(a - b) <= tolerance)) differ(stored.dump() + " before, now " + now.dump());
     return;
   }

@@ -1,7 +1,8 @@
 // The diagnosis's cross-validation linearised at the current model: the Grams of a residual with a
 // part of the model taken out, the columns it makes again (features, profiles) against the same
-// columns stored, the Grams summed chunk by chunk against the whole matrix's, and the joint fit
-// with the ridges on the parameters' values, each against the same least squares solved directly.
+// columns stored, the Grams summed chunk by chunk and a tall system reduced block by block against
+// the whole matrix's, and the joint fit with the ridges on the parameters' values, each against
+// the same least squares solved directly.
 #include <gtest/gtest.h>
 
 #include <random>
@@ -11,6 +12,7 @@
 #include <Eigen/Cholesky>
 
 #include "../trainer/src/diagnose/chunked_gram.hpp"
+#include "../trainer/src/least_squares.hpp"
 #include "../trainer/src/diagnose/cross_validation.hpp"
 #include "../trainer/src/diagnose/profiles.hpp"
 
@@ -136,6 +138,30 @@ TEST(ChunkedGram, IsTheWholeMatrixsGram) {
   const Eigen::VectorXd x = H.llt().solve(rhs);
   const double sse = (problem.r0 - problem.A * x).squaredNorm();
   EXPECT_NEAR(chunkedSse(fit, problem.r0, x, rows), sse, 1e-12 * sse);
+}
+
+// A tall system reduced block by block (as the global refit reduces its Jacobian chunk by chunk of
+// rows, then its priors' rows) solves as the whole matrix does: the same rank (one column repeats
+// another, so one direction is unobservable), singular values, column norms and truncated solution.
+TEST(TallQr, ReducedSolveIsTheWholeMatrixsSolve) {
+  std::mt19937 rng(21);
+  std::normal_distribution<double> normal;
+  Eigen::MatrixXd J = Eigen::MatrixXd::NullaryExpr(2500, 9, [&] { return normal(rng); });
+  J.col(8) = J.col(2);
+  J.col(5) *= 1e4;  // columns of very different scale, as geometry and compliance are
+  const Eigen::VectorXd r = Eigen::VectorXd::NullaryExpr(2500, [&] { return normal(rng); });
+  const SvdSolution whole = solveTruncated(J, r, 1e-9);
+  TallQr reduced(9);
+  for (Eigen::Index begin = 0, size = 3; begin < J.rows(); begin += size, size = size * 3 + 1) {
+    const Eigen::Index n = std::min(size, J.rows() - begin);
+    reduced.add(J.middleRows(begin, n), r.segment(begin, n));
+  }
+  const SvdSolution s = solveReduced(reduced, 1e-9);
+  EXPECT_EQ(s.rank, 8);
+  EXPECT_EQ(s.rank, whole.rank);
+  EXPECT_LT((s.singular_values - whole.singular_values).norm(), 1e-12 * whole.singular_values(0));
+  EXPECT_LT((s.column_scale - whole.column_scale).norm(), 1e-12 * whole.column_scale.norm());
+  EXPECT_LT((s.x - whole.x).norm(), 1e-10 * whole.x.norm());
 }
 
 // Linearised at current values c, with r0 the residual there, the joint fit's value c + δ is the

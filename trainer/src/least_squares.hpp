@@ -16,6 +16,22 @@ struct SvdSolution {
   int rank = 0;
 };
 
+/// The truncated SVD solution of R z ≈ rhs (R column-normalised), x = z / s.column_scale.
+inline void truncatedSvdSolve(const Eigen::MatrixXd& R, const Eigen::VectorXd& rhs, double tol,
+                              SvdSolution& s) {
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(R, Eigen::ComputeThinU | Eigen::ComputeFullV);
+  s.singular_values = svd.singularValues();
+  s.V = svd.matrixV();
+  const double cutoff = tol * s.singular_values(0);
+  Eigen::VectorXd z = Eigen::VectorXd::Zero(R.cols());
+  for (Eigen::Index i = 0; i < s.singular_values.size(); ++i) {
+    if (s.singular_values(i) <= cutoff) break;
+    ++s.rank;
+    z += s.V.col(i) * (svd.matrixU().col(i).dot(rhs) / s.singular_values(i));
+  }
+  s.x = z.cwiseQuotient(s.column_scale);
+}
+
 inline SvdSolution solveTruncated(const Eigen::MatrixXd& J, const Eigen::VectorXd& r, double tol) {
   SvdSolution s;
   const Eigen::Index p = J.cols();
@@ -34,17 +50,55 @@ inline SvdSolution solveTruncated(const Eigen::MatrixXd& J, const Eigen::VectorX
     R = Js;
     rhs = r;
   }
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(R, Eigen::ComputeThinU | Eigen::ComputeFullV);
-  s.singular_values = svd.singularValues();
-  s.V = svd.matrixV();
-  const double cutoff = tol * s.singular_values(0);
-  Eigen::VectorXd z = Eigen::VectorXd::Zero(p);
-  for (Eigen::Index i = 0; i < s.singular_values.size(); ++i) {
-    if (s.singular_values(i) <= cutoff) break;
-    ++s.rank;
-    z += s.V.col(i) * (svd.matrixU().col(i).dot(rhs) / s.singular_values(i));
+  truncatedSvdSolve(R, rhs, tol, s);
+  return s;
+}
+
+/// A tall least-squares system J x ≈ r reduced block by block of rows to R x ≈ Qᵀr (R upper
+/// triangular, p × p, J = Q R): what solveReduced needs, without J held whole.
+class TallQr {
+ public:
+  explicit TallQr(Eigen::Index p) : R_(Eigen::MatrixXd::Zero(0, p)), qtr_(0) {}
+  /// Appends rows of J and their r.
+  void add(const Eigen::MatrixXd& J, const Eigen::VectorXd& r) {
+    Eigen::MatrixXd stacked(R_.rows() + J.rows(), R_.cols());
+    stacked << R_, J;
+    Eigen::VectorXd rhs(stacked.rows());
+    rhs << qtr_, r;
+    reduce(stacked, rhs);
   }
-  s.x = z.cwiseQuotient(s.column_scale);
+  /// Appends another reduction's rows (its R and Qᵀr).
+  void add(const TallQr& other) { add(other.R_, other.qtr_); }
+  const Eigen::MatrixXd& R() const { return R_; }
+  const Eigen::VectorXd& qtr() const { return qtr_; }
+
+ private:
+  void reduce(const Eigen::MatrixXd& A, const Eigen::VectorXd& r) {
+    const Eigen::Index p = A.cols();
+    if (A.rows() <= p) {
+      R_ = A;
+      qtr_ = r;
+      return;
+    }
+    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(A);
+    R_ = qr.matrixQR().topRows(p).triangularView<Eigen::Upper>();
+    qtr_ = (qr.householderQ().adjoint() * r).head(p);
+  }
+  Eigen::MatrixXd R_;
+  Eigen::VectorXd qtr_;
+};
+
+/// solveTruncated on a reduced system: the same x, singular values, V and rank as on J, r (R's
+/// columns have J's norms, its singular values J's).
+inline SvdSolution solveReduced(const TallQr& system, double tol) {
+  SvdSolution s;
+  const Eigen::MatrixXd& R = system.R();
+  const Eigen::Index p = R.cols();
+  s.column_scale = R.colwise().norm().transpose();
+  for (Eigen::Index c = 0; c < p; ++c) {
+    if (!(s.column_scale(c) > 0.0)) s.column_scale(c) = 1.0;
+  }
+  truncatedSvdSolve(R * s.column_scale.cwiseInverse().asDiagonal(), system.qtr(), tol, s);
   return s;
 }
 

@@ -72,6 +72,22 @@ FitRows makeFitRows(const std::vector<const Measurement*>& rows, const TrackerNo
   return fit;
 }
 
+FitRows chunkOf(const FitRows& fit, size_t begin, size_t end) {
+  FitRows chunk;
+  chunk.rows.assign(fit.rows.begin() + static_cast<long>(begin), fit.rows.begin() + static_cast<long>(end));
+  chunk.fold.assign(fit.fold.begin() + static_cast<long>(begin), fit.fold.begin() + static_cast<long>(end));
+  chunk.pose.assign(fit.pose.begin() + static_cast<long>(begin), fit.pose.begin() + static_cast<long>(end));
+  for (const Measurement* row : chunk.rows) {
+    chunk.start.push_back(chunk.count);
+    chunk.count += row->has_orientation ? 6 : 3;
+  }
+  chunk.poses = fit.poses;
+  chunk.folds = fit.folds;
+  chunk.w_p = fit.w_p;
+  chunk.w_r = fit.w_r;
+  return chunk;
+}
+
 Evaluation evaluate(const PhysicalModel& model, const FitRows& fit) {
   Evaluation out;
   out.r.resize(fit.count);

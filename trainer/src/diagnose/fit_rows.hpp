@@ -29,6 +29,10 @@ void requireJointCount(const Campaign& campaign, int n);
 FitRows makeFitRows(const std::vector<const Measurement*>& rows, const TrackerNoise& noise,
                     int folds);
 
+/// Fit rows [begin, end) as fit rows of their own (equations from 0, the same weights, folds
+/// and poses).
+FitRows chunkOf(const FitRows& fit, size_t begin, size_t end);
+
 /// The physical model on every fit row: weighted residual (measured − modelled), and per row
 /// the link angles θ [rad] and joint torques τ [N·m] of the model.
 struct Evaluation {

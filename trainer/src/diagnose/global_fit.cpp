@@ -1,6 +1,7 @@
 #include <cmath>
 
 #include "../least_squares.hpp"
+#include "chunked_gram.hpp"
 #include "model.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -33,36 +34,39 @@ double priorCost(const DiagnosisModel& model, const PhysicalModel& global) {
   return cost;
 }
 
-Eigen::MatrixXd jacobian(const PhysicalModel& model, const FitRows& fit, const Eigen::VectorXd& r,
-                         const std::vector<Parameter>& params) {
-  const Eigen::MatrixXd G = linearise(model, fit, r).geometry;
-  Eigen::MatrixXd A(fit.count, G.cols() + static_cast<Eigen::Index>(params.size()));
-  A.leftCols(G.cols()) = G;
+// The linearised system of the global part (geometry and parameters, then the lumped masses'
+// prior rows (value − 0)/σ), reduced chunk by chunk of rows: its Jacobian is never held whole.
+TallQr linearSystem(const DiagnosisModel& model, const PhysicalModel& global, const FitRows& fit,
+                    const Eigen::VectorXd& r, const std::vector<Parameter>& params) {
+  const Eigen::Index geometry = 6 * (global.chain_Tracker.dof() + 1);
+  const Eigen::Index p = geometry + static_cast<Eigen::Index>(params.size());
+  std::vector<TallQr> slices(kGramSlices, TallQr(p));
+  forEachChunk(fit, [&](size_t slice, size_t begin, size_t end) {
+    const FitRows chunk = chunkOf(fit, begin, end);
+    const Eigen::VectorXd r_chunk = r.segment(equationOf(fit, begin), chunk.count);
+    Eigen::MatrixXd A(chunk.count, p);
+    A.leftCols(geometry) = linearise(global, chunk, r_chunk).geometry;
+    for (size_t c = 0; c < params.size(); ++c) {
+      A.col(geometry + static_cast<Eigen::Index>(c)) = parameterColumn(global, chunk, r_chunk, params[c]);
+    }
+    slices[slice].add(A, r_chunk);
+  });
+  TallQr system(p);
+  for (const TallQr& slice : slices) system.add(slice);
+  if (model.masses_from_urdf) return system;
   for (size_t c = 0; c < params.size(); ++c) {
-    A.col(G.cols() + static_cast<Eigen::Index>(c)) = parameterColumn(model, fit, r, params[c]);
-  }
-  return A;
-}
-
-// Prior rows (value − 0)/σ for lumped self_weight parameters, appended to a linearised system.
-void addPriors(const DiagnosisModel& model, const PhysicalModel& global,
-               const std::vector<Parameter>& params, Eigen::MatrixXd& A, Eigen::VectorXd& r) {
-  if (model.masses_from_urdf) return;
-  const Eigen::Index geometry = A.cols() - static_cast<Eigen::Index>(params.size());
-  for (size_t c = 0; c < params.size(); ++c) {
-    const Parameter& p = params[c];
-    if (p.mechanism < 0 ||
-        global.mechanisms[static_cast<size_t>(p.mechanism)].kind != MechanismKind::kSelfWeight) {
+    const Parameter& q = params[c];
+    if (q.mechanism < 0 ||
+        global.mechanisms[static_cast<size_t>(q.mechanism)].kind != MechanismKind::kSelfWeight) {
       continue;
     }
     const double value =
-        global.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)];
-    A.conservativeResize(A.rows() + 1, Eigen::NoChange);
-    A.row(A.rows() - 1).setZero();
-    A(A.rows() - 1, geometry + static_cast<Eigen::Index>(c)) = 1.0 / kSelfWeightPriorSigma;
-    r.conservativeResize(r.size() + 1);
-    r(r.size() - 1) = -value / kSelfWeightPriorSigma;
+        global.mechanisms[static_cast<size_t>(q.mechanism)].parameters[static_cast<size_t>(q.index)];
+    Eigen::MatrixXd prior = Eigen::MatrixXd::Zero(1, p);
+    prior(0, geometry + static_cast<Eigen::Index>(c)) = 1.0 / kSelfWeightPriorSigma;
+    system.add(prior, Eigen::VectorXd::Constant(1, -value / kSelfWeightPriorSigma));
   }
+  return system;
 }
 
 }  // namespace
@@ -190,10 +194,7 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
   };
   for (int it = 0; it < iterations; ++it) {
     const std::vector<Parameter> params = parametersNow();
-    Eigen::MatrixXd A = jacobian(global, fit, out.r, params);
-    Eigen::VectorXd rhs = out.r;
-    addPriors(model, global, params, A, rhs);
-    const SvdSolution s = solveTruncated(A, rhs, kRankTolerance);
+    const SvdSolution s = solveReduced(linearSystem(model, global, fit, out.r, params), kRankTolerance);
     bool improved = false;
     for (double fraction = 1.0; fraction > 1e-3; fraction *= 0.5) {
       PhysicalModel candidate;
@@ -213,10 +214,7 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
   }
   // Covariance of the final linearisation: s² (AᵀA)⁺ in column-normalised coordinates.
   const std::vector<Parameter> params = parametersNow();
-  Eigen::MatrixXd A = jacobian(global, fit, out.r, params);
-  Eigen::VectorXd rhs = out.r;
-  addPriors(model, global, params, A, rhs);
-  const SvdSolution s = solveTruncated(A, rhs, kRankTolerance);
+  const SvdSolution s = solveReduced(linearSystem(model, global, fit, out.r, params), kRankTolerance);
   const double variance = out.cost / std::max(1, fit.count - s.rank);
   const int geometry = 6 * (global.chain_Tracker.dof() + 1);
   for (Mechanism& m : global.mechanisms) m.sigma.assign(m.parameters.size(), 0.0);

@@ -502,6 +502,31 @@ TEST(Cli, SimulateWritesHiddenEffectsIntoTheTruth) {
   EXPECT_EQ(truth.at("effects").at(1).at("ratio"), 0.002);
 }
 
+// stepcal simulate --station: the same robot measured from another tracker placement.
+TEST(Cli, SimulateAtAnotherStationMovesTheTrackerNotTheRobot) {
+  const fs::path home = scratch("station_0");
+  const fs::path moved = scratch("station_1");
+  const std::string common = " simulate --protocol geometry --seed 4 --out ";
+  ASSERT_EQ(run(kStepcal + common + home.string()).status, 0);
+  const CommandResult r = run(kStepcal + common + moved.string() + " --station 1");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json a = nlohmann::json::parse(readTextFile((home / "truth.json").string()));
+  const nlohmann::json b = nlohmann::json::parse(readTextFile((moved / "truth.json").string()));
+  EXPECT_EQ(a.at("options").at("station"), 0);
+  EXPECT_EQ(b.at("options").at("station"), 1);
+  EXPECT_NE(a.at("X_TrackerBase_m"), b.at("X_TrackerBase_m"));
+  EXPECT_EQ(a.at("initial_poses_m"), b.at("initial_poses_m"));
+  EXPECT_EQ(a.at("effects"), b.at("effects"));
+  EXPECT_NE(readCampaign(home.string()).rows[0].q_rad, readCampaign(moved.string()).rows[0].q_rad);
+
+  const CommandResult negative = run(kStepcal + common + scratch("station_bad").string() +
+                                     " --station -1");
+  EXPECT_EQ(negative.status, 2);
+  EXPECT_NE(negative.out.find("TwinOptions.station = -1; expected a tracker station >= 0"),
+            std::string::npos)
+      << negative.out;
+}
+
 TEST(Cli, SimulateWithASensorBiasOffsetsEveryReading) {
   const fs::path clean = scratch("clean");
   const fs::path biased = scratch("biased");

@@ -1,7 +1,8 @@
 // The simulated robot: reproducibility, the paper's protocol, the noiseless nominal case, the
 // compliance fixed point against its linearisation, the F/T reading, truth.json round trips,
 // noise statistics, the size of the errors an uncalibrated model would make, the temperature
-// profile, and every hidden mechanism against its closed form.
+// profile, every hidden mechanism against its closed form, and tracker stations (the same robot
+// measured from another tracker placement).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -1080,6 +1081,121 @@ TEST(Twin, EveryMechanismRoundTripsThroughTruthJson) {
     EXPECT_NE(std::string(e.what()).find("thermal_expansion is given twice"), std::string::npos)
         << e.what();
   }
+}
+
+
+// Where the tracker stands in base_link: the translation of X_BaseTracker, m.
+Vec3 p_TrackerInBase_m(const TwinRobot& robot) {
+  return robot.X_TrackerBase().inverse().translation();
+}
+
+TEST(Twin, AnotherStationIsTheSameRobotSeenFromElsewhere) {
+  TwinOptions o = paperOptions(12);
+  o.protocol = "geometry";
+  o.hidden_effects = selfWeightThermalAndBias();
+  for (const nlohmann::json& e : everyHiddenEffect()) o.hidden_effects.push_back(e);
+  std::vector<TwinOptions> options;
+  std::vector<TwinRobot> robots;
+  std::vector<Campaign> campaigns;
+  std::vector<nlohmann::json> truths(3);
+  for (int k = 0; k < 3; ++k) {
+    options.push_back(o);
+    options.back().station = k;
+    robots.emplace_back(options.back());
+    campaigns.push_back(simulateCampaign(options.back(), &truths[static_cast<size_t>(k)]));
+  }
+  const KinematicChain& chain_0 = robots[0].trueChain();
+  for (size_t k = 1; k < 3; ++k) {
+    SCOPED_TRACE("station " + std::to_string(k));
+    const TwinRobot& robot = robots[k];
+    const nlohmann::json& truth = truths[k];
+    // The same robot, exactly: geometry, joints, every mechanism.
+    const KinematicChain& chain = robot.trueChain();
+    ASSERT_EQ(chain.initialPoses().size(), chain_0.initialPoses().size());
+    for (size_t i = 0; i < chain.initialPoses().size(); ++i) {
+      EXPECT_EQ(chain.initialPoses()[i].matrix(), chain_0.initialPoses()[i].matrix()) << i;
+    }
+    ASSERT_EQ(chain.joints().size(), chain_0.joints().size());
+    for (size_t i = 0; i < chain.joints().size(); ++i) {
+      EXPECT_EQ(chain.joints()[i].twist_Local, chain_0.joints()[i].twist_Local) << i;
+    }
+    EXPECT_EQ(truth.at("effects"), truths[0].at("effects"));
+    EXPECT_EQ(truth.at("initial_pose_errors_m_rad"), truths[0].at("initial_pose_errors_m_rad"));
+    EXPECT_EQ(truth.at("options").at("station"), k);
+
+    // The tracker elsewhere: more than a few cm from every other station, within the placement
+    // (TwinOptions::tracker_distance_min_m).
+    const Vec3 p = p_TrackerInBase_m(robot);
+    for (size_t other = 0; other < k; ++other) {
+      EXPECT_GT((p - p_TrackerInBase_m(robots[other])).norm(), 0.05) << "station " << other;
+    }
+    const double distance_m = std::hypot(p.x(), p.y());
+    EXPECT_GE(distance_m, o.tracker_distance_min_m);
+    EXPECT_LE(distance_m, o.tracker_distance_max_m);
+    EXPECT_LE(std::abs(std::atan2(p.y(), p.x())), 60.0 * kDegToRad);
+    EXPECT_GE(p.z(), 0.8);
+    EXPECT_LE(p.z(), 1.6);
+    // Levelled: ±2° about x and y tilt its z axis by at most acos(cos² 2°) < √2 · 2°.
+    const Vec3 z_TrackerInBase = robot.X_TrackerBase().linear().transpose().col(2);
+    EXPECT_LE(std::acos(z_TrackerInBase.z()), std::sqrt(2.0) * 2.0 * kDegToRad);
+
+    // truth.json rebuilds the station's tracker.
+    const TwinRobot copy = TwinRobot::fromTruthJson(nlohmann::json::parse(truth.dump()));
+    EXPECT_EQ(copy.X_TrackerBase().matrix(), robot.X_TrackerBase().matrix());
+    EXPECT_EQ(copy.truthJson(), truth);
+
+    // Other poses, other noise: no row has another station's joint angles or temperature
+    // reading.
+    const Campaign& c = campaigns[k];
+    ASSERT_EQ(c.rows.size(), 130u);
+    for (size_t other = 0; other < k; ++other) {
+      const Campaign& d = campaigns[other];
+      ASSERT_EQ(d.rows.size(), c.rows.size());
+      int same_q = 0, same_temp = 0;
+      for (size_t i = 0; i < c.rows.size(); ++i) {
+        same_q += c.rows[i].q_rad == d.rows[i].q_rad;
+        same_temp += *c.rows[i].temp_c == *d.rows[i].temp_c;
+      }
+      EXPECT_EQ(same_q, 0) << "station " << other;
+      EXPECT_EQ(same_temp, 0) << "station " << other;
+    }
+    // Each row is the robot seen from this station, noise apart (6 σ).
+    for (size_t i = 0; i < c.rows.size(); i += 11) {
+      const Measurement& m = c.rows[i];
+      const Pose X_TrackerTip = robot.X_TrackerTip(m.q_rad, m.load_kg, defaultProfile_c(m.seq));
+      EXPECT_LT((m.p_TipInTracker_m - X_TrackerTip.translation()).norm(),
+                6 * o.tracker_position_sigma_m * std::sqrt(3.0))
+          << "row " << i;
+    }
+    // The random campaign's pose list is the station's own too.
+    EXPECT_NE(randomPoseList(options[k], 5, {0.0}).front().q_rad,
+              randomPoseList(options[0], 5, {0.0}).front().q_rad);
+  }
+}
+
+TEST(Twin, StationZeroIsTheSeedsOwnCampaignAndANegativeOneIsRefused) {
+  TwinOptions o = paperOptions(12);
+  o.protocol = "geometry";
+  TwinOptions zero = o;
+  zero.station = 0;
+  nlohmann::json truth_default, truth_zero;
+  const Campaign a = simulateCampaign(o, &truth_default);
+  const Campaign b = simulateCampaign(zero, &truth_zero);
+  expectSameRows(a, b, test::DoubleMatch::kSameBits);
+  EXPECT_EQ(truth_default, truth_zero);
+  EXPECT_EQ(truth_default.at("options").at("station"), 0);
+
+  o.station = -1;
+  try {
+    simulateCampaign(o, nullptr);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("TwinOptions.station = -1; expected a tracker station >= 0"),
+              std::string::npos)
+        << what;
+  }
+  EXPECT_THROW(TwinRobot{o}, InputError);
 }
 
 }  // namespace

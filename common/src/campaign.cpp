@@ -1094,4 +1094,58 @@ void writePoseList(const std::vector<PlannedMeasurement>& rows, const std::strin
   writeFile(path, text);
 }
 
+Campaign mergeCampaigns(std::vector<Campaign> campaigns) {
+  if (campaigns.empty()) throw InputError("no campaign to merge; expected at least one folder");
+  if (campaigns.size() == 1) return std::move(campaigns[0]);
+  Campaign merged = campaigns[0];
+  merged.rows.clear();
+  const Campaign& first = campaigns[0];
+  for (size_t k = 0; k < campaigns.size(); ++k) {
+    const Campaign& c = campaigns[k];
+    const auto differs = [&](const std::string& field, const std::string& mine,
+                             const std::string& theirs) {
+      throw InputError("campaign " + std::to_string(k + 1) + " has " + field + " " + mine +
+                           ", campaign 1 (" + first.directory + ") " + theirs +
+                           "; expected one robot measured in every campaign",
+                       c.directory + "/campaign.yaml", 0, field);
+    };
+    if (c.urdf_xml != first.urdf_xml) {
+      differs("robot", "'" + c.robot_file + "'", "'" + first.robot_file + "' with other contents");
+    }
+    if (c.base_link != first.base_link) differs("base_link", c.base_link, first.base_link);
+    if (c.tip_link != first.tip_link) differs("tip_link", c.tip_link, first.tip_link);
+    if (c.sensor_link != first.sensor_link) {
+      differs("sensor_link", "'" + c.sensor_link + "'", "'" + first.sensor_link + "'");
+    }
+    if (c.flange_link != first.flange_link) {
+      differs("flange_link", "'" + c.flange_link + "'", "'" + first.flange_link + "'");
+    }
+    if (c.joint_count != first.joint_count) {
+      differs("joints", std::to_string(c.joint_count), std::to_string(first.joint_count));
+    }
+    if (c.gravity_in_base.has_value() != first.gravity_in_base.has_value() ||
+        (c.gravity_in_base && (*c.gravity_in_base - *first.gravity_in_base).norm() > 1e-9)) {
+      differs("gravity", c.gravity_in_base ? "stated" : "not stated",
+              first.gravity_in_base ? "another or stated" : "not stated");
+    }
+    CampaignSession session{c.directory, c.tracker, merged.rows.size(), c.rows.size()};
+    merged.tracker.position_sigma_m =
+        std::max(merged.tracker.position_sigma_m, c.tracker.position_sigma_m);
+    merged.tracker.orientation_sigma_rad =
+        std::max(merged.tracker.orientation_sigma_rad, c.tracker.orientation_sigma_rad);
+    merged.tracker.stated = merged.tracker.stated || c.tracker.stated;
+    const bool same_columns = c.extra_columns == first.extra_columns;
+    if (!same_columns) merged.extra_columns.clear();
+    for (Measurement row : c.rows) {
+      row.session = static_cast<int>(k);
+      merged.rows.push_back(std::move(row));
+    }
+    merged.sessions.push_back(std::move(session));
+  }
+  if (merged.extra_columns.empty()) {
+    for (Measurement& row : merged.rows) row.extra.clear();
+  }
+  return merged;
+}
+
 }  // namespace stepcal

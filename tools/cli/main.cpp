@@ -123,6 +123,7 @@ struct SimulateArgs {
   std::string model;     ///< --model: the twin of a calibrated robot
   std::string campaign;  ///< --campaign: the rows the model's twin measures
   uint64_t seed = 1;
+  int station = 0;  ///< --station: the tracker's placement (TwinOptions::station)
   std::string out;
   double position_sigma_mm = 0.010;
   double orientation_sigma_deg = 0.005;
@@ -159,6 +160,7 @@ void runSimulate(const SimulateArgs& a) {
       twin::twinOptionsForRobot(robot.urdf_path, robot.base_link, robot.tip_link, robot.sensor_link);
   if (!a.protocol.empty()) options.protocol = a.protocol;
   options.seed = a.seed;
+  options.station = a.station;
   options.tracker_position_sigma_m = a.position_sigma_mm * 1e-3;
   options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kDegToRad;
   if (!a.stiffness_nm_per_rad.empty()) options.stiffness_nm_per_rad = a.stiffness_nm_per_rad;
@@ -372,11 +374,15 @@ trainer::CalibrationOptions calibrationOptions(int gpr_points) {
   return options;
 }
 
-void runCalibrate(const std::string& dir, const std::string& model_out,
+// One campaign, or several of one robot fitted together (mergeCampaigns): the first one's
+// tracker frame and tool are the model's.
+void runCalibrate(const std::vector<std::string>& dirs, const std::string& model_out,
                   const std::string& report_out, bool json, int gpr_points) {
   const trainer::CalibrationOptions options = calibrationOptions(gpr_points);
   InterruptNotice notice(outputs({report_out, model_out}));
-  const Campaign campaign = readCampaign(dir);
+  std::vector<Campaign> campaigns;
+  for (const std::string& dir : dirs) campaigns.push_back(readCampaign(dir));
+  const Campaign campaign = mergeCampaigns(std::move(campaigns));
   const trainer::CalibrationOutcome outcome = trainer::calibrateCampaign(campaign, options);
   if (!report_out.empty()) {
     notice.write(report_out, "report",
@@ -548,6 +554,11 @@ int main(int argc, char** argv) {
     model_option->excludes(simulate->get_option(robot_only));
   }
   simulate->add_option("--seed", sim.seed, "random seed")->capture_default_str();
+  simulate->add_option("--station", sim.station,
+                       "tracker station: 0 = the seed's own placement; k >= 1 = the same robot "
+                       "measured from another tracker placement, with its own poses and noise")
+      ->capture_default_str()
+      ->excludes(model_option);
   simulate->add_option("--tracker-position-sigma-mm", sim.position_sigma_mm,
                        "tracker position noise per axis, 1-sigma, mm (with --model: the "
                        "campaign's stated noise)")->capture_default_str();
@@ -614,10 +625,16 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   ipa->add_option("--out", ipa_out, "campaign folder to write")->required();
 
-  std::string campaign_dir, model_out;
+  std::vector<std::string> campaign_dirs;
+  std::string model_out;
   bool json = false;
   CLI::App* calibrate = app.add_subcommand("calibrate", "calibrate a campaign and print its accuracy tables");
-  calibrate->add_option("campaign", campaign_dir, "campaign folder (or its campaign.yaml)")->required();
+  calibrate
+      ->add_option("campaign", campaign_dirs,
+                   "campaign folder (or its campaign.yaml); several: one robot measured in several "
+                   "sessions (tracker stations, target remounted), fitted together, the first "
+                   "one's tracker frame and tool the model's")
+      ->required();
   calibrate->add_option("--out", model_out, "model file to write");
   calibrate->add_flag("--json", json, "print the report as JSON");
   std::string report_out;
@@ -702,7 +719,7 @@ int main(int argc, char** argv) {
                     ipa_out);
       std::cerr << "wrote " << ipa_out << "\n";
     } else if (*calibrate) {
-      runCalibrate(campaign_dir, model_out, report_out, json, gpr_points);
+      runCalibrate(campaign_dirs, model_out, report_out, json, gpr_points);
     } else if (*inspect) {
       const std::string bytes = readTextFile(inspect_model);
       std::cout << cli::formatModel(
@@ -724,7 +741,7 @@ int main(int argc, char** argv) {
       runSimulate(paper);
       std::cout << "simulated the paper's IRB4400 campaign (seed " << demo_seed << ") into "
                 << demo_out << "\n\n";
-      runCalibrate(demo_out, demo_out + "/model.stepcal", demo_out + "/report.html", false,
+      runCalibrate({demo_out}, demo_out + "/model.stepcal", demo_out + "/report.html", false,
                    trainer::CalibrationOptions{}.gpr_max_points);
     }
   } catch (const InputError& e) {

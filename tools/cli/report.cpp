@@ -40,6 +40,24 @@ std::vector<std::string> methodsOf(const std::vector<trainer::AccuracySummary>& 
   return methods;
 }
 
+// What a session of a merged campaign fitted: its frames against the first session's.
+struct SessionSummary {
+  Pose X_TrackerBase;        ///< base_link in its tracker as fitted (joint 1's frame error folded in)
+  double tool_offset_m = 0.0, tool_angle_rad = 0.0;  ///< its tool against session 1's
+};
+
+SessionSummary sessionSummary(const trainer::CalibrationOutcome& outcome, size_t k) {
+  const KinematicChain& mine = outcome.poe.sessions[k].chain_Tracker;
+  const KinematicChain& first = outcome.poe.sessions[0].chain_Tracker;
+  const int n = mine.dof();
+  SessionSummary out;
+  out.X_TrackerBase = mine.initialPose(0) * outcome.nominal_Base.initialPose(0).inverse();
+  const Pose X_FirstToolMyTool = first.initialPose(n).inverse() * mine.initialPose(n);
+  out.tool_offset_m = X_FirstToolMyTool.translation().norm();
+  out.tool_angle_rad = lie::logSO3(X_FirstToolMyTool.linear()).norm();
+  return out;
+}
+
 }  // namespace
 
 std::string formatReport(const Campaign& campaign, const trainer::CalibrationOutcome& outcome) {
@@ -71,6 +89,27 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
   out << "\n  unobservable combinations, kept at their nominal values ("
       << poe.observability.unobservable.size() << "):\n";
   for (const auto& u : poe.observability.unobservable) out << "    - " << u.description << "\n";
+  if (!campaign.sessions.empty()) {
+    out << campaign.sessions.size()
+        << " campaigns of one robot: joint frames and compliance shared, each campaign its own "
+           "tracker registration and tool (target):\n";
+    for (size_t k = 0; k < campaign.sessions.size(); ++k) {
+      const trainer::SessionFrames& frames = poe.sessions[k];
+      const SessionSummary summary = sessionSummary(outcome, k);
+      const Vec3 p = summary.X_TrackerBase.translation();
+      const Vec3 rpy = lie::rpyFromRotation(summary.X_TrackerBase.linear()) * kDeg;
+      out << format("  %zu %s: %zu rows, %d fit, rms %.4f mm; base in its tracker (%.4f, %.4f, "
+                    "%.4f) m, rpy (%.3f, %.3f, %.3f) deg",
+                    k + 1, campaign.sessions[k].directory.c_str(), campaign.sessions[k].row_count,
+                    frames.fit_rows, frames.rms_position_m * kMm, p.x(), p.y(), p.z(), rpy.x(),
+                    rpy.y(), rpy.z());
+      if (k > 0) {
+        out << format("; tool %.3f mm, %.4f deg from campaign 1's", summary.tool_offset_m * kMm,
+                      summary.tool_angle_rad * kDeg);
+      }
+      out << "\n";
+    }
+  }
 
   if (outcome.has_stiffness) {
     out << format("step 2, joint compliance: %d loaded/unloaded pairs, rms fit residual %.4f mm\n",
@@ -121,6 +160,10 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
   out << format("time: geometry %.3f s, stiffness %.3f s, GPR %.3f s\n", outcome.seconds_geometry,
                        outcome.seconds_stiffness, outcome.seconds_gpr);
   out << "\n" << formatAccuracyTable(outcome.accuracy);
+  for (size_t k = 0; k < outcome.session_accuracy.size(); ++k) {
+    out << "\ncampaign " << k + 1 << " (" << campaign.sessions[k].directory << ") alone, "
+        << formatAccuracyTable(outcome.session_accuracy[k]);
+  }
   out << "methods: nominal = nominal URDF, tracker registered (closed form); frames = tracker and "
          "tool frames fitted; poe = every initial pose fitted (step 1); +stiffness = joint compliance "
          "(step 2); +gpr = Gaussian process on the residual (step 3)\n";
@@ -306,7 +349,26 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
                    {"z_statistic", r.z_statistic},
                    {"taken", r.taken}});
   }
+  nlohmann::json sessions = nlohmann::json::array();
+  for (size_t k = 0; k < campaign.sessions.size(); ++k) {
+    const SessionSummary summary = sessionSummary(outcome, k);
+    const trainer::SessionFrames& frames = poe.sessions[k];
+    const Vec3 p = summary.X_TrackerBase.translation();
+    const Vec3 rpy = lie::rpyFromRotation(summary.X_TrackerBase.linear()) * kDeg;
+    nlohmann::json accuracy = nlohmann::json::array();
+    for (const auto& a : outcome.session_accuracy[k]) accuracy.push_back(summaryJson(a));
+    sessions.push_back({{"campaign", campaign.sessions[k].directory},
+                        {"rows", campaign.sessions[k].row_count},
+                        {"fit_rows", frames.fit_rows},
+                        {"fit_rms_position_mm", frames.rms_position_m * kMm},
+                        {"base_in_tracker_m", {p.x(), p.y(), p.z()}},
+                        {"base_in_tracker_rpy_deg", {rpy.x(), rpy.y(), rpy.z()}},
+                        {"tool_from_first_mm", summary.tool_offset_m * kMm},
+                        {"tool_from_first_deg", summary.tool_angle_rad * kDeg},
+                        {"accuracy", accuracy}});
+  }
   return {{"campaign", campaign.directory},
+          {"sessions", sessions},
           {"stiffness_nm_per_rad", stiffness},
           {"stiffness_validation", stiffness_validation},
           {"gpr", gpr},

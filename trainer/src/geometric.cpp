@@ -12,55 +12,117 @@
 namespace stepcal::trainer {
 namespace {
 
-// Weighted, linearised error model of all rows at the current chain: J δ ≈ r.
-struct LinearSystem {
-  Eigen::MatrixXd J;   // equations × active parameters, rows divided by σ
-  Eigen::VectorXd r;   // weighted residuals
-  IterationRecord stats;
+// Where each of a chain's 6(n+1) initial-pose parameters sits among the fit's unknowns: every
+// session has its own tracker registration T_{0,1} and tool T_{n,n+1}, the joint frames between
+// are shared. Columns: the sessions' T_{0,1}, then the shared frames, then the sessions' tools.
+class ParameterLayout {
+ public:
+  ParameterLayout(int dof, int sessions, GeometricScope scope)
+      : dof_(dof), sessions_(sessions), shared_(scope == GeometricScope::kFullPoe ? dof - 1 : 0) {}
+  int count() const { return 12 * sessions_ + 6 * shared_; }
+  int sessions() const { return sessions_; }
+  /// Column of chain parameter 6k + c in a session; −1: not fitted.
+  int column(int session, int parameter) const {
+    const int k = parameter / 6, c = parameter % 6;
+    if (k == 0) return 6 * session + c;
+    if (k == dof_) return 6 * sessions_ + 6 * shared_ + 6 * session + c;
+    return k <= shared_ ? 6 * sessions_ + 6 * (k - 1) + c : -1;
+  }
+  /// Every column of a chain parameter (one per session for the frames, one when shared).
+  std::vector<int> columns(int parameter) const {
+    std::vector<int> out;
+    for (int s = 0; s < sessions_; ++s) {
+      const int c = column(s, parameter);
+      if (c >= 0 && (out.empty() || out.back() != c)) out.push_back(c);
+    }
+    return out;
+  }
+  /// The session's chain parameters of a solution (0 where not fitted).
+  Eigen::VectorXd chainDelta(int session, const Eigen::VectorXd& x) const {
+    Eigen::VectorXd delta = Eigen::VectorXd::Zero(6 * (dof_ + 1));
+    for (int i = 0; i < delta.size(); ++i) {
+      if (const int c = column(session, i); c >= 0) delta(i) = x(c);
+    }
+    return delta;
+  }
+
+ private:
+  int dof_, sessions_, shared_;
 };
 
-LinearSystem linearise(const KinematicChain& chain, const std::vector<const Measurement*>& rows,
-                       const std::vector<int>& active, const TrackerNoise& noise) {
-  const int n = chain.dof();
+// Fit statistics of one session's rows.
+struct SessionStats {
+  double sum_p2 = 0.0, sum_r2 = 0.0;
+  int rows = 0, oriented = 0;
+};
+
+// Weighted, linearised error model of all sessions' rows at their current chains: J δ ≈ r.
+struct LinearSystem {
+  Eigen::MatrixXd J;   // equations × fitted parameters, rows divided by σ
+  Eigen::VectorXd r;   // weighted residuals
+  IterationRecord stats;
+  std::vector<SessionStats> sessions;
+};
+
+LinearSystem linearise(const std::vector<KinematicChain>& chains,
+                       const std::vector<GeometricSession>& sessions, const ParameterLayout& layout) {
+  const int n = chains[0].dof();
   int equations = 0;
-  for (const Measurement* row : rows) equations += row->has_orientation ? 6 : 3;
+  for (const GeometricSession& session : sessions) {
+    for (const Measurement* row : session.rows) equations += row->has_orientation ? 6 : 3;
+  }
   LinearSystem sys;
-  sys.J.setZero(equations, static_cast<Eigen::Index>(active.size()));
+  sys.J.setZero(equations, layout.count());
   sys.r.setZero(equations);
-  const double w_p = 1.0 / noise.position_sigma_m;
-  const double w_r = 1.0 / noise.orientation_sigma_rad;
+  sys.sessions.resize(sessions.size());
 
   ChainWorkspace ws;
   Eigen::Matrix<double, 6, Eigen::Dynamic> A(6, 6 * (n + 1));
-  double sum_p2 = 0.0, sum_r2 = 0.0;
-  int oriented = 0, eq = 0;
-  for (const Measurement* row : rows) {
-    forwardKinematics(chain, row->q_rad, ws);
-    parameterJacobian(chain, ws, A);
-    const Pose& X = tipPose(ws);
-    // Tip point velocity from the spatial twist: ṗ = v − p̂ ω.
-    const Eigen::Matrix<double, 3, Eigen::Dynamic> A_p =
-        A.topRows<3>() - lie::hat(X.translation()) * A.bottomRows<3>();
-    const Vec3 r_p = row->p_TipInTracker_m - X.translation();
-    sum_p2 += r_p.squaredNorm();
-    for (size_t c = 0; c < active.size(); ++c) sys.J.block<3, 1>(eq, c) = w_p * A_p.col(active[c]);
-    sys.r.segment<3>(eq) = w_p * r_p;
-    eq += 3;
-    if (row->has_orientation) {
-      const Vec3 r_R = lie::logSO3(row->q_TrackerTip.toRotationMatrix() * X.linear().transpose());
-      sum_r2 += r_R.squaredNorm();
-      ++oriented;
-      // log(exp(r̂)·exp(−ω̂)) ≈ r − Jr⁻¹(r) ω for the update exp(ω̂) on the model's rotation.
-      const Mat3 Jr_inv = lie::rightJacobianInverseSO3(r_R);
-      for (size_t c = 0; c < active.size(); ++c) {
-        sys.J.block<3, 1>(eq, c) = w_r * Jr_inv * A.block<3, 1>(3, active[c]);
-      }
-      sys.r.segment<3>(eq) = w_r * r_R;
+  std::vector<std::pair<int, int>> fitted;  // (chain parameter, column) of the session
+  int eq = 0;
+  for (size_t s = 0; s < sessions.size(); ++s) {
+    const KinematicChain& chain = chains[s];
+    const double w_p = 1.0 / sessions[s].noise.position_sigma_m;
+    const double w_r = 1.0 / sessions[s].noise.orientation_sigma_rad;
+    fitted.clear();
+    for (int i = 0; i < 6 * (n + 1); ++i) {
+      if (const int c = layout.column(static_cast<int>(s), i); c >= 0) fitted.emplace_back(i, c);
+    }
+    SessionStats& stats = sys.sessions[s];
+    for (const Measurement* row : sessions[s].rows) {
+      forwardKinematics(chain, row->q_rad, ws);
+      parameterJacobian(chain, ws, A);
+      const Pose& X = tipPose(ws);
+      // Tip point velocity from the spatial twist: ṗ = v − p̂ ω.
+      const Eigen::Matrix<double, 3, Eigen::Dynamic> A_p =
+          A.topRows<3>() - lie::hat(X.translation()) * A.bottomRows<3>();
+      const Vec3 r_p = row->p_TipInTracker_m - X.translation();
+      stats.sum_p2 += r_p.squaredNorm();
+      ++stats.rows;
+      for (const auto& [i, c] : fitted) sys.J.block<3, 1>(eq, c) = w_p * A_p.col(i);
+      sys.r.segment<3>(eq) = w_p * r_p;
       eq += 3;
+      if (row->has_orientation) {
+        const Vec3 r_R = lie::logSO3(row->q_TrackerTip.toRotationMatrix() * X.linear().transpose());
+        stats.sum_r2 += r_R.squaredNorm();
+        ++stats.oriented;
+        // log(exp(r̂)·exp(−ω̂)) ≈ r − Jr⁻¹(r) ω for the update exp(ω̂) on the model's rotation.
+        const Mat3 Jr_inv = lie::rightJacobianInverseSO3(r_R);
+        for (const auto& [i, c] : fitted) sys.J.block<3, 1>(eq, c) = w_r * Jr_inv * A.block<3, 1>(3, i);
+        sys.r.segment<3>(eq) = w_r * r_R;
+        eq += 3;
+      }
     }
   }
-  sys.stats.rms_position_m = std::sqrt(sum_p2 / static_cast<double>(rows.size()));
-  sys.stats.rms_orientation_rad = oriented > 0 ? std::sqrt(sum_r2 / oriented) : 0.0;
+  SessionStats all;
+  for (const SessionStats& s : sys.sessions) {
+    all.sum_p2 += s.sum_p2;
+    all.sum_r2 += s.sum_r2;
+    all.rows += s.rows;
+    all.oriented += s.oriented;
+  }
+  sys.stats.rms_position_m = std::sqrt(all.sum_p2 / static_cast<double>(all.rows));
+  sys.stats.rms_orientation_rad = all.oriented > 0 ? std::sqrt(all.sum_r2 / all.oriented) : 0.0;
   sys.stats.weighted_cost = sys.r.squaredNorm();
   return sys;
 }
@@ -92,22 +154,36 @@ std::string formatCombination(const Eigen::VectorXd& v, const std::vector<std::s
   return out.str();
 }
 
+// Names of the fit's unknowns: the chain's parameter names, a session's own frames prefixed
+// with its number when there are several.
+std::vector<std::string> unknownNames(const KinematicChain& chain, const ParameterLayout& layout) {
+  const std::vector<std::string> chain_names = parameterNames(chain);
+  std::vector<std::string> names(static_cast<size_t>(layout.count()));
+  for (int session = 0; session < layout.sessions(); ++session) {
+    for (size_t i = 0; i < chain_names.size(); ++i) {
+      const int c = layout.column(session, static_cast<int>(i));
+      if (c < 0) continue;
+      const bool own = layout.columns(static_cast<int>(i)).size() > 1;
+      names[static_cast<size_t>(c)] =
+          own ? "session " + std::to_string(session + 1) + " " + chain_names[i] : chain_names[i];
+    }
+  }
+  return names;
+}
+
 // Names the null space: first the model's structural redundancies (a rotation about and a
 // translation along each joint axis trade between the two initial poses beside the joint),
 // then whatever else the data leave unobserved, in reduced row-echelon form.
-Observability analyseObservability(const KinematicChain& chain, const std::vector<int>& active,
+Observability analyseObservability(const KinematicChain& chain, const ParameterLayout& layout,
                                    const SvdSolution& s) {
   Observability obs;
-  const Eigen::Index p = static_cast<Eigen::Index>(active.size());
+  const Eigen::Index p = layout.count();
   obs.parameter_count = static_cast<int>(p);
   obs.rank = s.rank;
   obs.condition_number = s.singular_values(0) / s.singular_values(std::max(s.rank - 1, 0));
   const Eigen::Index nullity = p - s.rank;
   if (nullity == 0) return obs;
   const Eigen::MatrixXd N = s.V.rightCols(nullity);  // scaled coordinates
-
-  std::vector<int> position_of(static_cast<size_t>(6 * (chain.dof() + 1)), -1);
-  for (size_t c = 0; c < active.size(); ++c) position_of[static_cast<size_t>(active[c])] = c;
 
   Eigen::MatrixXd accepted(p, 0);
   const int n = chain.dof();
@@ -123,14 +199,15 @@ Observability analyseObservability(const KinematicChain& chain, const std::vecto
       Eigen::VectorXd d = Eigen::VectorXd::Zero(p);
       const Vec6 after = -Ad_next_inv * twist;
       bool representable = true;
+      // A session's own frame beside the joint moves alike in every session.
       for (int c = 0; c < 6; ++c) {
-        const int a = position_of[static_cast<size_t>(6 * (i - 1) + c)];
-        const int b = position_of[static_cast<size_t>(6 * i + c)];
-        if ((a < 0 && std::abs(twist(c)) > 0) || (b < 0 && std::abs(after(c)) > 0)) {
+        const std::vector<int> a = layout.columns(6 * (i - 1) + c);
+        const std::vector<int> b = layout.columns(6 * i + c);
+        if ((a.empty() && std::abs(twist(c)) > 0) || (b.empty() && std::abs(after(c)) > 0)) {
           representable = false;
         }
-        if (a >= 0) d(a) += twist(c);
-        if (b >= 0) d(b) += after(c);
+        for (int column : a) d(column) += twist(c);
+        for (int column : b) d(column) += after(c);
       }
       if (!representable) continue;
       d = d.cwiseProduct(s.column_scale);
@@ -158,8 +235,7 @@ Observability analyseObservability(const KinematicChain& chain, const std::vecto
   Eigen::MatrixXd M = svd.matrixU().leftCols(rest).transpose();  // rest × p
   // Back to physical parameter units so the printed ratios are in m and rad.
   M = M * s.column_scale.asDiagonal();
-  std::vector<std::string> names_all = parameterNames(chain), names;
-  for (int a : active) names.push_back(names_all[static_cast<size_t>(a)]);
+  const std::vector<std::string> names = unknownNames(chain, layout);
   // Gauss–Jordan with the largest available pivot per row.
   std::vector<bool> used(static_cast<size_t>(p), false);
   for (Eigen::Index row = 0; row < M.rows(); ++row) {
@@ -209,25 +285,50 @@ GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
     throw InputError("geometric calibration needs at least 3 fit rows (set=geometry), got " +
                      std::to_string(rows.size()));
   }
-  GeometricResult result;
-  result.fit_rows = static_cast<int>(rows.size());
-  result.X_TrackerBase = registerTracker(nominal_Base, rows);
-  KinematicChain chain = nominal_Base.rerooted(result.X_TrackerBase);
-  Pose X_ToolCorrection = Pose::Identity();
-  X_ToolCorrection.linear() = registerToolRotation(chain, rows);
-  chain.setInitialPose(n, chain.initialPose(n) * X_ToolCorrection);
+  return calibrateGeometry(nominal_Base, std::vector<GeometricSession>{{rows, noise}}, options);
+}
 
-  std::vector<int> active;
-  for (int k = 0; k <= n; ++k) {
-    if (options.scope == GeometricScope::kFullPoe || k == 0 || k == n) {
-      for (int c = 0; c < 6; ++c) active.push_back(6 * k + c);
+GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
+                                  const std::vector<GeometricSession>& sessions,
+                                  const GeometricOptions& options) {
+  const int n = nominal_Base.dof();
+  if (sessions.empty()) throw InputError("geometric calibration needs at least one session");
+  for (size_t s = 0; s < sessions.size(); ++s) {
+    const std::string which = "session " + std::to_string(s + 1) + ": ";
+    for (const Measurement* row : sessions[s].rows) {
+      if (row->q_rad.size() != n) {
+        throw InputError(which + "row has " + std::to_string(row->q_rad.size()) +
+                             " joint angles but the robot chain has " + std::to_string(n),
+                         "measurements.csv", row->source_line);
+      }
+    }
+    if (sessions[s].rows.size() < 3) {
+      throw InputError(which + "geometric calibration needs at least 3 fit rows (set=geometry) "
+                       "to register its tracker, got " + std::to_string(sessions[s].rows.size()));
     }
   }
+  GeometricResult result;
+  std::vector<KinematicChain> chains;
+  for (const GeometricSession& session : sessions) {
+    SessionFrames frames;
+    frames.fit_rows = static_cast<int>(session.rows.size());
+    frames.X_TrackerBase = registerTracker(nominal_Base, session.rows);
+    KinematicChain chain = nominal_Base.rerooted(frames.X_TrackerBase);
+    Pose X_ToolCorrection = Pose::Identity();
+    X_ToolCorrection.linear() = registerToolRotation(chain, session.rows);
+    chain.setInitialPose(n, chain.initialPose(n) * X_ToolCorrection);
+    chains.push_back(std::move(chain));
+    result.fit_rows += frames.fit_rows;
+    result.sessions.push_back(std::move(frames));
+  }
+  result.X_TrackerBase = result.sessions[0].X_TrackerBase;
+  const ParameterLayout layout(n, static_cast<int>(sessions.size()), options.scope);
 
   double previous_cost = 0.0;
   SvdSolution last;
+  LinearSystem sys;
   for (int it = 0;; ++it) {
-    LinearSystem sys = linearise(chain, rows, active, noise);
+    sys = linearise(chains, sessions, layout);
     sys.stats.iteration = it;
     result.history.push_back(sys.stats);
     last = solveTruncated(sys.J, sys.r, options.rank_tolerance);
@@ -240,14 +341,21 @@ GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
       break;
     }
     if (it == options.max_iterations) break;
-    Eigen::VectorXd delta = Eigen::VectorXd::Zero(6 * (n + 1));
-    for (size_t c = 0; c < active.size(); ++c) delta(active[c]) = last.x(static_cast<Eigen::Index>(c));
-    chain = chain.corrected(delta);
+    for (size_t s = 0; s < chains.size(); ++s) {
+      chains[s] = chains[s].corrected(layout.chainDelta(static_cast<int>(s), last.x));
+    }
     result.iterations = it + 1;
     previous_cost = sys.stats.weighted_cost;
   }
-  result.chain_Tracker = chain;
-  result.observability = analyseObservability(chain, active, last);
+  for (size_t s = 0; s < chains.size(); ++s) {
+    SessionFrames& frames = result.sessions[s];
+    const SessionStats& stats = sys.sessions[s];
+    frames.rms_position_m = std::sqrt(stats.sum_p2 / static_cast<double>(stats.rows));
+    frames.rms_orientation_rad = stats.oriented > 0 ? std::sqrt(stats.sum_r2 / stats.oriented) : 0.0;
+    frames.chain_Tracker = chains[s];
+  }
+  result.chain_Tracker = chains[0];
+  result.observability = analyseObservability(chains[0], layout, last);
   return result;
 }
 

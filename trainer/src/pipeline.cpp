@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <ctime>
 #include <limits>
+#include <map>
 #include <memory>
 #include <set>
 #include <string>
@@ -28,13 +29,60 @@ PoseModel chainModel(const KinematicChain& chain_Tracker) {
   };
 }
 
-// Evaluates a method on every row: its per-row errors and its summaries.
+// The model of each session, chosen by the row's session (one session: its model).
+PoseModel bySession(std::vector<PoseModel> models) {
+  if (models.size() == 1) return std::move(models[0]);
+  return [models = std::move(models)](const Measurement& row) {
+    return models[static_cast<size_t>(row.session)](row);
+  };
+}
+
+PoseModel chainModel(const std::vector<SessionFrames>& sessions) {
+  std::vector<PoseModel> models;
+  for (const SessionFrames& s : sessions) models.push_back(chainModel(s.chain_Tracker));
+  return bySession(std::move(models));
+}
+
+// Evaluates a method on every row: its per-row errors and its summaries, over every row and,
+// when the campaign merges several, over each session's rows.
 void evaluate(CalibrationOutcome& out, const std::string& method, const PoseModel& model,
-              const std::vector<Measurement>& rows) {
-  std::vector<RowError> errors = rowErrors(model, rows);
-  const std::vector<AccuracySummary> summaries = summarize(method, rows, errors);
+              const Campaign& campaign) {
+  std::vector<RowError> errors = rowErrors(model, campaign.rows);
+  const std::vector<AccuracySummary> summaries = summarize(method, campaign.rows, errors);
   out.accuracy.insert(out.accuracy.end(), summaries.begin(), summaries.end());
+  out.session_accuracy.resize(campaign.sessions.size());
+  for (size_t k = 0; k < campaign.sessions.size(); ++k) {
+    const CampaignSession& session = campaign.sessions[k];
+    const auto first = static_cast<std::ptrdiff_t>(session.first_row);
+    const auto last = first + static_cast<std::ptrdiff_t>(session.row_count);
+    const std::vector<Measurement> rows(campaign.rows.begin() + first, campaign.rows.begin() + last);
+    const std::vector<RowError> own(errors.begin() + first, errors.begin() + last);
+    const std::vector<AccuracySummary> mine = summarize(method, rows, own);
+    out.session_accuracy[k].insert(out.session_accuracy[k].end(), mine.begin(), mine.end());
+  }
   out.row_errors.emplace_back(method, std::move(errors));
+}
+
+// Modelled vs measured deflections of several sessions' pairs, per load over all of them.
+std::vector<StiffnessValidation> mergedByLoad(const std::vector<std::vector<StiffnessValidation>>& parts) {
+  std::map<double, StiffnessValidation> by_load;
+  for (const std::vector<StiffnessValidation>& part : parts) {
+    for (const StiffnessValidation& v : part) {
+      StiffnessValidation& m = by_load[v.load_kg];
+      m.load_kg = v.load_kg;
+      m.mean_deviation_pct += v.mean_deviation_pct * v.pairs;
+      m.mean_deflection_m += v.mean_deflection_m * v.pairs;
+      m.max_deviation_pct = std::max(m.max_deviation_pct, v.max_deviation_pct);
+      m.pairs += v.pairs;
+    }
+  }
+  std::vector<StiffnessValidation> out;
+  for (auto& [load, m] : by_load) {
+    m.mean_deviation_pct /= m.pairs;
+    m.mean_deflection_m /= m.pairs;
+    out.push_back(m);
+  }
+  return out;
 }
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
@@ -146,13 +194,22 @@ Eigen::VectorXd gprInput(const Measurement& row) {
 
 namespace {
 
-// The stiffness rows and the unloaded geometry rows of their poses: a planned campaign
+// A session's rows among rows.
+std::vector<const Measurement*> ofSession(const std::vector<const Measurement*>& rows, int session) {
+  std::vector<const Measurement*> out;
+  for (const Measurement* row : rows) {
+    if (row->session == session) out.push_back(row);
+  }
+  return out;
+}
+
+// A session's stiffness rows and the unloaded geometry rows of their poses: a planned campaign
 // (readPoseList) measures each pose once unloaded, for step 1 and as the loads' reference.
-std::vector<const Measurement*> stiffnessPairRows(const Campaign& campaign) {
-  std::vector<const Measurement*> rows = campaign.rowsIn(RowSet::kStiffness);
+std::vector<const Measurement*> stiffnessPairRows(const Campaign& campaign, int session) {
+  std::vector<const Measurement*> rows = ofSession(campaign.rowsIn(RowSet::kStiffness), session);
   std::set<std::string> loaded_poses;
   for (const Measurement* row : rows) loaded_poses.insert(row->pose_id);
-  for (const Measurement* row : campaign.rowsIn(RowSet::kGeometry)) {
+  for (const Measurement* row : ofSession(campaign.rowsIn(RowSet::kGeometry), session)) {
     if (row->load_kg == 0.0 && loaded_poses.count(row->pose_id) > 0) rows.push_back(row);
   }
   return rows;
@@ -165,31 +222,51 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
   auto clock = std::chrono::steady_clock::now();
   out.nominal_Base = campaignChain(campaign, &out.sensor_frame);
   const std::vector<const Measurement*> fit = campaign.rowsIn(RowSet::kGeometry);
-  if (fit.empty()) {
-    throw InputError("no row has set=geometry; step 1 needs unloaded geometry rows to fit on",
-                     campaign.directory + "/" + campaign.measurements_file);
+  const int session_count = campaign.sessionCount();
+  std::vector<GeometricSession> sessions;
+  for (int k = 0; k < session_count; ++k) {
+    sessions.push_back({ofSession(fit, k), campaign.trackerOf(k)});
+    if (sessions.back().rows.empty()) {
+      throw InputError("no row has set=geometry; step 1 needs unloaded geometry rows to fit on" +
+                           std::string(session_count > 1 ? " (and to register this campaign's "
+                                                           "tracker in a multi-campaign fit)"
+                                                         : ""),
+                       campaign.directoryOf(k) + "/" + campaign.measurements_file);
+    }
   }
-  out.X_TrackerBase_nominal = registerTracker(out.nominal_Base, fit);
+  out.X_TrackerBase_nominal = registerTracker(out.nominal_Base, sessions[0].rows);
   GeometricOptions frames_options = options.geometric;
   frames_options.scope = GeometricScope::kFramesOnly;
-  out.frames = calibrateGeometry(out.nominal_Base, fit, campaign.tracker, frames_options);
+  out.frames = calibrateGeometry(out.nominal_Base, sessions, frames_options);
   GeometricOptions poe_options = options.geometric;
   poe_options.scope = GeometricScope::kFullPoe;
-  out.poe = calibrateGeometry(out.nominal_Base, fit, campaign.tracker, poe_options);
+  out.poe = calibrateGeometry(out.nominal_Base, sessions, poe_options);
   out.seconds_geometry = secondsSince(clock);
 
-  // Step 2 where the campaign has loaded/unloaded pairs and a sensor.
+  // Step 2 where the campaign has loaded/unloaded pairs and a sensor: one compliance for the
+  // robot from every session's pairs, each seen through its own frames.
   clock = std::chrono::steady_clock::now();
   const KinematicChain& chain = out.poe.chain_Tracker;
-  const std::vector<DeflectionPair> stiffness_pairs = deflectionPairs(stiffnessPairRows(campaign));
+  std::vector<StiffnessSession> stiffness_sessions;
+  size_t pair_count = 0;
+  for (int k = 0; k < session_count; ++k) {
+    stiffness_sessions.push_back({&out.poe.sessions[static_cast<size_t>(k)].chain_Tracker,
+                                  deflectionPairs(stiffnessPairRows(campaign, k)),
+                                  campaign.trackerOf(k)});
+    pair_count += stiffness_sessions.back().pairs.size();
+  }
   JointVector compliance = JointVector::Zero(chain.dof());
-  if (!stiffness_pairs.empty() && out.sensor_frame >= 0) {
-    out.stiffness = identifyCompliance(chain, out.sensor_frame, stiffness_pairs, campaign.tracker,
-                                       options.stiffness);
+  if (pair_count > 0 && out.sensor_frame >= 0) {
+    out.stiffness = identifyCompliance(stiffness_sessions, out.sensor_frame, options.stiffness);
     out.has_stiffness = true;
     compliance = out.stiffness.compliance_rad_per_nm;
-    out.stiffness_validation = validateCompliance(
-        chain, out.sensor_frame, compliance, deflectionPairs(campaign.rowsIn(RowSet::kValidation)));
+    std::vector<std::vector<StiffnessValidation>> validation;
+    for (int k = 0; k < session_count; ++k) {
+      validation.push_back(validateCompliance(
+          *stiffness_sessions[static_cast<size_t>(k)].chain_Tracker, out.sensor_frame, compliance,
+          deflectionPairs(ofSession(campaign.rowsIn(RowSet::kValidation), k))));
+    }
+    out.stiffness_validation = session_count == 1 ? validation[0] : mergedByLoad(validation);
   }
   out.seconds_stiffness = secondsSince(clock);
 
@@ -201,28 +278,35 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
     residual_rows = fit;
     residual_set = "geometry";
   }
-  const PoseModel poe_model = chainModel(chain);
-  PhysicalModel physical_parts;
-  physical_parts.chain_Tracker = chain;
-  physical_parts.sensor_frame = out.sensor_frame;
-  physical_parts.compliance_rad_per_nm = compliance;
-  const PoseModel physical = out.has_stiffness ? physicalPoseModel(physical_parts) : poe_model;
+  const PoseModel poe_model = chainModel(out.poe.sessions);
+  std::vector<PoseModel> physical_sessions;
+  for (const SessionFrames& session : out.poe.sessions) {
+    PhysicalModel parts;
+    parts.chain_Tracker = session.chain_Tracker;
+    parts.sensor_frame = out.sensor_frame;
+    parts.compliance_rad_per_nm = compliance;
+    physical_sessions.push_back(physicalPoseModel(std::move(parts)));
+  }
+  const PoseModel physical = out.has_stiffness ? bySession(std::move(physical_sessions)) : poe_model;
   out.gpr = fitResidual(physical, residual_rows, residual_set, campaign.tracker, options);
   if (out.has_stiffness) {
     out.gpr_baseline = fitResidual(poe_model, residual_rows, residual_set, campaign.tracker, options);
   }
   out.seconds_gpr = secondsSince(clock);
 
-  evaluate(out, kMethodNominal, chainModel(out.nominal_Base.rerooted(out.X_TrackerBase_nominal)),
-           campaign.rows);
-  evaluate(out, kMethodFrames, chainModel(out.frames.chain_Tracker), campaign.rows);
-  evaluate(out, kMethodPoe, poe_model, campaign.rows);
+  std::vector<PoseModel> nominal;
+  for (const SessionFrames& session : out.poe.sessions) {
+    nominal.push_back(chainModel(out.nominal_Base.rerooted(session.X_TrackerBase)));
+  }
+  evaluate(out, kMethodNominal, bySession(std::move(nominal)), campaign);
+  evaluate(out, kMethodFrames, chainModel(out.frames.sessions), campaign);
+  evaluate(out, kMethodPoe, poe_model, campaign);
   if (out.has_stiffness) {
-    evaluate(out, kMethodPoeStiffness, physical, campaign.rows);
-    evaluate(out, kMethodPoeGpr, withResidual(poe_model, *out.gpr_baseline), campaign.rows);
-    evaluate(out, kMethodPoeStiffnessGpr, withResidual(physical, *out.gpr), campaign.rows);
+    evaluate(out, kMethodPoeStiffness, physical, campaign);
+    evaluate(out, kMethodPoeGpr, withResidual(poe_model, *out.gpr_baseline), campaign);
+    evaluate(out, kMethodPoeStiffnessGpr, withResidual(physical, *out.gpr), campaign);
   } else {
-    evaluate(out, kMethodPoeGpr, withResidual(poe_model, *out.gpr), campaign.rows);
+    evaluate(out, kMethodPoeGpr, withResidual(poe_model, *out.gpr), campaign);
   }
   out.floor_position_m = noiseFloorMean(campaign.tracker.position_sigma_m);
   out.floor_orientation_rad = noiseFloorMean(campaign.tracker.orientation_sigma_rad);

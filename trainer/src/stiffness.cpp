@@ -31,10 +31,12 @@ JointVector pairTorques(const KinematicChain& chain, int sensor_frame, const Def
 }  // namespace
 
 std::vector<DeflectionPair> deflectionPairs(const std::vector<const Measurement*>& rows) {
-  std::map<std::string, std::vector<const Measurement*>> by_pose;
-  for (const Measurement* row : rows) by_pose[row->pose_id].push_back(row);
+  // A pose is its pose_id within its session: merged campaigns may use the same names.
+  std::map<std::pair<int, std::string>, std::vector<const Measurement*>> by_pose;
+  for (const Measurement* row : rows) by_pose[{row->session, row->pose_id}].push_back(row);
   std::vector<DeflectionPair> pairs;
-  for (const auto& [pose_id, group] : by_pose) {
+  for (const auto& [key, group] : by_pose) {
+    const std::string& pose_id = key.second;
     const Measurement* unloaded = nullptr;
     for (const Measurement* row : group) {
       if (row->load_kg != 0.0) continue;
@@ -60,7 +62,7 @@ std::vector<DeflectionPair> deflectionPairs(const std::vector<const Measurement*
     }
   }
   std::sort(pairs.begin(), pairs.end(), [](const DeflectionPair& a, const DeflectionPair& b) {
-    return a.loaded->seq < b.loaded->seq;
+    return std::pair(a.loaded->session, a.loaded->seq) < std::pair(b.loaded->session, b.loaded->seq);
   });
   return pairs;
 }
@@ -68,8 +70,17 @@ std::vector<DeflectionPair> deflectionPairs(const std::vector<const Measurement*
 StiffnessResult identifyCompliance(const KinematicChain& chain_Tracker, int sensor_frame,
                                    const std::vector<DeflectionPair>& pairs,
                                    const TrackerNoise& noise, const StiffnessOptions& options) {
-  const int n = chain_Tracker.dof();
-  if (pairs.empty()) {
+  return identifyCompliance(std::vector<StiffnessSession>{{&chain_Tracker, pairs, noise}},
+                            sensor_frame, options);
+}
+
+StiffnessResult identifyCompliance(const std::vector<StiffnessSession>& sessions, int sensor_frame,
+                                   const StiffnessOptions& options) {
+  const KinematicChain& first_chain = *sessions.at(0).chain_Tracker;
+  const int n = first_chain.dof();
+  size_t pair_count = 0;
+  for (const StiffnessSession& session : sessions) pair_count += session.pairs.size();
+  if (pair_count == 0) {
     throw InputError("no loaded/unloaded pair among the stiffness rows; step 2 needs each "
                      "stiffness pose measured unloaded and loaded under one pose_id");
   }
@@ -78,22 +89,24 @@ StiffnessResult identifyCompliance(const KinematicChain& chain_Tracker, int sens
   }
   ChainWorkspace ws;
   Jacobian J_s, J_tip;
-  std::vector<JointVector> torques;
+  std::vector<JointVector> torques;  // per pair, sessions in order
   JointVector max_torque = JointVector::Zero(n);
-  for (const DeflectionPair& p : pairs) {
-    if (!p.loaded->has_wrench) {
-      throw InputError("loaded row has no wrench; step 2 needs the F/T sensor reading",
-                       "measurements.csv", p.loaded->source_line, "fx_n");
+  for (const StiffnessSession& session : sessions) {
+    for (const DeflectionPair& p : session.pairs) {
+      if (!p.loaded->has_wrench) {
+        throw InputError("loaded row has no wrench; step 2 needs the F/T sensor reading",
+                         "measurements.csv", p.loaded->source_line, "fx_n");
+      }
+      torques.push_back(pairTorques(*session.chain_Tracker, sensor_frame, p, ws, J_s));
+      max_torque = max_torque.cwiseMax(torques.back().cwiseAbs());
     }
-    torques.push_back(pairTorques(chain_Tracker, sensor_frame, p, ws, J_s));
-    max_torque = max_torque.cwiseMax(torques.back().cwiseAbs());
   }
   StiffnessResult result;
-  result.pairs = static_cast<int>(pairs.size());
+  result.pairs = static_cast<int>(pair_count);
   std::vector<int> excited;
   for (int j = 0; j < n; ++j) {
     JointCompliance jc;
-    jc.joint = chain_Tracker.joints()[static_cast<size_t>(j)].name;
+    jc.joint = first_chain.joints()[static_cast<size_t>(j)].name;
     jc.max_torque_nm = max_torque(j);
     if (max_torque(j) > 0.0) excited.push_back(j);
     result.joints.push_back(jc);
@@ -101,30 +114,37 @@ StiffnessResult identifyCompliance(const KinematicChain& chain_Tracker, int sens
 
   // Weighted system: a deflection is the difference of two measurements, hence √2·σ.
   int equations = 0;
-  for (const DeflectionPair& p : pairs) {
-    equations += p.loaded->has_orientation && p.unloaded->has_orientation ? 6 : 3;
+  for (const StiffnessSession& session : sessions) {
+    for (const DeflectionPair& p : session.pairs) {
+      equations += p.loaded->has_orientation && p.unloaded->has_orientation ? 6 : 3;
+    }
   }
-  const double w_p = 1.0 / (std::sqrt(2.0) * noise.position_sigma_m);
-  const double w_r = 1.0 / (std::sqrt(2.0) * noise.orientation_sigma_rad);
   Eigen::MatrixXd B_all = Eigen::MatrixXd::Zero(equations, n);
   Eigen::VectorXd y = Eigen::VectorXd::Zero(equations);
+  std::vector<double> position_weight;  // per pair, 1/m
   int eq = 0;
-  for (size_t i = 0; i < pairs.size(); ++i) {
-    const DeflectionPair& p = pairs[i];
-    forwardKinematics(chain_Tracker, p.loaded->q_rad, ws);
-    tipPointJacobian(chain_Tracker, ws, J_tip);
-    for (int j = 0; j < n; ++j) {
-      B_all.block(eq, j, 3, 1) = w_p * J_tip.block<3, 1>(0, j) * torques[i](j);
-    }
-    y.segment<3>(eq) = w_p * (p.loaded->p_TipInTracker_m - p.unloaded->p_TipInTracker_m);
-    eq += 3;
-    if (p.loaded->has_orientation && p.unloaded->has_orientation) {
+  size_t i = 0;
+  for (const StiffnessSession& session : sessions) {
+    const double w_p = 1.0 / (std::sqrt(2.0) * session.noise.position_sigma_m);
+    const double w_r = 1.0 / (std::sqrt(2.0) * session.noise.orientation_sigma_rad);
+    for (const DeflectionPair& p : session.pairs) {
+      forwardKinematics(*session.chain_Tracker, p.loaded->q_rad, ws);
+      tipPointJacobian(*session.chain_Tracker, ws, J_tip);
       for (int j = 0; j < n; ++j) {
-        B_all.block(eq, j, 3, 1) = w_r * J_tip.block<3, 1>(3, j) * torques[i](j);
+        B_all.block(eq, j, 3, 1) = w_p * J_tip.block<3, 1>(0, j) * torques[i](j);
       }
-      y.segment<3>(eq) = w_r * lie::logSO3(p.loaded->q_TrackerTip.toRotationMatrix() *
-                                           p.unloaded->q_TrackerTip.toRotationMatrix().transpose());
+      y.segment<3>(eq) = w_p * (p.loaded->p_TipInTracker_m - p.unloaded->p_TipInTracker_m);
       eq += 3;
+      if (p.loaded->has_orientation && p.unloaded->has_orientation) {
+        for (int j = 0; j < n; ++j) {
+          B_all.block(eq, j, 3, 1) = w_r * J_tip.block<3, 1>(3, j) * torques[i](j);
+        }
+        y.segment<3>(eq) = w_r * lie::logSO3(p.loaded->q_TrackerTip.toRotationMatrix() *
+                                             p.unloaded->q_TrackerTip.toRotationMatrix().transpose());
+        eq += 3;
+      }
+      position_weight.push_back(w_p);
+      ++i;
     }
   }
 
@@ -177,11 +197,15 @@ StiffnessResult identifyCompliance(const KinematicChain& chain_Tracker, int sens
   }
   double sum_p2 = 0.0;
   eq = 0;
-  for (const DeflectionPair& p : pairs) {
-    sum_p2 += residual.segment<3>(eq).squaredNorm() / (w_p * w_p);
-    eq += p.loaded->has_orientation && p.unloaded->has_orientation ? 6 : 3;
+  i = 0;
+  for (const StiffnessSession& session : sessions) {
+    for (const DeflectionPair& p : session.pairs) {
+      sum_p2 += residual.segment<3>(eq).squaredNorm() / (position_weight[i] * position_weight[i]);
+      eq += p.loaded->has_orientation && p.unloaded->has_orientation ? 6 : 3;
+      ++i;
+    }
   }
-  result.rms_position_residual_m = std::sqrt(sum_p2 / static_cast<double>(pairs.size()));
+  result.rms_position_residual_m = std::sqrt(sum_p2 / static_cast<double>(pair_count));
   return result;
 }
 

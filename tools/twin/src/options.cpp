@@ -119,6 +119,11 @@ void validateOptions(const TwinOptions& options, const KinematicChain& nominal) 
       }
     }
   }
+  if (options.station < 0) {
+    throw InputError("TwinOptions.station = " + std::to_string(options.station) +
+                     "; expected a tracker station >= 0 (hint: 0 is the seed's own tracker "
+                     "placement, k >= 1 the same robot measured from another one)");
+  }
   if (options.min_link_height_m && !std::isfinite(*options.min_link_height_m)) {
     throw InputError("TwinOptions.min_link_height_m = " + show(*options.min_link_height_m) +
                      "; expected a finite height above the floor, m, or unset");
@@ -218,6 +223,7 @@ nlohmann::json toJson(const TwinOptions& o) {
       {"planned_fit_rows", o.planned_fit_rows.size()},
       {"noiseless_validation", o.noiseless_validation},
       {"seed", o.seed},
+      {"station", o.station},
       {"tracker_position_sigma_m", o.tracker_position_sigma_m},
       {"tracker_orientation_sigma_rad", o.tracker_orientation_sigma_rad},
       {"ft_force_sigma_n", o.ft_force_sigma_n},

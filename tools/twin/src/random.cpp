@@ -1,12 +1,16 @@
 #include "random.hpp"
 
 #include <cmath>
+#include <vector>
 
 namespace stepcal::twin {
 
-Rng::Rng(uint64_t seed, Stream stream) {
-  std::seed_seq seq{static_cast<uint32_t>(seed & 0xffffffffu),
-                    static_cast<uint32_t>(seed >> 32), static_cast<uint32_t>(stream)};
+Rng::Rng(uint64_t seed, Stream stream, uint32_t station) {
+  std::vector<uint32_t> words = {static_cast<uint32_t>(seed & 0xffffffffu),
+                                 static_cast<uint32_t>(seed >> 32), static_cast<uint32_t>(stream)};
+  // Station 0 keeps its three words; a fourth makes station k's sequences none of station 0's.
+  if (station > 0) words.push_back(station);
+  std::seed_seq seq(words.begin(), words.end());
   engine_.seed(seq);
 }
 

@@ -16,12 +16,15 @@ enum class Stream : uint32_t {
   kNoise = 3,
   kRandomPoseList = 4,
   kModelTwinNoise = 5,  ///< the twin of a calibrated robot (model_twin.hpp)
+  kStation = 6,         ///< where tracker station k >= 1 stands (TwinOptions::station)
 };
 
 /// std::mt19937_64 with platform-independent uniform and normal variates.
 class Rng {
  public:
-  Rng(uint64_t seed, Stream stream);
+  /// The stream of one seed at tracker station `station` (TwinOptions::station): station 0 is
+  /// the seed's own; each station k >= 1 has one of its own, independent of every other's.
+  Rng(uint64_t seed, Stream stream, uint32_t station = 0);
   /// Uniform in [lo, hi).
   double uniform(double lo, double hi);
   /// Standard normal (Box–Muller).

@@ -131,7 +131,8 @@ Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out)
     rows_to_measure.push_back({row.pose_id, row.load_kg == 0.0 ? RowSet::kGeometry : RowSet::kStiffness,
                        row.load_kg, row.q_rad});
   }
-  Rng pose_rng(options.seed, Stream::kPoses);
+  const auto station = static_cast<uint32_t>(options.station);
+  Rng pose_rng(options.seed, Stream::kPoses, station);
   for (const Block& block : protocolBlocks(options.protocol)) {
     std::vector<JointVector> poses;
     for (int i = 0; i < block.poses; ++i) poses.push_back(drawPose(pose_rng, nominal, options));
@@ -144,7 +145,7 @@ Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out)
     }
   }
 
-  Rng noise_rng(options.seed, Stream::kNoise);
+  Rng noise_rng(options.seed, Stream::kNoise, station);
   int64_t seq = 1;
   for (const RowToMeasure& row : rows_to_measure) {
     const JointVector& q = row.q;
@@ -198,7 +199,7 @@ std::vector<PlannedMeasurement> randomPoseList(const TwinOptions& options, int p
   const std::string path = resolvedUrdfPath(options);
   const KinematicChain nominal = nominalChain(readTextFile(path), options, path);
   validateOptions(options, nominal);
-  Rng rng(options.seed, Stream::kRandomPoseList);
+  Rng rng(options.seed, Stream::kRandomPoseList, static_cast<uint32_t>(options.station));
   std::vector<JointVector> drawn;
   for (int i = 0; i < poses; ++i) drawn.push_back(drawPose(rng, nominal, options));
   std::vector<double> loads = loads_kg;

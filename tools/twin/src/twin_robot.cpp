@@ -62,9 +62,14 @@ TwinRobot::TwinRobot(const TwinOptions& options) {
   const KinematicChain nominal = nominalChain(readTextFile(path), options, path);
   validateOptions(options, nominal);
 
-  // Draw order is part of the format: the tracker first, then the initial poses.
+  // Draw order is part of the format: the tracker first, then the initial poses. Station 0's
+  // tracker is drawn at every station, so that every station has the same robot.
   Rng rng(options.seed, Stream::kTruth);
   X_TrackerBase_ = drawTrackerBase(rng, options);
+  if (options.station > 0) {
+    Rng station_rng(options.seed, Stream::kStation, static_cast<uint32_t>(options.station));
+    X_TrackerBase_ = drawTrackerBase(station_rng, options);
+  }
   chain_ = nominal;
   const int n = nominal.dof();
   geometric_errors_.assign(static_cast<size_t>(n + 1), Vec6::Zero());

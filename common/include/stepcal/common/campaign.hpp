@@ -35,6 +35,7 @@ struct Measurement {
   std::optional<double> temp_c;     ///< temperature, °C
   std::vector<std::string> extra;   ///< values of unknown columns, kept verbatim
   int source_line = 0;              ///< line in measurements.csv (1 = header), for messages
+  int session = 0;                  ///< index in Campaign::sessions of the campaign it came from
 
   /// Measured pose X_TrackerTip (identity rotation when has_orientation is false).
   Pose X_TrackerTip() const;
@@ -47,6 +48,14 @@ struct TrackerNoise {
   double position_sigma_m = 15e-6;      ///< per axis, m
   double orientation_sigma_rad = 1.7453292519943295e-4;  ///< per axis, rad (0.01°)
   bool stated = false;                  ///< false: the campaign gave no tracker block
+};
+
+/// One of several campaigns of one robot merged into one (mergeCampaigns): a session measured
+/// from its own tracker station, perhaps with the target remounted.
+struct CampaignSession {
+  std::string directory;  ///< folder it was read from
+  TrackerNoise tracker;   ///< its tracker's stated noise
+  size_t first_row = 0, row_count = 0;  ///< its rows in Campaign::rows
 };
 
 /// A whole campaign: description, robot and rows.
@@ -66,6 +75,19 @@ struct Campaign {
   int joint_count = 0;                  ///< N of the q1_deg … qN_deg columns
   std::vector<std::string> extra_columns;  ///< unknown column names, in file order
   std::vector<Measurement> rows;        ///< in file order
+  /// The campaigns merged into this one, in order; empty: one campaign, every row session 0.
+  std::vector<CampaignSession> sessions;
+
+  /// Number of sessions: 1 for a campaign read from one folder.
+  int sessionCount() const { return sessions.empty() ? 1 : static_cast<int>(sessions.size()); }
+  /// The tracker noise of a session's rows.
+  const TrackerNoise& trackerOf(int session) const {
+    return sessions.empty() ? tracker : sessions[static_cast<size_t>(session)].tracker;
+  }
+  /// The folder of a session's campaign.
+  const std::string& directoryOf(int session) const {
+    return sessions.empty() ? directory : sessions[static_cast<size_t>(session)].directory;
+  }
 
   /// Rows of one set, in file order.
   std::vector<const Measurement*> rowsIn(RowSet set) const;
@@ -91,6 +113,13 @@ void writePoseList(const std::vector<PlannedMeasurement>& rows, const std::strin
 
 /// Reads a campaign folder (or the path of its campaign.yaml). Throws InputError.
 Campaign readCampaign(const std::string& path);
+
+/// Several campaigns of one robot as one: rows in order, each with its session; the first
+/// campaign's folder, robot and links; its tracker block the largest stated noise of them (the
+/// rows keep their own, trackerOf). Unknown columns are kept only when every campaign has the same.
+/// One campaign is returned as it is. Throws InputError naming the campaign and the field that
+/// differs (robot description, base/tip/sensor/flange link, joint count, gravity).
+Campaign mergeCampaigns(std::vector<Campaign> campaigns);
 
 /// Writes campaign.yaml, the robot description and measurements.csv into a folder (created
 /// if needed). Values round-trip exactly through readCampaign. Throws InputError on I/O errors.

@@ -53,9 +53,27 @@ struct Observability {
   std::vector<UnobservableCombination> unobservable;
 };
 
+/// One session of measurements: a campaign measured from its own tracker station, perhaps with
+/// the target remounted. Its tracker registration T_{0,1} and its tool T_{n,n+1} are its own; the
+/// joint frames between them are the robot's, one for every session.
+struct GeometricSession {
+  std::vector<const Measurement*> rows;  ///< its fit rows
+  TrackerNoise noise;                    ///< its tracker's stated noise (weights its rows)
+};
+
+/// A session's frames and fit after the calibration.
+struct SessionFrames {
+  KinematicChain chain_Tracker;  ///< the calibrated robot in this session's tracker frame, its tool
+  Pose X_TrackerBase;            ///< closed-form registration (base_link in tracker), before the fit
+  int fit_rows = 0;
+  double rms_position_m = 0.0;       ///< RMS tip position error of its fit rows, final
+  double rms_orientation_rad = 0.0;  ///< RMS rotation error of its rows with orientation, final
+};
+
 struct GeometricResult {
-  KinematicChain chain_Tracker;  ///< calibrated chain, root = tracker frame
-  Pose X_TrackerBase;            ///< closed-form registration (base_link in tracker)
+  KinematicChain chain_Tracker;  ///< calibrated chain, root = tracker frame (the first session's)
+  Pose X_TrackerBase;            ///< closed-form registration (base_link in tracker), first session
+  std::vector<SessionFrames> sessions;  ///< one per session, in the order given
   std::vector<IterationRecord> history;  ///< one entry per iteration, then the final state
   int iterations = 0;            ///< Gauss–Newton updates applied
   bool converged = false;
@@ -68,6 +86,13 @@ struct GeometricResult {
 GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
                                   const std::vector<const Measurement*>& rows,
                                   const TrackerNoise& noise, const GeometricOptions& options = {});
+
+/// Calibrates one robot on several sessions at once: shared joint frames, each session's own
+/// tracker registration and tool. One session is calibrateGeometry on its rows. Throws InputError
+/// (naming the session, from 1) when a session's rows are too few or their joint count disagrees.
+GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
+                                  const std::vector<GeometricSession>& sessions,
+                                  const GeometricOptions& options = {});
 
 /// Names of the 6(n+1) parameters, e.g. "T(joint_1→joint_2).ωy".
 std::vector<std::string> parameterNames(const KinematicChain& chain);

@@ -60,6 +60,9 @@ struct CalibrationOutcome {
   std::optional<ResidualModel> gpr;           ///< step 3 on the POE + stiffness residual
   std::optional<ResidualModel> gpr_baseline;  ///< "POE + GPR": step 3 on the POE residual
   std::vector<AccuracySummary> accuracy;  ///< every method on every (set, load) group
+  /// Per session of a merged campaign (Campaign::sessions), every method on its rows alone, in
+  /// the order of accuracy; empty for a campaign of one folder.
+  std::vector<std::vector<AccuracySummary>> session_accuracy;
   /// Per-row errors of each method, aligned with the campaign's rows (for plots).
   std::vector<std::pair<std::string, std::vector<RowError>>> row_errors;
   double seconds_geometry = 0.0, seconds_stiffness = 0.0, seconds_gpr = 0.0;  ///< wall time
@@ -110,7 +113,10 @@ ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measur
 /// naming the robot file when it does not fit the campaign.
 KinematicChain campaignChain(const Campaign& campaign, int* sensor_frame = nullptr);
 
-/// Runs every calibration step that exists on the campaign. Throws InputError.
+/// Runs every calibration step that exists on the campaign. A merged campaign (mergeCampaigns)
+/// is one robot measured in several sessions: one geometry of the joints and one compliance, each
+/// session with its own tracker registration and tool (GeometricResult::sessions), the GPR on the
+/// residual rows of all. Throws InputError.
 CalibrationOutcome calibrateCampaign(const Campaign& campaign, const CalibrationOptions& options = {});
 
 /// The model file's contents for a calibrated campaign, with provenance (campaign hash,

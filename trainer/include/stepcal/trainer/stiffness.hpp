@@ -21,9 +21,9 @@ struct DeflectionPair {
   const Measurement* loaded = nullptr;
 };
 
-/// Every (unloaded, loaded) pair among the rows: per pose_id, the unloaded row (load_kg 0)
-/// with each loaded row. Throws InputError when a pose_id has two unloaded rows or the pair's
-/// joint angles differ (they were not commanded to the same pose).
+/// Every (unloaded, loaded) pair among the rows: per pose_id (of a session: merged campaigns may
+/// share names), the unloaded row (load_kg 0) with each loaded row. Throws InputError when a
+/// pose_id has two unloaded rows or the pair's joint angles differ (not commanded to one pose).
 std::vector<DeflectionPair> deflectionPairs(const std::vector<const Measurement*>& rows);
 
 /// One joint's identified compliance.
@@ -67,6 +67,18 @@ struct StiffnessValidation {
 StiffnessResult identifyCompliance(const KinematicChain& chain_Tracker, int sensor_frame,
                                    const std::vector<DeflectionPair>& pairs,
                                    const TrackerNoise& noise, const StiffnessOptions& options = {});
+
+/// One session's pairs and the calibrated chain of its tracker frame (geometric.hpp sessions).
+struct StiffnessSession {
+  const KinematicChain* chain_Tracker = nullptr;
+  std::vector<DeflectionPair> pairs;
+  TrackerNoise noise;
+};
+
+/// Identifies one C_θ for the robot from the pairs of several sessions, each with its own chain
+/// and weights. Throws as identifyCompliance on one session; pairs of no session count as none.
+StiffnessResult identifyCompliance(const std::vector<StiffnessSession>& sessions, int sensor_frame,
+                                   const StiffnessOptions& options = {});
 
 /// Modelled vs measured tip deflection on pairs, grouped by load.
 std::vector<StiffnessValidation> validateCompliance(const KinematicChain& chain_Tracker,

@@ -6,9 +6,10 @@
 //
 // Randomness: every draw comes from std::mt19937_64 engines seeded from TwinOptions::seed, one
 // independent stream each for the truth, the commanded poses and the measurement noise, so that
-// switching a mechanism or a noise level off leaves every other draw unchanged. Normal variates
-// use Box–Muller on 53-bit uniforms rather than std::normal_distribution, whose output differs
-// between standard libraries.
+// switching a mechanism or a noise level off leaves every other draw unchanged; a tracker
+// station k >= 1 (TwinOptions::station) shares the truth's and has streams of its own for its
+// tracker placement, poses and noise. Normal variates use Box–Muller on 53-bit uniforms rather
+// than std::normal_distribution, whose output differs between standard libraries.
 #pragma once
 
 #include <cstdint>
@@ -77,6 +78,13 @@ struct TwinOptions {
   std::string protocol = "paper";
   /// Seeds every random draw; same seed, same campaign.
   uint64_t seed = 1;
+  /// Tracker station, >= 0: the same robot measured in another session with the tracker moved.
+  /// 0 is the seed's own campaign. A station k >= 1 keeps everything drawn from the seed's truth
+  /// (geometric errors, compliance, hidden effects) but places the tracker anew (as
+  /// tracker_distance_min_m describes, from a stream of its own for seed and k) and draws its
+  /// commanded poses and its noise (tracker, sensor, temperature reading) from streams of their
+  /// own, so that each station measures other poses with independent noise.
+  int station = 0;
   /// A planned campaign (readPoseList): when not empty, these are the fit rows, measured in
   /// their order (unloaded rows set=geometry, loaded rows set=stiffness under the same pose_id),
   /// followed by the protocol's validation rows at the same poses as without them.
@@ -210,7 +218,7 @@ class TwinRobot {
   const KinematicChain& trueChain() const noexcept { return chain_; }
   /// Index of the sensor's attached frame; −1: no sensor (no payload, zero wrench).
   int sensorFrame() const noexcept { return sensor_frame_; }
-  /// Pose of base_link in the tracker frame, m.
+  /// Pose of base_link in the tracker frame (at TwinOptions::station's placement), m.
   const Pose& X_TrackerBase() const noexcept { return X_TrackerBase_; }
   /// Payload centre of gravity in sensor_link, m.
   const Vec3& p_CoGInSensor_m() const noexcept { return p_CoGInSensor_m_; }
@@ -259,9 +267,10 @@ class TwinRobot {
 Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out);
 
 /// A pose list (readPoseList's rows) of `poses` commanded poses drawn as the protocol draws its
-/// own (pose_ranges, tip in front of the robot), from a stream of their own so that they are not
-/// the protocol's poses, each measured at every load of loads_kg (which holds 0): the random
-/// campaign a planned one is compared with. Throws InputError.
+/// own (pose_ranges, tip in front of the robot), from a stream of their own (one per
+/// TwinOptions::station) so that they are not the protocol's poses, each measured at every load
+/// of loads_kg (which holds 0): the random campaign a planned one is compared with. Throws
+/// InputError.
 std::vector<PlannedMeasurement> randomPoseList(const TwinOptions& options, int poses,
                                                const std::vector<double>& loads_kg);
 

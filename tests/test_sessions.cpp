@@ -1,0 +1,154 @@
+// One robot measured in several sessions (trainer/pipeline.hpp, mergeCampaigns): campaigns of the
+// twin's robot from two tracker stations fitted together recover both stations' registrations,
+// one tool and the robot to the tracker's noise floor; campaigns of different robots are refused
+// by the field that differs; `stepcal calibrate DIR DIR` reports each campaign.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "stepcal/common/error.hpp"
+#include "stepcal/common/lie.hpp"
+#include "stepcal/trainer/pipeline.hpp"
+#include "stepcal/twin/twin.hpp"
+#include "support/command.hpp"
+#include "support/files.hpp"
+
+namespace stepcal {
+namespace {
+
+twin::TwinOptions stationOptions(int station) {
+  twin::TwinOptions options;
+  options.seed = 5;
+  options.station = station;
+  return options;
+}
+
+struct TwoStations {
+  Campaign merged;
+  Pose X_Tracker0Base, X_Tracker1Base;  // the truth
+  trainer::CalibrationOutcome outcome;
+};
+
+const TwoStations& twoStations() {
+  static const TwoStations s = [] {
+    TwoStations out;
+    std::vector<Campaign> campaigns;
+    for (int station : {0, 1}) {
+      campaigns.push_back(twin::simulateCampaign(stationOptions(station), nullptr));
+      campaigns.back().directory = "station" + std::to_string(station);
+    }
+    out.X_Tracker0Base = twin::TwinRobot(stationOptions(0)).X_TrackerBase();
+    out.X_Tracker1Base = twin::TwinRobot(stationOptions(1)).X_TrackerBase();
+    out.merged = mergeCampaigns(std::move(campaigns));
+    out.outcome = trainer::calibrateCampaign(out.merged);
+    return out;
+  }();
+  return s;
+}
+
+TEST(Sessions, TwoTrackerStationsAreOneRobotSeenFromBoth) {
+  const TwoStations& s = twoStations();
+  ASSERT_EQ(s.merged.sessions.size(), 2u);
+  ASSERT_EQ(s.outcome.poe.sessions.size(), 2u);
+  const KinematicChain& chain0 = s.outcome.poe.sessions[0].chain_Tracker;
+  const KinematicChain& chain1 = s.outcome.poe.sessions[1].chain_Tracker;
+  const int n = chain0.dof();
+
+  // The stations relative to each other: tracker 1 in tracker 0 as fitted (the chains' first
+  // frames, joint 1's own error shared) against the truth, over the tips station 0 measured.
+  // With 80 fit rows per station at 10 µm: 5.7 µm at worst (seeds 6–8: 8–10 µm); the stations
+  // stand 7 m apart.
+  const Pose X_Tracker1Tracker0_fit = chain1.initialPose(0) * chain0.initialPose(0).inverse();
+  const Pose X_Tracker1Tracker0_true = s.X_Tracker1Base * s.X_Tracker0Base.inverse();
+  double worst_m = 0.0;
+  for (const Measurement& row : s.merged.rows) {
+    if (row.session != 0) continue;
+    worst_m = std::max(worst_m, (X_Tracker1Tracker0_fit * row.p_TipInTracker_m -
+                                 X_Tracker1Tracker0_true * row.p_TipInTracker_m).norm());
+  }
+  EXPECT_LT(worst_m, 0.02e-3);
+  EXPECT_GT((X_Tracker1Tracker0_true.translation()).norm(), 1.0);  // the stations are apart
+
+  // No remount: one tool, found twice to within the noise (4 µm, 0.0013°; seeds 6–8 up to 5 µm
+  // and 0.0022°).
+  const Pose X_Tool0Tool1 = chain0.initialPose(n).inverse() * chain1.initialPose(n);
+  EXPECT_LT(X_Tool0Tool1.translation().norm(), 0.02e-3);
+  EXPECT_LT(lie::logSO3(X_Tool0Tool1.linear()).norm(), 0.005 * M_PI / 180.0);
+
+  // The joint frames between are one: every session's chain has them alike.
+  for (int k = 1; k < n; ++k) {
+    EXPECT_TRUE(chain0.initialPose(k).isApprox(chain1.initialPose(k), 1e-15)) << "frame " << k;
+  }
+}
+
+TEST(Sessions, TheRobotFittedOnBothIsAtTheNoiseFloorOnEach) {
+  const TwoStations& s = twoStations();
+  ASSERT_EQ(s.outcome.session_accuracy.size(), 2u);
+  const double floor_m = s.outcome.floor_position_m;  // 0.016 mm at σ = 10 µm
+  for (size_t k = 0; k < 2; ++k) {
+    int loads = 0;
+    for (const trainer::AccuracySummary& a : s.outcome.session_accuracy[k]) {
+      if (a.set != RowSet::kValidation || a.method != trainer::kMethodPoeStiffness) continue;
+      ++loads;
+      // Measured 1.00–1.15 × the floor (mean of 50–80 rows, whose own spread is ~5 %).
+      EXPECT_LT(a.mean_position_m, 1.3 * floor_m) << "campaign " << k + 1 << " at " << a.load_kg;
+    }
+    EXPECT_EQ(loads, 5) << "campaign " << k + 1 << ": 0, 20, 30, 40 and 55 kg";
+  }
+  // One compliance from both sessions' pairs.
+  EXPECT_EQ(s.outcome.stiffness.pairs, 2 * 240);
+}
+
+TEST(Sessions, CampaignsOfAnotherRobotAreRefusedByTheField) {
+  std::vector<Campaign> campaigns;
+  for (int station : {0, 1}) {
+    twin::TwinOptions options = stationOptions(station);
+    options.protocol = "geometry";
+    campaigns.push_back(twin::simulateCampaign(options, nullptr));
+    campaigns.back().directory = "station" + std::to_string(station);
+  }
+  campaigns[1].tip_link = "flange";
+  try {
+    mergeCampaigns(campaigns);
+    FAIL() << "merged two campaigns with different tips";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("campaign 2 has tip_link flange"), std::string::npos) << what;
+    EXPECT_NE(what.find("campaign 1 (station0) tmac"), std::string::npos) << what;
+  }
+  EXPECT_THROW(mergeCampaigns({}), InputError);
+}
+
+TEST(Sessions, CalibrateReportsEveryCampaignItFits) {
+  test::TempDir dir;
+  const std::string bin = STEPCAL_BIN_DIR "/stepcal";
+  const std::string a = (dir.path() / "a").string(), b = (dir.path() / "b").string();
+  ASSERT_EQ(test::run(bin + " simulate --protocol geometry --seed 3 --out " + a).status, 0);
+  ASSERT_EQ(test::run(bin + " simulate --protocol geometry --seed 3 --station 2 --out " + b).status, 0);
+  const test::CommandResult json = test::run(bin + " calibrate " + a + " " + b + " --json 2>/dev/null");
+  ASSERT_EQ(json.status, 0) << json.out;
+  const nlohmann::json report = nlohmann::json::parse(json.out);
+  ASSERT_EQ(report["sessions"].size(), 2u);
+  EXPECT_EQ(report["sessions"][0]["campaign"], a);
+  EXPECT_EQ(report["sessions"][1]["campaign"], b);
+  for (const nlohmann::json& session : report["sessions"]) {
+    EXPECT_EQ(session["fit_rows"], 80);
+    EXPECT_LT(session["fit_rms_position_mm"].get<double>(), 0.03);
+    EXPECT_FALSE(session["accuracy"].empty());
+  }
+  EXPECT_LT(report["sessions"][1]["tool_from_first_mm"].get<double>(), 0.05);
+
+  const test::CommandResult text = test::run(bin + " calibrate " + a + " " + b);
+  EXPECT_NE(text.out.find("2 campaigns of one robot"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("campaign 2 (" + b + ") alone"), std::string::npos) << text.out;
+
+  // Another robot's campaign: refused with status 2, naming it.
+  const std::string other = (dir.path() / "other").string();
+  ASSERT_EQ(test::run(bin + " simulate --robot ur10 --seed 3 --out " + other).status, 0);
+  const test::CommandResult refused = test::run(bin + " calibrate " + a + " " + other);
+  EXPECT_EQ(refused.status, 2) << refused.out;
+  EXPECT_NE(refused.out.find("campaign 2 has robot"), std::string::npos) << refused.out;
+}
+
+}  // namespace
+}  // namespace stepcal

@@ -241,6 +241,7 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
   GeometricOptions poe_options = options.geometric;
   poe_options.scope = GeometricScope::kFullPoe;
   out.poe = calibrateGeometry(out.nominal_Base, sessions, poe_options);
+  out.session_differences = testSessionDifferences(out.nominal_Base, sessions, poe_options);
   out.seconds_geometry = secondsSince(clock);
 
   // Step 2 where the campaign has loaded/unloaded pairs and a sensor: one compliance for the

@@ -29,6 +29,9 @@ struct GeometricOptions {
   double relative_cost_tolerance = 1e-9;
   /// Singular values below this fraction of the largest count as unobservable.
   double rank_tolerance = 1e-9;
+  /// With several sessions: the joint frame T_{k,k+1} (1 ≤ k < n) each session fits its own, as
+  /// its tracker registration and tool; 0: every joint frame shared.
+  int own_frame = 0;
 };
 
 /// Fit statistics of one Gauss–Newton iteration (before its update).
@@ -93,6 +96,34 @@ GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
 GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
                                   const std::vector<GeometricSession>& sessions,
                                   const GeometricOptions& options = {});
+
+/// Whether one value of a joint frame serves every session, judged on rows held out.
+struct SessionDifference {
+  int frame = 0;         ///< the initial pose T_{k,k+1}, 1 ≤ k < n
+  std::string name;      ///< e.g. "T(joint_2->joint_3)"
+  /// Mean held-out position error of the rows with every joint frame shared minus with this one
+  /// each session's own, m (positive: the own frames predict better).
+  double held_out_gain_m = 0.0;
+  double z_statistic = 0.0;  ///< one-sided signed-rank z of the rows' held-out squared errors
+  bool significant = false;  ///< z above the one-sided 1 % point (kSessionDifferenceZ)
+  /// Per session, its own frame against the first session's, fitted on every row: log(T₁⁻¹ T_s)
+  /// (v [m], ω [rad]); the first is zero.
+  /// Part of it trades with the session's own registration and tool (a difference the rows
+  /// barely see can be large): the held-out gain, not its size, says whether it matters.
+  std::vector<Vec6> differences;
+};
+
+/// One-sided 1 % point of the standard normal: a frame's difference between sessions is named
+/// when the held-out reduction's signed-rank z exceeds it.
+inline constexpr double kSessionDifferenceZ = 2.326;
+
+/// Per joint frame, whether the sessions need their own value: k-fold cross-validation over each
+/// session's poses (pose_id), every frame shared against this one each session's own. Empty
+/// with one session. Throws as calibrateGeometry.
+std::vector<SessionDifference> testSessionDifferences(const KinematicChain& nominal_Base,
+                                                      const std::vector<GeometricSession>& sessions,
+                                                      const GeometricOptions& options = {},
+                                                      int folds = 5);
 
 /// Names of the 6(n+1) parameters, e.g. "T(joint_1→joint_2).ωy".
 std::vector<std::string> parameterNames(const KinematicChain& chain);

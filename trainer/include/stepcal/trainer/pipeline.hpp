@@ -54,6 +54,9 @@ struct CalibrationOutcome {
   Pose X_TrackerBase_nominal;      ///< tracker registered to the nominal chain (closed form)
   GeometricResult frames;          ///< tracker and tool frames fitted, joints nominal
   GeometricResult poe;             ///< step 1: full local POE (METHOD.md eq. 7–9)
+  /// With several sessions: per joint frame, whether one value serves them all (the fit keeps
+  /// every joint frame shared; this says where the robot changed between them).
+  std::vector<SessionDifference> session_differences;
   bool has_stiffness = false;      ///< step 2 ran (stiffness pairs and a sensor exist)
   StiffnessResult stiffness;       ///< step 2 (METHOD.md eq. 19–22)
   std::vector<StiffnessValidation> stiffness_validation;  ///< on validation pairs, per load

@@ -178,6 +178,16 @@ void bindTrainer(py::module_& m) {
              return std::make_shared<Campaign>(readCampaign(path));
            }, py::arg("path"),
            "Reads a campaign folder; raises stepcal.InputError naming the file, line and column")
+      .def_static("merge", [](const std::vector<std::shared_ptr<Campaign>>& campaigns) {
+             std::vector<Campaign> copies;
+             for (const auto& c : campaigns) copies.push_back(*c);
+             return std::make_shared<Campaign>(mergeCampaigns(std::move(copies)));
+           }, py::arg("campaigns"),
+           "Several campaigns of one robot as one, for calibrate (`stepcal calibrate DIR DIR ...`: "
+           "one geometry, each campaign its own tracker registration and tool); raises "
+           "stepcal.InputError naming the campaign and the field that differs")
+      .def_property_readonly("sessions", [](const Campaign& c) { return c.sessionCount(); },
+           "number of campaigns merged into it (1 for a campaign read from one folder)")
       .def_readonly("directory", &Campaign::directory)
       .def_readonly("joint_count", &Campaign::joint_count)
       .def_readonly("base_link", &Campaign::base_link)

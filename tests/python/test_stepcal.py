@@ -92,6 +92,19 @@ def test_calibrate_gives_the_command_lines_numbers(campaign):
     assert calibration.model.joint_count == 6
 
 
+def test_campaigns_of_one_robot_are_calibrated_together(campaign):
+    merged = stepcal.Campaign.merge([campaign, campaign])
+    assert merged.sessions == 2 and campaign.sessions == 1
+    assert len(merged) == 2 * len(campaign)
+    sessions = stepcal.calibrate(merged).report["sessions"]
+    assert len(sessions) == 2
+    # The same rows twice: each copy gets the same frames and fit.
+    assert sessions[0]["fit_rms_position_mm"] == pytest.approx(sessions[1]["fit_rms_position_mm"], rel=1e-6)
+    assert sessions[1]["tool_from_first_mm"] < 1e-6
+    with pytest.raises(stepcal.InputError, match="the diagnosis takes one campaign"):
+        stepcal.diagnose(merged)
+
+
 def test_diagnose_gives_the_command_lines_numbers(campaign, model):
     cli = run_json("diagnose", CAMPAIGN, "--model", MODEL)
     assert_same(fresh_report("diagnose(c, model=stepcal.Model.load(%r))" % MODEL), cli)

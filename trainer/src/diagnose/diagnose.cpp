@@ -37,6 +37,14 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
                    const DiagnoseOptions& options) {
   Diagnosis d;
   const int n = model.chain_Tracker.dof();
+  if (campaign.sessions.size() > 1) {
+    // One tracker frame for every row: several sessions' rows would be fitted in the first's.
+    throw InputError("the diagnosis takes one campaign, got " +
+                         std::to_string(campaign.sessions.size()) +
+                         " merged; expected one campaign folder (hint: stepcal calibrate fits "
+                         "several together; diagnose each campaign on its own)",
+                     campaign.directory);
+  }
   requireJointCount(campaign, n);
   std::vector<const Measurement*> rows;
   for (const Measurement& row : campaign.rows) {

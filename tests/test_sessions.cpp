@@ -186,9 +186,13 @@ TEST(Sessions, CalibrateReportsEveryCampaignItFits) {
   }
   EXPECT_LT(report["sessions"][1]["tool_from_first_mm"].get<double>(), 0.05);
 
-  const test::CommandResult text = test::run(bin + " calibrate " + a + " " + b);
+  const std::string html = (dir.path() / "report.html").string();
+  const test::CommandResult text = test::run(bin + " calibrate " + a + " " + b + " --report " + html);
   EXPECT_NE(text.out.find("2 campaigns of one robot"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("campaign 2 (" + b + ") alone"), std::string::npos) << text.out;
+  const std::string page = test::readText(html);
+  EXPECT_NE(page.find("Campaigns fitted together"), std::string::npos);
+  EXPECT_NE(page.find("2 " + b + "</td>"), std::string::npos);
 
   // Another robot's campaign: refused with status 2, naming it.
   const std::string other = (dir.path() / "other").string();

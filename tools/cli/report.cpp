@@ -40,11 +40,7 @@ std::vector<std::string> methodsOf(const std::vector<trainer::AccuracySummary>& 
   return methods;
 }
 
-// What a session of a merged campaign fitted: its frames against the first session's.
-struct SessionSummary {
-  Pose X_TrackerBase;        ///< base_link in its tracker as fitted (joint 1's frame error folded in)
-  double tool_offset_m = 0.0, tool_angle_rad = 0.0;  ///< its tool against session 1's
-};
+}  // namespace
 
 SessionSummary sessionSummary(const trainer::CalibrationOutcome& outcome, size_t k) {
   const KinematicChain& mine = outcome.poe.sessions[k].chain_Tracker;
@@ -57,8 +53,6 @@ SessionSummary sessionSummary(const trainer::CalibrationOutcome& outcome, size_t
   out.tool_angle_rad = lie::logSO3(X_FirstToolMyTool.linear()).norm();
   return out;
 }
-
-}  // namespace
 
 std::string formatReport(const Campaign& campaign, const trainer::CalibrationOutcome& outcome) {
   std::ostringstream out;

@@ -12,6 +12,13 @@
 
 namespace stepcal::cli {
 
+/// What session k of a merged campaign fitted, against the first session.
+struct SessionSummary {
+  Pose X_TrackerBase;  ///< base_link in its tracker as fitted (joint 1's frame error folded in), m
+  double tool_offset_m = 0.0, tool_angle_rad = 0.0;  ///< its tool against session 1's
+};
+SessionSummary sessionSummary(const trainer::CalibrationOutcome& outcome, size_t k);
+
 /// The accuracy tables and step reports as text.
 std::string formatReport(const Campaign& campaign, const trainer::CalibrationOutcome& outcome);
 

@@ -10,6 +10,7 @@
 
 #include "charts.hpp"
 #include "page.hpp"
+#include "report.hpp"
 #include "report_html.hpp"
 #include "stepcal/common/error.hpp"
 #include "text_format.hpp"
@@ -69,6 +70,7 @@ class PageWriter {
   std::string write() {
     writeHead();
     writeOverview();
+    writeCampaigns();
     writeConvergence();
     writeGeometricValidation();
     writeLoadedValidation();
@@ -234,6 +236,50 @@ class PageWriter {
       out_ << "<td>" << total << "</td>";
     }
     out_ << "<td><b>" << campaign_.rows.size() << "</b></td></tr>\n</table>\n";
+  }
+
+  // A merged campaign's sessions: their frames, fits and validation errors, and whether a joint
+  // frame differs between them.
+  void writeCampaigns() {
+    if (campaign_.sessions.empty()) return;
+    out_ << "<h2 id=\"campaigns\">Campaigns fitted together</h2>\n<p>One geometry of the joint "
+            "frames and one compliance for the robot; each campaign its own tracker registration "
+            "and tool (target).</p>\n<table>\n<tr><th class=\"l\">campaign</th><th>rows</th>"
+            "<th>fit rows</th><th>fit rms mm</th><th class=\"l\">base in its tracker (m)</th>"
+            "<th>tool from 1st, mm / °</th>";
+    const std::vector<std::string> methods = calibratedMethods();
+    for (const std::string& m : methods) out_ << "<th>" << swatch(m) << escape(m) << ", validation mm</th>";
+    out_ << "</tr>\n";
+    for (size_t k = 0; k < campaign_.sessions.size(); ++k) {
+      const SessionSummary summary = sessionSummary(outcome_, k);
+      const Vec3 p = summary.X_TrackerBase.translation();
+      out_ << "<tr><td class=\"l\">" << k + 1 << " " << escape(campaign_.sessions[k].directory)
+           << "</td><td>" << campaign_.sessions[k].row_count << "</td><td>"
+           << outcome_.poe.sessions[k].fit_rows << "</td><td>"
+           << cell("%.4f", outcome_.poe.sessions[k].rms_position_m * kMm) << "</td><td class=\"l\">"
+           << format("(%.4f, %.4f, %.4f)", p.x(), p.y(), p.z()) << "</td><td>"
+           << (k == 0 ? std::string("&#8211;")
+                      : format("%.3f / %.4f", summary.tool_offset_m * kMm, summary.tool_angle_rad * kDeg))
+           << "</td>";
+      for (const std::string& m : methods) {
+        const double mean =
+            trainer::pooledMeanPosition(outcome_.session_accuracy[k], m, RowSet::kValidation);
+        out_ << "<td>" << cell("%.4f", mean * kMm) << "</td>";
+      }
+      out_ << "</tr>\n";
+    }
+    out_ << "</table>\n<p>Per joint frame, whether one value serves every campaign: held out (5 "
+            "folds of each campaign's poses), every frame shared against this one each campaign's "
+            "own; named above z = 2.326. The fit keeps every joint frame shared.</p>\n<table>\n"
+            "<tr><th class=\"l\">frame</th><th>own frames remove, mm</th><th>z</th><th class=\"l\">"
+            "</th></tr>\n";
+    for (const trainer::SessionDifference& d : outcome_.session_differences) {
+      out_ << "<tr><td class=\"l\">" << escape(d.name) << "</td><td>"
+           << cell("%.4f", d.held_out_gain_m * kMm) << "</td><td>" << format("%.1f", d.z_statistic)
+           << "</td><td class=\"l\">" << (d.significant ? "differs" : "one serves all")
+           << "</td></tr>\n";
+    }
+    out_ << "</table>\n";
   }
 
   void writeConvergence() {

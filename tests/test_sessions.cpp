@@ -153,6 +153,21 @@ TEST(Sessions, AJointZeroThatMovedBetweenSessionsIsNamed) {
   }
 }
 
+TEST(Sessions, CampaignsTooSmallForTheFrameTestAreCalibratedWithoutIt) {
+  std::vector<Campaign> campaigns = geometryCampaigns();
+  // Three fit rows in the second campaign: enough to register it, too few for 5 folds (a fold
+  // left out would leave two, which no fit takes).
+  std::vector<Measurement> kept;
+  for (const Measurement& row : campaigns[1].rows) {
+    if (row.set != RowSet::kGeometry || kept.size() < 3) kept.push_back(row);
+  }
+  campaigns[1].rows = kept;
+  const Campaign merged = mergeCampaigns(std::move(campaigns));
+  const trainer::CalibrationOutcome outcome = trainer::calibrateCampaign(merged);
+  EXPECT_TRUE(outcome.session_differences.empty());
+  EXPECT_EQ(outcome.poe.sessions[1].fit_rows, 3);
+}
+
 TEST(Sessions, CampaignsOfAnotherRobotAreRefusedByTheField) {
   std::vector<Campaign> campaigns = geometryCampaigns();
   campaigns[1].tip_link = "flange";

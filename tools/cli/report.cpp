@@ -105,6 +105,9 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
     }
     out << "  between the campaigns, per joint frame (held out, 5 folds of each campaign's poses: "
            "every frame shared against this one each campaign's own):\n";
+    if (outcome.session_differences.empty()) {
+      out << "    not tested: a campaign has fewer than 10 fit poses (2 per fold)\n";
+    }
     for (const trainer::SessionDifference& d : outcome.session_differences) {
       out << format("    %-24s %s: own frames remove %.4f mm, z = %.1f", d.name.c_str(),
                     d.significant ? "differs" : "one serves all", d.held_out_gain_m * kMm,

@@ -404,7 +404,8 @@ std::vector<SessionDifference> testSessionDifferences(const KinematicChain& nomi
   std::vector<SessionDifference> out;
   const int n = nominal_Base.dof();
   if (sessions.size() < 2 || options.scope != GeometricScope::kFullPoe) return out;
-  // A fold of each session: its poses in the order first measured, dealt round.
+  // A fold of each session: its poses in the order first measured, dealt round. A session of
+  // fewer than 2 poses per fold leaves folds too small to fit on: no test then (a result).
   std::vector<std::vector<int>> fold_of(sessions.size());
   for (size_t s = 0; s < sessions.size(); ++s) {
     std::map<std::string, int> pose_fold;
@@ -412,6 +413,7 @@ std::vector<SessionDifference> testSessionDifferences(const KinematicChain& nomi
       const auto [it, added] = pose_fold.emplace(row->pose_id, static_cast<int>(pose_fold.size()) % folds);
       fold_of[s].push_back(it->second);
     }
+    if (static_cast<int>(pose_fold.size()) < 2 * folds) return out;
   }
   // Every fit the test needs, fold by fold, with frame k each session's own (k = 0: every frame
   // shared), then frame k's own on every row (fold = folds): independent, so on the cores.

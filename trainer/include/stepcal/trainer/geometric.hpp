@@ -119,7 +119,7 @@ inline constexpr double kSessionDifferenceZ = 2.326;
 
 /// Per joint frame, whether the sessions need their own value: k-fold cross-validation over each
 /// session's poses (pose_id), every frame shared against this one each session's own. Empty
-/// with one session. Throws as calibrateGeometry.
+/// with one session, or when a session has fewer than 2·folds poses. Throws as calibrateGeometry.
 std::vector<SessionDifference> testSessionDifferences(const KinematicChain& nominal_Base,
                                                       const std::vector<GeometricSession>& sessions,
                                                       const GeometricOptions& options = {},

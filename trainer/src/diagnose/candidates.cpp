@@ -55,62 +55,156 @@ bool present(const PhysicalModel& model, MechanismKind kind, int joint, int sour
   return false;
 }
 
-// A screening column as a family builds it: its values, and for a joint's link-angle column
-// times a per-row feature, that feature (then only the feature is kept).
-struct BuiltColumn {
-  BuiltColumn(Eigen::VectorXd column) : values(std::move(column)) {}  // NOLINT: a stored column
-  Eigen::VectorXd values;
-  int joint = -1;
-  Eigen::VectorXd feature;  ///< per fit row, when joint ≥ 0
+// A scaled column of the screening matrix (cross_validation.hpp, ColumnLayout): what multiplies
+// its joint's link-angle column in each row.
+struct ScaledSource {
+  enum class Kind {
+    kTorquePart,     // a unit part of a torque–deflection curve at the row's torque of the joint
+    kJointAngle,     // another joint's angle (a coupling)
+    kGravityTorque,  // the joint's gravity torque under the URDF's masses at the row's link angles
+    kProfile,        // a profile's gated harmonics, 2·order columns
+  };
+  Kind kind = Kind::kTorquePart;
+  Mechanism unit;            // kTorquePart
+  int source_joint = -1;     // kJointAngle
+  AngleCoverage coverage;    // kProfile
+  int order = 0;             // kProfile
+  Eigen::Index first = 0;    // its first column among the joint's scaled ones
+  bool sameColumn(const ScaledSource& other) const {
+    return kind == other.kind && kind != Kind::kProfile && source_joint == other.source_joint &&
+           unit.kind == other.unit.kind && unit.parameters == other.unit.parameters;
+  }
 };
 
-// Appends columns to a growing screening matrix: stored ones, one that repeats a stored column,
-// a feature's, or a profile's block (the last two made again where needed, never stored).
-struct ColumnSink {
-  ScreeningColumns& out;
-  std::vector<double> ridge;  // per column
-  Eigen::Index add(BuiltColumn column, double column_ridge = 0.0) {
-    if (column.joint >= 0) {
-      out.features.push_back({column.joint, std::move(column.feature)});
-      return added({ColumnSource::Kind::kFeature, static_cast<Eigen::Index>(out.features.size()) - 1},
-                   column_ridge);
+// What a round's screening matrix is made from, chunk by chunk of fit rows: the model it is
+// linearised at (its geometry and link-angle columns, its torques and link angles for the
+// features), the models whose finite differences are its other dense columns, and each joint's
+// scaled sources.
+struct ColumnRecipe {
+  PhysicalModel whole;
+  std::vector<PhysicalModel> moved;  // per finite-difference column, the model moved by its step
+  std::vector<double> step;
+  std::vector<std::vector<ScaledSource>> scaled;  // per joint
+  std::vector<double> masses;                     // the URDF's, for kGravityTorque
+};
+
+// Fit rows [begin, end) of a screening matrix in its layout: the geometry's columns and the
+// finite differences (dense), the link-angle columns, and each scaled source per row. A row's
+// values are those of the whole fit's evaluate, linearise and parameterColumn.
+void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, size_t end,
+                 ColumnChunk& chunk) {
+  const Evaluation e = evaluate(recipe.whole, fit, begin, end);
+  Linearisation lin = linearise(recipe.whole, fit, begin, end, e.r);
+  const Eigen::Index geometry = lin.geometry.cols();
+  chunk.dense.resize(e.r.size(), geometry + static_cast<Eigen::Index>(recipe.moved.size()));
+  chunk.dense.leftCols(geometry) = lin.geometry;
+  for (size_t k = 0; k < recipe.moved.size(); ++k) {
+    chunk.dense.col(geometry + static_cast<Eigen::Index>(k)) =
+        (e.r - residuals(recipe.moved[k], fit, begin, end)) / recipe.step[k];
+  }
+  chunk.link_angle = std::move(lin.link_angle);
+  const KinematicChain& chain = recipe.whole.chain_Tracker;
+  const Eigen::Index rows = static_cast<Eigen::Index>(end - begin);
+  // The gravity torques once per row, if a source needs them.
+  std::vector<JointVector> gravity;
+  if (!recipe.masses.empty()) {
+    ChainWorkspace ws;
+    gravity.resize(end - begin);
+    for (size_t i = 0; i < gravity.size(); ++i) {
+      forwardKinematics(chain, e.theta_rad[i], ws);
+      selfWeightTorques(chain, ws, recipe.whole.gravity_Tracker, recipe.masses, gravity[i]);
     }
-    out.stored.push_back(std::move(column.values));
-    return added({ColumnSource::Kind::kStored, static_cast<Eigen::Index>(out.stored.size()) - 1},
-                 column_ridge);
+  }
+  chunk.scaled.resize(recipe.scaled.size());
+  for (size_t j = 0; j < recipe.scaled.size(); ++j) {
+    Eigen::Index width = 0;
+    for (const ScaledSource& source : recipe.scaled[j]) {
+      width = std::max(width, source.first + (source.kind == ScaledSource::Kind::kProfile
+                                                  ? 2 * source.order
+                                                  : 1));
+    }
+    Eigen::MatrixXd& out = chunk.scaled[j];
+    out.resize(rows, width);
+    Eigen::VectorXd harmonics;
+    for (const ScaledSource& source : recipe.scaled[j]) {
+      for (Eigen::Index r = 0; r < rows; ++r) {
+        const size_t i = begin + static_cast<size_t>(r);
+        const int joint = static_cast<int>(j);
+        switch (source.kind) {
+          case ScaledSource::Kind::kTorquePart:
+            out(r, source.first) = torqueDeflection(source.unit, e.tau_nm[static_cast<size_t>(r)](joint));
+            break;
+          case ScaledSource::Kind::kJointAngle:
+            out(r, source.first) = fit.rows[i]->q_rad(source.source_joint);
+            break;
+          case ScaledSource::Kind::kGravityTorque:
+            out(r, source.first) = gravity[static_cast<size_t>(r)](joint);
+            break;
+          case ScaledSource::Kind::kProfile:
+            harmonics.resize(2 * source.order);
+            profileFeatures(source.coverage, source.order, fit.rows[i]->q_rad(joint), harmonics.data());
+            out.row(r).segment(source.first, 2 * source.order) = harmonics.transpose();
+            break;
+        }
+      }
+    }
+  }
+}
+
+// Appends columns to a growing screening matrix: the geometry's, finite differences of a
+// model, a repeat of a column, a joint's scaled features (one column per distinct feature) and
+// profile blocks. Each column gets a ridge (0: none).
+struct ColumnSink {
+  ColumnSink(ColumnLayout& layout, ColumnRecipe& recipe, Eigen::Index geometry, int joints)
+      : layout_(layout), recipe_(recipe) {
+    layout_.dense = geometry;
+    layout_.scaled.assign(static_cast<size_t>(joints), 0);
+    recipe_.scaled.resize(static_cast<size_t>(joints));
+  }
+  std::vector<double> ridge;  // per column
+
+  Eigen::Index geometry(Eigen::Index c) { return added({-1, c}, 0.0); }
+  Eigen::Index difference(const PhysicalModel& model, const Parameter& p, double column_ridge) {
+    PhysicalModel moved = model;
+    shift(moved, p, p.step);
+    recipe_.moved.push_back(std::move(moved));
+    recipe_.step.push_back(p.step);
+    return added({-1, layout_.dense++}, column_ridge);
   }
   Eigen::Index repeat(Eigen::Index column, double column_ridge) {
-    return added(out.source[static_cast<size_t>(column)], column_ridge);
+    return added(layout_.place[static_cast<size_t>(column)], column_ridge);
   }
-  std::vector<Eigen::Index> addProfile(int joint, const AngleCoverage& coverage, int order) {
-    out.blocks.push_back({out.size(), joint, coverage, order});
-    const ColumnSource source{ColumnSource::Kind::kProfile,
-                              static_cast<Eigen::Index>(out.blocks.size()) - 1};
+  Eigen::Index feature(int joint, ScaledSource source) {
+    std::vector<ScaledSource>& sources = recipe_.scaled[static_cast<size_t>(joint)];
+    for (const ScaledSource& other : sources) {
+      if (other.sameColumn(source)) return added({joint, other.first}, 0.0);
+    }
+    source.first = layout_.scaled[static_cast<size_t>(joint)]++;
+    sources.push_back(std::move(source));
+    return added({joint, sources.back().first}, 0.0);
+  }
+  std::vector<Eigen::Index> profile(int joint, const AngleCoverage& coverage, int order) {
+    ScaledSource source;
+    source.kind = ScaledSource::Kind::kProfile;
+    source.coverage = coverage;
+    source.order = order;
+    source.first = layout_.scaled[static_cast<size_t>(joint)];
+    layout_.scaled[static_cast<size_t>(joint)] += 2 * order;
+    recipe_.scaled[static_cast<size_t>(joint)].push_back(source);
     std::vector<Eigen::Index> columns;
-    for (int k = 0; k < 2 * order; ++k) columns.push_back(added(source, 0.0));
+    for (int k = 0; k < 2 * order; ++k) columns.push_back(added({joint, source.first + k}, 0.0));
     return columns;
   }
 
  private:
-  Eigen::Index added(ColumnSource source, double column_ridge) {
-    out.source.push_back(source);
+  Eigen::Index added(ColumnLayout::Place place, double column_ridge) {
+    layout_.place.push_back(place);
     ridge.push_back(column_ridge);
-    return out.size() - 1;
+    return layout_.size() - 1;
   }
+  ColumnLayout& layout_;
+  ColumnRecipe& recipe_;
 };
-
-// Link-angle column of joint j times a per-row feature.
-BuiltColumn featureColumn(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
-                          const std::vector<double>& feature) {
-  BuiltColumn c{Eigen::VectorXd(fit.count)};
-  for (size_t i = 0; i < fit.rows.size(); ++i) {
-    const int e = fit.start[i], k = fit.equations(i);
-    c.values.segment(e, k) = link_angle.block(e, joint, k, 1) * feature[i];
-  }
-  c.joint = joint;
-  c.feature = Eigen::Map<const Eigen::VectorXd>(feature.data(), static_cast<Eigen::Index>(feature.size()));
-  return c;
-}
 
 }  // namespace
 
@@ -139,15 +233,7 @@ std::vector<int> gravityLoadedJoints(const PhysicalModel& global, const FitRows&
   return joints;
 }
 
-RoundStart roundStart(const DiagnosisModel& model, const FitRows& fit) {
-  const PhysicalModel whole = model.combined();
-  RoundStart start;
-  start.evaluation = evaluate(whole, fit);
-  start.linear = linearise(whole, fit, start.evaluation.r);
-  return start;
-}
-
-Screening screening(const DiagnosisModel& model, const FitRows& fit, const RoundStart& start,
+Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evaluation& start,
                     const DiagnoseOptions& options,
                     const std::optional<std::vector<double>>& body_masses,
                     const Mechanism* only) {
@@ -156,38 +242,33 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
   // parameter indexes both alike); what is present is asked of the global part.
   const PhysicalModel whole = model.combined();
   const int n = global.chain_Tracker.dof();
-  const Eigen::MatrixXd& L = start.linear.link_angle;
-  const Eigen::VectorXd& r0 = start.evaluation.r;
   Screening s;
-  const Eigen::Index geometry = start.linear.geometry.cols();
-  s.columns.link_angle = L;
-  ColumnSink sink{s.columns, {}};
+  const Eigen::Index geometry = 6 * (n + 1);
+  auto recipe = std::make_shared<ColumnRecipe>();
+  recipe->whole = whole;
+  ColumnSink sink(s.columns.layout, *recipe, geometry, n);
 
   // Stage 1: geometry, then the global model's fitted parameters (their values kept for the
   // lumped masses' prior).
   for (Eigen::Index c = 0; c < geometry; ++c) {
-    s.stage1.push_back(sink.add(Eigen::VectorXd(start.linear.geometry.col(c))));
+    s.stage1.push_back(sink.geometry(c));
   }
   std::vector<double> stage1_values;
   for (const Parameter& p : globalParameters(model)) {
     const bool lumped_mass =
         p.mechanism >= 0 &&
         global.mechanisms[static_cast<size_t>(p.mechanism)].kind == MechanismKind::kSelfWeight;
-    s.stage1.push_back(sink.add(parameterColumn(whole, fit, r0, p),
-                                lumped_mass ? 1.0 / (kSelfWeightPriorSigma * kSelfWeightPriorSigma)
-                                            : 0.0));
+    s.stage1.push_back(sink.difference(
+        whole, p, lumped_mass ? 1.0 / (kSelfWeightPriorSigma * kSelfWeightPriorSigma) : 0.0));
     stage1_values.push_back(
         p.mechanism < 0
             ? global.compliance_rad_per_nm(p.index)
             : global.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)]);
   }
   // Stage 2: the geometry's change that goes with the profiles (every fit row lies inside every
-  // profile's gate, so its columns are the geometry's), then the current profiles.
-  for (Eigen::Index c = 0; c < geometry; ++c) {
-    const double ridge =
-        kProfileGeometryRidge * std::max(start.linear.geometry.col(c).squaredNorm(), 1e-300);
-    s.stage2.push_back(sink.repeat(c, ridge));
-  }
+  // profile's gate, so its columns are the geometry's; their ridges come with the Grams,
+  // completeScreening), then the current profiles.
+  for (Eigen::Index c = 0; c < geometry; ++c) s.stage2.push_back(sink.repeat(c, 0.0));
   const int max_order = *std::max_element(options.profile_orders.begin(), options.profile_orders.end());
   for (const Profile& p : model.profiles) {
     Family f;
@@ -195,7 +276,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     f.mechanism = blank(MechanismKind::kTransmissionError, n, p.mechanism.joint, -1,
                         std::max(max_order, p.mechanism.order));
     f.mechanism.coverage = p.mechanism.coverage;
-    f.columns = sink.addProfile(f.mechanism.joint, f.mechanism.coverage, f.mechanism.order);
+    f.columns = sink.profile(f.mechanism.joint, f.mechanism.coverage, f.mechanism.order);
     s.profiled.push_back(std::move(f));
   }
 
@@ -203,17 +284,14 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     return only == nullptr ||
            (only->kind == kind && only->joint == joint && only->source_joint == source);
   };
-  auto addGlobal = [&](Family family, std::vector<BuiltColumn> columns,
+  // A global family with its columns and their typical parameter steps: whether it moves the tip
+  // at these rows is judged once its columns' norms are known (completeScreening).
+  auto addGlobal = [&](Family family, std::vector<Eigen::Index> columns,
                        std::vector<double> steps, double column_ridge = 0.0) {
-    double effect = 0.0;
-    for (size_t c = 0; c < columns.size(); ++c) {
-      effect = std::max(effect, columns[c].values.norm() * steps[c]);
-    }
-    if (effect < kNegligibleEffect) {
-      s.untestable.push_back({describe(family.mechanism), "no effect on the tip at these rows"});
-      return;
-    }
-    for (BuiltColumn& c : columns) family.columns.push_back(sink.add(std::move(c), column_ridge));
+    for (Eigen::Index c : columns) sink.ridge[static_cast<size_t>(c)] = column_ridge;
+    family.columns = std::move(columns);
+    family.steps = std::move(steps);
+    family.untestable_before = s.untestable.size();
     s.families.push_back(std::move(family));
   };
 
@@ -232,7 +310,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
   };
   for (int j = 0; j < n; ++j) {
     std::vector<double> loaded;
-    for (const JointVector& tau : start.evaluation.tau_nm) {
+    for (const JointVector& tau : start.tau_nm) {
       if (std::abs(tau(j)) > 1.0) loaded.push_back(std::abs(tau(j)));
     }
     const double typical = median(loaded);
@@ -253,11 +331,9 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
       if (kind == MechanismKind::kTorsionCurve) {  // a knee alone: c = 1 at T = scale
         unit.parameters = {0.0, 0.0, 1.0, scale_nm};
       }
-      std::vector<double> feature;
-      for (const JointVector& tau : start.evaluation.tau_nm) {
-        feature.push_back(torqueDeflection(unit, tau(j)));
-      }
-      return featureColumn(L, fit, j, feature);
+      ScaledSource source;
+      source.unit = std::move(unit);
+      return sink.feature(j, std::move(source));
     };
     const auto lostColumn = [&] { return partColumn(MechanismKind::kBacklash, smoothing); };
     const auto kneeColumn = [&](double knee) { return partColumn(MechanismKind::kTorsionCurve, knee); };
@@ -309,7 +385,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
             f.mechanism = curve(0.0, with_lost ? smoothing : 0.0, knees);
             f.free = signConstrained(f.mechanism);
             f.chosen = static_cast<int>(knees.size());
-            std::vector<BuiltColumn> columns;
+            std::vector<Eigen::Index> columns;
             std::vector<double> steps;
             if (with_lost) {
               columns.push_back(lostColumn());
@@ -372,9 +448,10 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
       Family f;
       f.mechanism = blank(MechanismKind::kJointCoupling, n, j, i);
       f.free = {0};
-      std::vector<double> feature;
-      for (const Measurement* row : fit.rows) feature.push_back(row->q_rad(i));
-      addGlobal(std::move(f), {featureColumn(L, fit, j, feature)}, {1e-4});
+      ScaledSource source;
+      source.kind = ScaledSource::Kind::kJointAngle;
+      source.source_joint = i;
+      addGlobal(std::move(f), {sink.feature(j, std::move(source))}, {1e-4});
     }
   }
 
@@ -390,19 +467,14 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     Family f;
     f.mechanism = blank(MechanismKind::kSelfWeight, n);
     f.mechanism.parameters = *body_masses;
-    f.compliance = gravityLoadedJoints(global, fit, start.evaluation.theta_rad, *body_masses);
-    ChainWorkspace ws;
-    JointVector tau;
-    std::vector<std::vector<double>> features(f.compliance.size());
-    for (size_t i = 0; i < fit.rows.size(); ++i) {
-      forwardKinematics(global.chain_Tracker, start.evaluation.theta_rad[i], ws);
-      selfWeightTorques(global.chain_Tracker, ws, global.gravity_Tracker, *body_masses, tau);
-      for (size_t c = 0; c < f.compliance.size(); ++c) features[c].push_back(tau(f.compliance[c]));
-    }
-    std::vector<BuiltColumn> columns;
+    f.compliance = gravityLoadedJoints(global, fit, start.theta_rad, *body_masses);
+    recipe->masses = *body_masses;
+    std::vector<Eigen::Index> columns;
     std::vector<double> steps;
-    for (size_t c = 0; c < f.compliance.size(); ++c) {
-      columns.push_back(featureColumn(L, fit, f.compliance[c], features[c]));
+    for (const int joint : f.compliance) {
+      ScaledSource source;
+      source.kind = ScaledSource::Kind::kGravityTorque;
+      columns.push_back(sink.feature(joint, std::move(source)));
       steps.push_back(1e-6);  // rad/(N·m): a soft joint
     }
     if (columns.empty()) {
@@ -420,12 +492,12 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     PhysicalModel with = whole;
     with.mechanisms.push_back(f.mechanism);
     const int index = static_cast<int>(with.mechanisms.size()) - 1;
-    std::vector<BuiltColumn> columns;
+    std::vector<Eigen::Index> columns;
     std::vector<double> steps;
     for (int i : freeParameters(f.mechanism, false)) {
       f.free.push_back(i);
       const Parameter p{index, i, typicalStep(f.mechanism, i)};
-      columns.push_back(parameterColumn(with, fit, r0, p));
+      columns.push_back(sink.difference(with, p, 0.0));
       steps.push_back(p.step);
     }
     addGlobal(std::move(f), std::move(columns), std::move(steps),
@@ -440,12 +512,12 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     PhysicalModel with = whole;
     with.mechanisms.push_back(f.mechanism);
     const int index = static_cast<int>(with.mechanisms.size()) - 1;
-    std::vector<BuiltColumn> columns;
+    std::vector<Eigen::Index> columns;
     std::vector<double> steps;
     for (int i = 0; i < 6; ++i) {
       f.free.push_back(i);
       const Parameter p{index, i, typicalStep(f.mechanism, i)};
-      columns.push_back(parameterColumn(with, fit, r0, p));
+      columns.push_back(sink.difference(with, p, 0.0));
       steps.push_back(p.step);
     }
     addGlobal(std::move(f), std::move(columns), std::move(steps));
@@ -475,7 +547,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
       PhysicalModel with = whole;
       with.mechanisms.push_back(f.mechanism);
       const Parameter p{static_cast<int>(with.mechanisms.size()) - 1, 0, 1e-5};
-      addGlobal(std::move(f), {parameterColumn(with, fit, r0, p)}, {p.step});
+      addGlobal(std::move(f), {sink.difference(with, p, 0.0)}, {p.step});
     }
   }
 
@@ -492,11 +564,15 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
     f.mechanism = blank(MechanismKind::kTransmissionError, n, j, -1, max_order);
     f.mechanism.coverage = coverageOfAngles(angles, options.coverage_gap_deg * kDegToRad,
                                             options.coverage_fade_deg * kDegToRad);
-    f.columns = sink.addProfile(j, f.mechanism.coverage, max_order);
+    f.columns = sink.profile(j, f.mechanism.coverage, max_order);
     s.families.push_back(std::move(f));
   }
 
-  const Eigen::Index total = s.columns.size();
+  const Eigen::Index total = s.columns.layout.size();
+  s.columns.make = [recipe = std::shared_ptr<const ColumnRecipe>(std::move(recipe)), &fit](
+                       size_t begin, size_t end, ColumnChunk& chunk) {
+    makeColumns(*recipe, fit, begin, end, chunk);
+  };
   s.ridge = Eigen::Map<const Eigen::VectorXd>(sink.ridge.data(), total);
   s.current = Eigen::VectorXd::Zero(total);
   for (size_t k = 0; k < stage1_values.size(); ++k) {
@@ -504,6 +580,36 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Round
   }
   setStage2(s, model, geometry);
   return s;
+}
+
+void completeScreening(Screening& s, const FoldGrams& grams, Eigen::Index geometry) {
+  const Eigen::MatrixXd& G = grams.G.back();
+  for (Eigen::Index c = 0; c < geometry; ++c) {
+    const Eigen::Index column = s.stage2[static_cast<size_t>(c)];
+    s.ridge(column) = kProfileGeometryRidge * std::max(G(column, column), 1e-300);
+  }
+  // The global families that move the tip at these rows, and in their places among the reasons
+  // for what was not tried, those that do not.
+  std::vector<Family> kept;
+  std::vector<UntestableCandidate> untestable;
+  size_t next = 0;
+  for (Family& family : s.families) {
+    if (family.stage == Stage::kGlobal) {
+      while (next < family.untestable_before) untestable.push_back(std::move(s.untestable[next++]));
+      double effect = 0.0;
+      for (size_t c = 0; c < family.columns.size(); ++c) {
+        effect = std::max(effect, std::sqrt(G(family.columns[c], family.columns[c])) * family.steps[c]);
+      }
+      if (effect < kNegligibleEffect) {
+        untestable.push_back({describe(family.mechanism), "no effect on the tip at these rows"});
+        continue;
+      }
+    }
+    kept.push_back(std::move(family));
+  }
+  while (next < s.untestable.size()) untestable.push_back(std::move(s.untestable[next++]));
+  s.families = std::move(kept);
+  s.untestable = std::move(untestable);
 }
 
 void setStage2(Screening& s, const DiagnosisModel& model, Eigen::Index geometry) {

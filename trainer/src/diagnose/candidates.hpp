@@ -27,6 +27,11 @@ struct Family {
   std::vector<int> free;        ///< global: the mechanism's fitted parameters
   std::vector<int> compliance;  ///< global: joints whose compliance it frees (self weight)
   std::vector<Eigen::Index> columns;  ///< in the screening matrix, free then compliance
+  /// global: per column, a typical step of its parameter (SI): with the column's norm, whether
+  /// the family moves the tip at all (completeScreening)
+  std::vector<double> steps;
+  /// global: how many of the screening's untestable entries come before it
+  size_t untestable_before = 0;
   /// Constants it picks from a grid (a fade torque each): spent like fitted parameters.
   int chosen = 0;
   /// A joint's torque-deflection mechanism already in the model that this family extends
@@ -39,7 +44,8 @@ struct Family {
 
 /// One round's screening matrix: the current model's columns and every family's.
 struct Screening {
-  /// Its columns (the residual's weighting), geometry first; handed to FoldGrams.
+  /// Its columns (the residual's weighting), geometry first, as made chunk by chunk; handed to
+  /// FoldGrams.
   ScreeningColumns columns;
   Eigen::VectorXd ridge;                ///< per column (lumped masses' prior, profiles' ridges)
   /// Per column, the parameter's value in the model the round starts from (0: a candidate).
@@ -57,21 +63,20 @@ struct Screening {
 /// set in the screening's ridge and their values (the model's) in its current.
 void setStage2(Screening& s, const DiagnosisModel& model, Eigen::Index geometry);
 
-/// What the round starts from: the whole model's evaluation (r0, θ, τ; profiles in) and
-/// linearisation.
-struct RoundStart {
-  Evaluation evaluation;
-  Linearisation linear;
-};
-RoundStart roundStart(const DiagnosisModel& model, const FitRows& fit);
-
 /// Builds the round's screening: the current model's stage-1 and stage-2 columns, and every
 /// catalogued family not in the model yet (only: just the global families of that mechanism's
-/// kind, joint and source joint). body_masses: the URDF's (bodyMassesFromUrdf), if any.
-Screening screening(const DiagnosisModel& model, const FitRows& fit, const RoundStart& start,
+/// kind, joint and source joint). start: the whole model's evaluation (profiles in), the round's
+/// r0; body_masses: the URDF's (bodyMassesFromUrdf), if any. The columns are made from the
+/// model when needed; fit must outlive them.
+Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evaluation& start,
                     const DiagnoseOptions& options,
                     const std::optional<std::vector<double>>& body_masses,
                     const Mechanism* only = nullptr);
+
+/// What the screening needs of its Grams (the columns' norms): the ridges of the geometry's share
+/// in stage 2, and the global families that do not move the tip at these rows taken out into
+/// the untestable ones (in their places).
+void completeScreening(Screening& s, const FoldGrams& grams, Eigen::Index geometry);
 
 /// Joints whose gravity torque under the given self_weight parameters varies enough over the
 /// fit rows to identify their compliance from it (std ≥ 1 N·m and ≥ 10 % of the largest), and the

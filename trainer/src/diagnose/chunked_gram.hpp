@@ -19,11 +19,6 @@ inline constexpr size_t kGramChunkRows = 512;
 /// the sums do not depend on the number of threads.
 inline constexpr size_t kGramSlices = 4;
 
-/// First equation of fit row i (fit.count for i = rows).
-inline Eigen::Index equationOf(const FitRows& fit, size_t i) {
-  return i < fit.rows.size() ? fit.start[i] : fit.count;
-}
-
 /// Runs body(begin, end) over every chunk of fit rows [begin, end), in kGramSlices slices on the
 /// machine's cores; body(slice, begin, end) writes only its slice's result.
 template <typename Body>

@@ -29,115 +29,214 @@ std::vector<Eigen::Index> joined(const std::vector<Eigen::Index>& a,
 
 double upperTailP(double z) { return 0.5 * std::erfc(z / std::sqrt(2.0)); }
 
+Eigen::Index ColumnLayout::compactSize() const {
+  Eigen::Index size = dense;
+  for (Eigen::Index s : scaled) size += s;
+  return size;
+}
+
+Eigen::Index ColumnLayout::compactIndex(Eigen::Index c) const {
+  const Place& at = place[static_cast<size_t>(c)];
+  if (at.joint < 0) return at.index;
+  Eigen::Index offset = dense;
+  for (int j = 0; j < at.joint; ++j) offset += scaled[static_cast<size_t>(j)];
+  return offset + at.index;
+}
+
 namespace {
 
-ScreeningColumns allStored(const Eigen::MatrixXd& A) {
-  ScreeningColumns columns;
-  for (Eigen::Index c = 0; c < A.cols(); ++c) {
-    columns.stored.emplace_back(A.col(c));
-    columns.source.push_back({ColumnSource::Kind::kStored, c});
+// Chunks of fit rows whose held-out errors are made on the cores at once before they are summed
+// per pose in row order.
+constexpr size_t kHeldOutChunks = 8;
+// The per-pose errors heldOut holds for a batch of corrections (heldOutBatch), bytes.
+constexpr double kHeldOutBudgetBytes = 256e6;
+
+// A chunk's rows of one fold, gathered: their equations of the dense and link-angle columns and
+// of r0, their rows of each joint's scaled columns.
+struct FoldPart {
+  std::vector<size_t> rows;         // in the chunk
+  std::vector<Eigen::Index> start;  // per row its first equation in the part, then the count
+  Eigen::MatrixXd dense, link_angle;
+  std::vector<Eigen::MatrixXd> scaled;
+  Eigen::VectorXd r0;
+};
+
+// The chunk of fit rows [begin, end) split by fold.
+std::vector<FoldPart> foldParts(const ColumnChunk& chunk, const Eigen::VectorXd& r0,
+                                const FitRows& fit, size_t begin, size_t end) {
+  std::vector<FoldPart> parts(static_cast<size_t>(fit.folds));
+  for (size_t i = begin; i < end; ++i) {
+    FoldPart& part = parts[static_cast<size_t>(fit.fold[i])];
+    if (part.start.empty()) part.start.push_back(0);
+    part.rows.push_back(i - begin);
+    part.start.push_back(part.start.back() + fit.equations(i));
   }
-  return columns;
+  const Eigen::Index first = equationOf(fit, begin);
+  const size_t n = chunk.scaled.size();
+  for (FoldPart& part : parts) {
+    if (part.rows.empty()) continue;
+    const Eigen::Index count = part.start.back(), m = static_cast<Eigen::Index>(part.rows.size());
+    part.dense.resize(count, chunk.dense.cols());
+    part.link_angle.resize(count, chunk.link_angle.cols());
+    part.r0.resize(count);
+    part.scaled.resize(n);
+    for (size_t j = 0; j < n; ++j) part.scaled[j].resize(m, chunk.scaled[j].cols());
+    for (Eigen::Index r = 0; r < m; ++r) {
+      const size_t local = part.rows[static_cast<size_t>(r)];
+      const Eigen::Index from = fit.start[begin + local] - first, e = part.start[static_cast<size_t>(r)];
+      const Eigen::Index k = part.start[static_cast<size_t>(r) + 1] - e;
+      part.dense.middleRows(e, k) = chunk.dense.middleRows(from, k);
+      part.link_angle.middleRows(e, k) = chunk.link_angle.middleRows(from, k);
+      part.r0.segment(e, k) = r0.segment(fit.start[begin + local], k);
+      for (size_t j = 0; j < n; ++j) {
+        part.scaled[j].row(r) = chunk.scaled[j].row(static_cast<Eigen::Index>(local));
+      }
+    }
+  }
+  return parts;
+}
+
+// First compact column of each joint's scaled columns.
+std::vector<Eigen::Index> scaledOffsets(const ColumnLayout& layout) {
+  std::vector<Eigen::Index> offset;
+  Eigen::Index at = layout.dense;
+  for (Eigen::Index s : layout.scaled) {
+    offset.push_back(at);
+    at += s;
+  }
+  return offset;
+}
+
+// Adds a fold part's AᵀA (lower triangle) and Aᵀr0 in compact columns. A scaled column (j, φ)
+// meets a dense one d in Σ_rows φ (L_rowᵀ D_row)_jd and a scaled (k, ψ) in Σ_rows φ ψ
+// (L_rowᵀ L_row)_jk: n × n products per row instead of the equations' products of every pair.
+void addGram(const FoldPart& part, const ColumnLayout& layout, Eigen::MatrixXd& G,
+             Eigen::VectorXd& b) {
+  const Eigen::Index D = layout.dense;
+  G.topLeftCorner(D, D).selfadjointView<Eigen::Lower>().rankUpdate(part.dense.transpose());
+  b.head(D).noalias() += part.dense.transpose() * part.r0;
+  const Eigen::Index n = static_cast<Eigen::Index>(layout.scaled.size());
+  if (n == 0) return;
+  const Eigen::Index m = static_cast<Eigen::Index>(part.rows.size());
+  std::vector<Eigen::MatrixXd> LtD(static_cast<size_t>(n), Eigen::MatrixXd(m, D));
+  Eigen::MatrixXd LtL(m, n * n), Ltr(m, n);
+  for (Eigen::Index r = 0; r < m; ++r) {
+    const Eigen::Index e = part.start[static_cast<size_t>(r)];
+    const Eigen::Index k = part.start[static_cast<size_t>(r) + 1] - e;
+    const auto L = part.link_angle.middleRows(e, k);
+    const Eigen::MatrixXd products = L.transpose() * part.dense.middleRows(e, k);
+    for (Eigen::Index j = 0; j < n; ++j) LtD[static_cast<size_t>(j)].row(r) = products.row(j);
+    const Eigen::MatrixXd gram = L.transpose() * L;
+    LtL.row(r) = Eigen::Map<const Eigen::RowVectorXd>(gram.data(), n * n);
+    Ltr.row(r) = (L.transpose() * part.r0.segment(e, k)).transpose();
+  }
+  const std::vector<Eigen::Index> offset = scaledOffsets(layout);
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const Eigen::MatrixXd& Phi = part.scaled[static_cast<size_t>(j)];
+    const Eigen::Index sj = Phi.cols(), oj = offset[static_cast<size_t>(j)];
+    if (sj == 0) continue;
+    G.block(oj, 0, sj, D).noalias() += Phi.transpose() * LtD[static_cast<size_t>(j)];
+    b.segment(oj, sj).noalias() += Phi.transpose() * Ltr.col(j);
+    for (Eigen::Index k = 0; k < j; ++k) {
+      const Eigen::MatrixXd& Psi = part.scaled[static_cast<size_t>(k)];
+      if (Psi.cols() == 0) continue;
+      G.block(oj, offset[static_cast<size_t>(k)], sj, Psi.cols()).noalias() +=
+          Phi.transpose() * (LtL.col(k * n + j).asDiagonal() * Psi);
+    }
+    // The joint's own block: ‖L_j‖² ≥ 0 per row, so a rank update of the rows scaled by ‖L_j‖.
+    const Eigen::MatrixXd weighted = LtL.col(j * n + j).cwiseSqrt().asDiagonal() * Phi;
+    G.block(oj, oj, sj, sj).selfadjointView<Eigen::Lower>().rankUpdate(weighted.transpose());
+  }
+}
+
+// A fold part's A·V (its equations × V's columns), V in compact columns.
+Eigen::MatrixXd times(const FoldPart& part, const ColumnLayout& layout, const Eigen::MatrixXd& V) {
+  const Eigen::Index D = layout.dense;
+  Eigen::MatrixXd out = part.dense * V.topRows(D);
+  const Eigen::Index n = static_cast<Eigen::Index>(layout.scaled.size());
+  if (n == 0) return out;
+  const Eigen::Index m = static_cast<Eigen::Index>(part.rows.size());
+  const std::vector<Eigen::Index> offset = scaledOffsets(layout);
+  // Per joint, its scaled columns times V: a row's link-angle offsets per column of V.
+  std::vector<Eigen::MatrixXd> Y(static_cast<size_t>(n));
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const Eigen::MatrixXd& Phi = part.scaled[static_cast<size_t>(j)];
+    if (Phi.cols() == 0) {
+      Y[static_cast<size_t>(j)].setZero(m, V.cols());
+    } else {
+      Y[static_cast<size_t>(j)].noalias() = Phi * V.middleRows(offset[static_cast<size_t>(j)], Phi.cols());
+    }
+  }
+  Eigen::MatrixXd y(n, V.cols());
+  for (Eigen::Index r = 0; r < m; ++r) {
+    const Eigen::Index e = part.start[static_cast<size_t>(r)];
+    const Eigen::Index k = part.start[static_cast<size_t>(r) + 1] - e;
+    for (Eigen::Index j = 0; j < n; ++j) y.row(j) = Y[static_cast<size_t>(j)].row(r);
+    out.middleRows(e, k).noalias() += part.link_angle.middleRows(e, k) * y;
+  }
+  return out;
+}
+
+// Column values v of A in compact columns (shared places summed).
+Eigen::MatrixXd compactValues(const ColumnLayout& layout, const std::vector<Eigen::Index>& columns,
+                              const Eigen::VectorXd& v) {
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(layout.compactSize(), 1);
+  for (size_t a = 0; a < columns.size(); ++a) {
+    out(layout.compactIndex(columns[a]), 0) += v(static_cast<Eigen::Index>(a));
+  }
+  return out;
 }
 
 }  // namespace
 
-FoldGrams::FoldGrams(const Eigen::MatrixXd& A, const Eigen::VectorXd& r0, const FitRows& fit)
-    : FoldGrams(allStored(A), r0, fit) {}
+size_t heldOutBatch(const FitRows& fit) {
+  const double per_outcome = 8.0 * std::max(1, fit.poses);
+  return std::max<size_t>(kMinHeldOutBatch, static_cast<size_t>(kHeldOutBudgetBytes / per_outcome));
+}
 
-FoldGrams::FoldGrams(ScreeningColumns columns, const Eigen::VectorXd& r0, const FitRows& fit) {
-  const Eigen::Index p = columns.size();
+FoldGrams::FoldGrams(ScreeningColumns columns, Eigen::VectorXd residual, const FitRows& fit)
+    : r0(std::move(residual)),
+      columns_(std::make_shared<const ScreeningColumns>(std::move(columns))),
+      fit_(&fit) {
+  const ColumnLayout& layout = columns_->layout;
+  STEPCAL_INVARIANT(r0.size() == fit.count, "r0 has an entry per fit equation");
+  for (const ColumnLayout::Place& at : layout.place) {
+    const bool placed = at.joint < 0 ? at.index < layout.dense
+                                     : at.joint < static_cast<int>(layout.scaled.size()) &&
+                                           at.index < layout.scaled[static_cast<size_t>(at.joint)];
+    STEPCAL_INVARIANT(at.index >= 0 && placed, "every screening column has its place");
+  }
   const size_t folds = static_cast<size_t>(fit.folds);
-  const Eigen::Index n = columns.link_angle.cols();
-  const Eigen::Index stored = static_cast<Eigen::Index>(columns.stored.size());
-  const Eigen::Index features = static_cast<Eigen::Index>(columns.features.size());
-  rows_of_fold.assign(folds, {});
-  for (size_t i = 0; i < fit.rows.size(); ++i) {
-    rows_of_fold[static_cast<size_t>(fit.fold[i])].push_back(static_cast<int>(i));
-  }
-  auto by_fold = std::make_shared<Columns>();
-  Columns& c = *by_fold;
-  c.source = std::move(columns.source);
-  c.blocks = std::move(columns.blocks);
-  for (const FeatureColumn& feature : columns.features) c.feature_joint.push_back(feature.joint);
-  for (const ColumnSource& s : c.source) {
-    const Eigen::Index count = s.kind == ColumnSource::Kind::kStored    ? stored
-                               : s.kind == ColumnSource::Kind::kFeature ? features
-                                                                        : static_cast<Eigen::Index>(c.blocks.size());
-    STEPCAL_INVARIANT(s.index >= 0 && s.index < count, "every screening column has its source");
-  }
-  const bool made = features > 0 || !c.blocks.empty();
-  c.stored_by_fold.resize(folds);
-  c.link_angle_by_fold.resize(folds);
-  c.q_by_fold.resize(folds);
-  c.feature_by_fold.resize(folds);
-  c.start_by_fold.resize(folds);
-  r0_fold.resize(folds);
-  for (size_t f = 0; f < folds; ++f) {
-    const Eigen::Index rows = static_cast<Eigen::Index>(rows_of_fold[f].size());
-    Eigen::Index count = 0;
-    c.start_by_fold[f].push_back(0);
-    for (int i : rows_of_fold[f]) {
-      count += fit.equations(static_cast<size_t>(i));
-      c.start_by_fold[f].push_back(count);
+  const Eigen::Index q = layout.compactSize(), p = layout.size();
+  // Per slice and fold, in compact columns; the slices summed in order.
+  std::vector<std::vector<Eigen::MatrixXd>> Gc(kGramSlices, std::vector<Eigen::MatrixXd>(folds, Eigen::MatrixXd::Zero(q, q)));
+  std::vector<std::vector<Eigen::VectorXd>> bc(kGramSlices, std::vector<Eigen::VectorXd>(folds, Eigen::VectorXd::Zero(q)));
+  std::vector<std::vector<double>> e0c(kGramSlices, std::vector<double>(folds, 0.0));
+  forEachChunk([&](size_t slice, size_t begin, size_t end, const ColumnChunk& chunk) {
+    const std::vector<FoldPart> parts = foldParts(chunk, r0, fit, begin, end);
+    for (size_t f = 0; f < folds; ++f) {
+      if (parts[f].rows.empty()) continue;
+      addGram(parts[f], layout, Gc[slice][f], bc[slice][f]);
+      e0c[slice][f] += parts[f].r0.squaredNorm();
     }
-    c.stored_by_fold[f].resize(count, stored);
-    r0_fold[f].resize(count);
-    c.link_angle_by_fold[f].resize(made ? count : 0, n);
-    c.q_by_fold[f].resize(c.blocks.empty() ? 0 : rows, n);
-    c.feature_by_fold[f].resize(rows, features);
-    for (Eigen::Index r = 0; r < rows; ++r) {
-      const size_t i = static_cast<size_t>(rows_of_fold[f][static_cast<size_t>(r)]);
-      for (Eigen::Index j = 0; j < c.q_by_fold[f].cols() && !c.blocks.empty(); ++j) {
-        c.q_by_fold[f](r, j) = fit.rows[i]->q_rad(j);
-      }
-      for (Eigen::Index k = 0; k < features; ++k) {
-        c.feature_by_fold[f](r, k) = columns.features[static_cast<size_t>(k)].feature(static_cast<Eigen::Index>(i));
-      }
-    }
-  }
-  columns.features.clear();
-  // Column by column into the folds, each column released once sorted: it is held once.
-  const auto sortInto = [&](const auto& from, size_t fold, auto&& to) {
-    Eigen::Index e = 0;
-    for (int i : rows_of_fold[fold]) {
-      const int k = fit.equations(static_cast<size_t>(i));
-      to.middleRows(e, k) = from.middleRows(fit.start[static_cast<size_t>(i)], k);
-      e += k;
-    }
-  };
-  for (Eigen::Index s = 0; s < stored; ++s) {
-    Eigen::VectorXd& column = columns.stored[static_cast<size_t>(s)];
-    STEPCAL_INVARIANT(column.size() == fit.count,
-                      "every screening column has an entry per fit equation");
-    for (size_t f = 0; f < folds; ++f) sortInto(column, f, c.stored_by_fold[f].col(s));
-    column = Eigen::VectorXd();
-  }
-  for (size_t f = 0; f < folds; ++f) {
-    sortInto(r0, f, r0_fold[f]);
-    if (made) sortInto(columns.link_angle, f, c.link_angle_by_fold[f]);
-  }
-  columns_ = std::move(by_fold);
-
+  });
+  std::vector<Eigen::Index> compact(static_cast<size_t>(p));
+  for (Eigen::Index c = 0; c < p; ++c) compact[static_cast<size_t>(c)] = layout.compactIndex(c);
   G.assign(folds + 1, Eigen::MatrixXd::Zero(p, p));
   b.assign(folds + 1, Eigen::VectorXd::Zero(p));
   e0.assign(folds, 0.0);
-  // Per fold, chunk by chunk of its rows: A is never made whole.
-  parallelFor(folds, [&](size_t f) {
-    const Eigen::VectorXd& rf = r0_fold[f];
-    Eigen::MatrixXd& Gf = G[f];
-    const size_t rows = rows_of_fold[f].size();
-    for (size_t begin = 0; begin < rows; begin += kGramChunkRows) {
-      const size_t end = std::min(rows, begin + kGramChunkRows);
-      const Eigen::MatrixXd A = foldRows(f, begin, end);
-      const Eigen::Index e = c.start_by_fold[f][begin];
-      Gf.selfadjointView<Eigen::Lower>().rankUpdate(A.transpose());
-      b[f].noalias() += A.transpose() * rf.segment(e, A.rows());
-    }
-    Gf.triangularView<Eigen::StrictlyUpper>() = Gf.transpose();
-    e0[f] = rf.squaredNorm();
-  });
   for (size_t f = 0; f < folds; ++f) {
+    Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(q, q);
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(q);
+    for (size_t s = 0; s < kGramSlices; ++s) {
+      sum += Gc[s][f];
+      rhs += bc[s][f];
+      e0[f] += e0c[s][f];
+      Gc[s][f] = Eigen::MatrixXd();
+    }
+    sum.triangularView<Eigen::StrictlyUpper>() = sum.transpose();
+    G[f] = sum(compact, compact);
+    b[f] = rhs(compact);
     G[folds] += G[f];
     b[folds] += b[f];
   }
@@ -147,80 +246,42 @@ FoldGrams::FoldGrams(ScreeningColumns columns, const Eigen::VectorXd& r0, const 
   }
 }
 
-Eigen::MatrixXd FoldGrams::blockColumns(size_t f, Eigen::Index b, int width, size_t begin,
-                                        size_t end) const {
-  const Columns& c = *columns_;
-  const ProfileBlock& block = c.blocks[static_cast<size_t>(b)];
-  const Eigen::MatrixXd& L = c.link_angle_by_fold[f];
-  const std::vector<Eigen::Index>& start = c.start_by_fold[f];
-  Eigen::MatrixXd B(start[end] - start[begin], width);
-  Eigen::VectorXd features(2 * block.order);
-  for (size_t r = begin; r < end; ++r) {
-    profileFeatures(block.coverage, block.order,
-                    c.q_by_fold[f](static_cast<Eigen::Index>(r), block.joint), features.data());
-    const Eigen::Index e = start[r], k = start[r + 1] - e;
-    B.middleRows(e - start[begin], k) =
-        L.block(e, block.joint, k, 1) * features.head(width).transpose();
-  }
-  return B;
-}
-
-Eigen::MatrixXd FoldGrams::blockColumns(size_t f, Eigen::Index b, int width) const {
-  return blockColumns(f, b, width, 0, rows_of_fold[f].size());
-}
-
-void FoldGrams::subtractFeatureColumn(size_t f, Eigen::Index k, double x, Eigen::VectorXd& e) const {
-  const Columns& c = *columns_;
-  const Eigen::MatrixXd& L = c.link_angle_by_fold[f];
-  const std::vector<Eigen::Index>& start = c.start_by_fold[f];
-  const int joint = c.feature_joint[static_cast<size_t>(k)];
-  for (size_t r = 0; r + 1 < start.size(); ++r) {
-    const double feature = c.feature_by_fold[f](static_cast<Eigen::Index>(r), k);
-    for (Eigen::Index i = start[r]; i < start[r + 1]; ++i) e(i) -= x * (L(i, joint) * feature);
-  }
-}
-
-Eigen::MatrixXd FoldGrams::foldRows(size_t f, size_t begin, size_t end) const {
-  const Columns& c = *columns_;
-  const Eigen::Index p = static_cast<Eigen::Index>(c.source.size());
-  const std::vector<Eigen::Index>& start = c.start_by_fold[f];
-  const Eigen::Index first = start[begin], count = start[end] - first;
-  Eigen::MatrixXd A(count, p);
-  for (Eigen::Index col = 0; col < p; ++col) {
-    const ColumnSource& s = c.source[static_cast<size_t>(col)];
-    if (s.kind == ColumnSource::Kind::kStored) {
-      A.col(col) = c.stored_by_fold[f].col(s.index).segment(first, count);
-    } else if (s.kind == ColumnSource::Kind::kFeature) {
-      const int joint = c.feature_joint[static_cast<size_t>(s.index)];
-      for (size_t r = begin; r < end; ++r) {
-        const Eigen::Index e = start[r], k = start[r + 1] - e;
-        A.col(col).segment(e - first, k) =
-            c.link_angle_by_fold[f].block(e, joint, k, 1) *
-            c.feature_by_fold[f](static_cast<Eigen::Index>(r), s.index);
-      }
-    }
-  }
-  for (size_t b = 0; b < c.blocks.size(); ++b) {
-    A.middleCols(c.blocks[b].first, 2 * c.blocks[b].order) =
-        blockColumns(f, static_cast<Eigen::Index>(b), 2 * c.blocks[b].order, begin, end);
-  }
-  return A;
+void FoldGrams::forEachChunk(
+    const std::function<void(size_t slice, size_t begin, size_t end, const ColumnChunk& chunk)>& body)
+    const {
+  diagnosis::forEachChunk(*fit_, [&](size_t slice, size_t begin, size_t end) {
+    ColumnChunk chunk;
+    columns_->make(begin, end, chunk);
+    body(slice, begin, end, chunk);
+  });
 }
 
 void FoldGrams::takeOut(const Eigen::VectorXd& v) {
-  const size_t folds = r0_fold.size();
-  b[folds].setZero();
-  for (size_t f = 0; f < folds; ++f) {
-    const std::vector<Eigen::Index>& start = columns_->start_by_fold[f];
-    const size_t rows = rows_of_fold[f].size();
-    for (size_t begin = 0; begin < rows; begin += kGramChunkRows) {
-      const size_t end = std::min(rows, begin + kGramChunkRows);
-      r0_fold[f].segment(start[begin], start[end] - start[begin]).noalias() +=
-          foldRows(f, begin, end) * v;
+  const FitRows& fit = *fit_;
+  const size_t folds = static_cast<size_t>(fit.folds);
+  std::vector<Eigen::Index> all(static_cast<size_t>(v.size()));
+  for (Eigen::Index c = 0; c < v.size(); ++c) all[static_cast<size_t>(c)] = c;
+  const Eigen::MatrixXd v_compact = compactValues(layout(), all, v);
+  // Each chunk moves its own equations of r0.
+  forEachChunk([&](size_t, size_t begin, size_t end, const ColumnChunk& chunk) {
+    const std::vector<FoldPart> parts = foldParts(chunk, r0, fit, begin, end);
+    for (const FoldPart& part : parts) {
+      if (part.rows.empty()) continue;
+      const Eigen::VectorXd moved = times(part, layout(), v_compact).col(0);
+      for (size_t r = 0; r < part.rows.size(); ++r) {
+        const Eigen::Index e = part.start[r], k = part.start[r + 1] - e;
+        r0.segment(fit.start[begin + part.rows[r]], k) += moved.segment(e, k);
+      }
     }
+  });
+  b[folds].setZero();
+  std::fill(e0.begin(), e0.end(), 0.0);
+  for (size_t f = 0; f < folds; ++f) {
     b[f] += G[f] * v;
     b[folds] += b[f];
-    e0[f] = r0_fold[f].squaredNorm();
+  }
+  for (size_t i = 0; i < fit.rows.size(); ++i) {
+    e0[static_cast<size_t>(fit.fold[i])] += r0.segment(fit.start[i], fit.equations(i)).squaredNorm();
   }
 }
 
@@ -397,53 +458,87 @@ CrossValidation::JointFit CrossValidation::jointFit(const std::vector<Eigen::Ind
   return out;
 }
 
-CrossValidation::Outcome CrossValidation::heldOut(const Correction& correction) const {
-  Outcome out;
-  out.pose_sse.assign(static_cast<size_t>(fit_.poses), 0.0);
-  out.position_m.assign(fit_.rows.size(), 0.0);
-  for (int f = 0; f < fit_.folds; ++f) {
-    const size_t k = static_cast<size_t>(f);
-    // The fold's residual over just the correction's columns (column by column: A streams once).
-    Eigen::VectorXd e = grams_.r0_fold[k];
-    const Eigen::VectorXd& x = correction.x[k];
-    // A profile block's columns are made once per run of them, as many as the correction uses.
-    Eigen::MatrixXd block;
-    Eigen::Index made = -1;
-    for (size_t a = 0; a < correction.columns.size(); ++a) {
-      const ColumnSource& source = grams_.source(correction.columns[a]);
-      if (source.kind == ColumnSource::Kind::kStored) {
-        e.noalias() -= x(static_cast<Eigen::Index>(a)) * grams_.storedColumn(k, source.index);
-        continue;
-      }
-      if (source.kind == ColumnSource::Kind::kFeature) {
-        grams_.subtractFeatureColumn(k, source.index, x(static_cast<Eigen::Index>(a)), e);
-        continue;
-      }
-      const Eigen::Index first = grams_.block(source.index).first;
-      const Eigen::Index offset = correction.columns[a] - first;
-      if (source.index != made || offset >= block.cols()) {
-        Eigen::Index width = offset + 1;
-        for (size_t later = a + 1; later < correction.columns.size(); ++later) {
-          const ColumnSource& other = grams_.source(correction.columns[later]);
-          if (other.kind == ColumnSource::Kind::kProfile && other.index == source.index) {
-            width = std::max(width, correction.columns[later] - first + 1);
-          }
-        }
-        block = grams_.blockColumns(k, source.index, static_cast<int>(width));
-        made = source.index;
-      }
-      e.noalias() -= x(static_cast<Eigen::Index>(a)) * block.col(offset);
+double CrossValidation::Outcome::total() const {
+  double sum = 0.0;
+  for (double e : pose_sse) sum += e;
+  return sum;
+}
+
+std::vector<CrossValidation::Outcome> CrossValidation::heldOut(
+    const std::vector<const Correction*>& corrections) const {
+  const ColumnLayout& layout = grams_.layout();
+  const size_t K = corrections.size(), folds = static_cast<size_t>(fit_.folds);
+  const Eigen::Index k_columns = static_cast<Eigen::Index>(K);
+  // Per fold, every correction's values fitted without it, in a chunk's compact columns.
+  std::vector<Eigen::MatrixXd> X(folds, Eigen::MatrixXd::Zero(layout.compactSize(), k_columns));
+  for (size_t k = 0; k < K; ++k) {
+    for (size_t f = 0; f < folds; ++f) {
+      X[f].col(static_cast<Eigen::Index>(k)) =
+          compactValues(layout, corrections[k]->columns, corrections[k]->x[f]).col(0);
     }
-    Eigen::Index at = 0;
-    for (int i : grams_.rows_of_fold[k]) {
-      const int equations = fit_.equations(static_cast<size_t>(i));
-      out.pose_sse[static_cast<size_t>(fit_.pose[static_cast<size_t>(i)])] +=
-          e.segment(at, equations).squaredNorm();
-      out.position_m[static_cast<size_t>(i)] = e.segment<3>(at).norm() / fit_.w_p;
-      at += equations;
+  }
+  std::vector<Outcome> out(K);
+  for (Outcome& o : out) {
+    o.pose_sse.assign(static_cast<size_t>(fit_.poses), 0.0);
+    o.rows = fit_.rows.size();
+  }
+  // Chunks made on the cores a few at a time; each row's errors then summed per pose in row order.
+  const size_t rows = fit_.rows.size(), span = kHeldOutChunks * kGramChunkRows;
+  Eigen::MatrixXd row_sse(static_cast<Eigen::Index>(span), k_columns);
+  Eigen::MatrixXd row_position(static_cast<Eigen::Index>(span), k_columns);
+  for (size_t first = 0; first < rows; first += span) {
+    const size_t last = std::min(rows, first + span);
+    const size_t chunks = (last - first + kGramChunkRows - 1) / kGramChunkRows;
+    parallelFor(chunks, [&](size_t c) {
+      const size_t begin = first + c * kGramChunkRows, end = std::min(last, begin + kGramChunkRows);
+      ColumnChunk chunk;
+      grams_.make(begin, end, chunk);
+      const std::vector<FoldPart> parts = foldParts(chunk, grams_.r0, fit_, begin, end);
+      for (size_t f = 0; f < folds; ++f) {
+        const FoldPart& part = parts[f];
+        if (part.rows.empty()) continue;
+        const Eigen::MatrixXd e =
+            part.r0.replicate(1, k_columns) - times(part, layout, X[f]);
+        for (size_t r = 0; r < part.rows.size(); ++r) {
+          const Eigen::Index at = part.start[r], k = part.start[r + 1] - at;
+          const Eigen::Index row = static_cast<Eigen::Index>(begin + part.rows[r] - first);
+          row_sse.row(row) = e.middleRows(at, k).colwise().squaredNorm();
+          row_position.row(row) = e.middleRows(at, 3).colwise().norm() / fit_.w_p;
+        }
+      }
+    });
+    for (size_t i = first; i < last; ++i) {
+      const size_t pose = static_cast<size_t>(fit_.pose[i]);
+      const Eigen::Index row = static_cast<Eigen::Index>(i - first);
+      for (size_t k = 0; k < K; ++k) {
+        out[k].pose_sse[pose] += row_sse(row, static_cast<Eigen::Index>(k));
+        out[k].position_sum_m += row_position(row, static_cast<Eigen::Index>(k));
+      }
     }
   }
   return out;
+}
+
+void CrossValidation::heldOutInGroups(
+    const std::vector<std::vector<const Correction*>>& groups, size_t batch,
+    const std::function<void(size_t group, std::vector<Outcome> outcomes)>& done) const {
+  for (size_t first = 0; first < groups.size();) {
+    std::vector<const Correction*> corrections;
+    size_t last = first;
+    while (last < groups.size() &&
+           (last == first || corrections.size() + groups[last].size() <= batch)) {
+      corrections.insert(corrections.end(), groups[last].begin(), groups[last].end());
+      ++last;
+    }
+    std::vector<Outcome> outcomes = corrections.empty() ? std::vector<Outcome>() : heldOut(corrections);
+    auto at = outcomes.begin();
+    for (size_t g = first; g < last; ++g) {
+      const auto end = at + static_cast<long>(groups[g].size());
+      done(g, std::vector<Outcome>(std::make_move_iterator(at), std::make_move_iterator(end)));
+      at = end;
+    }
+    first = last;
+  }
 }
 
 Comparison compare(const CrossValidation::Outcome& base, const CrossValidation::Outcome& with) {
@@ -456,9 +551,8 @@ Comparison compare(const CrossValidation::Outcome& base, const CrossValidation::
   c.relative_reduction = total > 0.0 ? reduction / total : 0.0;
   c.z = signedRankZ(base.pose_sse, with.pose_sse);
   c.p = upperTailP(c.z);
-  double gain = 0.0;
-  for (size_t i = 0; i < base.position_m.size(); ++i) gain += base.position_m[i] - with.position_m[i];
-  c.gain_mm = 1e3 * gain / static_cast<double>(base.position_m.size());
+  c.gain_mm = 1e3 * (base.position_sum_m - with.position_sum_m) /
+              static_cast<double>(std::max<size_t>(1, base.rows));
   return c;
 }
 

@@ -14,6 +14,7 @@
 // judged on this one.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -25,94 +26,81 @@
 
 namespace stepcal::trainer::diagnosis {
 
-/// A block of a transmission profile's columns in a screening matrix, never stored: made from
-/// the fit rows when needed (profileColumns: joint j's link-angle column times each gated basis
-/// function), columns first … first + 2·order − 1.
-struct ProfileBlock {
-  Eigen::Index first = 0;
-  int joint = 0;
-  AngleCoverage coverage;
-  int order = 0;
+/// Where each column of a screening matrix A lives in a chunk of it (ColumnChunk). A column is
+/// dense (a value per equation: the geometry's, a finite difference's) or a joint's link-angle
+/// column times a per-row scalar (a torque-driven part, a coupling's angle, a gravity torque, a
+/// profile's gated harmonic): then a chunk holds one value per row for it, and its Grams are
+/// summed over the link angles' n × n products (cross_validation.cpp).
+struct ColumnLayout {
+  struct Place {
+    int joint = -1;          ///< −1: dense
+    Eigen::Index index = 0;  ///< in the chunk's dense columns, or in its joint's scaled ones
+  };
+  Eigen::Index dense = 0;            ///< dense columns of a chunk
+  std::vector<Eigen::Index> scaled;  ///< per joint, its scaled columns in a chunk
+  std::vector<Place> place;          ///< per column of A (two may share one place)
+  Eigen::Index size() const { return static_cast<Eigen::Index>(place.size()); }
+  /// Columns of a chunk: the dense ones, then each joint's scaled ones in joint order.
+  Eigen::Index compactSize() const;
+  /// Index of column c of A among a chunk's columns in compactSize's order.
+  Eigen::Index compactIndex(Eigen::Index c) const;
 };
 
-/// A column of a screening matrix that is a joint's link-angle column times a per-row feature
-/// (a torque-driven part, a coupling's angle, a gravity torque), held as that feature.
-struct FeatureColumn {
-  int joint = 0;
-  Eigen::VectorXd feature;  ///< per fit row
+/// Fit rows [begin, end) of a screening matrix in its layout: row i's equations of dense column
+/// d are dense.middleRows(e_i, k_i).col(d), of scaled column (j, m) link_angle.middleRows(e_i,
+/// k_i).col(j) · scaled[j](i − begin, m) (e_i its first equation in the chunk, k_i its count).
+struct ColumnChunk {
+  Eigen::MatrixXd dense;                ///< equations × layout.dense
+  Eigen::MatrixXd link_angle;           ///< equations × n (Linearisation::link_angle)
+  std::vector<Eigen::MatrixXd> scaled;  ///< per joint: rows × layout.scaled[j]
 };
 
-/// Where a column of a screening matrix comes from.
-struct ColumnSource {
-  enum class Kind { kStored, kFeature, kProfile };
-  Kind kind = Kind::kStored;
-  Eigen::Index index = 0;  ///< in stored (two columns may share one), features or blocks
-};
-
-/// The columns of a screening matrix A (count × p, the residual's weighting) as they are handed
-/// to FoldGrams: stored ones, and the features' and the profiles' columns (most of them), which
-/// are made again from the link-angle columns where needed, so that A takes a few stored columns
-/// per equation, not several hundred.
+/// A screening matrix as made chunk by chunk, never whole: its layout, and the function that
+/// makes fit rows [begin, end) of it (called on the cores, each call for its own chunk).
 struct ScreeningColumns {
-  std::vector<Eigen::VectorXd> stored;  ///< count each
-  std::vector<FeatureColumn> features;
-  std::vector<ProfileBlock> blocks;
-  std::vector<ColumnSource> source;  ///< per column of A
-  Eigen::MatrixXd link_angle;        ///< count × n (Linearisation::link_angle)
-  Eigen::Index size() const { return static_cast<Eigen::Index>(source.size()); }
+  ColumnLayout layout;
+  std::function<void(size_t begin, size_t end, ColumnChunk& chunk)> make;
 };
 
 /// The columns of one screening matrix A (count × p, the residual's weighting) against the
-/// model's residual r0, summed per fold: what every cross-validated fit on them needs. Built
-/// whenever the model changes.
+/// model's residual r0, summed per fold: what every cross-validated fit on them needs. A is
+/// made chunk by chunk of fit rows whenever its rows are needed (the Grams, a held-out error, a
+/// part taken out), so that it holds its parameters' square and r0, not a row per equation.
+/// Built whenever the model changes.
 struct FoldGrams {
-  /// The stored columns are released one by one as they are sorted into the folds.
-  FoldGrams(ScreeningColumns columns, const Eigen::VectorXd& r0, const FitRows& fit);
-  /// Every column stored.
-  FoldGrams(const Eigen::MatrixXd& A, const Eigen::VectorXd& r0, const FitRows& fit);
+  FoldGrams(ScreeningColumns columns, Eigen::VectorXd r0, const FitRows& fit);
   /// Moves r0 to r0 + A·v: the linearised model with a part of it (values v in its columns, 0
   /// elsewhere) taken out (−v: a change put in).
   void takeOut(const Eigen::VectorXd& v);
-  /// A copy with takeOut(v); it shares A's rows with this one.
+  /// A copy with takeOut(v); it makes A as this one does.
   FoldGrams without(const Eigen::VectorXd& v) const;
   std::vector<Eigen::MatrixXd> G;  ///< per fold AᵀA of its rows, then the total (index folds)
   std::vector<Eigen::VectorXd> b;  ///< per fold Aᵀ r0, then the total
   std::vector<double> e0;          ///< per fold Σ r0²
   Eigen::VectorXd scale;           ///< √ of the total Gram's diagonal (1 where it is 0)
-  /// Per fold, its equations' r0 and the fit rows they belong to (in order, each row's equations
-  /// together), for row-by-row held-out errors over just the columns used.
-  std::vector<Eigen::VectorXd> r0_fold;
-  std::vector<std::vector<int>> rows_of_fold;
+  Eigen::VectorXd r0;              ///< per fit equation
 
-  /// Rows [begin, end) of fold f (indices into rows_of_fold[f]) of A, every column: the stored
-  /// ones and the profiles' blocks made (their equations × p).
-  Eigen::MatrixXd foldRows(size_t f, size_t begin, size_t end) const;
-  /// Fold f's equations of profile block b's leading `width` columns (count_f × width), or of its
-  /// rows [begin, end) only.
-  Eigen::MatrixXd blockColumns(size_t f, Eigen::Index b, int width) const;
-  Eigen::MatrixXd blockColumns(size_t f, Eigen::Index b, int width, size_t begin, size_t end) const;
-  const ColumnSource& source(Eigen::Index c) const { return columns_->source[static_cast<size_t>(c)]; }
-  const ProfileBlock& block(Eigen::Index b) const { return columns_->blocks[static_cast<size_t>(b)]; }
-  /// Fold f's equations of stored column s.
-  auto storedColumn(size_t f, Eigen::Index s) const { return columns_->stored_by_fold[f].col(s); }
-  /// e −= x · (fold f's equations of feature column k), count_f.
-  void subtractFeatureColumn(size_t f, Eigen::Index k, double x, Eigen::VectorXd& e) const;
+  const ColumnLayout& layout() const { return columns_->layout; }
+  const FitRows& fit() const { return *fit_; }
+  /// Fit rows [begin, end) of A.
+  void make(size_t begin, size_t end, ColumnChunk& chunk) const { columns_->make(begin, end, chunk); }
+  /// Calls body(slice, begin, end, chunk) for every chunk of fit rows [begin, end) of A, the
+  /// chunks in kGramSlices contiguous slices on the cores (chunked_gram.hpp).
+  void forEachChunk(
+      const std::function<void(size_t slice, size_t begin, size_t end, const ColumnChunk& chunk)>&
+          body) const;
 
  private:
-  /// A's columns by fold, shared by the copies (without()) and never changed.
-  struct Columns {
-    std::vector<Eigen::MatrixXd> stored_by_fold;      ///< count_f × stored
-    std::vector<Eigen::MatrixXd> link_angle_by_fold;  ///< count_f × n
-    std::vector<Eigen::MatrixXd> q_by_fold;           ///< per fold row, its joint angles, rad
-    std::vector<Eigen::MatrixXd> feature_by_fold;     ///< per fold row, each feature
-    /// Per fold row, its first equation in the fold; then count_f.
-    std::vector<std::vector<Eigen::Index>> start_by_fold;
-    std::vector<int> feature_joint;
-    std::vector<ProfileBlock> blocks;
-    std::vector<ColumnSource> source;
-  };
-  std::shared_ptr<const Columns> columns_;
+  std::shared_ptr<const ScreeningColumns> columns_;
+  const FitRows* fit_;
 };
+
+/// The fewest corrections CrossValidation::heldOut is given at once.
+inline constexpr size_t kMinHeldOutBatch = 8;
+/// How many corrections' outcomes to ask of CrossValidation::heldOut at once: their per-pose
+/// errors in a fixed budget (256 MB), so that a batch's memory does not grow with the poses
+/// beyond kMinHeldOutBatch of them.
+size_t heldOutBatch(const FitRows& fit);
 
 class CrossValidation {
  public:
@@ -158,12 +146,23 @@ class CrossValidation {
   };
   JointFit jointFit(const std::vector<Eigen::Index>& columns) const;
 
-  /// Row by row on the held-out folds: weighted squared error per pose, position error per row.
+  /// Row by row on the held-out folds: weighted squared error per pose, and the position errors
+  /// of the rows summed.
   struct Outcome {
     std::vector<double> pose_sse;
-    std::vector<double> position_m;
+    double position_sum_m = 0.0;
+    size_t rows = 0;
+    /// Σ pose_sse.
+    double total() const;
   };
-  Outcome heldOut(const Correction& correction) const;
+  /// Every correction's outcome from one pass over A's rows.
+  std::vector<Outcome> heldOut(const std::vector<const Correction*>& corrections) const;
+  Outcome heldOut(const Correction& correction) const { return heldOut({&correction}).front(); }
+  /// The outcomes of groups of corrections, each group's together, the groups batched in order
+  /// into passes of at most `batch` corrections (a larger group alone); done(group, outcomes)
+  /// takes each group's as its pass comes back.
+  void heldOutInGroups(const std::vector<std::vector<const Correction*>>& groups, size_t batch,
+                       const std::function<void(size_t group, std::vector<Outcome> outcomes)>& done) const;
 
  private:
   Eigen::MatrixXd trainingGram(int f, const std::vector<Eigen::Index>& a,

@@ -95,13 +95,9 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
   for (int j = 0; j < n; ++j) dm.compliance_free.push_back(dm.global.compliance_rad_per_nm(j) > 0.0);
   search.starting_compliance = dm.compliance_free;
   if (!dm.profiles.empty()) {
-    const Evaluation e = evaluate(dm.global, fit);
-    const Linearisation lin = linearise(dm.global, fit, e.r);
+    const Eigen::VectorXd r = residuals(dm.global, fit);
     const double rho = options.profile_ridges[options.profile_ridges.size() / 2];
-    for (Profile& p : dm.profiles) {
-      const Mechanism& m = p.mechanism;
-      p.ridge = rho * profileRidgeScale(lin.link_angle, m, fit);
-    }
+    for (Profile& p : dm.profiles) p.ridge = rho * profileRidgeScale(dm.global, r, p.mechanism, fit);
   }
 
   // 1. The model refitted jointly; what it gets wrong.

@@ -48,7 +48,6 @@ void describeEffects(Search& search) {
   const DiagnosisModel& dm = search.model;
   const int n = dm.global.chain_Tracker.dof();
   const Evaluation e = evaluate(dm.global, fit);
-  const Linearisation lin = linearise(dm.global, fit, e.r);
   const Evaluation whole = evaluate(dm.combined(), fit);
   for (FoundEffect& f : search.d.effects) {
     const Mechanism& m = f.mechanism;
@@ -56,7 +55,7 @@ void describeEffects(Search& search) {
       f.rms_rad = profileRms(m, fit);
       f.largest_amplitude_rad = largestAmplitude(m);
       f.harmonics_separable = harmonicsSeparable(m, f.rms_rad);
-      f.geometry_share = geometryShare(lin.link_angle, lin.geometry, m, fit);
+      f.geometry_share = geometryShare(dm.global, e.r, m, fit);
     } else if (isTorqueDeflection(m.kind)) {
       for (const JointVector& tau : whole.tau_nm) {
         f.max_torque_nm = std::max(f.max_torque_nm, std::abs(tau(m.joint)));

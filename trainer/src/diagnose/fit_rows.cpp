@@ -22,15 +22,13 @@ constexpr size_t kRowsPerTask = 256;
 // linkLengthScale is 1 at NaN).
 constexpr double kUnscaledLinks = std::numeric_limits<double>::quiet_NaN();
 
-// Calls row_body(i, ws) for every row, in blocks over the cores.
+// Calls body(begin, end, ws) for every block of rows, on the cores.
 template <typename Body>
-void forEachRow(const FitRows& fit, const Body& row_body) {
+void forEachBlock(const FitRows& fit, const Body& body) {
   const size_t rows = fit.rows.size();
   parallelFor((rows + kRowsPerTask - 1) / kRowsPerTask, [&](size_t block) {
     ChainWorkspace ws;
-    for (size_t i = block * kRowsPerTask; i < std::min(rows, (block + 1) * kRowsPerTask); ++i) {
-      row_body(i, ws);
-    }
+    body(block * kRowsPerTask, std::min(rows, (block + 1) * kRowsPerTask), ws);
   });
 }
 
@@ -72,70 +70,49 @@ FitRows makeFitRows(const std::vector<const Measurement*>& rows, const TrackerNo
   return fit;
 }
 
-FitRows chunkOf(const FitRows& fit, size_t begin, size_t end) {
-  FitRows chunk;
-  chunk.rows.assign(fit.rows.begin() + static_cast<long>(begin), fit.rows.begin() + static_cast<long>(end));
-  chunk.fold.assign(fit.fold.begin() + static_cast<long>(begin), fit.fold.begin() + static_cast<long>(end));
-  chunk.pose.assign(fit.pose.begin() + static_cast<long>(begin), fit.pose.begin() + static_cast<long>(end));
-  for (const Measurement* row : chunk.rows) {
-    chunk.start.push_back(chunk.count);
-    chunk.count += row->has_orientation ? 6 : 3;
+namespace {
+
+// Row i's weighted residual into r.segment(e, k): measured − modelled at the tip pose X.
+void rowResidual(const FitRows& fit, size_t i, const Pose& X, Eigen::Index e, Eigen::VectorXd& r) {
+  const Measurement& row = *fit.rows[i];
+  r.segment<3>(e) = fit.w_p * (row.p_TipInTracker_m - X.translation());
+  if (row.has_orientation) {
+    r.segment<3>(e + 3) =
+        fit.w_r * lie::logSO3(row.q_TrackerTip.toRotationMatrix() * X.linear().transpose());
   }
-  chunk.poses = fit.poses;
-  chunk.folds = fit.folds;
-  chunk.w_p = fit.w_p;
-  chunk.w_r = fit.w_r;
-  return chunk;
 }
 
-Evaluation evaluate(const PhysicalModel& model, const FitRows& fit) {
-  Evaluation out;
-  out.r.resize(fit.count);
-  out.theta_rad.resize(fit.rows.size());
-  out.tau_nm.resize(fit.rows.size());
-  forEachRow(fit, [&](size_t i, ChainWorkspace& ws) {
+// Fit rows [begin, end) of an evaluation whose equations start at equation `first` of the fit.
+void evaluateRows(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
+                  Eigen::Index first, ChainWorkspace& ws, Evaluation& out, size_t offset) {
+  for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
     physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws,
-                       out.theta_rad[i], out.tau_nm[i]);
-    const Pose& X = tipPose(ws);
-    const int e = fit.start[i];
-    out.r.segment<3>(e) = fit.w_p * (row.p_TipInTracker_m - X.translation());
-    if (row.has_orientation) {
-      out.r.segment<3>(e + 3) =
-          fit.w_r * lie::logSO3(row.q_TrackerTip.toRotationMatrix() * X.linear().transpose());
-    }
-  });
-  return out;
+                       out.theta_rad[i - offset], out.tau_nm[i - offset]);
+    rowResidual(fit, i, tipPose(ws), fit.start[i] - first, out.r);
+  }
 }
 
-Eigen::VectorXd residuals(const PhysicalModel& model, const FitRows& fit) {
-  Eigen::VectorXd r(fit.count);
-  forEachRow(fit, [&](size_t i, ChainWorkspace& ws) {
+void residualRows(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
+                  Eigen::Index first, ChainWorkspace& ws, Eigen::VectorXd& r) {
+  JointVector theta, tau;
+  for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
-    JointVector theta, tau;
     physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta, tau);
-    const Pose& X = tipPose(ws);
-    const int e = fit.start[i];
-    r.segment<3>(e) = fit.w_p * (row.p_TipInTracker_m - X.translation());
-    if (row.has_orientation) {
-      r.segment<3>(e + 3) =
-          fit.w_r * lie::logSO3(row.q_TrackerTip.toRotationMatrix() * X.linear().transpose());
-    }
-  });
-  return r;
+    rowResidual(fit, i, tipPose(ws), fit.start[i] - first, r);
+  }
 }
 
-Linearisation linearise(const PhysicalModel& model, const FitRows& fit, const Eigen::VectorXd& r) {
+void lineariseRows(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
+                   Eigen::Index first, const Eigen::VectorXd& r, ChainWorkspace& ws,
+                   Linearisation& lin) {
   const KinematicChain& chain = model.chain_Tracker;
   const int n = chain.dof();
-  Linearisation lin;
-  lin.geometry.resize(fit.count, 6 * (n + 1));
-  lin.link_angle.resize(fit.count, n);
-  forEachRow(fit, [&](size_t i, ChainWorkspace& ws) {
+  Eigen::Matrix<double, 6, Eigen::Dynamic> P(6, 6 * (n + 1));
+  JointVector theta, tau;
+  Jacobian J;
+  for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
-    Eigen::Matrix<double, 6, Eigen::Dynamic> P(6, 6 * (n + 1));
-    JointVector theta, tau;
-    Jacobian J;
     // Links unscaled: a link scale that varies by row (thermal expansion) makes
     // the geometry's gauge directions observable at α·ΔT ≈ 1e-4 of the others, and fits then
     // step along them (a refit stalled, profiles took up noise); the Jacobian it leaves out is
@@ -144,7 +121,7 @@ Linearisation linearise(const PhysicalModel& model, const FitRows& fit, const Ei
     parameterJacobian(chain, ws, P);
     spatialJacobian(chain, ws, J);
     const Mat3 p_hat = lie::hat(tipPose(ws).translation());
-    const int e = fit.start[i];
+    const Eigen::Index e = fit.start[i] - first;
     // Spatial twists (v, ω) → tip position ṗ = v − p̂ ω and rotation ω (METHOD.md, weighting).
     lin.geometry.middleRows<3>(e) = fit.w_p * (P.topRows<3>() - p_hat * P.bottomRows<3>());
     lin.link_angle.middleRows<3>(e) = fit.w_p * (J.topRows<3>() - p_hat * J.bottomRows<3>());
@@ -153,7 +130,72 @@ Linearisation linearise(const PhysicalModel& model, const FitRows& fit, const Ei
       lin.geometry.middleRows<3>(e + 3) = fit.w_r * Jr_inv * P.bottomRows<3>();
       lin.link_angle.middleRows<3>(e + 3) = fit.w_r * Jr_inv * J.bottomRows<3>();
     }
+  }
+}
+
+Linearisation sizedLinearisation(const PhysicalModel& model, Eigen::Index equations) {
+  const int n = model.chain_Tracker.dof();
+  Linearisation lin;
+  lin.geometry.resize(equations, 6 * (n + 1));
+  lin.link_angle.resize(equations, n);
+  return lin;
+}
+
+}  // namespace
+
+Evaluation evaluate(const PhysicalModel& model, const FitRows& fit) {
+  Evaluation out;
+  out.r.resize(fit.count);
+  out.theta_rad.resize(fit.rows.size());
+  out.tau_nm.resize(fit.rows.size());
+  forEachBlock(fit, [&](size_t begin, size_t end, ChainWorkspace& ws) {
+    evaluateRows(model, fit, begin, end, 0, ws, out, 0);
   });
+  return out;
+}
+
+Evaluation evaluate(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end) {
+  const Eigen::Index first = equationOf(fit, begin);
+  Evaluation out;
+  out.r.resize(equationOf(fit, end) - first);
+  out.theta_rad.resize(end - begin);
+  out.tau_nm.resize(end - begin);
+  ChainWorkspace ws;
+  evaluateRows(model, fit, begin, end, first, ws, out, begin);
+  return out;
+}
+
+Eigen::VectorXd residuals(const PhysicalModel& model, const FitRows& fit) {
+  Eigen::VectorXd r(fit.count);
+  forEachBlock(fit, [&](size_t begin, size_t end, ChainWorkspace& ws) {
+    residualRows(model, fit, begin, end, 0, ws, r);
+  });
+  return r;
+}
+
+Eigen::VectorXd residuals(const PhysicalModel& model, const FitRows& fit, size_t begin,
+                          size_t end) {
+  const Eigen::Index first = equationOf(fit, begin);
+  Eigen::VectorXd r(equationOf(fit, end) - first);
+  ChainWorkspace ws;
+  residualRows(model, fit, begin, end, first, ws, r);
+  return r;
+}
+
+Linearisation linearise(const PhysicalModel& model, const FitRows& fit, const Eigen::VectorXd& r) {
+  Linearisation lin = sizedLinearisation(model, fit.count);
+  forEachBlock(fit, [&](size_t begin, size_t end, ChainWorkspace& ws) {
+    lineariseRows(model, fit, begin, end, 0, r, ws, lin);
+  });
+  return lin;
+}
+
+Linearisation linearise(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
+                        const Eigen::VectorXd& r) {
+  const Eigen::Index first = equationOf(fit, begin);
+  Linearisation lin = sizedLinearisation(model, equationOf(fit, end) - first);
+  ChainWorkspace ws;
+  lineariseRows(model, fit, begin, end, first, r, ws, lin);
   return lin;
 }
 

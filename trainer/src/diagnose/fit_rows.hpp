@@ -29,19 +29,32 @@ void requireJointCount(const Campaign& campaign, int n);
 FitRows makeFitRows(const std::vector<const Measurement*>& rows, const TrackerNoise& noise,
                     int folds);
 
-/// Fit rows [begin, end) as fit rows of their own (equations from 0, the same weights, folds
-/// and poses).
-FitRows chunkOf(const FitRows& fit, size_t begin, size_t end);
+/// First equation of fit row i (fit.count for i = rows).
+inline Eigen::Index equationOf(const FitRows& fit, size_t i) {
+  return i < fit.rows.size() ? fit.start[i] : fit.count;
+}
 
-/// The physical model on every fit row: weighted residual (measured − modelled), and per row
+/// Fit rows [begin, end)'s equations of a vector with an entry per fit equation.
+inline auto equationsOf(const Eigen::VectorXd& v, const FitRows& fit, size_t begin, size_t end) {
+  const Eigen::Index first = equationOf(fit, begin);
+  return v.segment(first, equationOf(fit, end) - first);
+}
+
+// Each function below has two forms: on every fit row, on the machine's cores, and on the chunk
+// of fit rows [begin, end) alone, on the calling thread (its equations numbered from
+// equationOf(fit, begin)). A row's values are the same in both.
+
+/// The physical model on the fit rows: weighted residual (measured − modelled), and per row
 /// the link angles θ [rad] and joint torques τ [N·m] of the model.
 struct Evaluation {
   Eigen::VectorXd r;
   std::vector<JointVector> theta_rad, tau_nm;
 };
 Evaluation evaluate(const PhysicalModel& model, const FitRows& fit);
+Evaluation evaluate(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end);
 /// The weighted residual alone.
 Eigen::VectorXd residuals(const PhysicalModel& model, const FitRows& fit);
+Eigen::VectorXd residuals(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end);
 
 /// d(modelled)/d(parameter) in the residual's weighting (r(x + dx) ≈ r − A dx): the 6(n+1)
 /// initial-pose corrections (METHOD.md eq. 7) and each link angle θ_j (the tip's motion per
@@ -51,5 +64,8 @@ struct Linearisation {
   Eigen::MatrixXd link_angle;  ///< count × n
 };
 Linearisation linearise(const PhysicalModel& model, const FitRows& fit, const Eigen::VectorXd& r);
+/// r: the chunk's residual (its equations).
+Linearisation linearise(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
+                        const Eigen::VectorXd& r);
 
 }  // namespace stepcal::trainer::diagnosis

@@ -42,12 +42,13 @@ TallQr linearSystem(const DiagnosisModel& model, const PhysicalModel& global, co
   const Eigen::Index p = geometry + static_cast<Eigen::Index>(params.size());
   std::vector<TallQr> slices(kGramSlices, TallQr(p));
   forEachChunk(fit, [&](size_t slice, size_t begin, size_t end) {
-    const FitRows chunk = chunkOf(fit, begin, end);
-    const Eigen::VectorXd r_chunk = r.segment(equationOf(fit, begin), chunk.count);
-    Eigen::MatrixXd A(chunk.count, p);
-    A.leftCols(geometry) = linearise(global, chunk, r_chunk).geometry;
+    const Eigen::Index first = equationOf(fit, begin), count = equationOf(fit, end) - first;
+    const Eigen::VectorXd r_chunk = r.segment(first, count);
+    Eigen::MatrixXd A(count, p);
+    A.leftCols(geometry) = linearise(global, fit, begin, end, r_chunk).geometry;
     for (size_t c = 0; c < params.size(); ++c) {
-      A.col(geometry + static_cast<Eigen::Index>(c)) = parameterColumn(global, chunk, r_chunk, params[c]);
+      A.col(geometry + static_cast<Eigen::Index>(c)) =
+          parameterColumn(global, fit, begin, end, r_chunk, params[c]);
     }
     slices[slice].add(A, r_chunk);
   });
@@ -169,11 +170,11 @@ std::vector<Parameter> globalParameters(const DiagnosisModel& model) {
   return params;
 }
 
-Eigen::VectorXd parameterColumn(const PhysicalModel& model, const FitRows& fit,
-                                const Eigen::VectorXd& r0, const Parameter& p) {
+Eigen::VectorXd parameterColumn(const PhysicalModel& model, const FitRows& fit, size_t begin,
+                                size_t end, const Eigen::VectorXd& r0, const Parameter& p) {
   PhysicalModel moved = model;
   shift(moved, p, p.step);
-  return (r0 - residuals(moved, fit)) / p.step;
+  return (r0 - residuals(moved, fit, begin, end)) / p.step;
 }
 
 GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,

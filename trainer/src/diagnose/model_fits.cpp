@@ -146,13 +146,15 @@ void buildScreening(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpt
                     std::unique_ptr<FoldGrams>& grams, JointVector& compliance_sigma,
                     const Mechanism* only) {
   grams.reset();  // the Grams it replaces go first: at most one screening matrix is held
-  const RoundStart start = roundStart(model, fit);
-  sc = screening(model, fit, start, options, body_masses, only);
-  grams = std::make_unique<FoldGrams>(std::move(sc.columns), start.evaluation.r, fit);
-  sc.columns = ScreeningColumns();
-  if (!model.profiles.empty()) {
-    jointStep(model, sc, *grams, fit, 6 * (model.global.chain_Tracker.dof() + 1), compliance_sigma);
+  const Eigen::Index geometry = 6 * (model.global.chain_Tracker.dof() + 1);
+  {
+    Evaluation start = evaluate(model.combined(), fit);
+    sc = screening(model, fit, start, options, body_masses, only);
+    grams = std::make_unique<FoldGrams>(std::move(sc.columns), std::move(start.r), fit);
   }
+  sc.columns = ScreeningColumns();
+  completeScreening(sc, *grams, geometry);
+  if (!model.profiles.empty()) jointStep(model, sc, *grams, fit, geometry, compliance_sigma);
 }
 
 }  // namespace stepcal::trainer::diagnosis

@@ -82,11 +82,6 @@ void profileFeatures(const AngleCoverage& coverage, int order, double q_rad, dou
 }
 
 Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
-                               const AngleCoverage& coverage, int order) {
-  return profileColumns(link_angle, fit, joint, coverage, order, 0, fit.rows.size());
-}
-
-Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
                                const AngleCoverage& coverage, int order, size_t begin,
                                size_t end) {
   const Eigen::Index first = equationOf(fit, begin);
@@ -94,8 +89,8 @@ Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows&
   Eigen::VectorXd f(2 * order);
   for (size_t i = begin; i < end; ++i) {
     profileFeatures(coverage, order, fit.rows[i]->q_rad(joint), f.data());
-    const int e = fit.start[i], k = fit.equations(i);
-    B.middleRows(e - first, k) = link_angle.block(e, joint, k, 1) * f.transpose();
+    const Eigen::Index e = fit.start[i] - first, k = fit.equations(i);
+    B.middleRows(e, k) = link_angle.block(e, joint, k, 1) * f.transpose();
   }
   return B;
 }
@@ -151,24 +146,23 @@ void fitProfiles(DiagnosisModel& model, const FitRows& fit) {
   // Linear at the global model (profiles off): a profile moves the link angles by ~1e-3 rad, so
   // the Jacobian's change it causes moves the tip by ~1 µm at most.
   const Eigen::VectorXd r_global = residuals(model.global, fit);
-  const Linearisation lin = linearise(model.global, fit, r_global);
   // The geometry and every profile's columns, chunk by chunk of rows.
   const auto rowsOfA = [&](size_t begin, size_t end) {
-    const Eigen::Index e = equationOf(fit, begin), count = equationOf(fit, end) - e;
-    Eigen::MatrixXd A(count, width);
-    A << lin.geometry.middleRows(e, count),
-        profilesColumns(model.profiles, lin.link_angle, fit, begin, end);
+    const Linearisation lin =
+        linearise(model.global, fit, begin, end, equationsOf(r_global, fit, begin, end));
+    Eigen::MatrixXd A(lin.geometry.rows(), width);
+    A << lin.geometry, profilesColumns(model.profiles, lin.link_angle, fit, begin, end);
     return A;
   };
+  ChunkedGram gram = chunkedGram(fit, width, r_global, rowsOfA);
   Eigen::VectorXd ridge(width);
   ridge.head(geometry) =
-      kProfileGeometryRidge * lin.geometry.colwise().squaredNorm().transpose().cwiseMax(1e-300);
+      kProfileGeometryRidge * gram.H.diagonal().head(geometry).cwiseMax(1e-300);
   Eigen::Index c = geometry;
   for (const Profile& p : model.profiles) {
     ridge.segment(c, 2 * p.mechanism.order).setConstant(p.ridge);
     c += 2 * p.mechanism.order;
   }
-  ChunkedGram gram = chunkedGram(fit, width, r_global, rowsOfA);
   gram.H.diagonal() += ridge;
   const Eigen::VectorXd x = gram.H.llt().solve(gram.rhs);
   const double sse = chunkedSse(fit, r_global, x, rowsOfA);
@@ -197,17 +191,16 @@ bool harmonicsSeparable(const Mechanism& profile, double rms_rad) {
   return largestAmplitude(profile) <= 3.0 * rms_rad;
 }
 
-std::vector<double> geometryShare(const Eigen::MatrixXd& link_angle,
-                                  const Eigen::MatrixXd& geometry, const Mechanism& profile,
-                                  const FitRows& fit) {
-  // GᵀG, GᵀB and B's columns' squared norms, chunk by chunk of rows (B is never whole).
-  const Eigen::Index g = geometry.cols(), w = 2 * profile.order;
+std::vector<double> geometryShare(const PhysicalModel& model, const Eigen::VectorXd& r,
+                                  const Mechanism& profile, const FitRows& fit) {
+  // GᵀG, GᵀB and B's columns' squared norms, chunk by chunk of rows (G and B are never whole).
+  const Eigen::Index g = 6 * (model.chain_Tracker.dof() + 1), w = 2 * profile.order;
   const ChunkedGram gram =
       chunkedGram(fit, g + w, Eigen::VectorXd::Zero(fit.count), [&](size_t begin, size_t end) {
-        const Eigen::Index e = equationOf(fit, begin), count = equationOf(fit, end) - e;
-        Eigen::MatrixXd A(count, g + w);
-        A << geometry.middleRows(e, count),
-            profileColumns(link_angle, fit, profile.joint, profile.coverage, profile.order, begin, end);
+        const Linearisation lin = linearise(model, fit, begin, end, equationsOf(r, fit, begin, end));
+        Eigen::MatrixXd A(lin.geometry.rows(), g + w);
+        A << lin.geometry, profileColumns(lin.link_angle, fit, profile.joint, profile.coverage,
+                                          profile.order, begin, end);
         return A;
       });
   // P_G B = G (GᵀG)⁺ GᵀB, the pseudo-inverse truncated as step 1 truncates the geometry, on the
@@ -233,12 +226,13 @@ std::vector<double> geometryShare(const Eigen::MatrixXd& link_angle,
   return share;
 }
 
-double profileRidgeScale(const Eigen::MatrixXd& link_angle, const Mechanism& profile,
-                         const FitRows& fit) {
+double profileRidgeScale(const PhysicalModel& model, const Eigen::VectorXd& r,
+                         const Mechanism& profile, const FitRows& fit) {
   std::vector<double> sum(kGramSlices, 0.0);
   forEachChunk(fit, [&](size_t slice, size_t begin, size_t end) {
-    sum[slice] += profileColumns(link_angle, fit, profile.joint, profile.coverage, profile.order,
-                                 begin, end)
+    const Linearisation lin = linearise(model, fit, begin, end, equationsOf(r, fit, begin, end));
+    sum[slice] += profileColumns(lin.link_angle, fit, profile.joint, profile.coverage,
+                                 profile.order, begin, end)
                       .squaredNorm();
   });
   double total = 0.0;

@@ -22,17 +22,15 @@ AngleCoverage coverageOfAngles(std::vector<double> angles_rad, double max_gap_ra
 /// k = 1 … order.
 void profileFeatures(const AngleCoverage& coverage, int order, double q_rad, double* out);
 
-/// Columns of a profile of `order` harmonics on joint j: the link-angle column of j times each
-/// gated basis function, count × 2·order.
-Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
-                               const AngleCoverage& coverage, int order);
-/// The same for fit rows [begin, end) only: their equations × 2·order.
+/// Columns of a profile of `order` harmonics on joint j for fit rows [begin, end): the link-angle
+/// column of j (link_angle: those rows' equations × n) times each gated basis function, their
+/// equations × 2·order.
 Eigen::MatrixXd profileColumns(const Eigen::MatrixXd& link_angle, const FitRows& fit, int joint,
                                const AngleCoverage& coverage, int order, size_t begin,
                                size_t end);
 
-/// Every profile's columns, in the model's order, for fit rows [begin, end): their equations ×
-/// Σ 2·order.
+/// Every profile's columns, in the model's order, for fit rows [begin, end) (link_angle: their
+/// equations × n): their equations × Σ 2·order.
 Eigen::MatrixXd profilesColumns(const std::vector<Profile>& profiles,
                                 const Eigen::MatrixXd& link_angle, const FitRows& fit,
                                 size_t begin, size_t end);
@@ -60,16 +58,14 @@ double largestAmplitude(const Mechanism& profile);
 bool harmonicsSeparable(const Mechanism& profile, double rms_rad);
 
 /// Per harmonic of a profile, the share of its columns' squared norm that the geometry columns
-/// reach (1: a geometric error explains it entirely, 0: orthogonal to every geometric error).
-/// geometry: the geometry's columns (Linearisation::geometry), link_angle the link angles' on the
-/// fit rows; the profile's columns are made chunk by chunk of rows.
-std::vector<double> geometryShare(const Eigen::MatrixXd& link_angle,
-                                  const Eigen::MatrixXd& geometry, const Mechanism& profile,
-                                  const FitRows& fit);
+/// reach (1: a geometric error explains it entirely, 0: orthogonal to every geometric error),
+/// both linearised at the model (r: its residual), chunk by chunk of rows.
+std::vector<double> geometryShare(const PhysicalModel& model, const Eigen::VectorXd& r,
+                                  const Mechanism& profile, const FitRows& fit);
 
-/// The mean squared norm of a profile's columns on the fit rows (what its relative ridge ρ
-/// scales), weighted-residual units per rad².
-double profileRidgeScale(const Eigen::MatrixXd& link_angle, const Mechanism& profile,
-                         const FitRows& fit);
+/// The mean squared norm of a profile's columns on the fit rows, linearised at the model (r: its
+/// residual): what its relative ridge ρ scales, weighted-residual units per rad².
+double profileRidgeScale(const PhysicalModel& model, const Eigen::VectorXd& r,
+                         const Mechanism& profile, const FitRows& fit);
 
 }  // namespace stepcal::trainer::diagnosis

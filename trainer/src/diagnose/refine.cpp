@@ -59,15 +59,19 @@ std::optional<Comparison> withoutGlobal(const DiagnosisModel& model, size_t k, s
   buildScreening(trial, fit, options, body_masses, one, grams, sigma, &removed);
   if (one.families.empty()) return std::nullopt;
   const CrossValidation cv(*grams, fit, one.stage1, one.stage2, one.ridge, one.current);
-  const CrossValidation::Outcome base = cv.heldOut(cv.base());
+  for (Family& family : one.families) pruneNegativeCompliance(family, cv, one.stage1.size(), trial);
+  const std::vector<Scored> scored = scoreFamilies(one.families, cv, one.stage1.size(), *grams,
+                                                   options, fit, [](const CandidateScore&) { return false; });
   std::optional<Comparison> best;
   bool significant = false;
-  for (Family& family : one.families) {
-    pruneNegativeCompliance(family, cv, one.stage1.size(), trial);
-    const Scored scored = scoreGlobal(family, cv, base, one.stage1.size());
-    const Comparison c = compare(base, scored.outcome);
+  for (const Scored& s : scored) {
+    Comparison c;
+    c.relative_reduction = s.score.relative_reduction;
+    c.z = s.score.z_statistic;
+    c.p = s.score.p_value;
+    c.gain_mm = s.score.cv_gain_mm;
     significant = significant ||
-                  (scored.score.physical &&
+                  (s.score.physical &&
                    c.p < options.family_alpha / static_cast<double>(one.families.size()) &&
                    c.relative_reduction >= options.min_relative_reduction);
     if (!best || c.relative_reduction > best->relative_reduction) best = c;
@@ -146,8 +150,10 @@ void retuneProfiles(Search& search) {
       const FoldGrams grams_without = grams->without(taken);
       const CrossValidation cv(grams_without, fit, others.stage1, others.stage2, others.ridge,
                                others.current);
-      const Scored again =
-          scoreProfile(sc.profiled[i], cv, cv.heldOut(cv.base()), grams_without, options, fit);
+      const std::vector<Family> family = {sc.profiled[i]};
+      const Scored again = scoreFamilies(family, cv, others.stage1.size(), grams_without, options,
+                                         fit, [](const CandidateScore&) { return false; })
+                               .front();
       Profile& p = dm.profiles[i];
       p.mechanism.order = again.score.mechanism.order;
       p.mechanism.parameters.assign(static_cast<size_t>(2 * p.mechanism.order), 0.0);

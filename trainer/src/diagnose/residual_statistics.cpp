@@ -51,8 +51,7 @@ std::optional<Comparison> trendOf(const std::vector<double>& values, const Eigen
   CrossValidation::Outcome none, with;
   none.pose_sse.assign(static_cast<size_t>(eq.poses), 0.0);
   with.pose_sse = none.pose_sse;
-  none.position_m.assign(eq.rows.size(), 0.0);
-  with.position_m = none.position_m;
+  none.rows = with.rows = eq.rows.size();
   std::vector<std::array<Eigen::Vector3d, 6>> beta(static_cast<size_t>(folds));
   for (int f = 0; f < folds; ++f) {
     for (int c = 0; c < 6; ++c) {
@@ -78,8 +77,8 @@ std::optional<Comparison> trendOf(const std::vector<double>& values, const Eigen
     const size_t pose = static_cast<size_t>(eq.pose[i]);
     none.pose_sse[pose] += e0.squaredNorm();
     with.pose_sse[pose] += e1.squaredNorm();
-    none.position_m[i] = e0.head<3>().norm() / eq.w_p;
-    with.position_m[i] = e1.head<3>().norm() / eq.w_p;
+    none.position_sum_m += e0.head<3>().norm() / eq.w_p;
+    with.position_sum_m += e1.head<3>().norm() / eq.w_p;
   }
   return compare(none, with);
 }

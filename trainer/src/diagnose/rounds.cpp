@@ -5,7 +5,6 @@
 #include <limits>
 
 #include "model_fits.hpp"
-#include "parallel.hpp"
 #include "scoring.hpp"
 #include "search.hpp"
 
@@ -94,25 +93,21 @@ void searchRounds(Search& search) {
       jointStep(dm, sc, *grams, fit, geometry, compliance_sigma);  // with the profile named last
     }
     const CrossValidation cv(*grams, fit, sc.stage1, sc.stage2, sc.ridge, sc.current);
-    const CrossValidation::Outcome base = cv.heldOut(cv.base());
     for (Family& family : sc.families) pruneNegativeCompliance(family, cv, sc.stage1.size(), dm);
-    std::vector<Scored> scored(sc.families.size());
-    parallelFor(sc.families.size(), [&](size_t k) {
-      const Family& family = sc.families[k];
-      scored[k] = family.stage == Stage::kGlobal
-                      ? scoreGlobal(family, cv, base, sc.stage1.size())
-                      : scoreProfile(family, cv, base, *grams, options, fit);
-    });
+    int tried = 0;  // configurations, for the family-wise level
+    for (const Family& family : sc.families) tried += configurations(family, options);
+    const auto isSignificant = [&](const CandidateScore& s) {
+      return s.physical && s.p_value < options.family_alpha / std::max(1, tried) &&
+             s.relative_reduction >= options.min_relative_reduction;
+    };
+    std::vector<Scored> scored =
+        scoreFamilies(sc.families, cv, sc.stage1.size(), *grams, options, fit, isSignificant);
     if (!d.effects.empty()) namePreviousAlternatives(scored, options, rivals, d.effects.back());
-    int configurations = 0;
-    for (const Scored& s : scored) configurations += s.score.configurations;
     std::vector<size_t> significant;
     for (size_t k = 0; k < scored.size(); ++k) {
       CandidateScore& s = scored[k].score;
       s.round = round;
-      s.significant = s.physical &&
-                      s.p_value < options.family_alpha / std::max(1, configurations) &&
-                      s.relative_reduction >= options.min_relative_reduction;
+      s.significant = isSignificant(s);
       if (s.significant) significant.push_back(k);
     }
     d.seconds_screening += secondsSince(clock);

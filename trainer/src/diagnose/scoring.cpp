@@ -3,8 +3,8 @@
 #include "scoring.hpp"
 
 #include <algorithm>
-#include <numeric>
 
+#include "parallel.hpp"
 #include "profiles.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -20,27 +20,6 @@ void storeCoefficients(const Family& family, const CrossValidation::Correction& 
 }
 
 }  // namespace
-
-Scored scoreGlobal(const Family& family, const CrossValidation& cv,
-                   const CrossValidation::Outcome& base, size_t stage1_size) {
-  Scored s;
-  s.family = &family;
-  const CrossValidation::Correction c = cv.withGlobal(family.columns);
-  s.outcome = cv.heldOut(c);
-  s.score.mechanism = family.mechanism;
-  storeCoefficients(family, c, stage1_size, s.score.mechanism);
-  const Comparison cmp = compare(base, s.outcome);
-  s.score.cv_gain_mm = cmp.gain_mm;
-  s.score.relative_reduction = cmp.relative_reduction;
-  s.score.z_statistic = cmp.z;
-  s.score.p_value = cmp.p;
-  s.score.physical = !family.negative_compliance;
-  for (int i : signConstrained(s.score.mechanism)) {
-    s.score.physical = s.score.physical && s.score.mechanism.parameters[static_cast<size_t>(i)] >= 0.0;
-  }
-  s.spent = static_cast<int>(family.free.size() + family.compliance.size()) + family.chosen;
-  return s;
-}
 
 // Drops from a family the joints whose compliance it would make negative (fitted on every row):
 // a joint that deflects against its load under the arm's weight is not deflecting under it.
@@ -67,23 +46,22 @@ void pruneNegativeCompliance(Family& family, const CrossValidation& cv, size_t s
   }
 }
 
+int configurations(const Family& family, const DiagnoseOptions& options) {
+  if (family.stage == Stage::kGlobal) return 1;
+  int orders = 0;
+  for (int order : options.profile_orders) orders += 2 * order <= static_cast<int>(family.columns.size());
+  return orders * static_cast<int>(options.profile_ridges.size());
+}
+
+namespace {
+
 // A profile family over the grid of orders and ridges, the simplest configuration the held-out
 // poses do not show to be worse than the best: the best ridge per order by held-out squared
 // error; the lowest order whose best is not significantly worse than the best order's (signed-rank
 // z < 2 on the per-pose errors); at that order, the largest ridge not significantly worse than
 // its best. The cross-validated error is flat near its minimum, so the minimum itself moves with
 // small changes of the data; the simplest configuration on the flat part does not.
-Scored scoreProfile(const Family& family, const CrossValidation& cv,
-                    const CrossValidation::Outcome& base, const FoldGrams& grams,
-                    const DiagnoseOptions& options, const FitRows& fit) {
-  const CrossValidation::ProfileCandidate prepared = cv.prepareProfile(family.columns);
-  double mean_diag = 0.0;
-  for (Eigen::Index c : family.columns) mean_diag += grams.scale(c) * grams.scale(c);
-  mean_diag /= static_cast<double>(family.columns.size());
-  std::vector<int> orders = options.profile_orders;
-  std::sort(orders.begin(), orders.end());
-  std::vector<double> ridges = options.profile_ridges;
-  std::sort(ridges.begin(), ridges.end());
+struct ProfileScoring {
   struct Configuration {
     int order = 0;
     double rho = 0.0;
@@ -92,66 +70,94 @@ Scored scoreProfile(const Family& family, const CrossValidation& cv,
   // Per order, every ridge's correction (ascending ridge) and the index of the best.
   std::vector<std::vector<Configuration>> grid;
   std::vector<size_t> best_ridge;
+  size_t top = 0;           // the order whose best is best
+  double mean_diag = 0.0;   // what the relative ridges scale
+  size_t order_index = 0;   // the order chosen, with its best's outcome
+  CrossValidation::Outcome order_outcome;
+  Comparison best;          // the best configuration against the base
+
+  const Configuration& bestOf(size_t o) const { return grid[o][best_ridge[o]]; }
+};
+
+ProfileScoring profileGrid(const Family& family, const CrossValidation& cv, const FoldGrams& grams,
+                           const DiagnoseOptions& options) {
+  ProfileScoring p;
+  const CrossValidation::ProfileCandidate prepared = cv.prepareProfile(family.columns);
+  for (Eigen::Index c : family.columns) p.mean_diag += grams.scale(c) * grams.scale(c);
+  p.mean_diag /= static_cast<double>(family.columns.size());
+  std::vector<int> orders = options.profile_orders;
+  std::sort(orders.begin(), orders.end());
+  std::vector<double> ridges = options.profile_ridges;
+  std::sort(ridges.begin(), ridges.end());
   for (int order : orders) {
     if (2 * order > static_cast<int>(family.columns.size())) continue;
-    std::vector<Configuration> row;
+    std::vector<ProfileScoring::Configuration> row;
     for (double rho : ridges) {
-      row.push_back({order, rho, cv.withProfile(prepared, 2 * order, rho * mean_diag)});
+      row.push_back({order, rho, cv.withProfile(prepared, 2 * order, rho * p.mean_diag)});
     }
     size_t best = 0;
     for (size_t i = 1; i < row.size(); ++i) {
       if (row[i].correction.sse < row[best].correction.sse) best = i;
     }
-    grid.push_back(std::move(row));
-    best_ridge.push_back(best);
+    p.grid.push_back(std::move(row));
+    p.best_ridge.push_back(best);
   }
-  auto bestOf = [&](size_t o) -> const Configuration& { return grid[o][best_ridge[o]]; };
-  size_t top = 0;
-  for (size_t o = 1; o < grid.size(); ++o) {
-    if (bestOf(o).correction.sse < bestOf(top).correction.sse) top = o;
+  for (size_t o = 1; o < p.grid.size(); ++o) {
+    if (p.bestOf(o).correction.sse < p.bestOf(p.top).correction.sse) p.top = o;
   }
-  const CrossValidation::Outcome top_outcome = cv.heldOut(bestOf(top).correction);
-  // Of the orders not significantly worse, the lowest whose harmonics are separable on these
-  // angles if any is: a lower order can hold a faster harmonic on a narrow arc only by
-  // cancelling amplitudes many times its RMS, and what it then misses other profiles take up.
-  const auto separable = [&](const Configuration& c) {
+  return p;
+}
+
+// The order chosen from the held-out outcomes of each order's best up to the top one: of the
+// orders not significantly worse than the top, the lowest whose harmonics are separable on these
+// angles if any is (a lower order can hold a faster harmonic on a narrow arc only by cancelling
+// amplitudes many times its RMS, and what it then misses other profiles take up).
+void chooseOrder(ProfileScoring& p, std::vector<CrossValidation::Outcome> by_order,
+                 const Family& family, const FitRows& fit) {
+  const auto separable = [&](const ProfileScoring::Configuration& c) {
     Mechanism m = family.mechanism;
     m.order = c.order;
     const Eigen::VectorXd& x = c.correction.x.back();
     m.parameters.assign(x.data() + x.size() - 2 * c.order, x.data() + x.size());
     return harmonicsSeparable(m, profileRms(m, fit));
   };
-  size_t order_index = top;
-  CrossValidation::Outcome order_outcome = top_outcome;
+  const CrossValidation::Outcome& top_outcome = by_order[p.top];
+  p.order_index = p.top;
   for (const bool need_separable : {true, false}) {
     bool found = false;
-    for (size_t o = 0; o < top && !found; ++o) {
-      if (need_separable && !separable(bestOf(o))) continue;
-      CrossValidation::Outcome outcome = cv.heldOut(bestOf(o).correction);
-      if (signedRankZ(outcome.pose_sse, top_outcome.pose_sse) < 2.0) {
-        order_index = o;
-        order_outcome = std::move(outcome);
+    for (size_t o = 0; o < p.top && !found; ++o) {
+      if (need_separable && !separable(p.bestOf(o))) continue;
+      if (signedRankZ(by_order[o].pose_sse, top_outcome.pose_sse) < 2.0) {
+        p.order_index = o;
         found = true;
       }
     }
-    if (found || (need_separable && separable(bestOf(top)))) break;
+    if (found || (need_separable && separable(p.bestOf(p.top)))) break;
   }
-  size_t ridge_index = best_ridge[order_index];
-  CrossValidation::Outcome chosen_outcome = order_outcome;
-  for (size_t i = grid[order_index].size(); i-- > best_ridge[order_index] + 1;) {
-    CrossValidation::Outcome outcome = cv.heldOut(grid[order_index][i].correction);
-    if (signedRankZ(outcome.pose_sse, order_outcome.pose_sse) < 2.0) {
-      ridge_index = i;
-      chosen_outcome = std::move(outcome);
+  p.order_outcome = std::move(by_order[p.order_index]);
+}
+
+// The profile's score at the chosen order and the largest of its ridges above the best whose
+// outcome is not significantly worse (ridge_outcomes: of the ridges above the best, ascending),
+// else the best.
+Scored finishProfile(const Family& family, ProfileScoring& p, const CrossValidation::Outcome& base,
+                     std::vector<CrossValidation::Outcome> ridge_outcomes,
+                     const DiagnoseOptions& options) {
+  size_t ridge_index = p.best_ridge[p.order_index];
+  CrossValidation::Outcome chosen_outcome = std::move(p.order_outcome);
+  for (size_t i = ridge_outcomes.size(); i-- > 0;) {
+    if (signedRankZ(ridge_outcomes[i].pose_sse, chosen_outcome.pose_sse) < 2.0) {
+      ridge_index = p.best_ridge[p.order_index] + 1 + i;
+      chosen_outcome = std::move(ridge_outcomes[i]);
       break;
     }
   }
-  const Configuration& chosen = grid[order_index][ridge_index];
+  const ProfileScoring::Configuration& chosen = p.grid[p.order_index][ridge_index];
   const int order = chosen.order;
   Scored s;
   s.family = &family;
   s.outcome = std::move(chosen_outcome);
-  s.lambda = chosen.rho * mean_diag;
+  s.lambda = chosen.rho * p.mean_diag;
   Mechanism m = family.mechanism;
   m.order = order;
   m.parameters.assign(static_cast<size_t>(2 * order), 0.0);
@@ -162,16 +168,103 @@ Scored scoreProfile(const Family& family, const CrossValidation& cv,
   }
   s.score.mechanism = std::move(m);
   s.score.ridge = chosen.rho;
-  s.score.configurations = static_cast<int>(grid.size() * ridges.size());
+  s.score.configurations = configurations(family, options);
   // Its gain is that of the configuration added; its test that of the best configuration
   // (whether the family explains anything at all; Bonferroni covers the choice among them).
-  const Comparison added = compare(base, s.outcome), best = compare(base, top_outcome);
+  const Comparison added = compare(base, s.outcome);
   s.score.cv_gain_mm = added.gain_mm;
   s.score.relative_reduction = added.relative_reduction;
-  s.score.z_statistic = best.z;
-  s.score.p_value = best.p;
+  s.score.z_statistic = p.best.z;
+  s.score.p_value = p.best.p;
   s.spent = 2 * order;
   return s;
+}
+
+// A global family added to stage 1, from its correction's held-out outcome.
+Scored finishGlobal(const Family& family, const CrossValidation::Correction& c,
+                    CrossValidation::Outcome outcome, const CrossValidation::Outcome& base,
+                    size_t stage1_size) {
+  Scored s;
+  s.family = &family;
+  s.outcome = std::move(outcome);
+  s.score.mechanism = family.mechanism;
+  storeCoefficients(family, c, stage1_size, s.score.mechanism);
+  const Comparison cmp = compare(base, s.outcome);
+  s.score.cv_gain_mm = cmp.gain_mm;
+  s.score.relative_reduction = cmp.relative_reduction;
+  s.score.z_statistic = cmp.z;
+  s.score.p_value = cmp.p;
+  s.score.physical = !family.negative_compliance;
+  for (int i : signConstrained(s.score.mechanism)) {
+    s.score.physical = s.score.physical && s.score.mechanism.parameters[static_cast<size_t>(i)] >= 0.0;
+  }
+  s.spent = static_cast<int>(family.free.size() + family.compliance.size()) + family.chosen;
+  return s;
+}
+
+}  // namespace
+
+std::vector<Scored> scoreFamilies(const std::vector<Family>& families, const CrossValidation& cv,
+                                  size_t stage1_size, const FoldGrams& grams,
+                                  const DiagnoseOptions& options, const FitRows& fit,
+                                  const std::function<bool(const CandidateScore&)>& keep) {
+  const size_t count = families.size();
+  // Every configuration fitted from the Grams (on the cores).
+  std::vector<CrossValidation::Correction> global(count);
+  std::vector<ProfileScoring> profile(count);
+  parallelFor(count, [&](size_t k) {
+    if (families[k].stage == Stage::kGlobal) {
+      global[k] = cv.withGlobal(families[k].columns);
+    } else {
+      profile[k] = profileGrid(families[k], cv, grams, options);
+    }
+  });
+  // Held out, first the base model with every global family and each profile's best per order
+  // up to its top one; then each profile's larger ridges at the order chosen.
+  std::vector<std::vector<const CrossValidation::Correction*>> groups(count + 1);
+  groups[0] = {&cv.base()};
+  for (size_t k = 0; k < count; ++k) {
+    if (families[k].stage == Stage::kGlobal) {
+      groups[k + 1] = {&global[k]};
+      continue;
+    }
+    for (size_t o = 0; o <= profile[k].top; ++o) groups[k + 1].push_back(&profile[k].bestOf(o).correction);
+  }
+  CrossValidation::Outcome base;
+  std::vector<Scored> scored(count);
+  const auto kept = [&](Scored& s) {
+    s.total = s.outcome.total();
+    if (!keep(s.score)) s.outcome.pose_sse = std::vector<double>();
+  };
+  cv.heldOutInGroups(groups, heldOutBatch(fit), [&](size_t g, std::vector<CrossValidation::Outcome> outcomes) {
+    if (g == 0) {
+      base = std::move(outcomes.front());
+      return;
+    }
+    const size_t k = g - 1;
+    if (families[k].stage == Stage::kGlobal) {
+      scored[k] = finishGlobal(families[k], global[k], std::move(outcomes.front()), base, stage1_size);
+      kept(scored[k]);
+      return;
+    }
+    profile[k].best = compare(base, outcomes[profile[k].top]);
+    chooseOrder(profile[k], std::move(outcomes), families[k], fit);
+  });
+  std::vector<std::vector<const CrossValidation::Correction*>> ridges(count);
+  for (size_t k = 0; k < count; ++k) {
+    if (families[k].stage == Stage::kGlobal) continue;
+    const ProfileScoring& p = profile[k];
+    const std::vector<ProfileScoring::Configuration>& row = p.grid[p.order_index];
+    for (size_t i = p.best_ridge[p.order_index] + 1; i < row.size(); ++i) {
+      ridges[k].push_back(&row[i].correction);
+    }
+  }
+  cv.heldOutInGroups(ridges, heldOutBatch(fit), [&](size_t k, std::vector<CrossValidation::Outcome> outcomes) {
+    if (families[k].stage == Stage::kGlobal) return;
+    scored[k] = finishProfile(families[k], profile[k], base, std::move(outcomes), options);
+    kept(scored[k]);
+  });
+  return scored;
 }
 
 // Physical constants of the arm first: among the significant families of self weight under the
@@ -197,9 +290,7 @@ size_t choose(const std::vector<Scored>& scored, std::vector<size_t> significant
     }
   }
   if (!constants.empty()) significant = constants;
-  auto total = [&](size_t k) {
-    return std::accumulate(scored[k].outcome.pose_sse.begin(), scored[k].outcome.pose_sse.end(), 0.0);
-  };
+  auto total = [&](size_t k) { return scored[k].total; };
   size_t best = significant.front();
   for (size_t k : significant) {
     if (total(k) < total(best)) best = k;

@@ -2,6 +2,7 @@
 // (internal to stepcal::trainer).
 #pragma once
 
+#include <functional>
 #include <vector>
 
 #include "candidates.hpp"
@@ -12,30 +13,38 @@
 
 namespace stepcal::trainer::diagnosis {
 
-/// One family's best configuration in a round, with its held-out outcome.
+/// One family's best configuration in a round, with its held-out outcome (its per-pose errors
+/// only where scoreFamilies was asked to keep them: every family's at once would hold a vector
+/// per pose each).
 struct Scored {
   CandidateScore score;
   CrossValidation::Outcome outcome;
+  double total = 0.0;  ///< held-out squared error, Σ of the outcome's per-pose errors
   const Family* family = nullptr;
   double lambda = 0.0;  ///< a profile's absolute ridge
   int spent = 0;        ///< parameters it spends (fitted, and chosen such as τ₀ or knots)
 };
-
-/// A global family added to stage 1: its parameters fitted on every row and its held-out
-/// comparison with the base model.
-Scored scoreGlobal(const Family& family, const CrossValidation& cv,
-                   const CrossValidation::Outcome& base, size_t stage1_size);
 
 /// Drops from a family the joints whose compliance it would make negative (fitted on every row):
 /// a joint that deflects against its load under the arm's weight is not deflecting under it.
 void pruneNegativeCompliance(Family& family, const CrossValidation& cv, size_t stage1_size,
                              const DiagnosisModel& model);
 
-/// A profile family over the grid of orders and ridges, at the simplest configuration the
-/// held-out poses do not show to be worse than the best (scoring.cpp says how).
-Scored scoreProfile(const Family& family, const CrossValidation& cv,
-                    const CrossValidation::Outcome& base, const FoldGrams& grams,
-                    const DiagnoseOptions& options, const FitRows& fit);
+/// Configurations a family tries (orders × ridges for a profile, else 1): what a round's
+/// family-wise test divides its level by.
+int configurations(const Family& family, const DiagnoseOptions& options);
+
+/// Every family scored against the current model (cv's base) on held-out poses, the held-out
+/// errors of every configuration from as few passes over the fit rows as the memory for their
+/// per-pose errors allows (heldOutBatch). A global family is added to stage 1 with its
+/// parameters fitted on every row; a profile is tried over its grid of orders and ridges and
+/// scored at the simplest configuration the held-out poses do not show to be worse than the best
+/// (scoring.cpp says how). keep(score) says whose per-pose errors to keep (choose() compares
+/// them); in the order of families.
+std::vector<Scored> scoreFamilies(const std::vector<Family>& families, const CrossValidation& cv,
+                                  size_t stage1_size, const FoldGrams& grams,
+                                  const DiagnoseOptions& options, const FitRows& fit,
+                                  const std::function<bool(const CandidateScore&)>& keep);
 
 /// Index in scored of the family a round adds, among the significant ones (physical constants
 /// of the arm first; else the largest held-out reduction unless a family spending fewer

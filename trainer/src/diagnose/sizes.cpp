@@ -67,21 +67,18 @@ CauseSize sizeOf(const std::vector<Eigen::Index>& M, const Eigen::MatrixXd& H,
 std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fit,
                                   const Diagnosis& d, size_t base_globals, size_t base_profiles) {
   const PhysicalModel whole = model.combined();
-  const Evaluation e = evaluate(whole, fit);
-  const Linearisation lin = linearise(whole, fit, e.r);
+  const Eigen::VectorXd r = residuals(whole, fit);
   const std::vector<Parameter> params = globalParameters(model);
-  const Eigen::Index geometry = lin.geometry.cols();
+  const Eigen::Index geometry = 6 * (whole.chain_Tracker.dof() + 1);
   Eigen::Index width = geometry + static_cast<Eigen::Index>(params.size());
   for (const Profile& p : model.profiles) width += 2 * p.mechanism.order;
 
   // The model's columns (geometry, global parameters, every profile's coefficients), as the
   // joint fit holds them, with their ridges and values.
-  Eigen::MatrixXd parameter_columns(fit.count, static_cast<Eigen::Index>(params.size()));
   Eigen::VectorXd ridge = Eigen::VectorXd::Zero(width), value = Eigen::VectorXd::Zero(width);
   for (size_t c = 0; c < params.size(); ++c) {
     const Parameter& p = params[c];
     const Eigen::Index column = geometry + static_cast<Eigen::Index>(c);
-    parameter_columns.col(static_cast<Eigen::Index>(c)) = parameterColumn(whole, fit, e.r, p);
     if (p.mechanism < 0) {
       value(column) = model.global.compliance_rad_per_nm(p.index);
       continue;
@@ -102,11 +99,17 @@ std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fi
     }
     at += w;
   }
-  // The model's columns chunk by chunk of rows: the profiles' are made, never held whole.
+  // The model's columns chunk by chunk of rows, never held whole.
   const auto rowsOfA = [&](size_t begin, size_t end) {
-    const Eigen::Index first = equationOf(fit, begin), count = equationOf(fit, end) - first;
-    Eigen::MatrixXd A(count, width);
-    A << lin.geometry.middleRows(first, count), parameter_columns.middleRows(first, count),
+    const Eigen::VectorXd r_chunk = equationsOf(r, fit, begin, end);
+    const Linearisation lin = linearise(whole, fit, begin, end, r_chunk);
+    Eigen::MatrixXd A(r_chunk.size(), width);
+    A.leftCols(geometry) = lin.geometry;
+    for (size_t c = 0; c < params.size(); ++c) {
+      A.col(geometry + static_cast<Eigen::Index>(c)) =
+          parameterColumn(whole, fit, begin, end, r_chunk, params[c]);
+    }
+    A.rightCols(width - geometry - static_cast<Eigen::Index>(params.size())) =
         profilesColumns(model.profiles, lin.link_angle, fit, begin, end);
     return A;
   };
@@ -114,7 +117,7 @@ std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fi
   // Normalised to a unit diagonal, ridges and priors in (1 for a column nothing sees), so the
   // tolerance means the same for every column and a prior on a column the rows barely see
   // cannot dwarf the rest.
-  Eigen::MatrixXd H = chunkedGram(fit, width, e.r, rowsOfA).H;
+  Eigen::MatrixXd H = chunkedGram(fit, width, r, rowsOfA).H;
   H.diagonal() += ridge;
   const Eigen::VectorXd scale =
       H.diagonal().unaryExpr([](double h) { return h > 0.0 ? std::sqrt(h) : 1.0; });
@@ -123,7 +126,7 @@ std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fi
   const Eigen::VectorXd ridge_n = ridge.cwiseProduct(inverse_scale).cwiseProduct(inverse_scale);
   int rank = 0;
   pseudoInverse(H, &rank);
-  const double variance = std::max(e.r.squaredNorm() / std::max(1, fit.count - rank), 1e-300);
+  const double variance = std::max(r.squaredNorm() / std::max(1, fit.count - rank), 1e-300);
   const Eigen::VectorXd value_n = value.cwiseProduct(scale);
 
   std::vector<CauseSize> sizes;

@@ -52,7 +52,7 @@ ScreeningColumns denseColumns(const Eigen::MatrixXd& A, const FitRows& fit) {
   ScreeningColumns columns;
   columns.layout.dense = A.cols();
   for (Eigen::Index c = 0; c < A.cols(); ++c) columns.layout.place.push_back({-1, c});
-  columns.make = [A, &fit](size_t begin, size_t end, ColumnChunk& chunk) {
+  columns.make = [A, &fit](size_t begin, size_t end, const std::vector<bool>&, ColumnChunk& chunk) {
     const Eigen::Index e = equationOf(fit, begin);
     chunk.dense = A.middleRows(e, equationOf(fit, end) - e);
     chunk.link_angle.resize(chunk.dense.rows(), 0);
@@ -91,8 +91,10 @@ void expectSameOutcome(const CrossValidation::Outcome& a, const CrossValidation:
   EXPECT_EQ(a.rows, b.rows);
 }
 
+// Taken out through the Grams, a part of the model gives the Grams and the held-out errors of
+// the residual moved by it on every row.
 TEST(FoldGrams, WithoutAPartAreTheGramsOfTheMovedResidual) {
-  const Problem problem(4);
+  const Problem problem(4, 7, 2 * kGramChunkRows + 9);
   Eigen::VectorXd v(4);
   v << 0.3, 0.0, -1.2, 0.05;
   const FoldGrams moved = gramsOf(problem.A, problem.r0, problem.fit).without(v);
@@ -103,7 +105,12 @@ TEST(FoldGrams, WithoutAPartAreTheGramsOfTheMovedResidual) {
   for (size_t f = 0; f < static_cast<size_t>(problem.fit.folds); ++f) {
     EXPECT_NEAR(moved.e0[f], direct.e0[f], 1e-12 * direct.e0[f]) << "fold " << f;
   }
-  EXPECT_LT((moved.r0 - direct.r0).norm(), 1e-12 * direct.r0.norm());
+  const Eigen::VectorXd none = Eigen::VectorXd::Zero(4);
+  const auto outcome = [&](const FoldGrams& grams) {
+    const CrossValidation cv(grams, problem.fit, {0, 2}, {}, none, none);
+    return cv.heldOut(cv.withGlobal({1}));
+  };
+  expectSameOutcome(outcome(moved), outcome(direct));
 }
 
 // A screening matrix whose features and profile are held as scaled columns (a joint's link-angle
@@ -131,7 +138,7 @@ TEST(FoldGrams, ScaledColumnsAreTheirDenseColumns) {
   scaled.layout.place = {{-1, 0}, {-1, 1}, {-1, 0}, {4, 0}};
   for (int k = 0; k < 2 * order; ++k) scaled.layout.place.push_back({1, k});
   scaled.layout.place.push_back({1, 2 * order});
-  scaled.make = [&](size_t begin, size_t end, ColumnChunk& chunk) {
+  scaled.make = [&](size_t begin, size_t end, const std::vector<bool>&, ColumnChunk& chunk) {
     const Eigen::Index e = equationOf(fit, begin), count = equationOf(fit, end) - e;
     chunk.dense = problem.A.middleRows(e, count);
     chunk.link_angle = L.middleRows(e, count);
@@ -176,14 +183,15 @@ TEST(FoldGrams, ScaledColumnsAreTheirDenseColumns) {
                                                       cv.base().x);
   expectSameOutcome(outcome(implicit), made);
   expectSameOutcome(outcome(dense), made);
+  // With a part taken out, the errors of the residual it moves to.
   const Eigen::VectorXd v = Eigen::VectorXd::NullaryExpr(A.cols(), [&] { return normal(rng); });
   implicit.takeOut(v);
-  dense.takeOut(v);
-  EXPECT_LT((implicit.r0 - dense.r0).norm(), 1e-12 * dense.r0.norm());
-  EXPECT_LT((implicit.r0 - (problem.r0 + A * v)).norm(), 1e-12 * dense.r0.norm());
   for (size_t f = 0; f < static_cast<size_t>(fit.folds); ++f) {
-    EXPECT_NEAR(implicit.e0[f], dense.e0[f], 1e-12 * dense.e0[f]);
+    EXPECT_NEAR(implicit.e0[f], dense.without(v).e0[f], 1e-12 * dense.without(v).e0[f]);
   }
+  const CrossValidation moved(dense.without(v), fit, stage1, stage2, ridge, Eigen::VectorXd::Zero(A.cols()));
+  expectSameOutcome(outcome(implicit),
+                    directOutcome(A, problem.r0 + A * v, fit, moved.base().columns, moved.base().x));
 }
 
 // Corrections' held-out errors from one pass over the rows are each one's alone, and those made
@@ -206,16 +214,22 @@ TEST(CrossValidation, HeldOutTogetherIsEachAlone) {
   }
   const std::vector<std::vector<const CrossValidation::Correction*>> groups = {
       {all[0], all[1]}, {}, {all[2]}, {all[3], all[0], all[1]}};
-  std::vector<size_t> seen;
-  cv.heldOutInGroups(groups, 2, [&](size_t g, std::vector<CrossValidation::Outcome> outcomes) {
-    seen.push_back(g);
-    ASSERT_EQ(outcomes.size(), groups[g].size());
-    for (size_t k = 0; k < outcomes.size(); ++k) {
-      const size_t index = static_cast<size_t>(groups[g][k] - all.front());
-      expectSameOutcome(outcomes[k], together[index]);
+  std::vector<size_t> seen, passes;
+  cv.heldOutInGroups(groups, 2, [&](size_t first, std::vector<std::vector<CrossValidation::Outcome>> outcomes) {
+    passes.push_back(first);
+    for (size_t i = 0; i < outcomes.size(); ++i) {
+      const size_t g = first + i;
+      seen.push_back(g);
+      ASSERT_EQ(outcomes[i].size(), groups[g].size());
+      for (size_t k = 0; k < outcomes[i].size(); ++k) {
+        const size_t index = static_cast<size_t>(groups[g][k] - all.front());
+        expectSameOutcome(outcomes[i][k], together[index]);
+      }
     }
   });
   EXPECT_EQ(seen, (std::vector<size_t>{0, 1, 2, 3}));
+  // Groups 0 and 1 (two corrections), 2 (one: with the next it would be four), 3 (three: alone).
+  EXPECT_EQ(passes, (std::vector<size_t>{0, 2, 3}));
 }
 
 // The Grams summed over chunks of rows (in slices, on the cores) are the whole matrix's.

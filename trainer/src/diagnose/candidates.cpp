@@ -89,18 +89,23 @@ struct ColumnRecipe {
 };
 
 // Fit rows [begin, end) of a screening matrix in its layout: the geometry's columns and the
-// finite differences (dense), the link-angle columns, and each scaled source per row. A row's
-// values are those of the whole fit's evaluate, linearise and parameterColumn.
+// finite differences that `dense` marks (the others zero), the link-angle columns, and each
+// scaled source per row. A row's values are those of evaluate, linearise and parameterColumn.
 void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, size_t end,
-                 ColumnChunk& chunk) {
-  const Evaluation e = evaluate(recipe.whole, fit, begin, end);
-  Linearisation lin = linearise(recipe.whole, fit, begin, end, e.r);
+                 const std::vector<bool>& dense, ColumnChunk& chunk) {
+  Evaluation e;
+  Linearisation lin;
+  evaluateAndLinearise(recipe.whole, fit, begin, end, e, lin);
   const Eigen::Index geometry = lin.geometry.cols();
   chunk.dense.resize(e.r.size(), geometry + static_cast<Eigen::Index>(recipe.moved.size()));
   chunk.dense.leftCols(geometry) = lin.geometry;
   for (size_t k = 0; k < recipe.moved.size(); ++k) {
-    chunk.dense.col(geometry + static_cast<Eigen::Index>(k)) =
-        (e.r - residuals(recipe.moved[k], fit, begin, end)) / recipe.step[k];
+    auto column = chunk.dense.col(geometry + static_cast<Eigen::Index>(k));
+    if (dense[static_cast<size_t>(geometry) + k]) {
+      column = (e.r - residuals(recipe.moved[k], fit, begin, end)) / recipe.step[k];
+    } else {
+      column.setZero();
+    }
   }
   chunk.link_angle = std::move(lin.link_angle);
   const KinematicChain& chain = recipe.whole.chain_Tracker;
@@ -236,7 +241,8 @@ std::vector<int> gravityLoadedJoints(const PhysicalModel& global, const FitRows&
 Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evaluation& start,
                     const DiagnoseOptions& options,
                     const std::optional<std::vector<double>>& body_masses,
-                    const Mechanism* only) {
+                    const ScreeningScope& scope) {
+  const Mechanism* only = scope.only;
   const PhysicalModel& global = model.global;
   // Columns are changes of the whole model (its global mechanisms come first in it, so a
   // parameter indexes both alike); what is present is asked of the global part.
@@ -281,8 +287,9 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
   }
 
   auto wanted = [&](MechanismKind kind, int joint = -1, int source = -1) {
-    return only == nullptr ||
-           (only->kind == kind && only->joint == joint && only->source_joint == source);
+    return scope.families &&
+           (only == nullptr ||
+            (only->kind == kind && only->joint == joint && only->source_joint == source));
   };
   // A global family with its columns and their typical parameter steps: whether it moves the tip
   // at these rows is judged once its columns' norms are known (completeScreening).
@@ -306,7 +313,8 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
   // and a nonlinear stiffness by a backlash beside it.
   constexpr double kTorqueFactors[] = {0.1, 0.25, 0.5, 1.0, 2.0};
   const auto wantedTorque = [&](int joint) {
-    return only == nullptr || (isTorqueDeflection(only->kind) && only->joint == joint);
+    return scope.families &&
+           (only == nullptr || (isTorqueDeflection(only->kind) && only->joint == joint));
   };
   for (int j = 0; j < n; ++j) {
     std::vector<double> loaded;
@@ -553,7 +561,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
 
   // One profile per joint not yet profiled, at the highest order (lower orders are its leading
   // columns), over the angles the fit rows cover.
-  for (int j = 0; j < n && only == nullptr; ++j) {
+  for (int j = 0; j < n && scope.families && only == nullptr; ++j) {
     bool profiled = false;
     for (const Profile& p : model.profiles) profiled = profiled || p.mechanism.joint == j;
     if (profiled) continue;
@@ -570,8 +578,9 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
 
   const Eigen::Index total = s.columns.layout.size();
   s.columns.make = [recipe = std::shared_ptr<const ColumnRecipe>(std::move(recipe)), &fit](
-                       size_t begin, size_t end, ColumnChunk& chunk) {
-    makeColumns(*recipe, fit, begin, end, chunk);
+                       size_t begin, size_t end, const std::vector<bool>& dense,
+                       ColumnChunk& chunk) {
+    makeColumns(*recipe, fit, begin, end, dense, chunk);
   };
   s.ridge = Eigen::Map<const Eigen::VectorXd>(sink.ridge.data(), total);
   s.current = Eigen::VectorXd::Zero(total);

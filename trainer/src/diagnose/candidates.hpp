@@ -63,15 +63,22 @@ struct Screening {
 /// set in the screening's ridge and their values (the model's) in its current.
 void setStage2(Screening& s, const DiagnosisModel& model, Eigen::Index geometry);
 
-/// Builds the round's screening: the current model's stage-1 and stage-2 columns, and every
-/// catalogued family not in the model yet (only: just the global families of that mechanism's
-/// kind, joint and source joint). start: the whole model's evaluation (profiles in), the round's
-/// r0; body_masses: the URDF's (bodyMassesFromUrdf), if any. The columns are made from the
-/// model when needed; fit must outlive them.
+/// What a screening tries beside the model's own columns: every catalogued family not in the
+/// model yet, none (the model's joint fit, its profiles tried again), or only the global
+/// families of one mechanism's kind, joint and source joint (a cause tried again).
+struct ScreeningScope {
+  bool families = true;
+  const Mechanism* only = nullptr;
+};
+
+/// Builds the round's screening: the current model's stage-1 and stage-2 columns, and the
+/// families its scope tries. start: the whole model's evaluation (profiles in), the round's r0;
+/// body_masses: the URDF's (bodyMassesFromUrdf), if any. The columns are made from the model
+/// when needed; fit must outlive them.
 Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evaluation& start,
                     const DiagnoseOptions& options,
                     const std::optional<std::vector<double>>& body_masses,
-                    const Mechanism* only = nullptr);
+                    const ScreeningScope& scope = {});
 
 /// What the screening needs of its Grams (the columns' norms): the ridges of the geometry's share
 /// in stage 2, and the global families that do not move the tip at these rows taken out into

@@ -194,12 +194,12 @@ size_t heldOutBatch(const FitRows& fit) {
   return std::max<size_t>(kMinHeldOutBatch, static_cast<size_t>(kHeldOutBudgetBytes / per_outcome));
 }
 
-FoldGrams::FoldGrams(ScreeningColumns columns, Eigen::VectorXd residual, const FitRows& fit)
-    : r0(std::move(residual)),
-      columns_(std::make_shared<const ScreeningColumns>(std::move(columns))),
+FoldGrams::FoldGrams(ScreeningColumns columns, Eigen::VectorXd r0, const FitRows& fit)
+    : columns_(std::make_shared<const ScreeningColumns>(std::move(columns))),
+      r0_(std::make_shared<const Eigen::VectorXd>(std::move(r0))),
       fit_(&fit) {
   const ColumnLayout& layout = columns_->layout;
-  STEPCAL_INVARIANT(r0.size() == fit.count, "r0 has an entry per fit equation");
+  STEPCAL_INVARIANT(r0_->size() == fit.count, "r0 has an entry per fit equation");
   for (const ColumnLayout::Place& at : layout.place) {
     const bool placed = at.joint < 0 ? at.index < layout.dense
                                      : at.joint < static_cast<int>(layout.scaled.size()) &&
@@ -213,7 +213,7 @@ FoldGrams::FoldGrams(ScreeningColumns columns, Eigen::VectorXd residual, const F
   std::vector<std::vector<Eigen::VectorXd>> bc(kGramSlices, std::vector<Eigen::VectorXd>(folds, Eigen::VectorXd::Zero(q)));
   std::vector<std::vector<double>> e0c(kGramSlices, std::vector<double>(folds, 0.0));
   forEachChunk([&](size_t slice, size_t begin, size_t end, const ColumnChunk& chunk) {
-    const std::vector<FoldPart> parts = foldParts(chunk, r0, fit, begin, end);
+    const std::vector<FoldPart> parts = foldParts(chunk, *r0_, fit, begin, end);
     for (size_t f = 0; f < folds; ++f) {
       if (parts[f].rows.empty()) continue;
       addGram(parts[f], layout, Gc[slice][f], bc[slice][f]);
@@ -244,45 +244,31 @@ FoldGrams::FoldGrams(ScreeningColumns columns, Eigen::VectorXd residual, const F
   for (Eigen::Index col = 0; col < p; ++col) {
     if (!(scale(col) > 0.0)) scale(col) = 1.0;
   }
+  taken_out = Eigen::VectorXd::Zero(p);
 }
 
 void FoldGrams::forEachChunk(
     const std::function<void(size_t slice, size_t begin, size_t end, const ColumnChunk& chunk)>& body)
     const {
+  const std::vector<bool> every(static_cast<size_t>(columns_->layout.dense), true);
   diagnosis::forEachChunk(*fit_, [&](size_t slice, size_t begin, size_t end) {
     ColumnChunk chunk;
-    columns_->make(begin, end, chunk);
+    columns_->make(begin, end, every, chunk);
     body(slice, begin, end, chunk);
   });
 }
 
 void FoldGrams::takeOut(const Eigen::VectorXd& v) {
-  const FitRows& fit = *fit_;
-  const size_t folds = static_cast<size_t>(fit.folds);
-  std::vector<Eigen::Index> all(static_cast<size_t>(v.size()));
-  for (Eigen::Index c = 0; c < v.size(); ++c) all[static_cast<size_t>(c)] = c;
-  const Eigen::MatrixXd v_compact = compactValues(layout(), all, v);
-  // Each chunk moves its own equations of r0.
-  forEachChunk([&](size_t, size_t begin, size_t end, const ColumnChunk& chunk) {
-    const std::vector<FoldPart> parts = foldParts(chunk, r0, fit, begin, end);
-    for (const FoldPart& part : parts) {
-      if (part.rows.empty()) continue;
-      const Eigen::VectorXd moved = times(part, layout(), v_compact).col(0);
-      for (size_t r = 0; r < part.rows.size(); ++r) {
-        const Eigen::Index e = part.start[r], k = part.start[r + 1] - e;
-        r0.segment(fit.start[begin + part.rows[r]], k) += moved.segment(e, k);
-      }
-    }
-  });
+  const size_t folds = e0.size();
+  // Per fold, |r + A_f v|² = |r|² + 2 vᵀ A_fᵀ r + vᵀ G_f v and A_fᵀ (r + A_f v) = b_f + G_f v.
   b[folds].setZero();
-  std::fill(e0.begin(), e0.end(), 0.0);
   for (size_t f = 0; f < folds; ++f) {
-    b[f] += G[f] * v;
+    const Eigen::VectorXd Gv = G[f] * v;
+    e0[f] += 2.0 * v.dot(b[f]) + v.dot(Gv);
+    b[f] += Gv;
     b[folds] += b[f];
   }
-  for (size_t i = 0; i < fit.rows.size(); ++i) {
-    e0[static_cast<size_t>(fit.fold[i])] += r0.segment(fit.start[i], fit.equations(i)).squaredNorm();
-  }
+  taken_out += v;
 }
 
 FoldGrams FoldGrams::without(const Eigen::VectorXd& v) const {
@@ -469,12 +455,23 @@ std::vector<CrossValidation::Outcome> CrossValidation::heldOut(
   const ColumnLayout& layout = grams_.layout();
   const size_t K = corrections.size(), folds = static_cast<size_t>(fit_.folds);
   const Eigen::Index k_columns = static_cast<Eigen::Index>(K);
-  // Per fold, every correction's values fitted without it, in a chunk's compact columns.
+  // Per fold, every correction's values fitted without it less those taken out of the model
+  // (its residual is r0 + A·taken_out), in a chunk's compact columns.
+  std::vector<Eigen::Index> all(static_cast<size_t>(layout.size()));
+  for (size_t c = 0; c < all.size(); ++c) all[c] = static_cast<Eigen::Index>(c);
+  const Eigen::VectorXd taken = compactValues(layout, all, grams_.taken_out).col(0);
   std::vector<Eigen::MatrixXd> X(folds, Eigen::MatrixXd::Zero(layout.compactSize(), k_columns));
   for (size_t k = 0; k < K; ++k) {
     for (size_t f = 0; f < folds; ++f) {
       X[f].col(static_cast<Eigen::Index>(k)) =
-          compactValues(layout, corrections[k]->columns, corrections[k]->x[f]).col(0);
+          compactValues(layout, corrections[k]->columns, corrections[k]->x[f]).col(0) - taken;
+    }
+  }
+  // The dense columns any correction or the part taken out uses.
+  std::vector<bool> used(static_cast<size_t>(layout.dense), false);
+  for (Eigen::Index d = 0; d < layout.dense; ++d) {
+    for (size_t f = 0; f < folds && !used[static_cast<size_t>(d)]; ++f) {
+      used[static_cast<size_t>(d)] = !X[f].row(d).isZero(0.0);
     }
   }
   std::vector<Outcome> out(K);
@@ -492,8 +489,8 @@ std::vector<CrossValidation::Outcome> CrossValidation::heldOut(
     parallelFor(chunks, [&](size_t c) {
       const size_t begin = first + c * kGramChunkRows, end = std::min(last, begin + kGramChunkRows);
       ColumnChunk chunk;
-      grams_.make(begin, end, chunk);
-      const std::vector<FoldPart> parts = foldParts(chunk, grams_.r0, fit_, begin, end);
+      grams_.make(begin, end, used, chunk);
+      const std::vector<FoldPart> parts = foldParts(chunk, grams_.r0(), fit_, begin, end);
       for (size_t f = 0; f < folds; ++f) {
         const FoldPart& part = parts[f];
         if (part.rows.empty()) continue;
@@ -521,7 +518,7 @@ std::vector<CrossValidation::Outcome> CrossValidation::heldOut(
 
 void CrossValidation::heldOutInGroups(
     const std::vector<std::vector<const Correction*>>& groups, size_t batch,
-    const std::function<void(size_t group, std::vector<Outcome> outcomes)>& done) const {
+    const std::function<void(size_t first, std::vector<std::vector<Outcome>> outcomes)>& done) const {
   for (size_t first = 0; first < groups.size();) {
     std::vector<const Correction*> corrections;
     size_t last = first;
@@ -531,12 +528,14 @@ void CrossValidation::heldOutInGroups(
       ++last;
     }
     std::vector<Outcome> outcomes = corrections.empty() ? std::vector<Outcome>() : heldOut(corrections);
+    std::vector<std::vector<Outcome>> by_group;
     auto at = outcomes.begin();
     for (size_t g = first; g < last; ++g) {
       const auto end = at + static_cast<long>(groups[g].size());
-      done(g, std::vector<Outcome>(std::make_move_iterator(at), std::make_move_iterator(end)));
+      by_group.emplace_back(std::make_move_iterator(at), std::make_move_iterator(end));
       at = end;
     }
+    done(first, std::move(by_group));
     first = last;
   }
 }

@@ -56,34 +56,43 @@ struct ColumnChunk {
 };
 
 /// A screening matrix as made chunk by chunk, never whole: its layout, and the function that
-/// makes fit rows [begin, end) of it (called on the cores, each call for its own chunk).
+/// makes fit rows [begin, end) of it (called on the cores, each call for its own chunk). It
+/// makes the dense columns that `dense` marks (the others it may leave zero: a finite difference
+/// costs an evaluation of the model per row), every scaled one.
 struct ScreeningColumns {
   ColumnLayout layout;
-  std::function<void(size_t begin, size_t end, ColumnChunk& chunk)> make;
+  std::function<void(size_t begin, size_t end, const std::vector<bool>& dense, ColumnChunk& chunk)>
+      make;
 };
 
 /// The columns of one screening matrix A (count × p, the residual's weighting) against the
-/// model's residual r0, summed per fold: what every cross-validated fit on them needs. A is
-/// made chunk by chunk of fit rows whenever its rows are needed (the Grams, a held-out error, a
-/// part taken out), so that it holds its parameters' square and r0, not a row per equation.
+/// model's residual, summed per fold: what every cross-validated fit on them needs. A is made
+/// chunk by chunk of fit rows whenever its rows are needed (the Grams, held-out errors), so that
+/// it holds its parameters' square and the residual it was built at, not a row per equation.
 /// Built whenever the model changes.
 struct FoldGrams {
+  /// r0: the model's residual on every fit equation, where A was made.
   FoldGrams(ScreeningColumns columns, Eigen::VectorXd r0, const FitRows& fit);
-  /// Moves r0 to r0 + A·v: the linearised model with a part of it (values v in its columns, 0
-  /// elsewhere) taken out (−v: a change put in).
+  /// Moves the residual to r0 + A·v: the linearised model with a part of it (values v in its
+  /// columns, 0 elsewhere) taken out (−v: a change put in). From the Grams alone: the rows see
+  /// it as the values taken_out, in every held-out error.
   void takeOut(const Eigen::VectorXd& v);
   /// A copy with takeOut(v); it makes A as this one does.
   FoldGrams without(const Eigen::VectorXd& v) const;
   std::vector<Eigen::MatrixXd> G;  ///< per fold AᵀA of its rows, then the total (index folds)
-  std::vector<Eigen::VectorXd> b;  ///< per fold Aᵀ r0, then the total
-  std::vector<double> e0;          ///< per fold Σ r0²
+  std::vector<Eigen::VectorXd> b;  ///< per fold Aᵀ r, then the total (r = r0 + A·taken_out)
+  std::vector<double> e0;          ///< per fold Σ r²
   Eigen::VectorXd scale;           ///< √ of the total Gram's diagonal (1 where it is 0)
-  Eigen::VectorXd r0;              ///< per fit equation
+  Eigen::VectorXd taken_out;       ///< Σ of the values taken out (per column)
+  /// The residual A was made at, per fit equation.
+  const Eigen::VectorXd& r0() const { return *r0_; }
 
   const ColumnLayout& layout() const { return columns_->layout; }
   const FitRows& fit() const { return *fit_; }
-  /// Fit rows [begin, end) of A.
-  void make(size_t begin, size_t end, ColumnChunk& chunk) const { columns_->make(begin, end, chunk); }
+  /// Fit rows [begin, end) of A: the dense columns `dense` marks, every scaled one.
+  void make(size_t begin, size_t end, const std::vector<bool>& dense, ColumnChunk& chunk) const {
+    columns_->make(begin, end, dense, chunk);
+  }
   /// Calls body(slice, begin, end, chunk) for every chunk of fit rows [begin, end) of A, the
   /// chunks in kGramSlices contiguous slices on the cores (chunked_gram.hpp).
   void forEachChunk(
@@ -92,6 +101,7 @@ struct FoldGrams {
 
  private:
   std::shared_ptr<const ScreeningColumns> columns_;
+  std::shared_ptr<const Eigen::VectorXd> r0_;
   const FitRows* fit_;
 };
 
@@ -159,10 +169,11 @@ class CrossValidation {
   std::vector<Outcome> heldOut(const std::vector<const Correction*>& corrections) const;
   Outcome heldOut(const Correction& correction) const { return heldOut({&correction}).front(); }
   /// The outcomes of groups of corrections, each group's together, the groups batched in order
-  /// into passes of at most `batch` corrections (a larger group alone); done(group, outcomes)
-  /// takes each group's as its pass comes back.
-  void heldOutInGroups(const std::vector<std::vector<const Correction*>>& groups, size_t batch,
-                       const std::function<void(size_t group, std::vector<Outcome> outcomes)>& done) const;
+  /// into passes of at most `batch` corrections (a larger group alone); done(first, outcomes)
+  /// takes a pass's as it comes back: outcomes[i], those of group first + i.
+  void heldOutInGroups(
+      const std::vector<std::vector<const Correction*>>& groups, size_t batch,
+      const std::function<void(size_t first, std::vector<std::vector<Outcome>> outcomes)>& done) const;
 
  private:
   Eigen::MatrixXd trainingGram(int f, const std::vector<Eigen::Index>& a,

@@ -82,54 +82,68 @@ void rowResidual(const FitRows& fit, size_t i, const Pose& X, Eigen::Index e, Ei
   }
 }
 
+// The row functions evaluate the model with its constants (physicalConstants): the same values,
+// without its initial poses made again per row.
+
 // Fit rows [begin, end) of an evaluation whose equations start at equation `first` of the fit.
 void evaluateRows(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
                   Eigen::Index first, ChainWorkspace& ws, Evaluation& out, size_t offset) {
+  const PhysicalConstants constants = physicalConstants(model);
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
     physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws,
-                       out.theta_rad[i - offset], out.tau_nm[i - offset]);
+                       out.theta_rad[i - offset], out.tau_nm[i - offset], nullptr, &constants);
     rowResidual(fit, i, tipPose(ws), fit.start[i] - first, out.r);
   }
 }
 
 void residualRows(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
                   Eigen::Index first, ChainWorkspace& ws, Eigen::VectorXd& r) {
+  const PhysicalConstants constants = physicalConstants(model);
   JointVector theta, tau;
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
-    physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta, tau);
+    physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta, tau,
+                       nullptr, &constants);
     rowResidual(fit, i, tipPose(ws), fit.start[i] - first, r);
   }
 }
 
-void lineariseRows(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
-                   Eigen::Index first, const Eigen::VectorXd& r, ChainWorkspace& ws,
-                   Linearisation& lin) {
-  const KinematicChain& chain = model.chain_Tracker;
-  const int n = chain.dof();
-  Eigen::Matrix<double, 6, Eigen::Dynamic> P(6, 6 * (n + 1));
-  JointVector theta, tau;
+// Row i's linearisation (its equations from e) at the frames ws holds, r its residual there.
+struct RowLinearisation {
+  explicit RowLinearisation(int n) : P(6, 6 * (n + 1)) {}
+  Eigen::Matrix<double, 6, Eigen::Dynamic> P;
   Jacobian J;
-  for (size_t i = begin; i < end; ++i) {
-    const Measurement& row = *fit.rows[i];
-    // Links unscaled: a link scale that varies by row (thermal expansion) makes
-    // the geometry's gauge directions observable at α·ΔT ≈ 1e-4 of the others, and fits then
-    // step along them (a refit stalled, profiles took up noise); the Jacobian it leaves out is
-    // that small.
-    physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), kUnscaledLinks, ws, theta, tau);
+  void operator()(const KinematicChain& chain, const ChainWorkspace& ws, const FitRows& fit,
+                  size_t i, Eigen::Index e, const Eigen::VectorXd& r, Linearisation& lin) {
     parameterJacobian(chain, ws, P);
     spatialJacobian(chain, ws, J);
     const Mat3 p_hat = lie::hat(tipPose(ws).translation());
-    const Eigen::Index e = fit.start[i] - first;
     // Spatial twists (v, ω) → tip position ṗ = v − p̂ ω and rotation ω (METHOD.md, weighting).
     lin.geometry.middleRows<3>(e) = fit.w_p * (P.topRows<3>() - p_hat * P.bottomRows<3>());
     lin.link_angle.middleRows<3>(e) = fit.w_p * (J.topRows<3>() - p_hat * J.bottomRows<3>());
-    if (row.has_orientation) {
+    if (fit.rows[i]->has_orientation) {
       const Mat3 Jr_inv = lie::rightJacobianInverseSO3(r.segment<3>(e + 3) / fit.w_r);
       lin.geometry.middleRows<3>(e + 3) = fit.w_r * Jr_inv * P.bottomRows<3>();
       lin.link_angle.middleRows<3>(e + 3) = fit.w_r * Jr_inv * J.bottomRows<3>();
     }
+  }
+};
+
+// Links unscaled: a link scale that varies by row (thermal expansion) makes the geometry's gauge
+// directions observable at α·ΔT ≈ 1e-4 of the others, and fits then step along them (a refit
+// stalled, profiles took up noise); the Jacobian it leaves out is that small.
+void lineariseRows(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
+                   Eigen::Index first, const Eigen::VectorXd& r, ChainWorkspace& ws,
+                   Linearisation& lin) {
+  const PhysicalConstants constants = physicalConstants(model);
+  RowLinearisation row_linearisation(model.chain_Tracker.dof());
+  JointVector theta, tau;
+  for (size_t i = begin; i < end; ++i) {
+    const Measurement& row = *fit.rows[i];
+    physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), kUnscaledLinks, ws, theta, tau,
+                       nullptr, &constants);
+    row_linearisation(model.chain_Tracker, ws, fit, i, fit.start[i] - first, r, lin);
   }
 }
 
@@ -188,6 +202,34 @@ Linearisation linearise(const PhysicalModel& model, const FitRows& fit, const Ei
     lineariseRows(model, fit, begin, end, 0, r, ws, lin);
   });
   return lin;
+}
+
+void evaluateAndLinearise(const PhysicalModel& model, const FitRows& fit, size_t begin,
+                          size_t end, Evaluation& evaluation, Linearisation& lin) {
+  const Eigen::Index first = equationOf(fit, begin);
+  evaluation.r.resize(equationOf(fit, end) - first);
+  evaluation.theta_rad.resize(end - begin);
+  evaluation.tau_nm.resize(end - begin);
+  lin = sizedLinearisation(model, evaluation.r.size());
+  const PhysicalConstants constants = physicalConstants(model);
+  RowLinearisation row_linearisation(model.chain_Tracker.dof());
+  ChainWorkspace ws;
+  JointVector theta, tau;
+  for (size_t i = begin; i < end; ++i) {
+    const Measurement& row = *fit.rows[i];
+    const double temp_c = rowTemperature(row);
+    physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), temp_c, ws,
+                       evaluation.theta_rad[i - begin], evaluation.tau_nm[i - begin], nullptr,
+                       &constants);
+    const Eigen::Index e = fit.start[i] - first;
+    rowResidual(fit, i, tipPose(ws), e, evaluation.r);
+    // Where the model scales no link at the row's temperature, its frames are the unscaled ones.
+    if (model.linkLengthScale(temp_c) != 1.0) {
+      physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), kUnscaledLinks, ws, theta, tau,
+                         nullptr, &constants);
+    }
+    row_linearisation(model.chain_Tracker, ws, fit, i, e, evaluation.r, lin);
+  }
 }
 
 Linearisation linearise(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,

@@ -67,5 +67,10 @@ Linearisation linearise(const PhysicalModel& model, const FitRows& fit, const Ei
 /// r: the chunk's residual (its equations).
 Linearisation linearise(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
                         const Eigen::VectorXd& r);
+/// evaluate and linearise of fit rows [begin, end) at once, on the calling thread: a row whose
+/// links the model does not scale is linearised where it was evaluated (one evaluation of the
+/// model for both; the same values).
+void evaluateAndLinearise(const PhysicalModel& model, const FitRows& fit, size_t begin,
+                          size_t end, Evaluation& evaluation, Linearisation& lin);
 
 }  // namespace stepcal::trainer::diagnosis

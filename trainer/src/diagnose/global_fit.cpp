@@ -178,7 +178,7 @@ Eigen::VectorXd parameterColumn(const PhysicalModel& model, const FitRows& fit, 
 }
 
 GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
-                      JointVector& compliance_sigma, bool hold_profiles) {
+                      bool hold_profiles) {
   // The global mechanisms come first in combined(), so the parameters index both alike.
   PhysicalModel global = hold_profiles ? model.combined() : model.global;
   GlobalFit out;
@@ -213,12 +213,23 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
     }
     if (!improved) break;
   }
-  // Covariance of the final linearisation: s² (AᵀA)⁺ in column-normalised coordinates.
-  const std::vector<Parameter> params = parametersNow();
-  const SvdSolution s = solveReduced(linearSystem(model, global, fit, out.r, params), kRankTolerance);
-  const double variance = out.cost / std::max(1, fit.count - s.rank);
-  const int geometry = 6 * (global.chain_Tracker.dof() + 1);
   for (Mechanism& m : global.mechanisms) m.sigma.assign(m.parameters.size(), 0.0);
+  global.mechanisms.resize(model.global.mechanisms.size());
+  model.global = std::move(global);
+  model.sigma_pending = hold_profiles;
+  return out;
+}
+
+void globalSigma(DiagnosisModel& model, const FitRows& fit, JointVector& compliance_sigma) {
+  if (!model.sigma_pending) return;
+  PhysicalModel global = *model.sigma_pending ? model.combined() : model.global;
+  const Eigen::VectorXd r = residuals(global, fit);
+  const double cost = r.squaredNorm() + priorCost(model, global);
+  // Covariance of the refit's final linearisation: s² (AᵀA)⁺ in column-normalised coordinates.
+  const std::vector<Parameter> params = globalParameters(model);
+  const SvdSolution s = solveReduced(linearSystem(model, global, fit, r, params), kRankTolerance);
+  const double variance = cost / std::max(1, fit.count - s.rank);
+  const int geometry = 6 * (global.chain_Tracker.dof() + 1);
   for (size_t c = 0; c < params.size(); ++c) {
     const Eigen::Index col = geometry + static_cast<Eigen::Index>(c);
     double var_z = 0.0;
@@ -228,12 +239,10 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
     if (p.mechanism < 0) {
       compliance_sigma(p.index) = sigma;
     } else {
-      global.mechanisms[static_cast<size_t>(p.mechanism)].sigma[static_cast<size_t>(p.index)] = sigma;
+      model.global.mechanisms[static_cast<size_t>(p.mechanism)].sigma[static_cast<size_t>(p.index)] = sigma;
     }
   }
-  global.mechanisms.resize(model.global.mechanisms.size());
-  model.global = std::move(global);
-  return out;
+  model.sigma_pending.reset();
 }
 
 }  // namespace stepcal::trainer::diagnosis

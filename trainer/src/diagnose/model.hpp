@@ -11,6 +11,7 @@
 // the geometry goes with it: a row outside every profile sees exactly the global model.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -38,6 +39,10 @@ struct DiagnosisModel {
   std::vector<bool> compliance_free;   ///< per joint: its compliance is fitted
   bool masses_from_urdf = false;       ///< self_weight's masses are the URDF's, not fitted
   std::vector<Profile> profiles;
+  /// Set when the global part's σ are not yet those of its last refit (refitGlobal leaves them to
+  /// globalSigma: its linearisation costs an evaluation of the model per row and parameter, and
+  /// a joint step after the refit sets them anyway): whether that refit held the profiles.
+  std::optional<bool> sigma_pending;
 
   /// The whole physical model: global + each profile with its profile_geometry.
   PhysicalModel combined() const;
@@ -94,9 +99,12 @@ struct GlobalFit {
 
 /// Joint Gauss–Newton refit of the global model on every fit row (geometry δ, free compliances,
 /// mechanisms; truncated SVD; priors on lumped masses), the profiles left out or (hold_profiles)
-/// held at their values. Fills the global mechanisms' σ and compliance_sigma (n entries) from
-/// the final linearisation.
+/// held at their values. The global mechanisms' σ are left zero and sigma_pending set.
 GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
-                      JointVector& compliance_sigma, bool hold_profiles = false);
+                      bool hold_profiles = false);
+
+/// When sigma_pending: the σ of the global part's last refit, from its final linearisation, into
+/// its mechanisms and compliance_sigma (n entries).
+void globalSigma(DiagnosisModel& model, const FitRows& fit, JointVector& compliance_sigma);
 
 }  // namespace stepcal::trainer::diagnosis

@@ -28,7 +28,7 @@ void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpti
                    size_t base_globals, JointVector& compliance_sigma, Diagnosis& d,
                    bool hold_profiles) {
   for (;;) {
-    refitGlobal(model, fit, options.refit_iterations, compliance_sigma, hold_profiles);
+    refitGlobal(model, fit, options.refit_iterations, hold_profiles);
     JointVector& c = model.global.compliance_rad_per_nm;
     Eigen::Index joint = -1;
     for (Eigen::Index j = 0; j < c.size(); ++j) {
@@ -50,6 +50,7 @@ void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpti
       if (wrongSign(model.global.mechanisms[k])) dropped = k;
     }
     if (dropped == model.global.mechanisms.size()) return;
+    globalSigma(model, fit, compliance_sigma);  // the change records the mechanism as refitted
     if (Mechanism& m = model.global.mechanisms[dropped]; m.kind == MechanismKind::kTorsionCurve) {
       // A curve loses its parts that turned negative and keeps the rest, if any.
       Mechanism kept = m;
@@ -139,17 +140,18 @@ void jointStep(DiagnosisModel& model, Screening& sc, FoldGrams& grams, const Fit
   }
   setStage2(sc, model, geometry);
   grams.takeOut(moved);
+  model.sigma_pending.reset();
 }
 
 void buildScreening(DiagnosisModel& model, const FitRows& fit, const DiagnoseOptions& options,
                     const std::optional<std::vector<double>>& body_masses, Screening& sc,
                     std::unique_ptr<FoldGrams>& grams, JointVector& compliance_sigma,
-                    const Mechanism* only) {
+                    const ScreeningScope& scope) {
   grams.reset();  // the Grams it replaces go first: at most one screening matrix is held
   const Eigen::Index geometry = 6 * (model.global.chain_Tracker.dof() + 1);
   {
     Evaluation start = evaluate(model.combined(), fit);
-    sc = screening(model, fit, start, options, body_masses, only);
+    sc = screening(model, fit, start, options, body_masses, scope);
     grams = std::make_unique<FoldGrams>(std::move(sc.columns), std::move(start.r), fit);
   }
   sc.columns = ScreeningColumns();

@@ -40,11 +40,11 @@ void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpti
 void jointStep(DiagnosisModel& model, Screening& sc, FoldGrams& grams, const FitRows& fit,
                Eigen::Index geometry, JointVector& compliance_sigma);
 
-/// The screening and its Grams, built at the model as it stands and moved to its joint fit
-/// (jointStep) when it has profiles. only: just the global families of that mechanism.
+/// The screening of the families scope tries and its Grams, built at the model as it stands and
+/// moved to its joint fit (jointStep) when it has profiles.
 void buildScreening(DiagnosisModel& model, const FitRows& fit, const DiagnoseOptions& options,
                     const std::optional<std::vector<double>>& body_masses, Screening& sc,
                     std::unique_ptr<FoldGrams>& grams, JointVector& compliance_sigma,
-                    const Mechanism* only = nullptr);
+                    const ScreeningScope& scope = {});
 
 }  // namespace stepcal::trainer::diagnosis

@@ -56,7 +56,7 @@ std::optional<Comparison> withoutGlobal(const DiagnosisModel& model, size_t k, s
   if (trial.global.mechanisms.size() + 1 != model.global.mechanisms.size()) return std::nullopt;
   Screening one;
   std::unique_ptr<FoldGrams> grams;
-  buildScreening(trial, fit, options, body_masses, one, grams, sigma, &removed);
+  buildScreening(trial, fit, options, body_masses, one, grams, sigma, {true, &removed});
   if (one.families.empty()) return std::nullopt;
   const CrossValidation cv(*grams, fit, one.stage1, one.stage2, one.ridge, one.current);
   for (Family& family : one.families) pruneNegativeCompliance(family, cv, one.stage1.size(), trial);
@@ -126,7 +126,8 @@ void retuneProfiles(Search& search) {
   const Eigen::Index geometry = search.geometry;
   const auto clock = std::chrono::steady_clock::now();
   if (!grams) {
-    buildScreening(dm, fit, options, search.body_masses, sc, grams, search.compliance_sigma);
+    buildScreening(dm, fit, options, search.body_masses, sc, grams, search.compliance_sigma,
+                   {false, nullptr});
   } else {
     jointStep(dm, sc, *grams, fit, geometry, search.compliance_sigma);
   }
@@ -189,7 +190,7 @@ void finalFit(Search& search) {
     for (int pass = 0; pass < kJointFitPasses; ++pass) {
       refitPhysical(dm, fit, options, base_globals, search.compliance_sigma, d, true);
       buildScreening(dm, fit, options, search.body_masses, search.screening, search.grams,
-                     search.compliance_sigma);
+                     search.compliance_sigma, {false, nullptr});
     }
     bool signs_hold = true;
     for (int j = 0; j < n; ++j) {
@@ -265,6 +266,7 @@ void refine(Search& search) {
     finalFit(search);
   }
   dropCausesWithoutSize(search);
+  globalSigma(search.model, search.fit, search.compliance_sigma);
   storeFinalParameters(search);
 }
 

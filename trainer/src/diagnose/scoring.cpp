@@ -236,19 +236,22 @@ std::vector<Scored> scoreFamilies(const std::vector<Family>& families, const Cro
     s.total = s.outcome.total();
     if (!keep(s.score)) s.outcome.pose_sse = std::vector<double>();
   };
-  cv.heldOutInGroups(groups, heldOutBatch(fit), [&](size_t g, std::vector<CrossValidation::Outcome> outcomes) {
-    if (g == 0) {
-      base = std::move(outcomes.front());
-      return;
-    }
-    const size_t k = g - 1;
-    if (families[k].stage == Stage::kGlobal) {
-      scored[k] = finishGlobal(families[k], global[k], std::move(outcomes.front()), base, stage1_size);
-      kept(scored[k]);
-      return;
-    }
-    profile[k].best = compare(base, outcomes[profile[k].top]);
-    chooseOrder(profile[k], std::move(outcomes), families[k], fit);
+  // Each pass's groups finished on the cores (the base first: every comparison is with it).
+  using Outcomes = std::vector<std::vector<CrossValidation::Outcome>>;
+  cv.heldOutInGroups(groups, heldOutBatch(fit), [&](size_t first, Outcomes outcomes) {
+    if (first == 0) base = std::move(outcomes.front().front());
+    parallelFor(outcomes.size(), [&](size_t i) {
+      if (first + i == 0) return;
+      const size_t k = first + i - 1;
+      if (families[k].stage == Stage::kGlobal) {
+        scored[k] = finishGlobal(families[k], global[k], std::move(outcomes[i].front()), base,
+                                 stage1_size);
+        kept(scored[k]);
+        return;
+      }
+      profile[k].best = compare(base, outcomes[i][profile[k].top]);
+      chooseOrder(profile[k], std::move(outcomes[i]), families[k], fit);
+    });
   });
   std::vector<std::vector<const CrossValidation::Correction*>> ridges(count);
   for (size_t k = 0; k < count; ++k) {
@@ -259,10 +262,13 @@ std::vector<Scored> scoreFamilies(const std::vector<Family>& families, const Cro
       ridges[k].push_back(&row[i].correction);
     }
   }
-  cv.heldOutInGroups(ridges, heldOutBatch(fit), [&](size_t k, std::vector<CrossValidation::Outcome> outcomes) {
-    if (families[k].stage == Stage::kGlobal) return;
-    scored[k] = finishProfile(families[k], profile[k], base, std::move(outcomes), options);
-    kept(scored[k]);
+  cv.heldOutInGroups(ridges, heldOutBatch(fit), [&](size_t first, Outcomes outcomes) {
+    parallelFor(outcomes.size(), [&](size_t i) {
+      const size_t k = first + i;
+      if (families[k].stage == Stage::kGlobal) return;
+      scored[k] = finishProfile(families[k], profile[k], base, std::move(outcomes[i]), options);
+      kept(scored[k]);
+    });
   });
   return scored;
 }

@@ -396,6 +396,74 @@ TEST(Runtime, FixedPointStartHoldsOrPassesFromTheGivenDeflection) {
   EXPECT_LT(worst_pass, 1e-15);
 }
 
+// Finite differences of a model's deflection parameters (a compliance, the sensor bias, a link's
+// mass, a backlash) evaluated one after another with the frames at θ₀ shared (FirstPass, as the
+// diagnosis makes its finite-difference columns) are each model evaluated alone, to the bit, at
+// the reference temperature and above it; a coupling (another θ₀) makes its own. Frames kept
+// wrong show who takes them.
+TEST(Runtime, ASharedFirstPassGivesEachModelItsOwnValues) {
+  CalibratedModel file = withMechanisms(
+      {mechanism(MechanismKind::kSelfWeight, -1, -1, 0, selfWeightParameters()),
+       mechanism(MechanismKind::kSensorBias, -1, -1, 0, {1.5, -0.8, 2.1, 0.03, -0.02, 0.01}),
+       mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-4, 5.0}),
+       mechanism(MechanismKind::kJointCoupling, 4, 1, 0, {1e-3}),
+       mechanism(MechanismKind::kThermalExpansion, -1, -1, 0, {1.15e-5, 20.0})},
+      false);
+  const PhysicalModel base = physicalModelOf(file);
+  std::vector<PhysicalModel> models(6, base);
+  models[1].compliance_rad_per_nm(2) *= 1.01;
+  models[2].mechanisms[1].parameters[3] += 1.0;   // the bias's force along z
+  models[3].mechanisms[0].parameters[4] += 1.0;   // link 2's mass
+  models[4].mechanisms[2].parameters[0] += 1e-4;  // the backlash's lost motion
+  models[5].mechanisms[3].parameters[0] += 1e-4;  // the coupling: θ₀ moves
+  std::vector<PhysicalConstants> constants;
+  for (const PhysicalModel& m : models) constants.push_back(physicalConstants(m));
+  int rows = 0;
+  for (const Measurement* row : validationRows()) {
+    for (const double temp_c : {20.0, 35.0}) {
+      FirstPass first;
+      for (size_t k = 0; k < models.size(); ++k) {
+        ChainWorkspace alone_ws, shared_ws;
+        JointVector alone_theta, alone_tau, shared_theta, shared_tau;
+        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c, alone_ws,
+                                       alone_theta, alone_tau, nullptr, &constants[k]));
+        FixedPointStart start;
+        start.first_pass = &first;
+        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c,
+                                       shared_ws, shared_theta, shared_tau, nullptr, &constants[k],
+                                       &start));
+        EXPECT_EQ(shared_theta, alone_theta) << "model " << k;
+        EXPECT_EQ(shared_tau, alone_tau) << "model " << k;
+        EXPECT_EQ(tipPose(shared_ws).matrix(), tipPose(alone_ws).matrix()) << "model " << k;
+      }
+      // The first model kept its frames at θ₀ (the coupling's θ₀ did not replace them).
+      ASSERT_TRUE(first.kept);
+      JointVector theta0 = row->q_rad;
+      theta0(4) += 1e-3 * row->q_rad(1);
+      EXPECT_EQ(first.theta0_rad, theta0);
+      FirstPass wrong = first;
+      wrong.ws.X_RootFrame[2].translation().x() += 0.1;
+      for (const size_t k : {size_t{1}, size_t{5}}) {
+        ChainWorkspace ws;
+        JointVector alone_theta, alone_tau, theta, tau;
+        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c, ws,
+                                       alone_theta, alone_tau, nullptr, &constants[k]));
+        FixedPointStart start;
+        start.first_pass = &wrong;
+        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c, ws,
+                                       theta, tau, nullptr, &constants[k], &start));
+        if (k == 1) {
+          EXPECT_NE(tau, alone_tau) << "the compliance's variant takes the frames kept";
+        } else {
+          EXPECT_EQ(tau, alone_tau) << "the coupling's variant makes its own";
+        }
+      }
+      ++rows;
+    }
+  }
+  EXPECT_GT(rows, 10);
+}
+
 TEST(Runtime, ThermalExpansionScalesTheArmAboutJointOneAndUnknownIsTheReference) {
   // Rigid model, links × (1 + α (T − T_ref)). Every joint axis passes through its frame's origin
   // (v = 0), so the tip's offset from frame 1's origin o₁ (T_{0,1}(0), never scaled) scales as a

@@ -507,9 +507,15 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
 
   JointVector theta0 = q_rad;
   if (profile_slope) profile_slope->setZero(n);
+  FirstPass* const first = start != nullptr ? start->first_pass : nullptr;
+  const bool keep = first != nullptr && !first->kept;
   // sin and cos of q serve the profiles and, shifted by θ₀ − q (~1e-4 rad), θ₀'s own.
   JointTrig trig_q;
-  jointTrig(q_rad, trig_q);
+  if (first != nullptr && first->kept && first->q_rad == q_rad) {
+    trig_q = first->trig_q;
+  } else {
+    jointTrig(q_rad, trig_q);
+  }
   Vec6 wrench = wrench_Sensor;
   const Mechanism* self_weight = nullptr;
   // Each profile's gate once: it switches the profile and its share of the geometry.
@@ -572,14 +578,43 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
     theta_rad += *start->deflection_rad;
   }
   tau_nm.setZero(n);
+  // The frames at θ₀ another evaluation kept, where they are this one's.
+  const bool reuse = first != nullptr && first->kept && first->q_rad == q_rad &&
+                     first->theta0_rad == theta0 &&
+                     std::equal(initial->begin(), initial->begin() + n + 1, first->initial.begin(),
+                                [](const Pose& a, const Pose& b) { return a.matrix() == b.matrix(); });
   JointTrig trig0, trig;
-  shiftedJointTrig(trig_q, q_rad, theta0 - q_rad, trig0);
+  if (reuse) {
+    trig0 = first->trig0;
+  } else {
+    shiftedJointTrig(trig_q, q_rad, theta0 - q_rad, trig0);
+  }
+  bool at_theta0 = false;      // ws holds the frames at θ₀
+  bool kept_frames = false;    // and first keeps them
   const auto evaluate = [&] {
-    if (theta_rad == theta0) {
-      forwardKinematics(chain, theta_rad, ws, *initial, &trig0);
-    } else {
+    at_theta0 = theta_rad == theta0;
+    if (!at_theta0) {
       shiftedJointTrig(trig0, theta0, theta_rad - theta0, trig);
       forwardKinematics(chain, theta_rad, ws, *initial, &trig);
+    } else if (reuse) {
+      ws = first->ws;
+    } else {
+      forwardKinematics(chain, theta_rad, ws, *initial, &trig0);
+      if (keep && !kept_frames) {
+        first->ws = ws;
+        kept_frames = true;
+      }
+    }
+  };
+  const auto jacobian = [&] {
+    if (at_theta0 && reuse && first->has_J) {
+      J = first->J;
+      return;
+    }
+    spatialJacobian(chain, ws, J);
+    if (at_theta0 && keep) {
+      first->J = J;
+      first->has_J = true;
     }
   };
   // The passes, with a payload's torques or without (a loop of its own each, so that the usual
@@ -589,7 +624,7 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
       evaluate();
       tau_nm.setZero(n);
       if (has_sensor) {
-        spatialJacobian(chain, ws, J);
+        jacobian();
         tau_nm = jointTorques(J, wrenchInRoot(framePose(chain, ws, model.sensor_frame), wrench));
       }
       if constexpr (decltype(with_payload)::value) {
@@ -610,6 +645,14 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
   evaluate();
   if (start != nullptr && start->deflection_out_rad != nullptr) {
     *start->deflection_out_rad = theta_rad - theta0;
+  }
+  if (kept_frames) {
+    first->q_rad = q_rad;
+    first->theta0_rad = theta0;
+    std::copy(initial->begin(), initial->begin() + n + 1, first->initial.begin());
+    first->trig_q = trig_q;
+    first->trig0 = trig0;
+    first->kept = true;
   }
   return true;
 }

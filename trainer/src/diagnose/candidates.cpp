@@ -99,14 +99,11 @@ void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, s
   const Eigen::Index geometry = lin.geometry.cols();
   chunk.dense.resize(e.r.size(), geometry + static_cast<Eigen::Index>(recipe.moved.size()));
   chunk.dense.leftCols(geometry) = lin.geometry;
-  for (size_t k = 0; k < recipe.moved.size(); ++k) {
-    auto column = chunk.dense.col(geometry + static_cast<Eigen::Index>(k));
-    if (dense[static_cast<size_t>(geometry) + k]) {
-      column = (e.r - residuals(recipe.moved[k], fit, begin, end)) / recipe.step[k];
-    } else {
-      column.setZero();
-    }
-  }
+  std::vector<const PhysicalModel*> moved;
+  for (const PhysicalModel& m : recipe.moved) moved.push_back(&m);
+  chunk.dense.rightCols(static_cast<Eigen::Index>(moved.size())) = differenceColumns(
+      moved, recipe.step, std::vector<bool>(dense.begin() + geometry, dense.end()), fit, begin,
+      end, e.r);
   chunk.link_angle = std::move(lin.link_angle);
   const KinematicChain& chain = recipe.whole.chain_Tracker;
   const Eigen::Index rows = static_cast<Eigen::Index>(end - begin);

@@ -49,7 +49,7 @@ namespace {
 // per pose in row order.
 constexpr size_t kHeldOutChunks = 8;
 // The per-pose errors heldOut holds for a batch of corrections (heldOutBatch), bytes.
-constexpr double kHeldOutBudgetBytes = 256e6;
+constexpr double kHeldOutBudgetBytes = 512e6;
 
 // A chunk's rows of one fold, gathered: their equations of the dense and link-angle columns and
 // of r0, their rows of each joint's scaled columns.

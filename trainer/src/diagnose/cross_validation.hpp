@@ -108,7 +108,7 @@ struct FoldGrams {
 /// The fewest corrections CrossValidation::heldOut is given at once.
 inline constexpr size_t kMinHeldOutBatch = 8;
 /// How many corrections' outcomes to ask of CrossValidation::heldOut at once: their per-pose
-/// errors in a fixed budget (256 MB), so that a batch's memory does not grow with the poses
+/// errors in a fixed budget (512 MB), so that a batch's memory does not grow with the poses
 /// beyond kMinHeldOutBatch of them.
 size_t heldOutBatch(const FitRows& fit);
 

@@ -204,6 +204,34 @@ Linearisation linearise(const PhysicalModel& model, const FitRows& fit, const Ei
   return lin;
 }
 
+Eigen::MatrixXd differenceColumns(const std::vector<const PhysicalModel*>& models,
+                                  const std::vector<double>& steps,
+                                  const std::vector<bool>& needed, const FitRows& fit,
+                                  size_t begin, size_t end, const Eigen::VectorXd& r0) {
+  const Eigen::Index first = equationOf(fit, begin);
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(r0.size(), static_cast<Eigen::Index>(models.size()));
+  std::vector<PhysicalConstants> constants;
+  for (const PhysicalModel* model : models) constants.push_back(physicalConstants(*model));
+  ChainWorkspace ws;
+  JointVector theta, tau;
+  Eigen::VectorXd r(6);
+  for (size_t i = begin; i < end; ++i) {
+    const Measurement& row = *fit.rows[i];
+    const Eigen::Index e = fit.start[i] - first, k = fit.equations(i);
+    FirstPass first_pass;
+    FixedPointStart start;
+    start.first_pass = &first_pass;
+    for (size_t m = 0; m < models.size(); ++m) {
+      if (!needed[m]) continue;
+      physicalLinkAngles(*models[m], row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta,
+                         tau, nullptr, &constants[m], &start);
+      rowResidual(fit, i, tipPose(ws), 0, r);
+      out.block(e, static_cast<Eigen::Index>(m), k, 1) = (r0.segment(e, k) - r.head(k)) / steps[m];
+    }
+  }
+  return out;
+}
+
 void evaluateAndLinearise(const PhysicalModel& model, const FitRows& fit, size_t begin,
                           size_t end, Evaluation& evaluation, Linearisation& lin) {
   const Eigen::Index first = equationOf(fit, begin);

@@ -67,6 +67,15 @@ Linearisation linearise(const PhysicalModel& model, const FitRows& fit, const Ei
 /// r: the chunk's residual (its equations).
 Linearisation linearise(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
                         const Eigen::VectorXd& r);
+/// Finite-difference columns (r0 − r_k) / step_k of models k on fit rows [begin, end), on the
+/// calling thread (r0: the residual they differ from, on those rows' equations; a column that
+/// `needed` does not mark is left zero): equations × models. A row's models are evaluated one
+/// after another, sharing the frames of their fixed point at θ₀ where they can (FirstPass): the
+/// values of residuals.
+Eigen::MatrixXd differenceColumns(const std::vector<const PhysicalModel*>& models,
+                                  const std::vector<double>& steps,
+                                  const std::vector<bool>& needed, const FitRows& fit,
+                                  size_t begin, size_t end, const Eigen::VectorXd& r0);
 /// evaluate and linearise of fit rows [begin, end) at once, on the calling thread: a row whose
 /// links the model does not scale is linearised where it was evaluated (one evaluation of the
 /// model for both; the same values).

@@ -46,10 +46,8 @@ TallQr linearSystem(const DiagnosisModel& model, const PhysicalModel& global, co
     const Eigen::VectorXd r_chunk = r.segment(first, count);
     Eigen::MatrixXd A(count, p);
     A.leftCols(geometry) = linearise(global, fit, begin, end, r_chunk).geometry;
-    for (size_t c = 0; c < params.size(); ++c) {
-      A.col(geometry + static_cast<Eigen::Index>(c)) =
-          parameterColumn(global, fit, begin, end, r_chunk, params[c]);
-    }
+    A.rightCols(static_cast<Eigen::Index>(params.size())) =
+        parameterColumns(global, params, fit, begin, end, r_chunk);
     slices[slice].add(A, r_chunk);
   });
   TallQr system(p);
@@ -170,11 +168,19 @@ std::vector<Parameter> globalParameters(const DiagnosisModel& model) {
   return params;
 }
 
-Eigen::VectorXd parameterColumn(const PhysicalModel& model, const FitRows& fit, size_t begin,
-                                size_t end, const Eigen::VectorXd& r0, const Parameter& p) {
-  PhysicalModel moved = model;
-  shift(moved, p, p.step);
-  return (r0 - residuals(moved, fit, begin, end)) / p.step;
+Eigen::MatrixXd parameterColumns(const PhysicalModel& model, const std::vector<Parameter>& params,
+                                 const FitRows& fit, size_t begin, size_t end,
+                                 const Eigen::VectorXd& r0) {
+  std::vector<PhysicalModel> moved(params.size(), model);
+  std::vector<const PhysicalModel*> models;
+  std::vector<double> steps;
+  for (size_t c = 0; c < params.size(); ++c) {
+    shift(moved[c], params[c], params[c].step);
+    models.push_back(&moved[c]);
+    steps.push_back(params[c].step);
+  }
+  return differenceColumns(models, steps, std::vector<bool>(params.size(), true), fit, begin, end,
+                           r0);
 }
 
 GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,

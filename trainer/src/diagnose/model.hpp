@@ -79,10 +79,12 @@ Mechanism simplestTorqueDeflection(Mechanism m);
 /// Every fitted global parameter: free compliances, then each mechanism's free parameters.
 std::vector<Parameter> globalParameters(const DiagnosisModel& model);
 
-/// Forward-difference column d(modelled)/d(p) in the residual's weighting, on fit rows
-/// [begin, end), on the calling thread (r0: the model's residual on their equations).
-Eigen::VectorXd parameterColumn(const PhysicalModel& model, const FitRows& fit, size_t begin,
-                                size_t end, const Eigen::VectorXd& r0, const Parameter& p);
+/// Forward-difference columns d(modelled)/d(p) of the parameters in the residual's weighting, on
+/// fit rows [begin, end), on the calling thread (r0: the model's residual on their equations):
+/// equations × parameters.
+Eigen::MatrixXd parameterColumns(const PhysicalModel& model, const std::vector<Parameter>& params,
+                                 const FitRows& fit, size_t begin, size_t end,
+                                 const Eigen::VectorXd& r0);
 
 /// Ridge of the geometry's columns in the profiles' fit, relative to their squared norm: only
 /// keeps the geometry's unobservable combinations (METHOD.md: rank 30 of 42) at zero.

@@ -149,11 +149,13 @@ void buildScreening(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpt
                     const ScreeningScope& scope) {
   grams.reset();  // the Grams it replaces go first: at most one screening matrix is held
   const Eigen::Index geometry = 6 * (model.global.chain_Tracker.dof() + 1);
+  Eigen::VectorXd r0;
   {
     Evaluation start = evaluate(model.combined(), fit);
     sc = screening(model, fit, start, options, body_masses, scope);
-    grams = std::make_unique<FoldGrams>(std::move(sc.columns), std::move(start.r), fit);
-  }
+    r0 = std::move(start.r);
+  }  // its link angles and torques go before the Grams are made
+  grams = std::make_unique<FoldGrams>(std::move(sc.columns), std::move(r0), fit);
   sc.columns = ScreeningColumns();
   completeScreening(sc, *grams, geometry);
   if (!model.profiles.empty()) jointStep(model, sc, *grams, fit, geometry, compliance_sigma);

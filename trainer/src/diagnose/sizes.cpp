@@ -105,10 +105,8 @@ std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fi
     const Linearisation lin = linearise(whole, fit, begin, end, r_chunk);
     Eigen::MatrixXd A(r_chunk.size(), width);
     A.leftCols(geometry) = lin.geometry;
-    for (size_t c = 0; c < params.size(); ++c) {
-      A.col(geometry + static_cast<Eigen::Index>(c)) =
-          parameterColumn(whole, fit, begin, end, r_chunk, params[c]);
-    }
+    A.middleCols(geometry, static_cast<Eigen::Index>(params.size())) =
+        parameterColumns(whole, params, fit, begin, end, r_chunk);
     A.rightCols(width - geometry - static_cast<Eigen::Index>(params.size())) =
         profilesColumns(model.profiles, lin.link_angle, fit, begin, end);
     return A;

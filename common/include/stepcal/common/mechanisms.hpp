@@ -178,10 +178,28 @@ inline constexpr int kFixedPointPasses = 3;
 /// that evaluates it at nearby q may start from the deflection of its last evaluation and run
 /// fewer passes: an approximation of the model (error ~1e-3 × the change of the deflection per
 /// pass), which the solver must check against the model.
+/// A fixed point's frames at θ₀ (its first evaluation), kept by one evaluation for the next ones
+/// at the same commanded angles: a model that differs only in what its fixed point does with the
+/// torques (a compliance, a torque–deflection mechanism, the sensor bias, the self weight's
+/// masses: finite differences of them) has the same θ₀ and initial poses, and needs no
+/// kinematics of its own there. Reusing it gives the values evaluating them again gives.
+struct FirstPass {
+  bool kept = false;
+  JointVector q_rad, theta0_rad;
+  InitialPoses initial;
+  JointTrig trig_q, trig0;  ///< sin and cos of q and of θ₀
+  ChainWorkspace ws;        ///< the frames at θ₀
+  Jacobian J;               ///< their spatial Jacobian, when has_J
+  bool has_J = false;
+};
+
 struct FixedPointStart {
   int passes = kFixedPointPasses;  ///< 0: θ = θ₀ + deflection_rad, no pass (τ left zero)
   const JointVector* deflection_rad = nullptr;  ///< θ − θ₀ to start from (null: θ₀ itself)
   JointVector* deflection_out_rad = nullptr;    ///< gets θ − θ₀ (may be deflection_rad)
+  /// Not kept yet: keeps this evaluation's frames at θ₀; kept at the same q, θ₀ and initial
+  /// poses: they are this evaluation's too.
+  FirstPass* first_pass = nullptr;
 };
 
 /// A payload as the controller knows it (its load data): a point mass on the last link. Its

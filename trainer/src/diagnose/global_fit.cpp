@@ -1,4 +1,6 @@
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "../least_squares.hpp"
 #include "chunked_gram.hpp"
@@ -22,6 +24,33 @@ bool apply(const PhysicalModel& model, const std::vector<Parameter>& params,
     if (!mechanismProblem(m, out.chain_Tracker.dof()).empty()) return false;
   }
   return true;
+}
+
+// Whether the physics bounds a parameter below by zero: a free compliance, a lost motion or an
+// extra compliance (signConstrained).
+bool boundedAtZero(const PhysicalModel& model, const Parameter& p) {
+  if (p.mechanism < 0) return true;
+  const std::vector<int> constrained = signConstrained(model.mechanisms[static_cast<size_t>(p.mechanism)]);
+  return std::find(constrained.begin(), constrained.end(), p.index) != constrained.end();
+}
+
+double valueOf(const PhysicalModel& model, const Parameter& p) {
+  return p.mechanism < 0
+             ? model.compliance_rad_per_nm(p.index)
+             : model.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)];
+}
+
+// Lower bounds of a step of the geometry and params: a bounded parameter may fall to zero.
+Eigen::VectorXd stepBounds(const PhysicalModel& model, const std::vector<Parameter>& params) {
+  const Eigen::Index geometry = 6 * (model.chain_Tracker.dof() + 1);
+  Eigen::VectorXd lower = Eigen::VectorXd::Constant(
+      geometry + static_cast<Eigen::Index>(params.size()), -std::numeric_limits<double>::infinity());
+  for (size_t c = 0; c < params.size(); ++c) {
+    if (boundedAtZero(model, params[c])) {
+      lower(geometry + static_cast<Eigen::Index>(c)) = -valueOf(model, params[c]);
+    }
+  }
+  return lower;
 }
 
 double priorCost(const DiagnosisModel& model, const PhysicalModel& global) {
@@ -110,6 +139,13 @@ double typicalStep(const Mechanism& m, int index) {
   }
 }
 
+bool isShape(const PhysicalModel& model, const Parameter& p) {
+  if (p.mechanism < 0) return false;
+  const MechanismKind kind = model.mechanisms[static_cast<size_t>(p.mechanism)].kind;
+  return (kind == MechanismKind::kNonlinearStiffness && p.index == 1) ||
+         (kind == MechanismKind::kTorsionCurve && p.index >= 3 && p.index % 2 == 1);
+}
+
 std::vector<int> signConstrained(const Mechanism& m) {
   switch (m.kind) {
     case MechanismKind::kBacklash:
@@ -180,9 +216,6 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
                       JointVector& compliance_sigma, bool hold_profiles) {
   // The global mechanisms come first in combined(), so the parameters index both alike.
   PhysicalModel global = hold_profiles ? model.combined() : model.global;
-  GlobalFit out;
-  out.r = residuals(global, fit);
-  out.cost = out.r.squaredNorm() + priorCost(model, global);
   // The free parameters as the fit stands: a nonlinear stiffness's τ₀ and a torsion curve's
   // fade torques join once their compliance has moved off zero (the first step fits it).
   const auto parametersNow = [&] {
@@ -192,13 +225,21 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
                                      static_cast<long>(model.global.mechanisms.size()));
     return globalParameters(now);
   };
+  // A bounded parameter below zero (a linear joint fit may leave one there) starts at zero.
+  for (const Parameter& p : parametersNow()) {
+    if (boundedAtZero(global, p) && valueOf(global, p) < 0.0) shift(global, p, -valueOf(global, p));
+  }
+  GlobalFit out;
+  out.r = residuals(global, fit);
+  out.cost = out.r.squaredNorm() + priorCost(model, global);
   for (int it = 0; it < iterations; ++it) {
     const std::vector<Parameter> params = parametersNow();
-    const SvdSolution s = solveReduced(linearSystem(model, global, fit, out.r, params), kRankTolerance);
+    const Eigen::VectorXd step = solveReducedBounded(linearSystem(model, global, fit, out.r, params),
+                                                     kRankTolerance, stepBounds(global, params));
     bool improved = false;
     for (double fraction = 1.0; fraction > 1e-3; fraction *= 0.5) {
       PhysicalModel candidate;
-      if (!apply(global, params, s.x, fraction, candidate)) continue;
+      if (!apply(global, params, step, fraction, candidate)) continue;
       const Eigen::VectorXd r = residuals(candidate, fit);
       const double cost = r.squaredNorm() + priorCost(model, candidate);
       if (cost < out.cost) {
@@ -212,9 +253,13 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
     }
     if (!improved) break;
   }
-  // Covariance of the final linearisation: s² (AᵀA)⁺ in column-normalised coordinates.
+  // Covariance of the final linearisation: s² (AᵀA)⁺ in column-normalised coordinates. The
+  // bounded parameters its bounded step holds at zero are the ones the rows push below it.
   const std::vector<Parameter> params = parametersNow();
-  const SvdSolution s = solveReduced(linearSystem(model, global, fit, out.r, params), kRankTolerance);
+  const TallQr system = linearSystem(model, global, fit, out.r, params);
+  const SvdSolution s = solveReduced(system, kRankTolerance);
+  std::vector<bool> at_bound;
+  solveReducedBounded(system, kRankTolerance, stepBounds(global, params), &at_bound);
   const double variance = out.cost / std::max(1, fit.count - s.rank);
   const int geometry = 6 * (global.chain_Tracker.dof() + 1);
   for (Mechanism& m : global.mechanisms) m.sigma.assign(m.parameters.size(), 0.0);
@@ -224,6 +269,9 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
     for (int k = 0; k < s.rank; ++k) var_z += std::pow(s.V(col, k) / s.singular_values(k), 2);
     const double sigma = std::sqrt(variance * var_z) / s.column_scale(col);
     const Parameter& p = params[c];
+    if (at_bound[static_cast<size_t>(col)] && valueOf(global, p) == 0.0) {
+      out.held.push_back({p, s.x(col)});
+    }
     if (p.mechanism < 0) {
       compliance_sigma(p.index) = sigma;
     } else {

@@ -215,10 +215,13 @@ TEST(Diagnose, AOneParameterCauseHasTheSizeOfItsSquaredZ) {
 // backlash beside a nonlinear stiffness (the independent simulation: 0.012° of lost
 // motion, a joint 1.7 times softer at small torque, fading over ~200 N·m), and as a gear
 // catalogue gives it (the twin's torsion_curve: K1 up to T1, K2 up to T2, piecewise linear, a
-// shape the model holds only approximately), each beside a sensor bias. The diagnosis must find
-// the joint's curve: its deflection C τ + d(τ) at the fit rows' torques as the truth's to 20 %
-// of the truth's own curve (RMS), no torque mechanism on another joint, every load within 1.5×
-// the floor.
+// shape the model holds only approximately), and as both on joint 3 (seed 196 of the stress run),
+// each beside a sensor bias. The diagnosis must find the joint's curve: its deflection C τ + d(τ)
+// at the fit rows' torques as the truth's to 20 % of the truth's own curve (RMS), no torque
+// mechanism on another joint, every load within 1.5× the floor. The 55 kg rows load the joint
+// beyond the fit rows' torques: there the curve carries on with its stiffness at the largest one
+// (its linear_above_nm); on seed 196 the fitted knee's formula, at 524 N·m beside joint 3's
+// compliance held at zero, went flat above 474 N·m and missed them by 2.9× the floor.
 struct TorqueCurveCase {
   const char* name;
   uint64_t seed;
@@ -295,8 +298,11 @@ TEST_P(HiddenTorqueCurve, IsTheJointsCurve) {
     ++rows;
   }
   const double off_rms = std::sqrt(off / rows), own_rms = std::sqrt(own / rows);
-  std::printf("[ %s ] joint %d's curve off by %.1f %% of its own RMS (%.0f urad)\n", k.name,
-              joint + 1, 100.0 * off_rms / own_rms, 1e6 * own_rms);
+  double worst = 0.0;
+  for (const GainRow& g : d.gain) worst = std::max(worst, g.after.mean_position_m / d.floor_position_m);
+  std::printf("[ %s ] joint %d's curve off by %.1f %% of its own RMS (%.0f urad); worst load "
+              "%.2fx the floor\n",
+              k.name, joint + 1, 100.0 * off_rms / own_rms, 1e6 * own_rms, worst);
   EXPECT_LT(off_rms, 0.2 * own_rms);
   for (const GainRow& g : d.gain) EXPECT_LT(g.after.mean_position_m, 1.5 * d.floor_position_m);
 }
@@ -315,7 +321,17 @@ INSTANTIATE_TEST_SUITE_P(
                          {"joint", 2},
                          {"lost_motion_rad", 2e-4},
                          {"extra_compliance_rad_per_nm", {1.1e-6, 0.4e-6}},
-                         {"segment_end_torque_nm", {150.0, 400.0}}}}),
+                         {"segment_end_torque_nm", {150.0, 400.0}}}},
+        TorqueCurveCase{"catalogue_segments_and_nonlinear_stiffness", 196,
+                        nlohmann::json::array({{{"name", "torsion_curve"},
+                                                {"joint", 3},
+                                                {"lost_motion_rad", 1.08e-4},
+                                                {"extra_compliance_rad_per_nm", {8.2e-7, 5.9e-7}},
+                                                {"segment_end_torque_nm", {96.0, 429.0}}},
+                                               {{"name", "nonlinear_stiffness"},
+                                                {"joint", 3},
+                                                {"extra_compliance_rad_per_nm", 1.13e-6},
+                                                {"saturation_torque_nm", 169.0}}})}),
     [](const auto& info) { return std::string(info.param.name); });
 
 // A tracker whose air conditioning cycles every 40 rows (a 0.05 mm wobble along its x) is no

@@ -162,7 +162,9 @@ std::vector<int> signConstrained(const Mechanism& m) {
 
 Mechanism simplestTorqueDeflection(Mechanism m) {
   if (m.kind != MechanismKind::kTorsionCurve || m.order > 0) return m;
-  m.kind = MechanismKind::kBacklash;  // lost motion alone
+  m.kind = MechanismKind::kBacklash;  // lost motion alone, which saturates: no τ_lin
+  m.parameters.pop_back();
+  m.sigma.pop_back();
   return m;
 }
 
@@ -181,7 +183,9 @@ std::vector<int> freeParameters(const Mechanism& m, bool masses_from_urdf) {
         i == 1) {
       continue;
     }
-    if (m.kind == MechanismKind::kNonlinearStiffness && i == 1 && m.parameters[0] == 0.0) continue;
+    if (m.kind == MechanismKind::kNonlinearStiffness && (i == 2 || (i == 1 && m.parameters[0] == 0.0))) {
+      continue;  // τ_lin is the rows', τ₀ is free once the curve has a size
+    }
     free.push_back(static_cast<int>(i));
   }
   return free;

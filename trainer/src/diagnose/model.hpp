@@ -59,8 +59,8 @@ double typicalStep(const Mechanism& m, int index);
 /// The fitted parameters of a global mechanism (thermal's reference temperature and backlash's
 /// smoothing are chosen, not fitted; nonlinear stiffness's τ₀ only once its compliance is
 /// nonzero; a torsion curve's lost motion and extra compliances, and each fade torque once its
-/// compliance is nonzero, its smoothing chosen; self_weight's masses not when they come from the
-/// URDF).
+/// compliance is nonzero, its smoothing chosen; a curve's τ_lin is the rows' largest torque;
+/// self_weight's masses not when they come from the URDF).
 std::vector<int> freeParameters(const Mechanism& m, bool masses_from_urdf);
 
 /// Whether a parameter is the shape of a joint's curve, not its size: a nonlinear stiffness's τ₀,

@@ -162,6 +162,42 @@ TEST(Diagnose, SmallSelfWeightBesideASensorBiasIsJudgedOnItsTorques) {
   for (const GainRow& g : d.gain) EXPECT_LT(g.after.mean_position_m, 1.5 * d.floor_position_m);
 }
 
+// Seed 92 of the stress run: a nonlinear stiffness on joint 3 beside a coupling 4 → 5 and a few
+// kilograms out of balance. Backward elimination refits the model without the coupling; there the
+// refit used to run down the valley where c τ τ₀/(τ₀ + |τ|) turns into the joint's compliance
+// (τ₀ → 10⁷ N·m, joint 3's compliance −0.022 rad/(N·m)), the coupling was no longer significant
+// beside that broken model and was dropped, and nothing was left (47× the floor). Under the
+// bounds of the physics the refit stops where the compliance reaches zero: all three named, the
+// stiffness near the truth, every load at the floor.
+TEST(Diagnose, ATrialWithoutACauseKeepsTheCurvePhysical) {
+  const nlohmann::json coupling = {{"name", "joint_coupling"}, {"joints", {4, 5}}, {"ratio", 1.857e-3}};
+  const nlohmann::json self_weight = {
+      {"name", "self_weight"},
+      {"links", {{{"link", 2}, {"mass_kg", 5.546}, {"com_m", {0.2783, -0.0152, 0.0321}}},
+                 {{"link", 3}, {"mass_kg", 4.770}, {"com_m", {0.1956, 0.0494, 0.1109}}}}}};
+  const nlohmann::json stiffness = {{"name", "nonlinear_stiffness"},
+                                    {"joint", 3},
+                                    {"extra_compliance_rad_per_nm", 1.159e-6},
+                                    {"saturation_torque_nm", 208.3}};
+  const Diagnosis d = diagnoseSimulation(paperOptions(92, {coupling, self_weight, stiffness}));
+  ASSERT_EQ(d.verdict, Verdict::kFound) << effectsText(d);
+  const FoundEffect* nonlinear = nullptr;
+  bool coupled = false, weight = false;
+  for (const FoundEffect& e : d.effects) {
+    if (e.mechanism.kind == MechanismKind::kNonlinearStiffness && e.mechanism.joint == 2) nonlinear = &e;
+    coupled = coupled || (e.mechanism.kind == MechanismKind::kJointCoupling &&
+                          e.mechanism.source_joint == 3 && e.mechanism.joint == 4);
+    weight = weight || e.mechanism.kind == MechanismKind::kSelfWeight;
+  }
+  EXPECT_EQ(d.effects.size(), 3u) << effectsText(d);
+  EXPECT_TRUE(coupled && weight) << effectsText(d);
+  ASSERT_NE(nonlinear, nullptr) << effectsText(d);
+  EXPECT_NEAR(nonlinear->mechanism.parameters[0], 1.159e-6, 0.2 * 1.159e-6);
+  EXPECT_NEAR(nonlinear->mechanism.parameters[1], 208.3, 0.5 * 208.3);
+  EXPECT_GT(physicalModelOf(d.extended_model).compliance_rad_per_nm(2), 1e-6);
+  for (const GainRow& g : d.gain) EXPECT_LT(g.after.mean_position_m, 1.5 * d.floor_position_m);
+}
+
 // A cause of one parameter has the size of its z: χ² = (p / σ)² over one direction, σ the final
 // joint fit's (the two variance estimates differ by the degrees of freedom counted).
 TEST(Diagnose, AOneParameterCauseHasTheSizeOfItsSquaredZ) {
@@ -179,10 +215,13 @@ TEST(Diagnose, AOneParameterCauseHasTheSizeOfItsSquaredZ) {
 // backlash beside a nonlinear stiffness (the independent simulation: 0.012° of lost
 // motion, a joint 1.7 times softer at small torque, fading over ~200 N·m), and as a gear
 // catalogue gives it (the twin's torsion_curve: K1 up to T1, K2 up to T2, piecewise linear, a
-// shape the model holds only approximately), each beside a sensor bias. The diagnosis must find
-// the joint's curve: its deflection C τ + d(τ) at the fit rows' torques as the truth's to 20 %
-// of the truth's own curve (RMS), no torque mechanism on another joint, every load within 1.5×
-// the floor.
+// shape the model holds only approximately), and as both on joint 3 (seed 196 of the stress run),
+// each beside a sensor bias. The diagnosis must find the joint's curve: its deflection C τ + d(τ)
+// at the fit rows' torques as the truth's to 20 % of the truth's own curve (RMS), no torque
+// mechanism on another joint, every load within 1.5× the floor. The 55 kg rows load the joint
+// beyond the fit rows' torques: there the curve carries on with its stiffness at the largest one
+// (its linear_above_nm); on seed 196 the fitted knee's formula, at 524 N·m beside joint 3's
+// compliance held at zero, went flat above 474 N·m and missed them by 2.9× the floor.
 struct TorqueCurveCase {
   const char* name;
   uint64_t seed;
@@ -232,7 +271,9 @@ TEST_P(HiddenTorqueCurve, IsTheJointsCurve) {
   SCOPED_TRACE(std::string(k.name) + ": " + effectsText(d));
   ASSERT_EQ(d.verdict, Verdict::kFound);
   for (const FoundEffect& e : d.effects) {
-    if (isTorqueDeflection(e.mechanism.kind)) EXPECT_EQ(e.mechanism.joint, joint) << describe(e.mechanism);
+    if (isTorqueDeflection(e.mechanism.kind)) {
+      EXPECT_EQ(e.mechanism.joint, joint) << describe(e.mechanism);
+    }
   }
   double true_compliance = 0.0;
   for (const nlohmann::json& e : truth.at("effects")) {
@@ -259,8 +300,11 @@ TEST_P(HiddenTorqueCurve, IsTheJointsCurve) {
     ++rows;
   }
   const double off_rms = std::sqrt(off / rows), own_rms = std::sqrt(own / rows);
-  std::printf("[ %s ] joint %d's curve off by %.1f %% of its own RMS (%.0f urad)\n", k.name,
-              joint + 1, 100.0 * off_rms / own_rms, 1e6 * own_rms);
+  double worst = 0.0;
+  for (const GainRow& g : d.gain) worst = std::max(worst, g.after.mean_position_m / d.floor_position_m);
+  std::printf("[ %s ] joint %d's curve off by %.1f %% of its own RMS (%.0f urad); worst load "
+              "%.2fx the floor\n",
+              k.name, joint + 1, 100.0 * off_rms / own_rms, 1e6 * own_rms, worst);
   EXPECT_LT(off_rms, 0.2 * own_rms);
   for (const GainRow& g : d.gain) EXPECT_LT(g.after.mean_position_m, 1.5 * d.floor_position_m);
 }
@@ -279,7 +323,17 @@ INSTANTIATE_TEST_SUITE_P(
                          {"joint", 2},
                          {"lost_motion_rad", 2e-4},
                          {"extra_compliance_rad_per_nm", {1.1e-6, 0.4e-6}},
-                         {"segment_end_torque_nm", {150.0, 400.0}}}}),
+                         {"segment_end_torque_nm", {150.0, 400.0}}}},
+        TorqueCurveCase{"catalogue_segments_and_nonlinear_stiffness", 196,
+                        nlohmann::json::array({{{"name", "torsion_curve"},
+                                                {"joint", 3},
+                                                {"lost_motion_rad", 1.08e-4},
+                                                {"extra_compliance_rad_per_nm", {8.2e-7, 5.9e-7}},
+                                                {"segment_end_torque_nm", {96.0, 429.0}}},
+                                               {{"name", "nonlinear_stiffness"},
+                                                {"joint", 3},
+                                                {"extra_compliance_rad_per_nm", 1.13e-6},
+                                                {"saturation_torque_nm", 169.0}}})}),
     [](const auto& info) { return std::string(info.param.name); });
 
 // A tracker whose air conditioning cycles every 40 rows (a 0.05 mm wobble along its x) is no

@@ -66,7 +66,7 @@ std::optional<PhysicalModel> trueDeflectionModel(const Diagnosis& d, const nlohm
     m.joint = h.joint;
     m.source_joint = h.source_joint;
     if (h.kind == MechanismKind::kNonlinearStiffness) {
-      m.parameters = {h.effect.at("extra_compliance_rad_per_nm"), h.effect.at("saturation_torque_nm")};
+      m.parameters = {h.effect.at("extra_compliance_rad_per_nm"), h.effect.at("saturation_torque_nm"), 0.0};
     } else if (h.kind == MechanismKind::kSelfWeight) {
       m.parameters = h.self_weight_truth;
     } else if (h.kind == MechanismKind::kSensorBias) {

@@ -188,8 +188,9 @@ Mechanism torqueMechanism(MechanismKind kind, int order, std::vector<double> par
 TEST(TorqueDeflection, ClosedFormsKneesAndTheirDerivative) {
   const double b = 2e-4, tau_b = 5.0, c1 = 3e-6, t1 = 100.0, c2 = 1e-6, t2 = 400.0;
   const Mechanism backlash = torqueMechanism(MechanismKind::kBacklash, 0, {b, tau_b});
-  const Mechanism nonlinear = torqueMechanism(MechanismKind::kNonlinearStiffness, 0, {c1, t1});
-  const Mechanism curve = torqueMechanism(MechanismKind::kTorsionCurve, 2, {b, tau_b, c1, t1, c2, t2});
+  const Mechanism nonlinear = torqueMechanism(MechanismKind::kNonlinearStiffness, 0, {c1, t1, 0.0});
+  const Mechanism curve =
+      torqueMechanism(MechanismKind::kTorsionCurve, 2, {b, tau_b, c1, t1, c2, t2, 0.0});
   for (const Mechanism* m : {&backlash, &nonlinear, &curve}) EXPECT_EQ(mechanismProblem(*m, 6), "");
   for (const double tau : {-700.0, -30.0, 0.0, 0.4, 12.0, 99.0, 100.0, 250.0, 1e4}) {
     EXPECT_DOUBLE_EQ(torqueDeflection(backlash, tau), b * std::tanh(tau / tau_b)) << tau;
@@ -218,19 +219,50 @@ TEST(TorqueDeflection, ClosedFormsKneesAndTheirDerivative) {
   EXPECT_NEAR(torqueDeflection(curve, 5000.0), b + c1 * t1 + c2 * t2, 1e-3 * (c1 * t1 + c2 * t2));
 }
 
+// Above τ_lin (the largest torque the curve was fitted over) a curve is its tangent there: the
+// same deflection and slope at τ_lin from either side, the slope constant beyond, odd in the
+// torque; below τ_lin the formula itself. Backlash, which saturates, has none.
+TEST(TorqueDeflection, AboveItsLinearTorqueACurveCarriesOnWithItsSlopeThere) {
+  const double c1 = 3e-6, t1 = 100.0, c2 = 1e-6, t2 = 400.0, limit = 300.0;
+  const Mechanism nonlinear = torqueMechanism(MechanismKind::kNonlinearStiffness, 0, {c1, t1, limit});
+  const Mechanism curve =
+      torqueMechanism(MechanismKind::kTorsionCurve, 2, {2e-4, 5.0, c1, t1, c2, t2, limit});
+  for (const Mechanism* m : {&nonlinear, &curve}) {
+    SCOPED_TRACE(describe(*m));
+    EXPECT_EQ(mechanismProblem(*m, 6), "");
+    Mechanism formula = *m;
+    formula.parameters.back() = 0.0;
+    for (const double tau : {0.0, 50.0, 120.0, 299.0, 300.0}) {
+      EXPECT_EQ(torqueDeflection(*m, tau), torqueDeflection(formula, tau)) << tau;
+    }
+    double edge_slope = 0.0;
+    const double at_edge = torqueDeflection(formula, limit, &edge_slope);
+    for (const double tau : {300.5, 450.0, 2000.0}) {
+      double slope = 0.0;
+      EXPECT_NEAR(torqueDeflection(*m, tau, &slope), at_edge + edge_slope * (tau - limit),
+                  1e-12 * at_edge) << tau;
+      EXPECT_EQ(slope, edge_slope) << tau;
+      EXPECT_DOUBLE_EQ(torqueDeflection(*m, -tau), -torqueDeflection(*m, tau)) << tau;
+    }
+    // The formula bends on above τ_lin, the tangent does not: at 2000 N·m they differ.
+    EXPECT_GT(torqueDeflection(*m, 2000.0) - torqueDeflection(formula, 2000.0), 1e-4);
+  }
+}
+
 TEST(TorqueDeflection, MalformedTorsionCurvesAreNamed) {
   const auto problem = [](int order, std::vector<double> p) {
     return mechanismProblem(torqueMechanism(MechanismKind::kTorsionCurve, order, std::move(p)), 6);
   };
-  EXPECT_EQ(problem(0, {2e-4, 5.0}), "");
-  EXPECT_EQ(problem(1, {0.0, 0.0, 1e-6, 80.0}), "");
-  EXPECT_NE(problem(0, {0.0, 0.0}).find("neither lost motion nor"), std::string::npos);
-  EXPECT_NE(problem(1, {2e-4, 0.0, 1e-6, 80.0}).find("or 0 with no lost motion"), std::string::npos);
-  EXPECT_NE(problem(1, {0.0, -1.0, 1e-6, 80.0}).find("smoothing_torque_nm"), std::string::npos);
-  EXPECT_NE(problem(2, {0.0, 0.0, 1e-6, 80.0, 1e-6, 60.0}).find("knee_torque2_nm"), std::string::npos);
-  EXPECT_NE(problem(1, {0.0, 0.0, 1e-6, 0.0}).find("knee_torque1_nm"), std::string::npos);
-  EXPECT_NE(problem(5, std::vector<double>(12, 1.0)).find("0 to 4 terms"), std::string::npos);
-  EXPECT_NE(problem(1, {0.0, 0.0, 1e-6}).find("expected 4"), std::string::npos);
+  EXPECT_EQ(problem(0, {2e-4, 5.0, 0.0}), "");
+  EXPECT_EQ(problem(1, {0.0, 0.0, 1e-6, 80.0, 500.0}), "");
+  EXPECT_NE(problem(0, {0.0, 0.0, 0.0}).find("neither lost motion nor"), std::string::npos);
+  EXPECT_NE(problem(1, {2e-4, 0.0, 1e-6, 80.0, 0.0}).find("or 0 with no lost motion"), std::string::npos);
+  EXPECT_NE(problem(1, {0.0, -1.0, 1e-6, 80.0, 0.0}).find("smoothing_torque_nm"), std::string::npos);
+  EXPECT_NE(problem(2, {0.0, 0.0, 1e-6, 80.0, 1e-6, 60.0, 0.0}).find("knee_torque2_nm"), std::string::npos);
+  EXPECT_NE(problem(1, {0.0, 0.0, 1e-6, 0.0, 0.0}).find("knee_torque1_nm"), std::string::npos);
+  EXPECT_NE(problem(1, {0.0, 0.0, 1e-6, 80.0, -5.0}).find("linear_above_nm"), std::string::npos);
+  EXPECT_NE(problem(5, std::vector<double>(13, 1.0)).find("0 to 4 terms"), std::string::npos);
+  EXPECT_NE(problem(1, {0.0, 0.0, 1e-6, 80.0}).find("expected 5"), std::string::npos);
 }
 
 TEST(UrdfMasses, BodiesGatherTheirRigidLinksInTheirOwnFrame) {

@@ -479,14 +479,14 @@ TEST_F(ModelFileTest, ChecksumMismatchSaysCorrupted) {
 }
 
 TEST_F(ModelFileTest, VersionMismatchNamesBothVersionsAndTheCommandToRerun) {
-  EXPECT_EQ(getU32(bytes(), 8), 3u);
-  for (const uint32_t version : {1u, 2u, 4u}) {
+  EXPECT_EQ(getU32(bytes(), 8), 4u);
+  for (const uint32_t version : {1u, 2u, 3u, 5u}) {
     std::vector<uint8_t> b = bytes();
     putU32(b, 8, version);
     refix(b);
     const std::string message = refusal(b);
     EXPECT_EQ(message.rfind("test.model: byte 8, version: model format version " +
-                                std::to_string(version) + ", this build reads 3",
+                                std::to_string(version) + ", this build reads 4",
                             0),
               0u)
         << message;
@@ -503,7 +503,7 @@ TEST_F(ModelFileTest, VersionOneFileWithoutMechanismsIsRefusedNotRead) {
   putU32(b, 8, 1);
   refix(b);
   const std::string message = refusal(b);
-  EXPECT_NE(message.find("byte 8, version: model format version 1, this build reads 3"),
+  EXPECT_NE(message.find("byte 8, version: model format version 1, this build reads 4"),
             std::string::npos)
       << message;
   EXPECT_NE(message.find("re-run `stepcal calibrate`"), std::string::npos) << message;
@@ -763,6 +763,8 @@ TEST_F(ModelFileTest, EachMalformedMechanismIsRefusedWithItsOffsetIndexAndProble
        "mechanisms[2]", "coverage fade -0.1"},
       {[&](auto& e) { putF64(e, nonlinear + 20 + 8, 0.0); }, nonlinear, "mechanisms[3]",
        "nonlinear_stiffness saturation_torque_nm"},
+      {[&](auto& e) { putF64(e, nonlinear + 20 + 16, -1.0); }, nonlinear, "mechanisms[3]",
+       "nonlinear_stiffness linear_above_nm = -1"},
       {[&](auto& e) { putU32(e, coupling + 8, 5); }, coupling, "mechanisms[6]",
        "joint_coupling source joint index 5; expected a joint other than the moved one"},
       {[&](auto& e) { putF64(e, backlash + 20 + 16, -1e-5); }, backlash, "mechanisms[0]",

@@ -185,8 +185,8 @@ TEST(Runtime, ForwardAppliesBacklashTransmissionCouplingAndNonlinearStiffnessAtA
       withMechanisms({mechanism(MechanismKind::kTransmissionError, 2, -1, 2, {0.0, 0.0, a, b}),
                       mechanism(MechanismKind::kJointCoupling, 4, 1, 0, {c}),
                       mechanism(MechanismKind::kBacklash, 5, -1, 0, {lost_rad, 5.0}),
-                      mechanism(MechanismKind::kNonlinearStiffness, 5, -1, 0, {c_n, t0}),
-                      mechanism(MechanismKind::kTorsionCurve, 5, -1, 1, {0.0, 0.0, c_k, knee})},
+                      mechanism(MechanismKind::kNonlinearStiffness, 5, -1, 0, {c_n, t0, 0.0}),
+                      mechanism(MechanismKind::kTorsionCurve, 5, -1, 1, {0.0, 0.0, c_k, knee, 0.0})},
                      false);
   const double c6 = file.compliance_rad_per_nm(5);
   file.compliance_rad_per_nm.head(5).setZero();
@@ -612,7 +612,7 @@ TEST(Runtime, InverseJacobianCarriesCouplingTransmissionAndBacklash) {
       withMechanisms({mechanism(MechanismKind::kJointCoupling, 2, 1, 0, {0.05}),
                       mechanism(MechanismKind::kTransmissionError, 3, -1, 3, {0.0, 0.0, 0.0, 0.0, 0.01, 0.01}),
                       mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-3, 5.0}),
-                      mechanism(MechanismKind::kNonlinearStiffness, 2, -1, 0, {2e-5, 20.0})},
+                      mechanism(MechanismKind::kNonlinearStiffness, 2, -1, 0, {2e-5, 20.0, 0.0})},
                      false),
       16);
   Workspace ws = makeWorkspace(*model);

@@ -207,7 +207,10 @@ bool isTorqueDeflection(MechanismKind kind) noexcept {
          kind == MechanismKind::kTorsionCurve;
 }
 
-double torqueDeflection(const Mechanism& m, double tau_nm, double* derivative) noexcept {
+namespace {
+
+// The curve as its formula gives it at every torque (torqueDeflection without its τ_lin).
+double curveFormula(const Mechanism& m, double tau_nm, double* derivative) noexcept {
   double slope = 0.0, deflection = 0.0;
   // Lost motion b tanh(τ/τ_b), slope (b/τ_b) sech².
   const auto lost = [&](double b, double smoothing) {
@@ -246,6 +249,25 @@ double torqueDeflection(const Mechanism& m, double tau_nm, double* derivative) n
   return deflection;
 }
 
+// τ_lin of a curve that has one (nonlinear_stiffness, torsion_curve: the last parameter), else 0.
+double linearAbove(const Mechanism& m) noexcept {
+  const bool has = m.kind == MechanismKind::kNonlinearStiffness || m.kind == MechanismKind::kTorsionCurve;
+  return has ? m.parameters.back() : 0.0;
+}
+
+}  // namespace
+
+double torqueDeflection(const Mechanism& m, double tau_nm, double* derivative) noexcept {
+  const double limit = linearAbove(m);
+  if (!(limit > 0.0 && std::abs(tau_nm) > limit)) return curveFormula(m, tau_nm, derivative);
+  // d(±τ_lin) + d'(±τ_lin) (τ ∓ τ_lin)
+  const double edge = std::copysign(limit, tau_nm);
+  double slope = 0.0;
+  const double at_edge = curveFormula(m, edge, &slope);
+  if (derivative) *derivative = slope;
+  return at_edge + slope * (tau_nm - edge);
+}
+
 double transmissionOffset(const Mechanism& m, double q_rad, double* derivative) noexcept {
   double gate_slope = 0.0;
   const double gate = coverageGate(m.coverage, q_rad, derivative ? &gate_slope : nullptr);
@@ -275,7 +297,7 @@ std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof, in
       return names;
     }
     case MechanismKind::kNonlinearStiffness:
-      return {"extra_compliance_rad_per_nm", "saturation_torque_nm"};
+      return {"extra_compliance_rad_per_nm", "saturation_torque_nm", "linear_above_nm"};
     case MechanismKind::kThermalExpansion: return {"expansion_per_k", "reference_temp_c"};
     case MechanismKind::kSensorBias:
       return {"fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm"};
@@ -286,6 +308,7 @@ std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof, in
         names.push_back("extra_compliance" + std::to_string(k) + "_rad_per_nm");
         names.push_back("knee_torque" + std::to_string(k) + "_nm");
       }
+      names.push_back("linear_above_nm");
       return names;
     }
     case MechanismKind::kProfileGeometry: {
@@ -351,6 +374,11 @@ std::string mechanismProblem(const Mechanism& m, int dof) {
       !(m.parameters[1] > 0.0)) {
     return what + " " + mechanismParameterNames(m.kind, dof)[1] + " = " +
            std::to_string(m.parameters[1]) + "; expected > 0";
+  }
+  if ((m.kind == MechanismKind::kNonlinearStiffness || m.kind == MechanismKind::kTorsionCurve) &&
+      !(m.parameters.back() >= 0.0)) {
+    return what + " linear_above_nm = " + std::to_string(m.parameters.back()) +
+           "; expected ≥ 0 (0: the curve's formula at every torque)";
   }
   if (m.kind == MechanismKind::kTorsionCurve) {
     if (m.parameters[1] < 0.0 || (m.parameters[1] == 0.0 && m.parameters[0] != 0.0)) {

@@ -120,7 +120,7 @@ int main(int argc, char** argv) {
       {MechanismKind::kSelfWeight, -1, -1, 0, self_weight, std::vector<double>(24, 0.1)},
       {MechanismKind::kTransmissionError, 2, -1, 2, {0.0, 1e-5, 3e-5, -1e-5}, {1e-6, 1e-6, 1e-6, 1e-6},
        {{0.5, 4.0}, 0.1}},
-      {MechanismKind::kNonlinearStiffness, 3, -1, 0, {1e-6, 50.0}, {1e-7, 5.0}},
+      {MechanismKind::kNonlinearStiffness, 3, -1, 0, {1e-6, 50.0, 400.0}, {1e-7, 5.0, 0.0}},
       {MechanismKind::kThermalExpansion, -1, -1, 0, {1.2e-5, 20.0}, {1e-6, 0.0}},
       {MechanismKind::kSensorBias, -1, -1, 0, {0.5, -0.3, 1.2, 0.01, 0.02, -0.03},
        std::vector<double>(6, 0.01)},

@@ -47,20 +47,22 @@ inline Mechanism mechanism(MechanismKind kind, int joint, int source_joint, int 
 /// One mechanism of every kind for a six-joint arm, joints 0-based, in the catalogue's order:
 /// [0] backlash (joint 2), [1] self_weight, [2] transmission_error (joint 3, harmonics 1 and 2,
 /// covering 57°–315°),
-/// [3] nonlinear_stiffness (joint 4), [4] thermal_expansion (T_ref 20 °C), [5] sensor_bias,
-/// [6] joint_coupling (joint 5 → joint 6), [7] profile_geometry (joint 3: tens of µm and µrad
-/// on every initial pose), [8] torsion_curve (joint 5: lost motion and two knees).
+/// [3] nonlinear_stiffness (joint 4, linear above 300 N·m), [4] thermal_expansion (T_ref 20 °C),
+/// [5] sensor_bias, [6] joint_coupling (joint 5 → joint 6), [7] profile_geometry (joint 3: tens
+/// of µm and µrad on every initial pose), [8] torsion_curve (joint 5: lost motion and two knees,
+/// linear above 400 N·m).
 inline std::vector<Mechanism> mechanismOfEveryKind() {
   return {mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-4, 5.0}),
           mechanism(MechanismKind::kSelfWeight, -1, -1, 0, selfWeightParameters()),
           mechanism(MechanismKind::kTransmissionError, 2, -1, 2, {1e-5, 2e-5, 3e-5, -1.5e-5},
                     {{1.0, 4.5}, 0.2}),
-          mechanism(MechanismKind::kNonlinearStiffness, 3, -1, 0, {4e-6, 60.0}),
+          mechanism(MechanismKind::kNonlinearStiffness, 3, -1, 0, {4e-6, 60.0, 300.0}),
           mechanism(MechanismKind::kThermalExpansion, -1, -1, 0, {1.15e-5, 20.0}),
           mechanism(MechanismKind::kSensorBias, -1, -1, 0, {1.5, -0.8, 2.1, 0.03, -0.02, 0.01}),
           mechanism(MechanismKind::kJointCoupling, 5, 4, 0, {-1.2e-3}),
           mechanism(MechanismKind::kProfileGeometry, 2, -1, 0, profileGeometryParameters()),
-          mechanism(MechanismKind::kTorsionCurve, 4, -1, 2, {1.5e-4, 4.0, 3e-6, 40.0, 1e-6, 150.0})};
+          mechanism(MechanismKind::kTorsionCurve, 4, -1, 2,
+                    {1.5e-4, 4.0, 3e-6, 40.0, 1e-6, 150.0, 400.0})};
 }
 
 }  // namespace stepcal::test

@@ -70,7 +70,8 @@ if [[ -z ${STEPCAL_IN_NETNS:-} ]]; then
 
   mkdir -p "$models"
   for name in "${names[@]}"; do
-    [[ -f $models/model-$name.stepcal ]] && continue
+    # Made again when stepcal is newer: a model a build of another format wrote is refused.
+    [[ $models/model-$name.stepcal -nt $stepcal ]] && continue
     effect=$(effect_of "$name")
     # The backlash one through `stepcal diagnose`: a model with a mechanism for the daemon too.
     fit=calibrate

@@ -110,19 +110,19 @@ std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
     using Kind = trainer::ModelChange::Kind;
     switch (c.kind) {
       case Kind::kComplianceHeldAtZero:
-        lines.push_back(format("joint %d's compliance came out negative (%.3g rad/(N·m)) refitted "
-                               "with the rest: held at zero, the data show no deflection of it "
-                               "under load",
+        lines.push_back(format("joint %d's compliance refitted with the rest goes below zero "
+                               "(%.3g rad/(N·m) without its bound): held at zero, the data show "
+                               "no deflection of it under load",
                                c.joint + 1, c.compliance_rad_per_nm));
         break;
       case Kind::kDroppedWrongSign:
         lines.push_back(describe(c.mechanism) + ": dropped, its " + parameterNames(c.mechanism)[0] +
-                        " turned negative once refitted with the other causes found (another of "
+                        " goes below zero once refitted with the other causes found (another of "
                         "them explains what it did)");
         break;
       case Kind::kPartDroppedWrongSign:
         lines.push_back(describe(c.mechanism) +
-                        ": the parts whose lost motion or extra compliance turned negative once "
+                        ": the parts whose lost motion or extra compliance go below zero once "
                         "refitted with the other causes were removed; kept as " +
                         describe(c.kept) + " (" + parameterText(c.kept) + ")");
         break;

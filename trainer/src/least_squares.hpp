@@ -1,6 +1,9 @@
 // Truncated-SVD least squares shared by the trainer's fits (internal to stepcal::trainer).
 #pragma once
 
+#include <algorithm>
+#include <vector>
+
 #include <Eigen/Core>
 #include <Eigen/QR>
 #include <Eigen/SVD>
@@ -100,6 +103,83 @@ inline SvdSolution solveReduced(const TallQr& system, double tol) {
   }
   truncatedSvdSolve(R * s.column_scale.cwiseInverse().asDiagonal(), system.qtr(), tol, s);
   return s;
+}
+
+/// solveReduced under lower bounds x ≥ lower (−∞: none; every lower ≤ 0, so x = 0 is feasible):
+/// an active set (Lawson–Hanson's, for bounds) of truncated-SVD solves. From x = 0 it moves toward
+/// the solution with the bounded variables not held, stops at the first bound that solution
+/// crosses and holds that variable there; once the solution is feasible it frees the held
+/// variable whose bound the residual pushes against least (a negative gradient), until none is.
+/// at_bound: per variable, whether it ends held at its bound (x = lower exactly).
+inline Eigen::VectorXd solveReducedBounded(const TallQr& system, double tol,
+                                           const Eigen::VectorXd& lower,
+                                           std::vector<bool>* at_bound = nullptr) {
+  const Eigen::MatrixXd& R = system.R();
+  const Eigen::Index p = R.cols();
+  Eigen::VectorXd scale = R.colwise().norm().transpose();
+  for (Eigen::Index c = 0; c < p; ++c) {
+    if (!(scale(c) > 0.0)) scale(c) = 1.0;
+  }
+  const Eigen::MatrixXd Rs = R * scale.cwiseInverse().asDiagonal();
+  const Eigen::VectorXd& b = system.qtr();
+  const Eigen::VectorXd lz = lower.cwiseProduct(scale);  // the bounds in scaled coordinates
+  std::vector<bool> held(static_cast<size_t>(p), false);
+  Eigen::VectorXd z = Eigen::VectorXd::Zero(p);
+  // Each pass holds one more variable or frees one from a feasible better point: a few passes;
+  // the cap only guards against cycling on rounding.
+  for (Eigen::Index pass = 0; pass < 3 * p + 3; ++pass) {
+    std::vector<Eigen::Index> free;
+    Eigen::VectorXd rhs = b;
+    for (Eigen::Index c = 0; c < p; ++c) {
+      if (held[static_cast<size_t>(c)]) {
+        rhs -= Rs.col(c) * lz(c);
+      } else {
+        free.push_back(c);
+      }
+    }
+    Eigen::VectorXd trial = z;
+    if (!free.empty()) {
+      SvdSolution s;
+      s.column_scale = Eigen::VectorXd::Ones(static_cast<Eigen::Index>(free.size()));
+      truncatedSvdSolve(Rs(Eigen::all, free), rhs, tol, s);
+      for (size_t k = 0; k < free.size(); ++k) trial(free[k]) = s.x(static_cast<Eigen::Index>(k));
+    }
+    double alpha = 1.0;
+    Eigen::Index blocking = -1;
+    for (Eigen::Index c : free) {
+      if (trial(c) >= lz(c)) continue;
+      const double a = (lz(c) - z(c)) / (trial(c) - z(c));
+      if (a < alpha) {
+        alpha = std::max(0.0, a);
+        blocking = c;
+      }
+    }
+    if (blocking >= 0) {
+      z += alpha * (trial - z);
+      z(blocking) = lz(blocking);
+      held[static_cast<size_t>(blocking)] = true;
+      continue;
+    }
+    z = trial;
+    // ∂(½|Rs z − b|²)/∂z_c < 0 at a held variable: the residual falls as it leaves its bound.
+    const Eigen::VectorXd gradient = Rs.transpose() * (Rs * z - b);
+    const double negligible = 1e-12 * (Rs.transpose() * b).cwiseAbs().maxCoeff();
+    Eigen::Index release = -1;
+    for (Eigen::Index c = 0; c < p; ++c) {
+      if (held[static_cast<size_t>(c)] && gradient(c) < -negligible &&
+          (release < 0 || gradient(c) < gradient(release))) {
+        release = c;
+      }
+    }
+    if (release < 0) break;
+    held[static_cast<size_t>(release)] = false;
+  }
+  Eigen::VectorXd x = z.cwiseQuotient(scale);
+  for (Eigen::Index c = 0; c < p; ++c) {
+    if (held[static_cast<size_t>(c)]) x(c) = lower(c);
+  }
+  if (at_bound) *at_bound = held;
+  return x;
 }
 
 }  // namespace stepcal::trainer

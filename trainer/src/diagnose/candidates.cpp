@@ -315,8 +315,10 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
   };
   for (int j = 0; j < n; ++j) {
     std::vector<double> loaded;
+    double largest = 0.0;  // a curve's τ_lin: above it no row shows the curve
     for (const JointVector& tau : start.tau_nm) {
       if (std::abs(tau(j)) > 1.0) loaded.push_back(std::abs(tau(j)));
+      largest = std::max(largest, std::abs(tau(j)));
     }
     const double typical = median(loaded);
     if (loaded.size() < 10 || typical < 10.0) {
@@ -334,7 +336,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
       unit.parameters[0] = 1.0;
       unit.parameters[1] = scale_nm;
       if (kind == MechanismKind::kTorsionCurve) {  // a knee alone: c = 1 at T = scale
-        unit.parameters = {0.0, 0.0, 1.0, scale_nm};
+        unit.parameters = {0.0, 0.0, 1.0, scale_nm, 0.0};
       }
       ScaledSource source;
       source.unit = std::move(unit);
@@ -352,6 +354,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
         m.parameters[2 + 2 * k] = knees[k].first;
         m.parameters[3 + 2 * k] = knees[k].second;
       }
+      m.parameters.back() = largest;
       return m;
     };
     int existing = -1, count = 0;
@@ -376,6 +379,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
         f.mechanism = blank(MechanismKind::kNonlinearStiffness, n, j);
         const double t0 = factor * typical;
         f.mechanism.parameters[1] = t0;
+        f.mechanism.parameters[2] = largest;
         f.free = {0};
         f.chosen = 1;
         addGlobal(std::move(f), {partColumn(MechanismKind::kNonlinearStiffness, t0)}, {1e-4 / t0});

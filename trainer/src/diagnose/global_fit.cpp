@@ -1,4 +1,6 @@
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "../least_squares.hpp"
 #include "chunked_gram.hpp"
@@ -22,6 +24,33 @@ bool apply(const PhysicalModel& model, const std::vector<Parameter>& params,
     if (!mechanismProblem(m, out.chain_Tracker.dof()).empty()) return false;
   }
   return true;
+}
+
+// Whether the physics bounds a parameter below by zero: a free compliance, a lost motion or an
+// extra compliance (signConstrained).
+bool boundedAtZero(const PhysicalModel& model, const Parameter& p) {
+  if (p.mechanism < 0) return true;
+  const std::vector<int> constrained = signConstrained(model.mechanisms[static_cast<size_t>(p.mechanism)]);
+  return std::find(constrained.begin(), constrained.end(), p.index) != constrained.end();
+}
+
+double valueOf(const PhysicalModel& model, const Parameter& p) {
+  return p.mechanism < 0
+             ? model.compliance_rad_per_nm(p.index)
+             : model.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)];
+}
+
+// Lower bounds of a step of the geometry and params: a bounded parameter may fall to zero.
+Eigen::VectorXd stepBounds(const PhysicalModel& model, const std::vector<Parameter>& params) {
+  const Eigen::Index geometry = 6 * (model.chain_Tracker.dof() + 1);
+  Eigen::VectorXd lower = Eigen::VectorXd::Constant(
+      geometry + static_cast<Eigen::Index>(params.size()), -std::numeric_limits<double>::infinity());
+  for (size_t c = 0; c < params.size(); ++c) {
+    if (boundedAtZero(model, params[c])) {
+      lower(geometry + static_cast<Eigen::Index>(c)) = -valueOf(model, params[c]);
+    }
+  }
+  return lower;
 }
 
 double priorCost(const DiagnosisModel& model, const PhysicalModel& global) {
@@ -109,6 +138,13 @@ double typicalStep(const Mechanism& m, int index) {
   }
 }
 
+bool isShape(const PhysicalModel& model, const Parameter& p) {
+  if (p.mechanism < 0) return false;
+  const MechanismKind kind = model.mechanisms[static_cast<size_t>(p.mechanism)].kind;
+  return (kind == MechanismKind::kNonlinearStiffness && p.index == 1) ||
+         (kind == MechanismKind::kTorsionCurve && p.index >= 3 && p.index % 2 == 1);
+}
+
 std::vector<int> signConstrained(const Mechanism& m) {
   switch (m.kind) {
     case MechanismKind::kBacklash:
@@ -125,7 +161,9 @@ std::vector<int> signConstrained(const Mechanism& m) {
 
 Mechanism simplestTorqueDeflection(Mechanism m) {
   if (m.kind != MechanismKind::kTorsionCurve || m.order > 0) return m;
-  m.kind = MechanismKind::kBacklash;  // lost motion alone
+  m.kind = MechanismKind::kBacklash;  // lost motion alone, which saturates: no τ_lin
+  m.parameters.pop_back();
+  m.sigma.pop_back();
   return m;
 }
 
@@ -144,7 +182,9 @@ std::vector<int> freeParameters(const Mechanism& m, bool masses_from_urdf) {
         i == 1) {
       continue;
     }
-    if (m.kind == MechanismKind::kNonlinearStiffness && i == 1 && m.parameters[0] == 0.0) continue;
+    if (m.kind == MechanismKind::kNonlinearStiffness && (i == 2 || (i == 1 && m.parameters[0] == 0.0))) {
+      continue;  // τ_lin is the rows', τ₀ is free once the curve has a size
+    }
     free.push_back(static_cast<int>(i));
   }
   return free;
@@ -187,9 +227,6 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
                       bool hold_profiles) {
   // The global mechanisms come first in combined(), so the parameters index both alike.
   PhysicalModel global = hold_profiles ? model.combined() : model.global;
-  GlobalFit out;
-  out.r = residuals(global, fit);
-  out.cost = out.r.squaredNorm() + priorCost(model, global);
   // The free parameters as the fit stands: a nonlinear stiffness's τ₀ and a torsion curve's
   // fade torques join once their compliance has moved off zero (the first step fits it).
   const auto parametersNow = [&] {
@@ -199,13 +236,21 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
                                      static_cast<long>(model.global.mechanisms.size()));
     return globalParameters(now);
   };
+  // A bounded parameter below zero (a linear joint fit may leave one there) starts at zero.
+  for (const Parameter& p : parametersNow()) {
+    if (boundedAtZero(global, p) && valueOf(global, p) < 0.0) shift(global, p, -valueOf(global, p));
+  }
+  GlobalFit out;
+  out.r = residuals(global, fit);
+  out.cost = out.r.squaredNorm() + priorCost(model, global);
   for (int it = 0; it < iterations; ++it) {
     const std::vector<Parameter> params = parametersNow();
-    const SvdSolution s = solveReduced(linearSystem(model, global, fit, out.r, params), kRankTolerance);
+    const Eigen::VectorXd step = solveReducedBounded(linearSystem(model, global, fit, out.r, params),
+                                                     kRankTolerance, stepBounds(global, params));
     bool improved = false;
     for (double fraction = 1.0; fraction > 1e-3; fraction *= 0.5) {
       PhysicalModel candidate;
-      if (!apply(global, params, s.x, fraction, candidate)) continue;
+      if (!apply(global, params, step, fraction, candidate)) continue;
       const Eigen::VectorXd r = residuals(candidate, fit);
       const double cost = r.squaredNorm() + priorCost(model, candidate);
       if (cost < out.cost) {
@@ -218,6 +263,25 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
       }
     }
     if (!improved) break;
+  }
+  // The bounded parameters the rows push below zero: those at zero that the final linearisation's
+  // bounded step holds there. Only a bounded step puts one at exactly zero, so without one at zero
+  // there is nothing to linearise for.
+  const std::vector<Parameter> params = parametersNow();
+  bool any_at_zero = false;
+  for (const Parameter& p : params) any_at_zero |= boundedAtZero(global, p) && valueOf(global, p) == 0.0;
+  if (any_at_zero) {
+    const TallQr system = linearSystem(model, global, fit, out.r, params);
+    const SvdSolution s = solveReduced(system, kRankTolerance);
+    std::vector<bool> at_bound;
+    solveReducedBounded(system, kRankTolerance, stepBounds(global, params), &at_bound);
+    const int geometry = 6 * (global.chain_Tracker.dof() + 1);
+    for (size_t c = 0; c < params.size(); ++c) {
+      const Eigen::Index col = geometry + static_cast<Eigen::Index>(c);
+      if (at_bound[static_cast<size_t>(col)] && valueOf(global, params[c]) == 0.0) {
+        out.held.push_back({params[c], s.x(col)});
+      }
+    }
   }
   for (Mechanism& m : global.mechanisms) m.sigma.assign(m.parameters.size(), 0.0);
   global.mechanisms.resize(model.global.mechanisms.size());

@@ -64,9 +64,13 @@ double typicalStep(const Mechanism& m, int index);
 /// The fitted parameters of a global mechanism (thermal's reference temperature and backlash's
 /// smoothing are chosen, not fitted; nonlinear stiffness's τ₀ only once its compliance is
 /// nonzero; a torsion curve's lost motion and extra compliances, and each fade torque once its
-/// compliance is nonzero, its smoothing chosen; self_weight's masses not when they come from the
-/// URDF).
+/// compliance is nonzero, its smoothing chosen; a curve's τ_lin is the rows' largest torque;
+/// self_weight's masses not when they come from the URDF).
 std::vector<int> freeParameters(const Mechanism& m, bool masses_from_urdf);
+
+/// Whether a parameter is the shape of a joint's curve, not its size: a nonlinear stiffness's τ₀,
+/// a torsion curve's knee torque. The curve is nonlinear in it alone.
+bool isShape(const PhysicalModel& model, const Parameter& p);
 
 /// The parameters of a mechanism whose physics needs them ≥ 0: a lost motion, an extra
 /// compliance (backlash, nonlinear_stiffness, each of a torsion_curve's).
@@ -94,14 +98,29 @@ inline constexpr double kProfileGeometryRidge = 1e-9;
 /// none: only their gravity torques are identifiable, the prior keeps the rest near zero.
 inline constexpr double kSelfWeightPriorSigma = 50.0;
 
+/// A parameter whose physics bounds it below by zero (a free compliance; a lost motion or an extra
+/// compliance, signConstrained) and which the refit holds there: the rows push it below.
+struct HeldAtBound {
+  Parameter parameter;
+  double unbounded = 0.0;  ///< where the final linearisation's step without bounds takes it, SI
+};
+
 struct GlobalFit {
   Eigen::VectorXd r;  ///< weighted residual of the global model (no profiles)
   double cost = 0.0;  ///< r² plus the priors
+  std::vector<HeldAtBound> held;  ///< in the order of globalParameters
 };
 
 /// Joint Gauss–Newton refit of the global model on every fit row (geometry δ, free compliances,
 /// mechanisms; truncated SVD; priors on lumped masses), the profiles left out or (hold_profiles)
-/// held at their values. The global mechanisms' σ are left zero and sigma_pending set.
+/// held at their values. Each step is the linearisation's least-squares step under the bounds
+/// the physics sets (solveReducedBounded): a free compliance, a lost motion and an extra
+/// compliance stay ≥ 0 (one below zero is first set to zero), so that a joint's curve stays
+/// monotone at every torque. Along the valley where a nonlinear stiffness fading far beyond the
+/// rows' torques trades with its joint's compliance (c τ τ₀/(τ₀ + |τ|) → c τ − (c/τ₀) τ|τ|), the
+/// refit stops where the joint's compliance reaches zero instead of running to τ₀ → ∞, C → −∞.
+/// Says which bounded parameters it ends held at zero (GlobalFit::held). The global mechanisms'
+/// σ are left zero and sigma_pending set.
 GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
                       bool hold_profiles = false);
 

@@ -28,39 +28,47 @@ void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpti
                    size_t base_globals, JointVector& compliance_sigma, Diagnosis& d,
                    bool hold_profiles) {
   for (;;) {
-    refitGlobal(model, fit, options.refit_iterations, hold_profiles);
-    JointVector& c = model.global.compliance_rad_per_nm;
-    Eigen::Index joint = -1;
-    for (Eigen::Index j = 0; j < c.size(); ++j) {
-      if (model.compliance_free[static_cast<size_t>(j)] && c(j) < 0.0) joint = j;
+    const GlobalFit refit =
+        refitGlobal(model, fit, options.refit_iterations, hold_profiles);
+    const HeldAtBound* compliance = nullptr;  // the last joint's, one per pass
+    size_t dropped = model.global.mechanisms.size();
+    std::vector<int> held_parts;  // of the mechanism to drop
+    for (const HeldAtBound& h : refit.held) {
+      const Parameter& p = h.parameter;
+      if (p.mechanism < 0) {
+        compliance = &h;
+      } else if (static_cast<size_t>(p.mechanism) >= base_globals) {
+        if (dropped != static_cast<size_t>(p.mechanism)) held_parts.clear();
+        dropped = static_cast<size_t>(p.mechanism);
+        held_parts.push_back(p.index);
+      }
     }
-    if (joint >= 0) {
+    if (compliance != nullptr) {
+      const int joint = compliance->parameter.index;
       ModelChange change;
       change.kind = ModelChange::Kind::kComplianceHeldAtZero;
-      change.joint = static_cast<int>(joint);
-      change.compliance_rad_per_nm = c(joint);
+      change.joint = joint;
+      change.compliance_rad_per_nm = compliance->unbounded;
       d.changes.push_back(change);
-      c(joint) = 0.0;
       compliance_sigma(joint) = 0.0;
       model.compliance_free[static_cast<size_t>(joint)] = false;
       continue;
     }
-    size_t dropped = model.global.mechanisms.size();
-    for (size_t k = base_globals; k < model.global.mechanisms.size(); ++k) {
-      if (wrongSign(model.global.mechanisms[k])) dropped = k;
-    }
     if (dropped == model.global.mechanisms.size()) return;
     globalSigma(model, fit, compliance_sigma);  // the change records the mechanism as refitted
     if (Mechanism& m = model.global.mechanisms[dropped]; m.kind == MechanismKind::kTorsionCurve) {
-      // A curve loses its parts that turned negative and keeps the rest, if any.
+      // A curve loses its parts held at zero and keeps the rest, if any.
+      const auto held = [&](int index) {
+        return std::find(held_parts.begin(), held_parts.end(), index) != held_parts.end();
+      };
       Mechanism kept = m;
-      if (kept.parameters[1] > 0.0 && kept.parameters[0] < 0.0) {
+      if (held(0)) {
         kept.parameters[0] = kept.parameters[1] = 0.0;
         kept.sigma[0] = kept.sigma[1] = 0.0;
       }
       for (int k = kept.order; k-- > 0;) {
+        if (!held(2 + 2 * k)) continue;
         const auto at = kept.parameters.begin() + 2 + 2 * k;
-        if (*at >= 0.0) continue;
         kept.parameters.erase(at, at + 2);
         kept.sigma.erase(kept.sigma.begin() + 2 + 2 * k, kept.sigma.begin() + 4 + 2 * k);
         --kept.order;
@@ -97,19 +105,38 @@ void jointStep(DiagnosisModel& model, Screening& sc, FoldGrams& grams, const Fit
   const std::vector<Parameter> params = globalParameters(model);
   STEPCAL_INVARIANT(sc.stage1.size() == static_cast<size_t>(geometry) + params.size(),
                     "stage 1 holds the geometry and every global parameter");
-  std::vector<Eigen::Index> columns = sc.stage1;
-  const std::vector<Eigen::Index> profile_columns(sc.stage2.begin() + geometry, sc.stage2.end());
-  columns.insert(columns.end(), profile_columns.begin(), profile_columns.end());
+  // Stage 1, then the profiles' columns; a curve's shape (a fade or knee torque) is left where
+  // the global refit put it: the linear step has no line search, and where its compliance is
+  // small the shape's column is too (on seed 38 of the stress run it put a knee at −8 N·m).
+  std::vector<Eigen::Index> all = sc.stage1;
+  all.insert(all.end(), sc.stage2.begin() + geometry, sc.stage2.end());
+  std::vector<Eigen::Index> columns, solved;  // solved: each column's place in all
+  for (size_t k = 0; k < all.size(); ++k) {
+    const Eigen::Index c = static_cast<Eigen::Index>(k) - geometry;
+    if (c >= 0 && static_cast<size_t>(c) < params.size() && isShape(model.global, params[static_cast<size_t>(c)])) {
+      continue;
+    }
+    columns.push_back(all[k]);
+    solved.push_back(static_cast<Eigen::Index>(k));
+  }
+  // The shape keeps the σ of the refit that moved it last.
+  if (columns.size() < all.size()) globalSigma(model, fit, compliance_sigma);
   const CrossValidation cv(grams, fit, sc.stage1, sc.stage2, sc.ridge, sc.current);
   const CrossValidation::JointFit joint = cv.jointFit(columns);
-  const Eigen::VectorXd& delta = joint.change;
+  Eigen::VectorXd delta = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(all.size()));
+  Eigen::VectorXd unit_variance = Eigen::VectorXd::Constant(delta.size(), -1.0);  // −1: not fitted
+  for (size_t k = 0; k < solved.size(); ++k) {
+    delta(solved[k]) = joint.change(static_cast<Eigen::Index>(k));
+    unit_variance(solved[k]) = joint.unit_variance(static_cast<Eigen::Index>(k));
+  }
   Eigen::VectorXd moved = Eigen::VectorXd::Zero(sc.current.size());
-  for (size_t k = 0; k < columns.size(); ++k) moved(columns[k]) = -delta(static_cast<Eigen::Index>(k));
+  for (size_t k = 0; k < all.size(); ++k) moved(all[k]) = -delta(static_cast<Eigen::Index>(k));
 
   for (size_t c = 0; c < params.size(); ++c) {
     const Eigen::Index k = geometry + static_cast<Eigen::Index>(c);
+    if (unit_variance(k) < 0.0) continue;
     shift(model.global, params[c], delta(k));
-    const double sigma = std::sqrt(joint.variance * joint.unit_variance(k));
+    const double sigma = std::sqrt(joint.variance * unit_variance(k));
     if (params[c].mechanism < 0) {
       compliance_sigma(params[c].index) = sigma;
     } else {

@@ -23,11 +23,12 @@ size_t globalEffect(const Diagnosis& d, size_t k);
 /// negative.
 bool wrongSign(const Mechanism& m);
 
-/// The global part refitted under its physics' signs (an active set): a compliance that comes out
-/// negative is held at zero, a mechanism found here (index ≥ base_globals) whose lost motion or
-/// extra compliance turns negative once refitted with the rest is dropped (with its effect), and
-/// the refit repeats. Says what it did in d.changes. hold_profiles: the profiles stay in the
-/// model at their values (else the global part is fitted alone).
+/// The global part refitted under its physics' signs (refitGlobal's bounds): a compliance the
+/// rows push below zero is held there for good, a mechanism found here (index ≥ base_globals)
+/// whose lost motion or extra compliance they push below zero is dropped (with its effect; from
+/// a torsion curve just those parts), and the refit repeats. Says what it did in d.changes.
+/// hold_profiles: the profiles stay in the model at their values (else the global part is
+/// fitted alone).
 void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOptions& options,
                    size_t base_globals, JointVector& compliance_sigma, Diagnosis& d,
                    bool hold_profiles = false);
@@ -36,7 +37,8 @@ void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpti
 /// column (geometry, global parameters, profiles) in one least-squares problem, the ridges on
 /// their values (model_fits.cpp says why). Applied to the model, with the screening's values and
 /// the Grams' r0 moved to it; the global parameters get their σ from it (compliance_sigma: n
-/// entries), the profiles their σ and shares of the geometry.
+/// entries), the profiles their σ and shares of the geometry. A curve's shape (isShape) stays as
+/// the global refit left it, with that refit's σ.
 void jointStep(DiagnosisModel& model, Screening& sc, FoldGrams& grams, const FitRows& fit,
                Eigen::Index geometry, JointVector& compliance_sigma);
 

@@ -10,7 +10,8 @@
 //   θ  = θ₀ + C τ + Σ_j d_j(τ_j) e_j                          (the fixed point, three passes)
 //        d_j: joint j's torque–deflection beyond its linear compliance (torqueDeflection):
 //             backlash b tanh(τ_j / τ_b), nonlinear stiffness c τ_j τ₀ / (τ₀ + |τ_j|), or a
-//             torsion curve, lost motion and stiffening terms together
+//             torsion curve, lost motion and stiffening terms together; the last two carried on
+//             above the largest torque they were fitted over with their slope there
 //   X_TrackerTip = FK(θ) with the links' lengths × (1 + α (T − T_ref))   (thermal_expansion)
 //                  and each initial pose T_k · exp(Σ_j g_j(q_j) δ̂_jk)          (profile_geometry)
 // g_j is joint j's transmission profile's coverage gate: 1 on the joint angles it was fitted on,
@@ -95,20 +96,24 @@ struct Mechanism {
   ///                       in frame k (the frame after joint k's motion)
   ///   transmission_error  [a_1 rad, b_1 rad, …, a_order rad, b_order rad]: the link angle moves
   ///                       by g(q_j) Σ_k a_k sin(k q_j) + b_k cos(k q_j), q_j the commanded angle
-  ///   nonlinear_stiffness [c rad/(N·m), τ₀ N·m]
+  ///   nonlinear_stiffness [c rad/(N·m), τ₀ N·m, τ_lin N·m]: c τ_j τ₀/(τ₀ + |τ_j|) up to
+  ///                       |τ_j| = τ_lin and carried on above it with its slope there (τ_lin:
+  ///                       the largest torque it was fitted over; 0: the formula at any torque)
   ///   thermal_expansion   [α 1/K, T_ref °C]
   ///   sensor_bias         [f N (3), m N·m (3)], sensor_link axes
   ///   joint_coupling      [c rad/rad]
   ///   profile_geometry    per initial pose k = 0..n: [δ_k (v m (3), ω rad (3))], applied as
   ///                       T_k · exp(g(q_j) δ̂_k), g the gate of joint j's transmission_error
-  ///   torsion_curve       [b rad, τ_b N·m, then per term k = 1..order: c_k rad/(N·m), T_k N·m]:
-  ///                       b tanh(τ_j/τ_b) + Σ_k c_k sign(τ_j) min_k(|τ_j|, T_k): lost motion as
-  ///                       backlash's (τ_b = 0: none, then b = 0), and per term an extra
-  ///                       compliance c_k up to the knee T_k (T_k increasing), its min smooth
-  ///                       over kTorsionKneeWidth · T_k (torqueDeflection). With b, c_k ≥ 0 it is
-  ///                       odd in τ_j, monotone and stiffening: the joint's compliance is
+  ///   torsion_curve       [b rad, τ_b N·m, then per term k = 1..order: c_k rad/(N·m), T_k N·m,
+  ///                       then τ_lin N·m]: b tanh(τ_j/τ_b) + Σ_k c_k sign(τ_j) min_k(|τ_j|, T_k):
+  ///                       lost motion as backlash's (τ_b = 0: none, then b = 0), and per term an
+  ///                       extra compliance c_k up to the knee T_k (T_k increasing), its min
+  ///                       smooth over kTorsionKneeWidth · T_k (torqueDeflection). With b, c_k ≥ 0
+  ///                       it is odd in τ_j, monotone and stiffening: the joint's compliance is
   ///                       C + c_1 + … + c_order below T_1, C + c_2 + … above it, C above the last
-  ///                       knee — a gear catalogue's segments K1, K2, K3 and its lost motion.
+  ///                       knee — a gear catalogue's segments K1, K2, K3 and its lost motion. Up
+  ///                       to |τ_j| = τ_lin, carried on above it with its slope there, as
+  ///                       nonlinear_stiffness's.
   std::vector<double> parameters;
   std::vector<double> sigma;  ///< 1-σ of each parameter, same size (0 = not estimated)
   /// transmission_error: the angles of its joint it was fitted on (empty: everywhere); other
@@ -133,7 +138,9 @@ bool isTorqueDeflection(MechanismKind kind) noexcept;
 
 /// Deflection of a torque-deflection mechanism (isTorqueDeflection) at its joint's torque
 /// tau_nm [N·m], rad, and its derivative ∂/∂τ [rad/(N·m)] when derivative is given; 0 for other
-/// kinds. Allocation-free.
+/// kinds. Above its τ_lin (nonlinear_stiffness, torsion_curve) the tangent there: where no row
+/// showed the curve, the joint carries on with the stiffness it had at the largest torque that
+/// did (C¹, so the runtime's Newton steps see no corner). Allocation-free.
 double torqueDeflection(const Mechanism& mechanism, double tau_nm,
                         double* derivative = nullptr) noexcept;
 

@@ -1,7 +1,7 @@
 // The calibrated model file: everything the runtime needs to correct poses (METHOD.md eq. 32,
 // T_C2 = T_C(q) · T_STIF(q, F) · T_GPR(q, F)), written once by the offline trainer.
 //
-// Layout (format version 3). Integers and doubles are little-endian, doubles IEEE-754 binary64:
+// Layout (format version 4). Integers and doubles are little-endian, doubles IEEE-754 binary64:
 //
 //   header   24 B  magic "STEPCAL\0", u32 format version, u32 flags (0), u64 file size in bytes
 //   sections       each u32 tag (FourCC), u32 reserved (0), u64 payload length, payload;
@@ -31,9 +31,9 @@
 // Every double is finite, except that a continuous joint's limits are −inf … inf.
 // The GPR's Cholesky factor is not stored: the runtime refactors K + σ_n² I from the inputs and
 // hyperparameters at load, and the loader checks α against the stored targets instead.
-// Versions 1 (no MECH) and 2 (transmission errors as single harmonics, no coverage) are refused
-// with a hint to re-run `stepcal calibrate` / `stepcal diagnose`; there is no reader of old
-// versions.
+// Versions 1 (no MECH), 2 (transmission errors as single harmonics, no coverage) and 3
+// (nonlinear stiffness and torsion curves without linear_above_nm) are refused with a hint to
+// re-run `stepcal calibrate` / `stepcal diagnose`; there is no reader of old versions.
 #pragma once
 
 #include <cstddef>
@@ -49,7 +49,7 @@
 namespace stepcal {
 
 /// Model file format version this build writes and reads.
-inline constexpr uint32_t kModelFormatVersion = 3;
+inline constexpr uint32_t kModelFormatVersion = 4;
 /// Largest number of mechanisms a model file holds.
 inline constexpr uint32_t kMaxMechanisms = 64;
 

@@ -141,11 +141,13 @@ struct FoundEffect {
 /// dropped, and why (in the order done).
 struct ModelChange {
   enum class Kind {
-    kComplianceHeldAtZero,  ///< a joint's compliance came out negative refitted with the rest
-    /// A cause whose lost motion or extra compliance turned negative refitted with the others.
+    /// A joint's compliance the rows push below zero refitted with the rest: held at zero.
+    kComplianceHeldAtZero,
+    /// A cause whose lost motion or extra compliance the rows push below zero refitted with the
+    /// others.
     kDroppedWrongSign,
-    /// A torsion curve some of whose parts (its lost motion, a stiffening term) turned negative
-    /// refitted with the others: those parts removed, the rest kept.
+    /// A torsion curve some of whose parts (its lost motion, a stiffening term) the rows push
+    /// below zero refitted with the others: those parts removed, the rest kept.
     kPartDroppedWrongSign,
     /// A cause that the causes named after it explain: tried again with them in the model, it
     /// is no longer significant (relative_reduction, z_statistic of that trial).
@@ -157,7 +159,8 @@ struct ModelChange {
   };
   Kind kind = Kind::kComplianceHeldAtZero;
   int joint = -1;                      ///< kComplianceHeldAtZero (0-based)
-  double compliance_rad_per_nm = 0.0;  ///< kComplianceHeldAtZero: the value it came out at
+  /// kComplianceHeldAtZero: where the refit's last step would take it without its bound
+  double compliance_rad_per_nm = 0.0;
   Mechanism mechanism;                 ///< the cause dropped (kPartDroppedWrongSign: before)
   Mechanism kept;                      ///< kPartDroppedWrongSign: what is left of it
   double relative_reduction = 0.0, z_statistic = 0.0;  ///< kDroppedExplained

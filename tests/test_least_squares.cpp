@@ -1,0 +1,118 @@
+// The trainer's bounded least squares (trainer/src/least_squares.hpp): the global refit's step
+// under the bounds its physics sets (a compliance, a lost motion, an extra compliance ≥ 0).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "../trainer/src/least_squares.hpp"
+
+namespace stepcal::trainer {
+namespace {
+
+constexpr double kNone = -std::numeric_limits<double>::infinity();
+
+struct System {
+  Eigen::MatrixXd J;
+  Eigen::VectorXd r;
+  TallQr reduced{0};
+};
+
+System randomSystem(unsigned seed, Eigen::Index rows, Eigen::Index cols) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> normal;
+  System s;
+  s.J = Eigen::MatrixXd::NullaryExpr(rows, cols, [&] { return normal(rng); });
+  s.r = Eigen::VectorXd::NullaryExpr(rows, [&] { return normal(rng); });
+  return s;
+}
+
+void reduce(System& s) {
+  s.reduced = TallQr(s.J.cols());
+  s.reduced.add(s.J, s.r);
+}
+
+// The bounds' optimality conditions (Karush–Kuhn–Tucker) of min |J x − r|² under x ≥ lower: x
+// feasible; where a variable is above its bound the gradient Jᵀ(J x − r) vanishes along it,
+// where it sits on its bound the gradient points into the feasible side (≥ 0).
+void expectOptimal(const System& s, const Eigen::VectorXd& x, const Eigen::VectorXd& lower,
+                   const std::vector<bool>& at_bound) {
+  const Eigen::VectorXd gradient = s.J.transpose() * (s.J * x - s.r);
+  const double scale = (s.J.transpose() * s.r).cwiseAbs().maxCoeff();
+  for (Eigen::Index c = 0; c < x.size(); ++c) {
+    SCOPED_TRACE("variable " + std::to_string(c));
+    EXPECT_GE(x(c), lower(c));
+    if (at_bound[static_cast<size_t>(c)]) {
+      EXPECT_EQ(x(c), lower(c));
+      EXPECT_GT(gradient(c), -1e-9 * scale);
+    } else {
+      EXPECT_NEAR(gradient(c), 0.0, 1e-9 * scale);
+    }
+  }
+}
+
+// Bounds the solution respects anyway change nothing: the step is solveReduced's.
+TEST(BoundedLeastSquares, InactiveBoundsGiveTheUnboundedSolution) {
+  System s = randomSystem(3, 400, 6);
+  reduce(s);
+  const SvdSolution free = solveReduced(s.reduced, 1e-9);
+  Eigen::VectorXd lower = Eigen::VectorXd::Constant(6, kNone);
+  lower(1) = std::min(0.0, free.x(1) - 1.0);
+  lower(4) = std::min(0.0, free.x(4) - 0.5);
+  std::vector<bool> at_bound;
+  const Eigen::VectorXd x = solveReducedBounded(s.reduced, 1e-9, lower, &at_bound);
+  EXPECT_LT((x - free.x).norm(), 1e-10 * free.x.norm());
+  for (bool held : at_bound) EXPECT_FALSE(held);
+}
+
+// Where the unbounded solution crosses bounds, the bounded one satisfies the optimality
+// conditions and beats every feasible point tried at random; the variables held are exactly at
+// their bound. Columns of very different scale (geometry beside compliance) and a column that
+// repeats another (an unobservable direction) included.
+TEST(BoundedLeastSquares, ActiveBoundsMeetTheOptimalityConditions) {
+  for (unsigned seed = 1; seed <= 20; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    System s = randomSystem(seed, 300, 7);
+    s.J.col(2) *= 1e5;
+    s.r += 3.0 * s.J.col(0) - 2.0 * s.J.col(3) - 1.5e-5 * s.J.col(2) + 0.5 * s.J.col(5);
+    reduce(s);
+    const SvdSolution free = solveReduced(s.reduced, 1e-9);
+    Eigen::VectorXd lower = Eigen::VectorXd::Constant(7, kNone);
+    // Half way to a negative solution: that bound cuts it.
+    for (Eigen::Index c : {1, 2, 3, 6}) lower(c) = std::min(0.0, 0.5 * free.x(c));
+    std::vector<bool> at_bound;
+    const Eigen::VectorXd x = solveReducedBounded(s.reduced, 1e-9, lower, &at_bound);
+    expectOptimal(s, x, lower, at_bound);
+    int held = 0;
+    for (bool h : at_bound) held += h;
+    EXPECT_GE(held, 1);
+    const double cost = (s.J * x - s.r).squaredNorm();
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> normal;
+    for (int trial = 0; trial < 200; ++trial) {
+      Eigen::VectorXd y = x;
+      for (Eigen::Index c = 0; c < 7; ++c) y(c) = std::max(lower(c), x(c) + 0.1 * std::abs(x(c)) * normal(rng));
+      EXPECT_GE((s.J * y - s.r).squaredNorm(), cost * (1.0 - 1e-12));
+    }
+  }
+}
+
+// Two equal columns determine only their sum: with one held at its bound, the other carries it.
+TEST(BoundedLeastSquares, AVariableHeldLeavesWhatItSharesToItsTwin) {
+  System s = randomSystem(11, 300, 5);
+  s.J.col(4) = s.J.col(1);  // x1 + x4 is determined, x1 − x4 is not
+  s.r += -2.0 * s.J.col(1) + 1.0 * s.J.col(2);
+  reduce(s);
+  Eigen::VectorXd lower = Eigen::VectorXd::Constant(5, kNone);
+  lower(1) = 0.0;  // the pair wants x1 + x4 ≈ −2: x1 held at 0, x4 takes it all
+  std::vector<bool> at_bound;
+  const Eigen::VectorXd x = solveReducedBounded(s.reduced, 1e-9, lower, &at_bound);
+  EXPECT_TRUE(at_bound[1]);
+  EXPECT_EQ(x(1), 0.0);
+  const SvdSolution free = solveReduced(s.reduced, 1e-9);
+  EXPECT_NEAR(x(4), free.x(1) + free.x(4), 1e-9);
+}
+
+}  // namespace
+}  // namespace stepcal::trainer

@@ -131,42 +131,42 @@ void retuneProfiles(Search& search) {
   } else {
     jointStep(dm, sc, *grams, fit, geometry, search.compliance_sigma);
   }
-    const std::vector<Profile> found = dm.profiles;
-    for (size_t i = 0; i < found.size(); ++i) {
-      DiagnosisModel without = dm;
-      without.profiles = found;
-      without.profiles.erase(without.profiles.begin() + static_cast<long>(i));
-      Screening others = sc;
-      others.profiled.erase(others.profiled.begin() + static_cast<long>(i));
-      setStage2(others, without, geometry);
-      Eigen::VectorXd taken = Eigen::VectorXd::Zero(others.current.size());
-      const Mechanism& m = found[i].mechanism;
-      for (int c = 0; c < 2 * m.order; ++c) {
-        taken(sc.profiled[i].columns[static_cast<size_t>(c)]) = m.parameters[static_cast<size_t>(c)];
-      }
-      for (Eigen::Index c = 0; c < geometry; ++c) {
-        taken(sc.stage2[static_cast<size_t>(c)]) = found[i].geometry(c);
-      }
-      for (Eigen::Index c : sc.profiled[i].columns) others.current(c) = 0.0;
-      const FoldGrams grams_without = grams->without(taken);
-      const CrossValidation cv(grams_without, fit, others.stage1, others.stage2, others.ridge,
-                               others.current);
-      const std::vector<Family> family = {sc.profiled[i]};
-      const Scored again = scoreFamilies(family, cv, others.stage1.size(), grams_without, options,
-                                         fit, [](const CandidateScore&) { return false; })
-                               .front();
-      Profile& p = dm.profiles[i];
-      p.mechanism.order = again.score.mechanism.order;
-      p.mechanism.parameters.assign(static_cast<size_t>(2 * p.mechanism.order), 0.0);
-      p.mechanism.sigma.assign(p.mechanism.parameters.size(), 0.0);
-      p.ridge = again.lambda;
-      for (FoundEffect& e : d.effects) {
-        if (e.mechanism.kind == MechanismKind::kTransmissionError &&
-            e.mechanism.joint == p.mechanism.joint) {
-          e.ridge = again.score.ridge;
-        }
+  const std::vector<Profile> found = dm.profiles;
+  for (size_t i = 0; i < found.size(); ++i) {
+    DiagnosisModel without = dm;
+    without.profiles = found;
+    without.profiles.erase(without.profiles.begin() + static_cast<long>(i));
+    Screening others = sc;
+    others.profiled.erase(others.profiled.begin() + static_cast<long>(i));
+    setStage2(others, without, geometry);
+    Eigen::VectorXd taken = Eigen::VectorXd::Zero(others.current.size());
+    const Mechanism& m = found[i].mechanism;
+    for (int c = 0; c < 2 * m.order; ++c) {
+      taken(sc.profiled[i].columns[static_cast<size_t>(c)]) = m.parameters[static_cast<size_t>(c)];
+    }
+    for (Eigen::Index c = 0; c < geometry; ++c) {
+      taken(sc.stage2[static_cast<size_t>(c)]) = found[i].geometry(c);
+    }
+    for (Eigen::Index c : sc.profiled[i].columns) others.current(c) = 0.0;
+    const FoldGrams grams_without = grams->without(taken);
+    const CrossValidation cv(grams_without, fit, others.stage1, others.stage2, others.ridge,
+                             others.current);
+    const std::vector<Family> family = {sc.profiled[i]};
+    const Scored again = scoreFamilies(family, cv, others.stage1.size(), grams_without, options,
+                                       fit, [](const CandidateScore&) { return false; })
+                             .front();
+    Profile& p = dm.profiles[i];
+    p.mechanism.order = again.score.mechanism.order;
+    p.mechanism.parameters.assign(static_cast<size_t>(2 * p.mechanism.order), 0.0);
+    p.mechanism.sigma.assign(p.mechanism.parameters.size(), 0.0);
+    p.ridge = again.lambda;
+    for (FoundEffect& e : d.effects) {
+      if (e.mechanism.kind == MechanismKind::kTransmissionError &&
+          e.mechanism.joint == p.mechanism.joint) {
+        e.ridge = again.score.ridge;
       }
     }
+  }
   d.seconds_screening += secondsSince(clock);
 }
 

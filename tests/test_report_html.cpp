@@ -167,9 +167,22 @@ TEST(StructuralChecker, FindsExternalReferencesAndChartsWithoutData) {
             std::vector<std::string>{"b"});
 }
 
+// Targets of the page's navigation links that no element of the page has as its id.
+std::vector<std::string> danglingNavigation(const std::string& html) {
+  std::vector<std::string> dangling;
+  const size_t nav = html.find("<nav>"), end = html.find("</nav>", nav);
+  for (size_t at = html.find("href=\"#", nav); at < end; at = html.find("href=\"#", at + 1)) {
+    const std::string target = html.substr(at + 7, html.find('"', at + 7) - at - 7);
+    if (html.find("id=\"" + target + "\"") == std::string::npos) dangling.push_back(target);
+  }
+  return dangling;
+}
+
 TEST(HtmlReport, PaperCampaignIsWellFormed) {
   const std::string& html = paperReport().html;
   EXPECT_EQ(html.rfind("<!DOCTYPE html>", 0), 0u);
+  EXPECT_EQ(danglingNavigation(html), std::vector<std::string>{});
+  EXPECT_EQ(html.find("href=\"#campaigns\""), std::string::npos) << "one campaign: no such section";
   EXPECT_EQ(structuralProblem(html), "");
   EXPECT_EQ(count(html, "<script>"), 1u);  // the inline check of the charts, nothing loaded
   EXPECT_EQ(externalReference(html), "");
@@ -318,6 +331,7 @@ double slopeOnEffect(const trainer::EffectSignature& s) {
 TEST(DiagnosisHtml, IsWellFormedSelfContainedAndEveryChartDrawsData) {
   const std::string& html = backlashDiagnosis().html;
   EXPECT_EQ(structuralProblem(html), "");
+  EXPECT_EQ(danglingNavigation(html), std::vector<std::string>{});
   EXPECT_EQ(nonFiniteText(html), "");
   EXPECT_EQ(externalReference(html), "");
   EXPECT_EQ(chartsWithoutData(html), std::vector<std::string>{});

@@ -207,6 +207,7 @@ TEST(Sessions, CalibrateReportsEveryCampaignItFits) {
   EXPECT_NE(text.out.find("campaign 2 (" + b + ") alone"), std::string::npos) << text.out;
   const std::string page = test::readText(html);
   EXPECT_NE(page.find("Campaigns fitted together"), std::string::npos);
+  EXPECT_NE(page.find("<a href=\"#campaigns\">"), std::string::npos) << "the navigation links it";
   EXPECT_NE(page.find("2 " + b + "</td>"), std::string::npos);
 
   // Another robot's campaign: refused with status 2, naming it.

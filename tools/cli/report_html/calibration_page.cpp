@@ -177,7 +177,8 @@ class PageWriter {
     const std::string name = campaign_.directory.empty() ? "(campaign built in memory)" : campaign_.directory;
     out_ << pageHead("stepcal report: " + name);
     out_ << "<h1>stepcal calibration report</h1>\n<nav><a href=\"#overview\">overview</a>"
-            "<a href=\"#convergence\">step 1 convergence</a><a href=\"#geometry\">geometric errors</a>"
+         << (campaign_.sessions.empty() ? "" : "<a href=\"#campaigns\">campaigns</a>")
+         << "<a href=\"#convergence\">step 1 convergence</a><a href=\"#geometry\">geometric errors</a>"
             "<a href=\"#loads\">errors per load</a><a href=\"#against-load\">error vs load</a>"
             "<a href=\"#distribution\">error distribution</a><a href=\"#workspace\">error in the workspace</a>"
             "<a href=\"#coverage\">coverage</a>"

@@ -17,14 +17,16 @@ constexpr MechanismKind kAllKinds[] = {
     MechanismKind::kTransmissionError,  MechanismKind::kNonlinearStiffness,
     MechanismKind::kThermalExpansion,   MechanismKind::kSensorBias,
     MechanismKind::kJointCoupling,      MechanismKind::kProfileGeometry,
-    MechanismKind::kTorsionCurve};
+    MechanismKind::kTorsionCurve,       MechanismKind::kJointZeroDrift,
+    MechanismKind::kRegistrationDrift};
 
 constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
 
 bool usesJoint(MechanismKind kind) {
   return kind == MechanismKind::kBacklash || kind == MechanismKind::kTransmissionError ||
          kind == MechanismKind::kNonlinearStiffness || kind == MechanismKind::kJointCoupling ||
-         kind == MechanismKind::kProfileGeometry || kind == MechanismKind::kTorsionCurve;
+         kind == MechanismKind::kProfileGeometry || kind == MechanismKind::kTorsionCurve ||
+         kind == MechanismKind::kJointZeroDrift;
 }
 
 }  // namespace
@@ -40,6 +42,8 @@ const char* toString(MechanismKind kind) noexcept {
     case MechanismKind::kJointCoupling: return "joint_coupling";
     case MechanismKind::kProfileGeometry: return "profile_geometry";
     case MechanismKind::kTorsionCurve: return "torsion_curve";
+    case MechanismKind::kJointZeroDrift: return "joint_zero_drift";
+    case MechanismKind::kRegistrationDrift: return "registration_drift";
   }
   return "unknown";
 }
@@ -302,6 +306,16 @@ std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof, in
     case MechanismKind::kSensorBias:
       return {"fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm"};
     case MechanismKind::kJointCoupling: return {"ratio"};
+    case MechanismKind::kJointZeroDrift: return {"drift_rad_per_k", "reference_temp_c"};
+    case MechanismKind::kRegistrationDrift: {
+      std::vector<std::string> names = {"first_seq", "last_seq"};
+      for (int d = 1; d <= order; ++d) {
+        for (const char* p : {"vx_m", "vy_m", "vz_m", "wx_rad", "wy_rad", "wz_rad"}) {
+          names.push_back("p" + std::to_string(d) + "_" + p);
+        }
+      }
+      return names;
+    }
     case MechanismKind::kTorsionCurve: {
       std::vector<std::string> names = {"lost_motion_rad", "smoothing_torque_nm"};
       for (int k = 1; k <= order; ++k) {
@@ -330,17 +344,19 @@ std::string mechanismProblem(const Mechanism& m, int dof) {
   for (MechanismKind kind : kAllKinds) known = known || kind == m.kind;
   if (!known) {
     return "mechanism kind " + std::to_string(static_cast<uint32_t>(m.kind)) +
-           "; expected 1 to 9 (mechanisms.hpp)";
+           "; expected 1 to 11 (mechanisms.hpp)";
   }
   const std::string what = toString(m.kind);
   const bool order_fits =
       m.kind == MechanismKind::kTransmissionError ? m.order >= 1 && m.order <= kMaxHarmonics
       : m.kind == MechanismKind::kTorsionCurve    ? m.order >= 0 && m.order <= kMaxTorsionTerms
-                                                  : m.order == 0;
+      : m.kind == MechanismKind::kRegistrationDrift ? m.order >= 1 && m.order <= kMaxDriftDegree
+                                                    : m.order == 0;
   if (!order_fits) {
     return what + " order " + std::to_string(m.order) + "; expected 1 to " +
            std::to_string(kMaxHarmonics) + " harmonics for transmission_error, 0 to " +
-           std::to_string(kMaxTorsionTerms) + " terms for torsion_curve, else 0";
+           std::to_string(kMaxTorsionTerms) + " terms for torsion_curve, 1 to " +
+           std::to_string(kMaxDriftDegree) + " (degree) for registration_drift, else 0";
   }
   const size_t count = mechanismParameterNames(m.kind, dof, m.order).size();
   if (m.parameters.size() != count || m.sigma.size() != count) {
@@ -380,6 +396,10 @@ std::string mechanismProblem(const Mechanism& m, int dof) {
     return what + " linear_above_nm = " + std::to_string(m.parameters.back()) +
            "; expected ≥ 0 (0: the curve's formula at every torque)";
   }
+  if (m.kind == MechanismKind::kRegistrationDrift && !(m.parameters[1] > m.parameters[0])) {
+    return what + " last_seq = " + std::to_string(m.parameters[1]) + " with first_seq = " +
+           std::to_string(m.parameters[0]) + "; expected last_seq > first_seq";
+  }
   if (m.kind == MechanismKind::kTorsionCurve) {
     if (m.parameters[1] < 0.0 || (m.parameters[1] == 0.0 && m.parameters[0] != 0.0)) {
       return what + " smoothing_torque_nm = " + std::to_string(m.parameters[1]) +
@@ -409,7 +429,14 @@ std::string describe(const Mechanism& m) {
     case MechanismKind::kNonlinearStiffness:
     case MechanismKind::kProfileGeometry:
     case MechanismKind::kTorsionCurve:
+    case MechanismKind::kJointZeroDrift:
       return s + " (joint " + std::to_string(m.joint + 1) + ")";
+    case MechanismKind::kRegistrationDrift: {
+      static const char* const kDegrees[] = {"", "linear", "quadratic", "cubic"};
+      return s + " (" +
+             (m.order < 4 ? std::string(kDegrees[m.order]) : "degree " + std::to_string(m.order)) +
+             " in time order)";
+    }
     case MechanismKind::kTransmissionError:
       return s + " (joint " + std::to_string(m.joint + 1) + ", " + std::to_string(m.order) +
              (m.order == 1 ? " harmonic)" : " harmonics)");
@@ -429,6 +456,27 @@ double PhysicalModel::linkLengthScale(double temp_c) const noexcept {
     }
   }
   return scale;
+}
+
+bool isMeasurementOnly(MechanismKind kind) noexcept {
+  return kind == MechanismKind::kRegistrationDrift;
+}
+
+Vec6 registrationDrift(const Mechanism& drift, double seq) noexcept {
+  const double first = drift.parameters[0], last = drift.parameters[1];
+  // Outside the span it was fitted on, the drift holds its value at the nearer end: a
+  // polynomial is not extrapolated.
+  const double s = std::clamp(2.0 * (seq - first) / (last - first) - 1.0, -1.0, 1.0);
+  // Legendre polynomials by Bonnet's recurrence: (d + 1) P_{d+1} = (2d + 1) s P_d − d P_{d−1}.
+  Vec6 xi = Vec6::Zero();
+  double previous = 1.0, current = s;
+  for (int d = 1; d <= drift.order; ++d) {
+    xi += current * Eigen::Map<const Vec6>(drift.parameters.data() + 2 + 6 * (d - 1));
+    const double next = ((2 * d + 1) * s * current - d * previous) / (d + 1);
+    previous = current;
+    current = next;
+  }
+  return xi;
 }
 
 bool PhysicalModel::has(MechanismKind kind) const noexcept {
@@ -553,6 +601,8 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
     const auto p = [&m](size_t i) { return m.parameters[i]; };
     if (m.kind == MechanismKind::kJointCoupling) {
       theta0(m.joint) += p(0) * q_rad(m.source_joint);
+    } else if (m.kind == MechanismKind::kJointZeroDrift) {
+      if (std::isfinite(temp_c)) theta0(m.joint) += p(0) * (temp_c - p(1));
     } else if (m.kind == MechanismKind::kTransmissionError) {
       const double q = q_rad(m.joint);
       double gate_slope = 0.0, slope = 0.0;

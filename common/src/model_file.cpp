@@ -963,13 +963,19 @@ std::string mechanismInModelProblem(const CalibratedModel& model, size_t index) 
   const Mechanism& m = model.mechanisms[index];
   const std::string problem = mechanismProblem(m, model.chain_Tracker.dof());
   if (!problem.empty()) return problem;
+  if (isMeasurementOnly(m.kind)) {
+    return std::string(toString(m.kind)) +
+           " describes the tracker during one campaign, not the robot; expected none in a model "
+           "file (hint: the diagnosis leaves it out of the model it writes)";
+  }
   const bool single = m.kind == MechanismKind::kSelfWeight ||
                       m.kind == MechanismKind::kSensorBias ||
                       m.kind == MechanismKind::kThermalExpansion;
   // A joint has at most one profile, one profile geometry and one torsion curve.
   const bool per_joint = m.kind == MechanismKind::kTransmissionError ||
                          m.kind == MechanismKind::kProfileGeometry ||
-                         m.kind == MechanismKind::kTorsionCurve;
+                         m.kind == MechanismKind::kTorsionCurve ||
+                         m.kind == MechanismKind::kJointZeroDrift;
   for (size_t i = 0; i < index; ++i) {
     const Mechanism& earlier = model.mechanisms[i];
     if (earlier.kind != m.kind) continue;

@@ -198,7 +198,25 @@ std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
 
 }  // namespace
 
+// A registration drift in a line: its span and how far it turns the tracker's frame and moves
+// the measured tip (its 6·degree coefficients are in the JSON).
+std::string registrationDriftText(const trainer::FoundEffect& e) {
+  const Mechanism& m = e.mechanism;
+  const double first = m.parameters[0], last = m.parameters[1];
+  double largest_turn_rad = 0.0;
+  constexpr int kSamples = 200;
+  for (int i = 0; i <= kSamples; ++i) {
+    const Vec6 xi = registrationDrift(m, first + (last - first) * i / kSamples);
+    largest_turn_rad = std::max(largest_turn_rad, xi.tail<3>().norm());
+  }
+  return format("seq %.0f .. %.0f; the tracker's frame turns by up to %.0f urad, the measured "
+                "tip moves by %.4f mm RMS, %.4f mm at most",
+                first, last, 1e6 * largest_turn_rad, 1e3 * e.tip_motion_rms_m,
+                1e3 * e.tip_motion_max_m);
+}
+
 std::string effectParameterText(const trainer::FoundEffect& e) {
+  if (e.mechanism.kind == MechanismKind::kRegistrationDrift) return registrationDriftText(e);
   if (!e.compliance_joints.empty()) {  // self weight with the URDF's masses
     std::string masses = "link masses from the URDF (kg:";
     for (size_t k = 0; k < e.mechanism.parameters.size(); k += 4) {
@@ -307,6 +325,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
     if (const std::string curve = torqueCurveText(e); !curve.empty()) out += "    " + curve + "\n";
   }
   for (const std::string& line : identifiabilityLines(d)) out += "  identifiability: " + line + "\n";
+  if (!d.drift.text.empty()) out += "  drift: " + d.drift.text + "\n";
   if (!d.unexplained_trend.empty()) {
     out += "  " + std::string(d.verdict == trainer::Verdict::kUnexplained
                                   ? "unexplained structure: "
@@ -372,6 +391,12 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
     x["round"] = e.round;
     x["size_chi2"] = e.size_chi2;
     x["size_dof"] = e.size_dof;
+    if (e.mechanism.kind == MechanismKind::kRegistrationDrift ||
+        e.mechanism.kind == MechanismKind::kJointZeroDrift) {
+      x["tip_motion_rms_mm"] = 1e3 * e.tip_motion_rms_m;
+      x["tip_motion_max_mm"] = 1e3 * e.tip_motion_max_m;
+      x["applied_to_corrections"] = !isMeasurementOnly(e.mechanism.kind);
+    }
     if (isTorqueDeflection(e.mechanism.kind)) {
       x["max_torque_nm"] = e.max_torque_nm;
       x["stiffness_segments"] = nlohmann::json::array();
@@ -405,6 +430,14 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
                        {"taken", d.extended_gpr_taken}};
   j["unexplained_trend"] =
       d.unexplained_trend.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.unexplained_trend);
+  nlohmann::json zero_drift = nlohmann::json::array();
+  for (int joint : d.drift.zero_drift_joints) zero_drift.push_back(joint + 1);
+  j["drift"] = {{"registration", d.drift.registration},
+                {"zero_drift_joints", zero_drift},
+                {"seq_temp_correlation", std::isfinite(d.drift.seq_temp_correlation)
+                                             ? nlohmann::json(d.drift.seq_temp_correlation)
+                                             : nlohmann::json(nullptr)},
+                {"text", d.drift.text}};
   auto stats = [](const trainer::ResidualStatistics& s) {
     nlohmann::json x = {{"rows", s.rows},
                         {"mean_position_mm", 1e3 * s.mean_position_m},

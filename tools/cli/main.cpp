@@ -571,7 +571,9 @@ int main(int argc, char** argv) {
                        "{joint, extra_compliance_rad_per_nm, saturation_torque_nm}, joint_coupling "
                        "{joints: [from, to], ratio}, self_weight {links: [{link, mass_kg, com_m}]}, "
                        "thermal_expansion {expansion_per_k, reference_temp_c}, sensor_bias "
-                       "{force_n, moment_nm}; joints and links 1 … n; a self_weight replaces the "
+                       "{force_n, moment_nm}, joint_zero_drift {joint, drift_rad_per_k, "
+                       "reference_temp_c}, registration_drift {translation_m, rotation_rad, "
+                       "settling_rows}; joints and links 1 … n; a self_weight replaces the "
                        "URDF inertials' one")
       ->excludes(model_option);
   simulate->add_option("--poses", sim.poses,

@@ -112,6 +112,7 @@ class DiagnosisPage {
     if (!d_.unexplained_trend.empty()) {
       out_ << "<p>Structure no catalogued mechanism explains: " << escape(d_.unexplained_trend) << "</p>\n";
     }
+    if (!d_.drift.text.empty()) out_ << "<p>What drifted: " << escape(d_.drift.text) << ".</p>\n";
     writeEffects();
     writeSignatures();
     writeResidual();

@@ -42,7 +42,8 @@ namespace {
 /// Names EffectSet::add knows, in the order of its error message.
 constexpr const char* kKnownEffects[] = {
     "joint_compliance", "backlash",    "transmission_error", "nonlinear_stiffness",
-    "joint_coupling",   "self_weight", "thermal_expansion",  "sensor_bias", "torsion_curve"};
+    "joint_coupling",   "self_weight", "thermal_expansion",  "sensor_bias", "torsion_curve",
+    "joint_zero_drift", "registration_drift"};
 
 std::string show(double v) {
   std::ostringstream s;
@@ -317,6 +318,54 @@ nlohmann::json SensorBias::toJson() const {
           {"moment_nm", vec3ToJson(wrench_Sensor_.tail<3>())}};
 }
 
+JointZeroDrift::JointZeroDrift(int joint, double drift_rad_per_k, double reference_temp_c, int dof)
+    : joint_(joint), drift_rad_per_k_(drift_rad_per_k), reference_temp_c_(reference_temp_c) {
+  requireJoint(name(), "joint", joint, dof);
+  requireMagnitude(name(), "drift_rad_per_k", drift_rad_per_k, 1e-3, true, "rad/K");
+  if (!std::isfinite(reference_temp_c)) {
+    throw InputError(name() + ".reference_temp_c = " + show(reference_temp_c) +
+                     " °C; expected a finite temperature, e.g. 20");
+  }
+}
+
+void JointZeroDrift::apply(double temp_c, JointVector& theta_rad) const noexcept {
+  if (std::isfinite(temp_c)) theta_rad(joint_ - 1) += drift_rad_per_k_ * (temp_c - reference_temp_c_);
+}
+
+nlohmann::json JointZeroDrift::toJson() const {
+  return {{"name", name()},
+          {"joint", joint_},
+          {"drift_rad_per_k", drift_rad_per_k_},
+          {"reference_temp_c", reference_temp_c_}};
+}
+
+RegistrationDrift::RegistrationDrift(const Vec3& translation_m, const Vec3& rotation_rad,
+                                     double settling_rows)
+    : settling_rows_(settling_rows) {
+  requireVectorBelow(name() + ".translation_m", translation_m, 0.01, "m");
+  requireVectorBelow(name() + ".rotation_rad", rotation_rad, 0.01, "rad");
+  if (!(std::isfinite(settling_rows) && settling_rows >= 0.0)) {
+    throw InputError(name() + ".settling_rows = " + show(settling_rows) +
+                     "; expected a finite number of rows ≥ 0 (0: a steady ramp)");
+  }
+  end_ << translation_m, rotation_rad;
+}
+
+Vec6 RegistrationDrift::twist(int64_t seq, int64_t rows) const noexcept {
+  const double elapsed = static_cast<double>(seq - 1);
+  const double g = settling_rows_ > 0.0 ? 1.0 - std::exp(-elapsed / settling_rows_)
+                   : rows > 1           ? elapsed / static_cast<double>(rows - 1)
+                                        : 0.0;
+  return g * end_;
+}
+
+nlohmann::json RegistrationDrift::toJson() const {
+  return {{"name", name()},
+          {"translation_m", vec3ToJson(end_.head<3>())},
+          {"rotation_rad", vec3ToJson(end_.tail<3>())},
+          {"settling_rows", settling_rows_}};
+}
+
 void EffectSet::add(const nlohmann::json& j, int dof) {
   const std::string name = j.at("name").get<std::string>();
   const auto once = [&name](bool already) {
@@ -377,6 +426,20 @@ void EffectSet::add(const nlohmann::json& j, int dof) {
   } else if (name == SensorBias::name()) {
     once(sensor_bias.has_value());
     sensor_bias.emplace(vec3FromJson(j, name, "force_n"), vec3FromJson(j, name, "moment_nm"));
+  } else if (name == JointZeroDrift::name()) {
+    JointZeroDrift drift(j.at("joint").get<int>(), j.at("drift_rad_per_k").get<double>(),
+                         j.at("reference_temp_c").get<double>(), dof);
+    for (const JointZeroDrift& other : zero_drift) {
+      if (other.joint() == drift.joint()) {
+        throw InputError(name + " of joint " + std::to_string(drift.joint()) +
+                         " is given twice; expected at most one per joint");
+      }
+    }
+    zero_drift.push_back(drift);
+  } else if (name == RegistrationDrift::name()) {
+    once(registration_drift.has_value());
+    registration_drift.emplace(vec3FromJson(j, name, "translation_m"),
+                               vec3FromJson(j, name, "rotation_rad"), j.value("settling_rows", 0.0));
   } else {
     std::string known;
     for (const char* k : kKnownEffects) known += std::string(known.empty() ? "" : ", ") + k;
@@ -390,6 +453,8 @@ nlohmann::json EffectSet::toJson() const {
   if (self_weight) all.push_back(self_weight->toJson());
   if (thermal_expansion) all.push_back(thermal_expansion->toJson());
   if (sensor_bias) all.push_back(sensor_bias->toJson());
+  for (const JointZeroDrift& d : zero_drift) all.push_back(d.toJson());
+  if (registration_drift) all.push_back(registration_drift->toJson());
   return all;
 }
 

@@ -151,7 +151,11 @@ Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out)
     const JointVector& q = row.q;
     const double load_kg = row.load_kg;
     const double temp_c = trueTemperature_c(options, seq);
-    const Pose X_TrackerTip = robot.X_TrackerTip(q, load_kg, temp_c);
+    Pose X_TrackerTip = robot.X_TrackerTip(q, load_kg, temp_c);
+    if (const auto& drift = robot.effects().registration_drift) {
+      X_TrackerTip = lie::expSE3(drift->twist(seq, static_cast<int64_t>(rows_to_measure.size()))) *
+                     X_TrackerTip;
+    }
     // Every noise draw happens whatever its sigma, so sigmas do not shift the stream.
     const double noise =
         options.noiseless_validation && row.set == RowSet::kValidation ? 0.0 : 1.0;

@@ -144,6 +144,7 @@ JointVector TwinRobot::linkAngles(const JointVector& q_cmd_rad, double load_kg,
     if (effects_.self_weight) effects_.self_weight->addTorques(ws, J, gravity_in_base_, tau);
     JointVector next = q_cmd_rad;
     for (const auto& effect : effects_.link_angle) effect->apply(q_cmd_rad, tau, next);
+    for (const JointZeroDrift& drift : effects_.zero_drift) drift.apply(temp_c, next);
     const double step = (next - theta).cwiseAbs().maxCoeff();
     theta = next;
     if (step <= kFixedPointTolerance_rad) return theta;

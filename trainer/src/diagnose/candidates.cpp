@@ -15,6 +15,12 @@ constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 // A candidate whose largest column moves the weighted residual by less than this, for a
 // parameter step of typical size, has no effect on these rows and is not tried.
 constexpr double kNegligibleEffect = 1e-3;
+// Degrees of the registration drifts tried: a steady drift, a cubic like the trend test's, and
+// one that bends more often over a long campaign.
+constexpr int kDriftDegrees[] = {1, 3, 6};
+// A joint's zero drift with temperature is tried where temp_c varies by more than a sensor's
+// step (0.1 °C): the coefficient is free, so any spread the sensor resolves can show it.
+constexpr double kMinZeroDriftSpreadC = 0.1;
 
 Mechanism blank(MechanismKind kind, int dof, int joint = -1, int source = -1, int order = 0) {
   Mechanism m;
@@ -49,7 +55,8 @@ bool present(const PhysicalModel& model, MechanismKind kind, int joint, int sour
     if (m.kind != kind) continue;
     const bool one_per_model = kind == MechanismKind::kSelfWeight ||
                                kind == MechanismKind::kSensorBias ||
-                               kind == MechanismKind::kThermalExpansion;
+                               kind == MechanismKind::kThermalExpansion ||
+                               kind == MechanismKind::kRegistrationDrift;
     if (one_per_model || (m.joint == joint && m.source_joint == source)) return true;
   }
   return false;
@@ -63,27 +70,55 @@ struct ScaledSource {
     kJointAngle,     // another joint's angle (a coupling)
     kGravityTorque,  // the joint's gravity torque under the URDF's masses at the row's link angles
     kProfile,        // a profile's gated harmonics, 2·order columns
+    kTemperature,    // the row's temperature less a reference (0 where it is not known)
   };
   Kind kind = Kind::kTorquePart;
   Mechanism unit;            // kTorquePart
   int source_joint = -1;     // kJointAngle
+  double reference_c = 0.0;  // kTemperature
   AngleCoverage coverage;    // kProfile
   int order = 0;             // kProfile
   Eigen::Index first = 0;    // its first column among the joint's scaled ones
   bool sameColumn(const ScaledSource& other) const {
     return kind == other.kind && kind != Kind::kProfile && source_joint == other.source_joint &&
-           unit.kind == other.unit.kind && unit.parameters == other.unit.parameters;
+           reference_c == other.reference_c && unit.kind == other.unit.kind &&
+           unit.parameters == other.unit.parameters;
   }
+};
+
+// Legendre polynomial P_degree(s) (Bonnet's recurrence).
+double legendre(int degree, double s) {
+  double previous = 1.0, current = s;
+  if (degree == 0) return previous;
+  for (int d = 1; d < degree; ++d) {
+    const double next = ((2 * d + 1) * s * current - d * previous) / (d + 1);
+    previous = current;
+    current = next;
+  }
+  return current;
+}
+
+// A dense column of the screening matrix that is a geometry column times a polynomial of the
+// row's time order: the tracker registration's columns moved in time (registration_drift). Made
+// from the linearisation, no evaluation of its own.
+struct TimeScaled {
+  Eigen::Index dense = 0;     // its place among a chunk's dense columns
+  Eigen::Index geometry = 0;  // the geometry column it scales
+  int degree = 1;             // P_degree(s), s the row's time order mapped onto [−1, 1]
+  double first_seq = 0.0, last_seq = 1.0;
 };
 
 // What a round's screening matrix is made from, chunk by chunk of fit rows: the model it is
 // linearised at (its geometry and link-angle columns, its torques and link angles for the
-// features), the models whose finite differences are its other dense columns, and each joint's
-// scaled sources.
+// features), the models whose finite differences are its other dense columns, the geometry
+// columns scaled by time, and each joint's scaled sources.
 struct ColumnRecipe {
   PhysicalModel whole;
   std::vector<PhysicalModel> moved;  // per finite-difference column, the model moved by its step
   std::vector<double> step;
+  std::vector<Eigen::Index> moved_dense;  // per finite-difference column, its dense place
+  std::vector<TimeScaled> time_scaled;
+  Eigen::Index dense = 0;  // dense columns of a chunk
   std::vector<std::vector<ScaledSource>> scaled;  // per joint
   std::vector<double> masses;                     // the URDF's, for kGravityTorque
 };
@@ -97,13 +132,29 @@ void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, s
   Linearisation lin;
   evaluateAndLinearise(recipe.whole, fit, begin, end, e, lin);
   const Eigen::Index geometry = lin.geometry.cols();
-  chunk.dense.resize(e.r.size(), geometry + static_cast<Eigen::Index>(recipe.moved.size()));
+  chunk.dense.resize(e.r.size(), recipe.dense);
   chunk.dense.leftCols(geometry) = lin.geometry;
   std::vector<const PhysicalModel*> moved;
-  for (const PhysicalModel& m : recipe.moved) moved.push_back(&m);
-  chunk.dense.rightCols(static_cast<Eigen::Index>(moved.size())) = differenceColumns(
-      moved, recipe.step, std::vector<bool>(dense.begin() + geometry, dense.end()), fit, begin,
-      end, e.r);
+  std::vector<bool> needed;
+  for (size_t k = 0; k < recipe.moved.size(); ++k) {
+    moved.push_back(&recipe.moved[k]);
+    needed.push_back(dense[static_cast<size_t>(recipe.moved_dense[k])]);
+  }
+  const Eigen::MatrixXd differences =
+      differenceColumns(moved, recipe.step, needed, fit, begin, end, e.r);
+  for (size_t k = 0; k < moved.size(); ++k) {
+    chunk.dense.col(recipe.moved_dense[k]) = differences.col(static_cast<Eigen::Index>(k));
+  }
+  const Eigen::Index first = equationOf(fit, begin);
+  for (const TimeScaled& t : recipe.time_scaled) {
+    for (size_t i = begin; i < end; ++i) {
+      const double seq = static_cast<double>(fit.rows[i]->seq);
+      const double s = 2.0 * (seq - t.first_seq) / (t.last_seq - t.first_seq) - 1.0;
+      const Eigen::Index e_i = fit.start[i] - first, k = fit.equations(i);
+      chunk.dense.block(e_i, t.dense, k, 1) =
+          lin.geometry.block(e_i, t.geometry, k, 1) * legendre(t.degree, s);
+    }
+  }
   chunk.link_angle = std::move(lin.link_angle);
   const KinematicChain& chain = recipe.whole.chain_Tracker;
   const Eigen::Index rows = static_cast<Eigen::Index>(end - begin);
@@ -142,6 +193,10 @@ void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, s
           case ScaledSource::Kind::kGravityTorque:
             out(r, source.first) = gravity[static_cast<size_t>(r)](joint);
             break;
+          case ScaledSource::Kind::kTemperature:
+            out(r, source.first) =
+                fit.rows[i]->temp_c ? *fit.rows[i]->temp_c - source.reference_c : 0.0;
+            break;
           case ScaledSource::Kind::kProfile:
             harmonics.resize(2 * source.order);
             profileFeatures(source.coverage, source.order, fit.rows[i]->q_rad(joint), harmonics.data());
@@ -160,6 +215,7 @@ struct ColumnSink {
   ColumnSink(ColumnLayout& layout, ColumnRecipe& recipe, Eigen::Index geometry, int joints)
       : layout_(layout), recipe_(recipe) {
     layout_.dense = geometry;
+    recipe_.dense = geometry;
     layout_.scaled.assign(static_cast<size_t>(joints), 0);
     recipe_.scaled.resize(static_cast<size_t>(joints));
   }
@@ -171,7 +227,18 @@ struct ColumnSink {
     shift(moved, p, p.step);
     recipe_.moved.push_back(std::move(moved));
     recipe_.step.push_back(p.step);
+    recipe_.moved_dense.push_back(layout_.dense);
+    recipe_.dense = layout_.dense + 1;
     return added({-1, layout_.dense++}, column_ridge);
+  }
+  // Geometry column c times P_degree of the time order (one column per distinct pair).
+  Eigen::Index timeScaled(Eigen::Index c, int degree, double first_seq, double last_seq) {
+    for (const TimeScaled& t : recipe_.time_scaled) {
+      if (t.geometry == c && t.degree == degree) return added({-1, t.dense}, 0.0);
+    }
+    recipe_.time_scaled.push_back({layout_.dense, c, degree, first_seq, last_seq});
+    recipe_.dense = layout_.dense + 1;
+    return added({-1, layout_.dense++}, 0.0);
   }
   Eigen::Index repeat(Eigen::Index column, double column_ridge) {
     return added(layout_.place[static_cast<size_t>(column)], column_ridge);
@@ -531,17 +598,20 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
     }
     addGlobal(std::move(f), std::move(columns), std::move(steps));
   }
+  // The rows' temperatures: the thermal families' reference (their mean) and whether they vary.
+  std::vector<double> temps;
+  for (const Measurement* row : fit.rows) {
+    if (row->temp_c) temps.push_back(*row->temp_c);
+  }
+  double mean_temp = 0.0;
+  for (double t : temps) mean_temp += t;
+  mean_temp = temps.empty() ? 0.0 : mean_temp / static_cast<double>(temps.size());
+  const double temp_spread = stdOf(temps);
+  const bool few_temps = temps.size() * 2 < fit.rows.size();
   if (!present(global, MechanismKind::kThermalExpansion, -1, -1) &&
       wanted(MechanismKind::kThermalExpansion)) {
-    std::vector<double> temps;
-    for (const Measurement* row : fit.rows) {
-      if (row->temp_c) temps.push_back(*row->temp_c);
-    }
-    double mean = 0.0;
-    for (double t : temps) mean += t;
-    mean = temps.empty() ? 0.0 : mean / static_cast<double>(temps.size());
-    const double spread = stdOf(temps);
-    if (temps.size() * 2 < fit.rows.size()) {
+    const double mean = mean_temp, spread = temp_spread;
+    if (few_temps) {
       s.untestable.push_back({"thermal_expansion", "fewer than half the fit rows have temp_c"});
     } else if (spread < 0.5) {
       char reason[120];
@@ -557,6 +627,67 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
       with.mechanisms.push_back(f.mechanism);
       const Parameter p{static_cast<int>(with.mechanisms.size()) - 1, 0, 1e-5};
       addGlobal(std::move(f), {sink.difference(with, p, 0.0)}, {p.step});
+    }
+  }
+
+  // What drifts while a campaign is measured. The tracker's registration in time order (a
+  // tripod settling, the floor warming: 6 DOF, a polynomial of the time order per degree tried),
+  // and each joint's zero with temperature (a motor's or gearbox's heat). The first is the
+  // measurement's, the second the robot's: told apart by how they move the tip (the whole frame,
+  // one joint), not by when.
+  if (!present(global, MechanismKind::kRegistrationDrift, -1, -1) &&
+      wanted(MechanismKind::kRegistrationDrift)) {
+    double first_seq = 0.0, last_seq = 0.0;
+    for (size_t i = 0; i < fit.rows.size(); ++i) {
+      const double seq = static_cast<double>(fit.rows[i]->seq);
+      first_seq = i == 0 ? seq : std::min(first_seq, seq);
+      last_seq = i == 0 ? seq : std::max(last_seq, seq);
+    }
+    for (const int degree : kDriftDegrees) {
+      Family f;
+      f.mechanism = blank(MechanismKind::kRegistrationDrift, n, -1, -1, degree);
+      f.mechanism.parameters[0] = first_seq;
+      f.mechanism.parameters[1] = last_seq;
+      std::vector<Eigen::Index> columns;
+      for (int d = 1; d <= degree; ++d) {
+        for (Eigen::Index c = 0; c < 6; ++c) {
+          f.free.push_back(2 + 6 * (d - 1) + static_cast<int>(c));
+          columns.push_back(sink.timeScaled(c, d, first_seq, last_seq));
+        }
+      }
+      std::vector<double> steps(columns.size(), typicalStep(f.mechanism, 2));
+      addGlobal(std::move(f), std::move(columns), std::move(steps));
+    }
+  }
+  {
+    const double mean = mean_temp, spread = temp_spread;
+    for (int j = 0; j < n; ++j) {
+      if (present(global, MechanismKind::kJointZeroDrift, j, -1) ||
+          !wanted(MechanismKind::kJointZeroDrift, j)) {
+        continue;
+      }
+      const std::string name = "joint_zero_drift (joint " + std::to_string(j + 1) + ")";
+      if (few_temps) {
+        s.untestable.push_back({name, "fewer than half the fit rows have temp_c"});
+        continue;
+      }
+      if (spread < kMinZeroDriftSpreadC) {
+        char reason[120];
+        std::snprintf(reason, sizeof reason,
+                      "temp_c varies by less than %.2f °C (standard deviation %.3f °C)",
+                      kMinZeroDriftSpreadC, spread);
+        s.untestable.push_back({name, reason});
+        continue;
+      }
+      Family f;
+      f.mechanism = blank(MechanismKind::kJointZeroDrift, n, j);
+      f.mechanism.parameters[1] = mean;
+      f.free = {0};
+      ScaledSource source;
+      source.kind = ScaledSource::Kind::kTemperature;
+      source.reference_c = mean;
+      // A step that moves the joint by ~1e-4 rad over the rows' spread of temperature.
+      addGlobal(std::move(f), {sink.feature(j, std::move(source))}, {1e-4 / spread});
     }
   }
 

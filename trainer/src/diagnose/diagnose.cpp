@@ -134,6 +134,7 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
     d.after = statistics(e.r, fit, trendVariables(fit, e.tau_nm, n), options.family_alpha);
   }
   d.seconds_trends += secondsSince(clock);
+  judgeDrift(search);
   const std::string remaining = trendSummary(d.after, options.noise_ratio_limit);
   if (!d.effects.empty()) {
     d.verdict = Verdict::kFound;

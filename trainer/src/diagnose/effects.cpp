@@ -41,6 +41,29 @@ std::vector<FoundEffect::StiffnessSegment> stiffnessSegments(const Mechanism& m,
   return segments;
 }
 
+// How far a mechanism of the combined model moves the tip on the fit rows: the position part of
+// the residual with it against without it (FoundEffect::tip_motion_*).
+void tipMotion(const Search& search, const Mechanism& m, const Eigen::VectorXd& r_with,
+               FoundEffect& f) {
+  const FitRows& fit = search.fit;
+  PhysicalModel without_it = search.model.combined();
+  auto& mechanisms = without_it.mechanisms;
+  for (auto it = mechanisms.begin(); it != mechanisms.end(); ++it) {
+    if (it->kind == m.kind && it->joint == m.joint) {
+      mechanisms.erase(it);
+      break;
+    }
+  }
+  const Eigen::VectorXd r_without = residuals(without_it, fit);
+  double sum2 = 0.0;
+  for (size_t i = 0; i < fit.rows.size(); ++i) {
+    const double motion = (r_with.segment<3>(fit.start[i]) - r_without.segment<3>(fit.start[i])).norm() / fit.w_p;
+    sum2 += motion * motion;
+    f.tip_motion_max_m = std::max(f.tip_motion_max_m, motion);
+  }
+  f.tip_motion_rms_m = std::sqrt(sum2 / static_cast<double>(fit.rows.size()));
+}
+
 }  // namespace
 
 void describeEffects(Search& search) {
@@ -62,6 +85,9 @@ void describeEffects(Search& search) {
       }
       f.stiffness_segments =
           stiffnessSegments(m, dm.global.compliance_rad_per_nm(m.joint), f.max_torque_nm);
+    } else if (m.kind == MechanismKind::kRegistrationDrift ||
+               m.kind == MechanismKind::kJointZeroDrift) {
+      tipMotion(search, m, whole.r, f);
     } else if (m.kind == MechanismKind::kSelfWeight && dm.masses_from_urdf) {
       f.gravity_loaded_joints =
           gravityLoadedJoints(dm.global, fit, e.theta_rad, m.parameters, &f.gravity_torque_std_nm);

@@ -34,6 +34,17 @@ void forEachBlock(const FitRows& fit, const Body& body) {
 
 }  // namespace
 
+Pose X_FittedLast(const Mechanism& drift) {
+  constexpr double kLastShare = 0.1;
+  constexpr int kSamples = 50;
+  const double first = drift.parameters[0], last = drift.parameters[1];
+  Vec6 mean = Vec6::Zero();
+  for (int i = 0; i <= kSamples; ++i) {
+    mean += registrationDrift(drift, last - kLastShare * (last - first) * i / kSamples);
+  }
+  return lie::expSE3(mean / (kSamples + 1));
+}
+
 void requireJointCount(const Campaign& campaign, int n) {
   for (const Measurement& row : campaign.rows) {
     if (row.q_rad.size() != n) {
@@ -72,9 +83,21 @@ FitRows makeFitRows(const std::vector<const Measurement*>& rows, const TrackerNo
 
 namespace {
 
-// Row i's weighted residual into r.segment(e, k): measured − modelled at the tip pose X.
-void rowResidual(const FitRows& fit, size_t i, const Pose& X, Eigen::Index e, Eigen::VectorXd& r) {
+// The model's registration_drift, if any: the tracker's frame moving with time order.
+const Mechanism* registrationDriftOf(const PhysicalModel& model) {
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kRegistrationDrift) return &m;
+  }
+  return nullptr;
+}
+
+// Row i's weighted residual into r.segment(e, k): measured − modelled at the tip pose X, as the
+// tracker sees it at the row's time when its registration drifts.
+void rowResidual(const FitRows& fit, size_t i, const Mechanism* drift, const Pose& X_modelled,
+                 Eigen::Index e, Eigen::VectorXd& r) {
   const Measurement& row = *fit.rows[i];
+  Pose X = X_modelled;
+  if (drift != nullptr) X = lie::expSE3(registrationDrift(*drift, static_cast<double>(row.seq))) * X;
   r.segment<3>(e) = fit.w_p * (row.p_TipInTracker_m - X.translation());
   if (row.has_orientation) {
     r.segment<3>(e + 3) =
@@ -89,23 +112,25 @@ void rowResidual(const FitRows& fit, size_t i, const Pose& X, Eigen::Index e, Ei
 void evaluateRows(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
                   Eigen::Index first, ChainWorkspace& ws, Evaluation& out, size_t offset) {
   const PhysicalConstants constants = physicalConstants(model);
+  const Mechanism* drift = registrationDriftOf(model);
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
     physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws,
                        out.theta_rad[i - offset], out.tau_nm[i - offset], nullptr, &constants);
-    rowResidual(fit, i, tipPose(ws), fit.start[i] - first, out.r);
+    rowResidual(fit, i, drift, tipPose(ws), fit.start[i] - first, out.r);
   }
 }
 
 void residualRows(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
                   Eigen::Index first, ChainWorkspace& ws, Eigen::VectorXd& r) {
   const PhysicalConstants constants = physicalConstants(model);
+  const Mechanism* drift = registrationDriftOf(model);
   JointVector theta, tau;
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
     physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta, tau,
                        nullptr, &constants);
-    rowResidual(fit, i, tipPose(ws), fit.start[i] - first, r);
+    rowResidual(fit, i, drift, tipPose(ws), fit.start[i] - first, r);
   }
 }
 
@@ -211,7 +236,11 @@ Eigen::MatrixXd differenceColumns(const std::vector<const PhysicalModel*>& model
   const Eigen::Index first = equationOf(fit, begin);
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(r0.size(), static_cast<Eigen::Index>(models.size()));
   std::vector<PhysicalConstants> constants;
-  for (const PhysicalModel* model : models) constants.push_back(physicalConstants(*model));
+  std::vector<const Mechanism*> drifts;
+  for (const PhysicalModel* model : models) {
+    constants.push_back(physicalConstants(*model));
+    drifts.push_back(registrationDriftOf(*model));
+  }
   ChainWorkspace ws;
   JointVector theta, tau;
   Eigen::VectorXd r(6);
@@ -225,7 +254,7 @@ Eigen::MatrixXd differenceColumns(const std::vector<const PhysicalModel*>& model
       if (!needed[m]) continue;
       physicalLinkAngles(*models[m], row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta,
                          tau, nullptr, &constants[m], &start);
-      rowResidual(fit, i, tipPose(ws), 0, r);
+      rowResidual(fit, i, drifts[m], tipPose(ws), 0, r);
       out.block(e, static_cast<Eigen::Index>(m), k, 1) = (r0.segment(e, k) - r.head(k)) / steps[m];
     }
   }
@@ -240,6 +269,7 @@ void evaluateAndLinearise(const PhysicalModel& model, const FitRows& fit, size_t
   evaluation.tau_nm.resize(end - begin);
   lin = sizedLinearisation(model, evaluation.r.size());
   const PhysicalConstants constants = physicalConstants(model);
+  const Mechanism* drift = registrationDriftOf(model);
   RowLinearisation row_linearisation(model.chain_Tracker.dof());
   ChainWorkspace ws;
   JointVector theta, tau;
@@ -250,7 +280,7 @@ void evaluateAndLinearise(const PhysicalModel& model, const FitRows& fit, size_t
                        evaluation.theta_rad[i - begin], evaluation.tau_nm[i - begin], nullptr,
                        &constants);
     const Eigen::Index e = fit.start[i] - first;
-    rowResidual(fit, i, tipPose(ws), e, evaluation.r);
+    rowResidual(fit, i, drift, tipPose(ws), e, evaluation.r);
     // Where the model scales no link at the row's temperature, its frames are the unscaled ones.
     if (model.linkLengthScale(temp_c) != 1.0) {
       physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), kUnscaledLinks, ws, theta, tau,

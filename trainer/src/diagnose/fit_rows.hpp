@@ -22,6 +22,11 @@ struct FitRows {
   int equations(size_t row) const { return rows[row]->has_orientation ? 6 : 3; }
 };
 
+/// The tracker's frame as it last stood, in the frame a registration_drift was fitted in (the
+/// drift's mean over the fit rows): exp of the drift's mean over the last tenth of its time span
+/// (a polynomial is least determined at its very end). The extended model's tracker frame.
+Pose X_FittedLast(const Mechanism& drift);
+
 /// Throws InputError naming the file and line of the first row whose joint count is not n.
 void requireJointCount(const Campaign& campaign, int n);
 

@@ -132,6 +132,8 @@ double typicalStep(const Mechanism& m, int index) {
              : index % 2 == 0 ? 1e-4 / m.parameters[static_cast<size_t>(index) + 1]
                               : 0.01 * m.parameters[static_cast<size_t>(index)];
     case MechanismKind::kThermalExpansion: return 1e-5;
+    case MechanismKind::kJointZeroDrift: return 1e-5;  // rad/K
+    case MechanismKind::kRegistrationDrift: return 1e-5;  // m or rad of a degree's twist
     case MechanismKind::kSensorBias: return index < 3 ? 1.0 : 0.1;
     case MechanismKind::kSelfWeight: return index % 4 == 0 ? 1.0 : 0.5;
     default: return 1e-4;
@@ -178,10 +180,12 @@ std::vector<int> freeParameters(const Mechanism& m, bool masses_from_urdf) {
     return free;
   }
   for (size_t i = 0; i < m.parameters.size(); ++i) {
-    if ((m.kind == MechanismKind::kThermalExpansion || m.kind == MechanismKind::kBacklash) &&
+    if ((m.kind == MechanismKind::kThermalExpansion || m.kind == MechanismKind::kBacklash ||
+         m.kind == MechanismKind::kJointZeroDrift) &&
         i == 1) {
-      continue;
+      continue;  // a reference temperature, a smoothing torque: chosen
     }
+    if (m.kind == MechanismKind::kRegistrationDrift && i < 2) continue;  // the time span
     if (m.kind == MechanismKind::kNonlinearStiffness && (i == 2 || (i == 1 && m.parameters[0] == 0.0))) {
       continue;  // τ_lin is the rows', τ₀ is free once the curve has a size
     }

@@ -1,6 +1,7 @@
 // Partial-residual plots of the found effects (diagnose.hpp EffectSignature): each effect's
 // value per fit row from the extended model with and without it, and the residual along it.
 #include <algorithm>
+#include <cmath>
 #include <numeric>
 
 #include "fit_rows.hpp"
@@ -109,7 +110,16 @@ std::vector<double> jointTorques(const Evaluation& with, const Evaluation* witho
 
 std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Diagnosis& diagnosis,
                                               const DiagnoseOptions& options) {
-  const PhysicalModel model = physicalModelOf(diagnosis.extended_model);
+  // The fit rows are as measured: a registration drift found goes back in with the tracker frame
+  // it was fitted in (the model file's is the tracker as it last stood).
+  PhysicalModel model = physicalModelOf(diagnosis.extended_model);
+  for (const FoundEffect& e : diagnosis.effects) {
+    if (e.mechanism.kind != MechanismKind::kRegistrationDrift) continue;
+    const Pose X_LastFitted = diagnosis::X_FittedLast(e.mechanism).inverse();
+    model.chain_Tracker.setInitialPose(0, X_LastFitted * model.chain_Tracker.initialPose(0));
+    model.gravity_Tracker = X_LastFitted.linear() * model.gravity_Tracker;
+    model.mechanisms.push_back(e.mechanism);
+  }
   std::vector<const Measurement*> rows;
   for (const Measurement& row : campaign.rows) {
     if (row.set != RowSet::kValidation) rows.push_back(&row);
@@ -200,8 +210,27 @@ std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Di
         signatures.push_back(std::move(s));
         break;
       }
+      case MechanismKind::kJointZeroDrift: {
+        // A joint's zero follows the temperature (rows without one: no drift, no point).
+        std::vector<double> temps;
+        for (const Measurement* row : fit.rows) temps.push_back(rowTemperature(*row));
+        EffectSignature s = linkAngleSignature(
+            m, m.joint, fit, with, diagnosis::evaluate(without(model, k), fit), link_angle,
+            SignatureVariable::kTemperature, -1, temps);
+        for (size_t i = s.x.size(); i-- > 0;) {
+          if (std::isfinite(s.x[i])) continue;
+          s.x.erase(s.x.begin() + static_cast<std::ptrdiff_t>(i));
+          s.effect.erase(s.effect.begin() + static_cast<std::ptrdiff_t>(i));
+          s.partial_residual.erase(s.partial_residual.begin() + static_cast<std::ptrdiff_t>(i));
+          ++s.rows_left_out;
+        }
+        curveFromRows(s);
+        signatures.push_back(std::move(s));
+        break;
+      }
       case MechanismKind::kSensorBias:
-      case MechanismKind::kProfileGeometry: break;
+      case MechanismKind::kProfileGeometry:
+      case MechanismKind::kRegistrationDrift: break;  // six constants, its own frame, not a model's
     }
   }
   return signatures;

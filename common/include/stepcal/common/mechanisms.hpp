@@ -5,6 +5,7 @@
 // One pose of the physical model at commanded angles q [rad], a measured wrench W_meas and a
 // temperature T, in this order:
 //   θ₀ = q + Σ_coupling c q_i e_j + Σ_transmission g_j(q_j) Σ_k (a_k sin k q_j + b_k cos k q_j) e_j
+//          + Σ_zero_drift k_j (T − T_ref) e_j                 (joint_zero_drift, T known)
 //   W  = W_meas − b_sensor                                   (sensor_bias)
 //   τ  = J_s(θ)ᵀ W_root(θ) + τ_self(θ)                       (self_weight: link gravity torques)
 //   θ  = θ₀ + C τ + Σ_j d_j(τ_j) e_j                          (the fixed point, three passes)
@@ -14,6 +15,10 @@
 //             above the largest torque they were fitted over with their slope there
 //   X_TrackerTip = FK(θ) with the links' lengths × (1 + α (T − T_ref))   (thermal_expansion)
 //                  and each initial pose T_k · exp(Σ_j g_j(q_j) δ̂_jk)          (profile_geometry)
+// A registration_drift is not the robot's: the tracker's frame moving during a campaign. The
+// diagnosis fits it (X_TrackerTip measured = exp(ξ̂(s)) · X_TrackerTip, s the row's time order)
+// so that it does not pass for a property of the arm; a model file never holds one, and no
+// correction applies it.
 // g_j is joint j's transmission profile's coverage gate: 1 on the joint angles it was fitted on,
 // fading smoothly to 0 outside them, so a profile never extrapolates (AngleCoverage). A profile
 // is fitted jointly with the geometry; profile_geometry δ_j is the part of that geometry which
@@ -43,6 +48,8 @@ enum class MechanismKind : uint32_t {
   kJointCoupling = 7,       ///< joint j's link angle moves with joint i's commanded angle
   kProfileGeometry = 8,     ///< joint j: initial-pose corrections that go with its transmission profile
   kTorsionCurve = 9,        ///< joint j: lost motion and stiffening terms of its torque, one curve
+  kJointZeroDrift = 10,     ///< joint j: its zero moves by k (T − T_ref) with temperature
+  kRegistrationDrift = 11,  ///< the tracker's frame moves in time order: measurement, not robot
 };
 
 /// Snake-case name, e.g. "transmission_error".
@@ -58,6 +65,8 @@ inline constexpr int kMaxTorsionTerms = 4;
 /// c_k to 0 over about ±2 widths around T_k (a logistic), so the curve is C¹ for the runtime's
 /// Newton steps yet close to a catalogue's corner.
 inline constexpr double kTorsionKneeWidth = 0.1;
+/// Highest degree of a registration_drift's polynomial in time order.
+inline constexpr int kMaxDriftDegree = 8;
 /// Most arcs in one coverage.
 inline constexpr int kMaxCoverageArcs = 32;
 
@@ -87,7 +96,8 @@ struct Mechanism {
                    ///< profile_geometry: the joint whose transmission profile it goes with
   int source_joint = -1;  ///< joint_coupling: the joint whose commanded angle drives it
   /// transmission_error: harmonics 1 … order (1 ≤ order ≤ kMaxHarmonics); torsion_curve: its
-  /// stiffening terms (0 ≤ order ≤ kMaxTorsionTerms); other kinds 0.
+  /// stiffening terms (0 ≤ order ≤ kMaxTorsionTerms); registration_drift: its polynomial's
+  /// degree (1 ≤ order ≤ kMaxDriftDegree); other kinds 0.
   int order = 0;
   /// Layout per kind (mechanismParameterNames):
   ///   backlash            [b rad, τ_b N·m]: b tanh(τ_j/τ_b), a sign smoothed over ±τ_b (with
@@ -114,6 +124,13 @@ struct Mechanism {
   ///                       knee — a gear catalogue's segments K1, K2, K3 and its lost motion. Up
   ///                       to |τ_j| = τ_lin, carried on above it with its slope there, as
   ///                       nonlinear_stiffness's.
+  ///   joint_zero_drift    [k rad/K, T_ref °C]: the link angle moves by k (T − T_ref) where the
+  ///                       temperature is known (warm-up, a motor's or gearbox's heat)
+  ///   registration_drift  [first_seq, last_seq, then per degree d = 1..order: ξ_d (v m (3),
+  ///                       ω rad (3))]: the tracker's frame at time order seq is exp(ξ̂(s)) times
+  ///                       the fitted one, ξ(s) = Σ_d P_d(s) ξ_d, P_d the Legendre polynomials,
+  ///                       s = 2 (seq − first_seq)/(last_seq − first_seq) − 1 (tracker axes),
+  ///                       held at ±1 outside the span it was fitted on
   std::vector<double> parameters;
   std::vector<double> sigma;  ///< 1-σ of each parameter, same size (0 = not estimated)
   /// transmission_error: the angles of its joint it was fitted on (empty: everywhere); other
@@ -131,6 +148,14 @@ std::string mechanismProblem(const Mechanism& mechanism, int dof);
 
 /// Short human name, e.g. "backlash (joint 2)", "transmission_error (joint 3, 24 harmonics)".
 std::string describe(const Mechanism& mechanism);
+
+/// Whether a kind describes the measurement, not the robot (registration_drift): the diagnosis
+/// fits it, a model file never holds it, no correction applies it.
+bool isMeasurementOnly(MechanismKind kind) noexcept;
+
+/// Twist (v m, ω rad; tracker axes) by which a registration_drift moves the tracker's frame at
+/// time order seq: Σ_d P_d(s) ξ_d (Mechanism's layout). Allocation-free.
+Vec6 registrationDrift(const Mechanism& drift, double seq) noexcept;
 
 /// Whether a kind is a joint's torque–deflection beyond its linear compliance: backlash,
 /// nonlinear_stiffness or torsion_curve.

@@ -128,6 +128,9 @@ struct FoundEffect {
     double from_nm = 0.0, to_nm = 0.0, stiffness_nm_per_rad = 0.0;
   };
   std::vector<StiffnessSegment> stiffness_segments;
+  /// registration_drift, joint_zero_drift: how far it moves the tip over the fit rows (a
+  /// registration drift: as the tracker sees it), RMS and largest, m.
+  double tip_motion_rms_m = 0.0, tip_motion_max_m = 0.0;
   /// Other significant families of its round that removed nearly as much held-out error (at
   /// least 80 %) and nothing more once it was in the model: the data cannot tell them from it.
   std::vector<Mechanism> alternatives;
@@ -193,8 +196,21 @@ struct GainRow {
   AccuracySummary before, after, gpr, after_gpr;
 };
 
+/// What drifted while the campaign was measured: the tracker's registration in time order (the
+/// measurement's), a joint's zero with temperature (the robot's), both, or neither, and what
+/// the rows can tell apart.
+struct DriftVerdict {
+  bool registration = false;            ///< a registration_drift is among the effects
+  std::vector<int> zero_drift_joints;   ///< joints with a joint_zero_drift effect (0-based)
+  /// Pearson correlation of temp_c and seq over the fit rows with a temperature (NaN: fewer than
+  /// 3 such rows, or either constant).
+  double seq_temp_correlation = 0.0;
+  std::string text;  ///< the verdict's sentences
+};
+
 struct Diagnosis {
   Verdict verdict = Verdict::kNone;
+  DriftVerdict drift;
   std::vector<FoundEffect> effects;
   std::vector<CandidateScore> candidates;  ///< every round's, in order
   std::vector<UntestableCandidate> untestable;

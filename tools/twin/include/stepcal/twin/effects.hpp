@@ -9,6 +9,9 @@
 //      with every frame from FK_true(θ; s), the links' translations scaled by s
 //   2. tip pose  X_TrackerTip = X_TrackerBase · FK_true(θ; s)
 //   3. F/T reading: the payload's wrench at the same θ, plus b_sensor (sensor_bias)
+// A joint's zero may drift with T (joint_zero_drift: added to θ after the link-angle effects),
+// and the tracker's frame may move while the campaign is measured (registration_drift: step 2
+// in the moved frame).
 // A mechanism that moves the link side away from the controller's angles is a LinkAngleEffect:
 // joint compliance (always, unless switched off) and the hidden mechanisms a campaign may carry
 // (backlash, transmission error, nonlinear stiffness, joint coupling), each on given joints with
@@ -223,6 +226,50 @@ class SensorBias final {
   Vec6 wrench_Sensor_;
 };
 
+/// Joint j's zero moves with the true temperature (a motor's or gearbox's heat):
+/// Δθ_j = k (T − T_ref), added to the link angle whatever the load; none where T is unknown.
+/// k rad/K, T_ref °C.
+class JointZeroDrift final {
+ public:
+  /// joint 1 … dof; |k| finite and < 1e-3 rad/K; reference_temp_c finite. Throws InputError
+  /// naming the key and the value.
+  JointZeroDrift(int joint, double drift_rad_per_k, double reference_temp_c, int dof);
+  /// Name of the mechanism; the "name" key of its truth.json object.
+  static std::string name() { return "joint_zero_drift"; }
+  /// Joint 1 … n.
+  int joint() const noexcept { return joint_; }
+  /// Adds the drift at the true temperature temp_c [°C] to theta_rad (nothing when it is NaN).
+  void apply(double temp_c, JointVector& theta_rad) const noexcept;
+  /// {"name", "joint", "drift_rad_per_k", "reference_temp_c"}.
+  nlohmann::json toJson() const;
+
+ private:
+  int joint_;
+  double drift_rad_per_k_, reference_temp_c_;
+};
+
+/// The tracker's frame moving while the campaign is measured (a tripod settling, the floor
+/// warming): the measurement's, not the robot's. Row seq (1 … rows) is measured in the frame
+/// exp(ξ̂(seq)) · X_TrackerBase, ξ(seq) = g(seq) ξ_end with ξ_end = (translation_m, rotation_rad)
+/// in tracker axes and g a settling 1 − exp(−(seq − 1)/settling_rows), or the ramp
+/// (seq − 1)/(rows − 1) when settling_rows is 0.
+class RegistrationDrift final {
+ public:
+  /// translation_m finite with norm < 0.01 m; rotation_rad finite with norm < 0.01 rad;
+  /// settling_rows finite and ≥ 0. Throws InputError naming the key and the value.
+  RegistrationDrift(const Vec3& translation_m, const Vec3& rotation_rad, double settling_rows);
+  /// Name of the mechanism; the "name" key of its truth.json object.
+  static std::string name() { return "registration_drift"; }
+  /// The twist (v m, ω rad; tracker axes) that moves the tracker's frame at row seq of rows.
+  Vec6 twist(int64_t seq, int64_t rows) const noexcept;
+  /// {"name", "translation_m", "rotation_rad", "settling_rows"}.
+  nlohmann::json toJson() const;
+
+ private:
+  Vec6 end_;
+  double settling_rows_;
+};
+
 /// The mechanisms of one twin, by the stage they act on (the pipeline at the top of this file).
 struct EffectSet {
   /// Link-angle effects in pipeline order (joint compliance first when on).
@@ -230,14 +277,17 @@ struct EffectSet {
   std::optional<SelfWeight> self_weight;
   std::optional<ThermalExpansion> thermal_expansion;
   std::optional<SensorBias> sensor_bias;
+  std::vector<JointZeroDrift> zero_drift;  ///< at most one per joint
+  std::optional<RegistrationDrift> registration_drift;
 
   /// Adds the mechanism of a dof-joint chain described by its truth.json object ("name" and
   /// its parameters, joints and links numbered from 1). Throws InputError on an unknown name
-  /// (listing the known ones), bad parameters, or a second self_weight, thermal_expansion or
-  /// sensor_bias; nlohmann::json::exception on a missing key or a wrong type.
+  /// (listing the known ones), bad parameters, a second self_weight, thermal_expansion,
+  /// sensor_bias or registration_drift, or a second joint_zero_drift of a joint;
+  /// nlohmann::json::exception on a missing key or a wrong type.
   void add(const nlohmann::json& j, int dof);
   /// Every mechanism as its truth.json object: the link-angle effects in pipeline order, then
-  /// self_weight, thermal_expansion, sensor_bias.
+  /// self_weight, thermal_expansion, sensor_bias, the joint zero drifts, registration_drift.
   nlohmann::json toJson() const;
   /// Link-length scale at the true temperature temp_c [°C]: 1 without thermal_expansion or
   /// when temp_c is NaN.

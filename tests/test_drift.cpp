@@ -12,6 +12,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/mechanisms.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/runtime/corrector.hpp"
 #include "stepcal/trainer/diagnose.hpp"
 #include "support/hidden_effects.hpp"
 
@@ -108,6 +109,35 @@ TEST(JointZeroDrift, MovesItsJointByTheTemperatureWhereItIsKnown) {
   ASSERT_TRUE(physicalLinkAngles(model, q, Vec6::Zero(), unknown, ws, theta, tau));
   ASSERT_TRUE(physicalLinkAngles(rigid, q, Vec6::Zero(), unknown, ws, theta_rigid, tau));
   EXPECT_EQ(theta, theta_rigid) << "no temperature, no drift";
+}
+
+// The runtime applies a model's joint zero drift at the request's temperature, and none when the
+// request has none: forward at T equals the model without it at q moved by k (T − T_ref).
+TEST(JointZeroDrift, TheRuntimeAppliesItOnlyWhereTheRequestGivesATemperature) {
+  CalibratedModel with = paperModel();
+  with.gpr.reset();
+  CalibratedModel without = with;
+  with.mechanisms = {{MechanismKind::kJointZeroDrift, 2, -1, 0, {-4e-5, 20.0}, {1e-6, 0.0}, {}}};
+  const auto model = runtime::RuntimeModel::fromModel(with, 1);
+  const auto plain = runtime::RuntimeModel::fromModel(without, 2);
+  runtime::Workspace ws = runtime::makeWorkspace(*model), ws_plain = runtime::makeWorkspace(*plain);
+  const Measurement& row = paperCampaign().rows[7];
+  const Vec6 wrench = row.wrenchOrZero();
+  for (const double temp_c : {14.0, 27.5}) {
+    const runtime::ForwardResult r = runtime::correctForward(*model, ws, row.q_rad, wrench, temp_c);
+    JointVector q_moved = row.q_rad;
+    q_moved(2) += -4e-5 * (temp_c - 20.0);
+    const runtime::ForwardResult expected =
+        runtime::correctForward(*plain, ws_plain, q_moved, wrench, temp_c);
+    ASSERT_EQ(r.status, runtime::Status::kOk);
+    EXPECT_LT((r.X_TrackerTip.translation() - expected.X_TrackerTip.translation()).norm(), 1e-9)
+        << temp_c << " °C";
+  }
+  const double unknown = std::numeric_limits<double>::quiet_NaN();
+  const runtime::ForwardResult r = runtime::correctForward(*model, ws, row.q_rad, wrench, unknown);
+  const runtime::ForwardResult expected =
+      runtime::correctForward(*plain, ws_plain, row.q_rad, wrench, unknown);
+  EXPECT_LT((r.X_TrackerTip.translation() - expected.X_TrackerTip.translation()).norm(), 1e-12);
 }
 
 const FoundEffect* effectOf(const Diagnosis& d, MechanismKind kind) {

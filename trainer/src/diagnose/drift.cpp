@@ -54,7 +54,8 @@ std::string notFound(const Diagnosis& d, MechanismKind kind, const char* what) {
     }
   }
   if (best == nullptr) return std::string(what) + " was not among the last round's candidates";
-  return std::string(what) + " is not significant beside the effects found (best, " +
+  return std::string(what) + " is not significant" +
+         (d.effects.empty() ? "" : " beside the effects found") + " (best, " +
          describe(best->mechanism) +
          printed(": removes %.1f %% held out, z %.1f)", 100.0 * best->relative_reduction,
                  best->z_statistic);

@@ -29,9 +29,9 @@ struct GeometricOptions {
   double relative_cost_tolerance = 1e-9;
   /// Singular values below this fraction of the largest count as unobservable.
   double rank_tolerance = 1e-9;
-  /// With several sessions: the joint frame T_{k,k+1} (1 ≤ k < n) each session fits its own, as
-  /// its tracker registration and tool; 0: every joint frame shared.
-  int own_frame = 0;
+  /// With several sessions: the joint frames T_{k,k+1} (1 ≤ k < n) each session fits its own, as
+  /// its tracker registration and tool; empty: every joint frame shared.
+  std::vector<int> own_frames;
 };
 
 /// Fit statistics of one Gauss–Newton iteration (before its update).
@@ -82,6 +82,9 @@ struct GeometricResult {
   bool converged = false;
   Observability observability;
   int fit_rows = 0;
+  /// The joint frames T_{k,k+1} each session has its own (GeometricOptions::own_frames), the
+  /// others shared; empty with one session.
+  std::vector<int> own_frames;
 };
 
 /// Calibrates the chain (rooted at base_link) on the given rows. Throws InputError when the
@@ -97,10 +100,31 @@ GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
                                   const std::vector<GeometricSession>& sessions,
                                   const GeometricOptions& options = {});
 
+/// A session's value of a joint frame T_{k,k+1} against the first session's, in the terms of the
+/// joint k+1 whose initial pose it is, with 1-σ from the fit with this frame each session's own
+/// on every row (the tracker's stated noise, times the reduced χ² when above 1). Only what the
+/// rows determine: a direction in which the frame trades with the session's own registration or
+/// tool (joint 1's zero, joint n's zero, a translation along their axes) is left out.
+struct FrameDifference {
+  /// Whether the joint's zero is determined: false when it trades with the session's own tool
+  /// (the last joint) and the rows cannot tell them apart.
+  bool zero_determined = true;
+  /// The rotation about joint k+1's axis: the session's link angle minus the first's at the same
+  /// reading (its zero offset), rad; and its 1-σ, rad.
+  double zero_offset_rad = 0.0, zero_offset_sigma_rad = 0.0;
+  /// The rest of the frame's rotation (about axes across the joint's), its size and 1-σ, rad.
+  double other_rotation_rad = 0.0, other_rotation_sigma_rad = 0.0;
+  /// The rest of the frame's translation, its size and 1-σ, m.
+  double translation_m = 0.0, translation_sigma_m = 0.0;
+  /// Directions of the difference the rows do not determine (left out of the sizes above).
+  int undetermined_directions = 0;
+};
+
 /// Whether one value of a joint frame serves every session, judged on rows held out.
 struct SessionDifference {
   int frame = 0;         ///< the initial pose T_{k,k+1}, 1 ≤ k < n
   std::string name;      ///< e.g. "T(joint_2->joint_3)"
+  std::string joint;     ///< joint k+1, whose initial pose the frame is: its zero turns the frame
   /// Mean held-out position error of the rows with every joint frame shared minus with this one
   /// each session's own, m (positive: the own frames predict better).
   double held_out_gain_m = 0.0;
@@ -111,6 +135,8 @@ struct SessionDifference {
   /// Part of it trades with the session's own registration and tool (a difference the rows
   /// barely see can be large): the held-out gain, not its size, says whether it matters.
   std::vector<Vec6> differences;
+  /// Per session, the same in the joint's terms with 1-σ (FrameDifference); the first is zero.
+  std::vector<FrameDifference> against_first;
 };
 
 /// One-sided 1 % point of the standard normal: a frame's difference between sessions is named

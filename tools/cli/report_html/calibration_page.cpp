@@ -12,6 +12,7 @@
 #include "page.hpp"
 #include "report.hpp"
 #include "report_html.hpp"
+#include "session_report.hpp"
 #include "stepcal/common/error.hpp"
 #include "text_format.hpp"
 
@@ -271,14 +272,45 @@ class PageWriter {
     }
     out_ << "</table>\n<p>Per joint frame, whether one value serves every campaign: held out (5 "
             "folds of each campaign's poses), every frame shared against this one each campaign's "
-            "own; named above z = 2.326. The fit keeps every joint frame shared.</p>\n<table>\n"
-            "<tr><th class=\"l\">frame</th><th>own frames remove, mm</th><th>z</th><th class=\"l\">"
-            "</th></tr>\n";
+            "own; named above z = 2.326. Each campaign against the first, fitted on every row with "
+            "this frame each campaign's own, ± 1-σ: the rotation about the joint's axis is its "
+            "zero.</p>\n<table>\n<tr><th class=\"l\">frame</th><th>own frames remove, mm</th>"
+            "<th>z</th><th class=\"l\"></th><th class=\"l\">each campaign against the first</th></tr>\n";
     for (const trainer::SessionDifference& d : outcome_.session_differences) {
       out_ << "<tr><td class=\"l\">" << escape(d.name) << "</td><td>"
            << cell("%.4f", d.held_out_gain_m * kMm) << "</td><td>" << format("%.1f", d.z_statistic)
            << "</td><td class=\"l\">" << (d.significant ? "differs" : "one serves all")
-           << "</td></tr>\n";
+           << "</td><td class=\"l\">";
+      for (size_t s = 1; s < d.against_first.size(); ++s) {
+        out_ << (s > 1 ? "<br>" : "") << escape(frameDifferenceText(campaign_, d, s));
+      }
+      out_ << "</td></tr>\n";
+    }
+    out_ << "</table>\n<p>" << escape(ownFramesText(outcome_)) << ".</p>\n";
+    writeCompliances();
+  }
+
+  // Whether one compliance of each joint serves every campaign.
+  void writeCompliances() {
+    const trainer::ComplianceDifferences& all = outcome_.compliance_differences;
+    out_ << "<p>Per joint compliance, whether one value serves every campaign: held out (5 folds "
+            "of each campaign's loaded poses), every compliance shared against this one each "
+            "campaign's own; named above z = 2.326. Step 2 keeps one compliance per joint.</p>\n";
+    for (const std::string& line : untestedComplianceLines(campaign_, all)) {
+      out_ << "<p>" << escape(line) << ".</p>\n";
+    }
+    if (all.joints.empty()) return;
+    out_ << "<table>\n<tr><th class=\"l\">joint</th><th>own compliances remove, mm</th><th>z</th>"
+            "<th class=\"l\"></th><th class=\"l\">each campaign against the first</th></tr>\n";
+    for (const trainer::ComplianceDifference& d : all.joints) {
+      out_ << "<tr><td class=\"l\">" << escape(d.joint) << "</td><td>"
+           << cell("%.4f", d.held_out_gain_m * kMm) << "</td><td>" << format("%.1f", d.z_statistic)
+           << "</td><td class=\"l\">" << (d.significant ? "differs" : "one serves all")
+           << "</td><td class=\"l\">";
+      for (size_t s = 1; s < d.difference_rad_per_nm.size(); ++s) {
+        out_ << (s > 1 ? "<br>" : "") << escape(complianceDifferenceText(campaign_, all, d, s));
+      }
+      out_ << "</td></tr>\n";
     }
     out_ << "</table>\n";
   }

@@ -277,14 +277,11 @@ class PageWriter {
             "zero.</p>\n<table>\n<tr><th class=\"l\">frame</th><th>own frames remove, mm</th>"
             "<th>z</th><th class=\"l\"></th><th class=\"l\">each campaign against the first</th></tr>\n";
     for (const trainer::SessionDifference& d : outcome_.session_differences) {
-      out_ << "<tr><td class=\"l\">" << escape(d.name) << "</td><td>"
-           << cell("%.4f", d.held_out_gain_m * kMm) << "</td><td>" << format("%.1f", d.z_statistic)
-           << "</td><td class=\"l\">" << (d.significant ? "differs" : "one serves all")
-           << "</td><td class=\"l\">";
+      std::vector<std::string> against_first;
       for (size_t s = 1; s < d.against_first.size(); ++s) {
-        out_ << (s > 1 ? "<br>" : "") << escape(frameDifferenceText(campaign_, d, s));
+        against_first.push_back(frameDifferenceText(campaign_, d, s));
       }
-      out_ << "</td></tr>\n";
+      writeDifferenceRow(d.name, d.held_out_gain_m, d.z_statistic, d.significant, against_first);
     }
     out_ << "</table>\n<p>" << escape(ownFramesText(outcome_)) << ".</p>\n";
     writeCompliances();
@@ -303,16 +300,26 @@ class PageWriter {
     out_ << "<table>\n<tr><th class=\"l\">joint</th><th>own compliances remove, mm</th><th>z</th>"
             "<th class=\"l\"></th><th class=\"l\">each campaign against the first</th></tr>\n";
     for (const trainer::ComplianceDifference& d : all.joints) {
-      out_ << "<tr><td class=\"l\">" << escape(d.joint) << "</td><td>"
-           << cell("%.4f", d.held_out_gain_m * kMm) << "</td><td>" << format("%.1f", d.z_statistic)
-           << "</td><td class=\"l\">" << (d.significant ? "differs" : "one serves all")
-           << "</td><td class=\"l\">";
+      std::vector<std::string> against_first;
       for (size_t s = 1; s < d.difference_rad_per_nm.size(); ++s) {
-        out_ << (s > 1 ? "<br>" : "") << escape(complianceDifferenceText(campaign_, all, d, s));
+        against_first.push_back(complianceDifferenceText(campaign_, all, d, s));
       }
-      out_ << "</td></tr>\n";
+      writeDifferenceRow(d.joint, d.held_out_gain_m, d.z_statistic, d.significant, against_first);
     }
     out_ << "</table>\n";
+  }
+
+  // A row of a held-out test between the campaigns: what was tested, the held-out gain (m), z,
+  // the verdict and each campaign against the first.
+  void writeDifferenceRow(const std::string& name, double gain_m, double z, bool significant,
+                          const std::vector<std::string>& against_first) {
+    out_ << "<tr><td class=\"l\">" << escape(name) << "</td><td>" << cell("%.4f", gain_m * kMm)
+         << "</td><td>" << format("%.1f", z) << "</td><td class=\"l\">"
+         << (significant ? "differs" : "one serves all") << "</td><td class=\"l\">";
+    for (size_t s = 0; s < against_first.size(); ++s) {
+      out_ << (s > 0 ? "<br>" : "") << escape(against_first[s]);
+    }
+    out_ << "</td></tr>\n";
   }
 
   void writeConvergence() {

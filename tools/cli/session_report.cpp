@@ -58,6 +58,17 @@ std::string frameDifferenceText(const Campaign& campaign, const trainer::Session
   return out;
 }
 
+std::string frameVerdictText(const trainer::SessionDifference& d) {
+  const double pct = 100.0 * trainer::heldOutShare(d);
+  if (!d.significant) return "one serves all";
+  if (d.kept_per_session) {
+    return format("differs (z %.1f), removes %.1f %% of the held-out error: kept per campaign", d.z_statistic, pct);
+  }
+  return format("significant (z %.1f) but removes only %.1f %% of the held-out error: kept shared; "
+                "a change of the robot removes most of it (kept per campaign from %.0f %%)",
+                d.z_statistic, pct, 100.0 * trainer::kSessionDifferenceLeastShare);
+}
+
 std::string complianceDifferenceText(const Campaign& campaign,
                                      const trainer::ComplianceDifferences& all,
                                      const trainer::ComplianceDifference& d, size_t s) {
@@ -102,15 +113,18 @@ std::string formatCampaignDifferences(const Campaign& campaign, const trainer::C
     out += "    not tested: a campaign has fewer than 10 fit poses (2 per fold)\n";
   }
   for (const trainer::SessionDifference& d : outcome.session_differences) {
-    out += format("    %-24s %s: own frames remove %.4f mm, z = %.1f\n", d.name.c_str(),
-                  d.significant ? "differs" : "one serves all", d.held_out_gain_m * kMm, d.z_statistic);
+    out += format("    %-24s own frames remove %.4f mm of %.4f held out, z = %.1f: %s\n", d.name.c_str(),
+                  d.held_out_gain_m * kMm, d.shared_held_out_m * kMm, d.z_statistic,
+                  frameVerdictText(d).c_str());
     for (size_t s = 1; s < d.against_first.size(); ++s) {
       out += "      " + frameDifferenceText(campaign, d, s) + "\n";
     }
   }
   out += "    (" + ownFramesText(outcome) +
          ": a frame that differs is the robot changed between the campaigns, or a cause the "
-         "geometry cannot take)\n";
+         "geometry cannot take; kept per campaign only where it is significant and removes at "
+         "least " + format("%.0f", 100.0 * trainer::kSessionDifferenceLeastShare) +
+         " % of the held-out error)\n";
   const trainer::ComplianceDifferences& compliance = outcome.compliance_differences;
   out += "  between the campaigns, per joint compliance (held out, 5 folds of each campaign's "
          "loaded poses: every compliance shared against this one each campaign's own):\n";
@@ -150,11 +164,14 @@ nlohmann::json sessionDifferencesJson(const Campaign& campaign, const trainer::C
     differences.push_back({{"frame", d.name},
                            {"joint", d.joint},
                            {"held_out_gain_mm", d.held_out_gain_m * kMm},
+                           {"shared_held_out_mm", d.shared_held_out_m * kMm},
+                           {"held_out_share", trainer::heldOutShare(d)},
                            {"z_statistic", d.z_statistic},
                            {"differs", d.significant},
                            {"own_per_campaign",
                             std::find(outcome.poe.own_frames.begin(), outcome.poe.own_frames.end(),
                                       d.frame) != outcome.poe.own_frames.end()},
+                           {"verdict", frameVerdictText(d)},
                            {"against_first", against_first}});
   }
   return differences;

@@ -17,6 +17,12 @@ namespace stepcal::cli {
 /// B by +300 ± 4 µrad; the rest of the frame: rotation 4 ± 5 µrad, translation 2 ± 3 µm".
 std::string frameDifferenceText(const Campaign& campaign, const trainer::SessionDifference& d, size_t s);
 
+/// The frame test's verdict in words: "one serves all", "differs (z 10.9), removes 70.1 % of the
+/// held-out error: kept per campaign", or, significant below trainer::kSessionDifferenceLeastShare,
+/// "significant (z 6.8) but removes only 2.0 % of the held-out error: kept shared; a change of the
+/// robot removes most of it (…)".
+std::string frameVerdictText(const trainer::SessionDifference& d);
+
 /// Session s's compliance difference (its index among ComplianceDifferences::sessions), e.g.
 /// "B against A: +1.2e-07 ± 3.1e-09 rad/(N·m), +48.1 ± 1.2 % of the shared 2.5e-07".
 std::string complianceDifferenceText(const Campaign& campaign,

@@ -242,10 +242,11 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
   poe_options.scope = GeometricScope::kFullPoe;
   out.poe = calibrateGeometry(out.nominal_Base, sessions, poe_options);
   out.session_differences = testSessionDifferences(out.nominal_Base, sessions, poe_options);
-  // A campaign keeps its own value of a joint frame only where the held-out test demands it.
+  // A campaign keeps its own value of a joint frame only where the held-out test demands it: a
+  // significant difference that removes a practical share of the held-out error (keepsOwnFrame).
   std::vector<int> own_frames;
   for (const SessionDifference& d : out.session_differences) {
-    if (d.significant) own_frames.push_back(d.frame);
+    if (d.kept_per_session) own_frames.push_back(d.frame);
   }
   if (!own_frames.empty()) {
     poe_options.own_frames = own_frames;

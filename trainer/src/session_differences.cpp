@@ -108,6 +108,15 @@ FrameDifference frameDifference(const GeometricFit& fit, int k, int s) {
 
 }  // namespace
 
+double heldOutShare(const SessionDifference& difference) {
+  return difference.shared_held_out_m > 0.0 ? difference.held_out_gain_m / difference.shared_held_out_m
+                                            : 0.0;
+}
+
+bool keepsOwnFrame(const SessionDifference& difference) {
+  return difference.significant && heldOutShare(difference) >= kSessionDifferenceLeastShare;
+}
+
 std::vector<SessionDifference> testSessionDifferences(const KinematicChain& nominal_Base,
                                                       const std::vector<GeometricSession>& sessions,
                                                       const GeometricOptions& options, int folds) {
@@ -179,9 +188,11 @@ std::vector<SessionDifference> testSessionDifferences(const KinematicChain& nomi
     d.joint = nominal_Base.joints()[static_cast<size_t>(k)].name;
     std::vector<double> squared, position;
     heldOut(k, squared, position);
-    d.held_out_gain_m = mean(shared_position) - mean(position);
+    d.shared_held_out_m = mean(shared_position);
+    d.held_out_gain_m = d.shared_held_out_m - mean(position);
     d.z_statistic = diagnosis::signedRankZ(shared_squared, squared);
     d.significant = d.z_statistic > kSessionDifferenceZ;
+    d.kept_per_session = keepsOwnFrame(d);
     const GeometricFit& all =
         *std::find_if(fits.begin(), fits.end(), [&](const Fit& fit) {
           return fit.own_frame == k && fit.fold == folds;

@@ -272,7 +272,10 @@ class PageWriter {
     }
     out_ << "</table>\n<p>Per joint frame, whether one value serves every campaign: held out (5 "
             "folds of each campaign's poses), every frame shared against this one each campaign's "
-            "own; named above z = 2.326. Each campaign against the first, fitted on every row with "
+            "own; named above z = 2.326, kept per campaign in the fit only when it also removes at "
+            "least " << format("%.0f", 100.0 * trainer::kSessionDifferenceLeastShare)
+         << " % of the held-out error with every frame shared (a change of the robot removes most "
+            "of it). Each campaign against the first, fitted on every row with "
             "this frame each campaign's own, ± 1-σ: the rotation about the joint's axis is its "
             "zero.</p>\n<table>\n<tr><th class=\"l\">frame</th><th>own frames remove, mm</th>"
             "<th>z</th><th class=\"l\"></th><th class=\"l\">each campaign against the first</th></tr>\n";
@@ -281,7 +284,7 @@ class PageWriter {
       for (size_t s = 1; s < d.against_first.size(); ++s) {
         against_first.push_back(frameDifferenceText(campaign_, d, s));
       }
-      writeDifferenceRow(d.name, d.held_out_gain_m, d.z_statistic, d.significant, against_first);
+      writeDifferenceRow(d.name, d.held_out_gain_m, d.z_statistic, frameVerdictText(d), against_first);
     }
     out_ << "</table>\n<p>" << escape(ownFramesText(outcome_)) << ".</p>\n";
     writeCompliances();
@@ -304,18 +307,19 @@ class PageWriter {
       for (size_t s = 1; s < d.difference_rad_per_nm.size(); ++s) {
         against_first.push_back(complianceDifferenceText(campaign_, all, d, s));
       }
-      writeDifferenceRow(d.joint, d.held_out_gain_m, d.z_statistic, d.significant, against_first);
+      writeDifferenceRow(d.joint, d.held_out_gain_m, d.z_statistic,
+                         d.significant ? "differs" : "one serves all", against_first);
     }
     out_ << "</table>\n";
   }
 
   // A row of a held-out test between the campaigns: what was tested, the held-out gain (m), z,
   // the verdict and each campaign against the first.
-  void writeDifferenceRow(const std::string& name, double gain_m, double z, bool significant,
+  void writeDifferenceRow(const std::string& name, double gain_m, double z, const std::string& verdict,
                           const std::vector<std::string>& against_first) {
     out_ << "<tr><td class=\"l\">" << escape(name) << "</td><td>" << cell("%.4f", gain_m * kMm)
-         << "</td><td>" << format("%.1f", z) << "</td><td class=\"l\">"
-         << (significant ? "differs" : "one serves all") << "</td><td class=\"l\">";
+         << "</td><td>" << format("%.1f", z) << "</td><td class=\"l\">" << escape(verdict)
+         << "</td><td class=\"l\">";
     for (size_t s = 0; s < against_first.size(); ++s) {
       out_ << (s > 0 ? "<br>" : "") << escape(against_first[s]);
     }

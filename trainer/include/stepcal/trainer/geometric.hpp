@@ -128,8 +128,14 @@ struct SessionDifference {
   /// Mean held-out position error of the rows with every joint frame shared minus with this one
   /// each session's own, m (positive: the own frames predict better).
   double held_out_gain_m = 0.0;
+  /// Mean held-out position error of the rows with every joint frame shared, m (the same for
+  /// every frame): the gain's share of it says whether the difference matters.
+  double shared_held_out_m = 0.0;
   double z_statistic = 0.0;  ///< one-sided signed-rank z of the rows' held-out squared errors
   bool significant = false;  ///< z above the one-sided 1 % point (kSessionDifferenceZ)
+  /// Whether the final fit keeps this frame each session's own (keepsOwnFrame): significant and
+  /// its held-out gain at least kSessionDifferenceLeastShare of the held-out error.
+  bool kept_per_session = false;
   /// Per session, its own frame against the first session's, fitted on every row: log(T₁⁻¹ T_s)
   /// (v [m], ω [rad]); the first is zero.
   /// Part of it trades with the session's own registration and tool (a difference the rows
@@ -142,6 +148,23 @@ struct SessionDifference {
 /// One-sided 1 % point of the standard normal: a frame's difference between sessions is named
 /// when the held-out reduction's signed-rank z exceeds it.
 inline constexpr double kSessionDifferenceZ = 2.326;
+
+/// Least share of the held-out error with every frame shared that a frame's own values per session
+/// must remove to be kept per session in the final fit. Significance alone is not enough: with
+/// thousands of rows, a frame that absorbs a cause the geometry cannot take differently in each
+/// session is significant for a gain of a few µm, and keeping it per session undoes the pooling.
+/// Measured: a joint zero moved 300 µrad between two twin campaigns removes ~70 % of the
+/// held-out error (0.0577 → 0.0174 mm on the moved campaign's validation rows); on the real UR10
+/// the significant frames of any three of its four series remove 0.7–8.6 % (0.003–0.038 mm of
+/// ~0.45 mm). 20 % lies far from both: a change of the robot removes most of the error.
+inline constexpr double kSessionDifferenceLeastShare = 0.20;
+
+/// The held-out gain's share of the held-out error with every frame shared (0 when that is 0).
+double heldOutShare(const SessionDifference& difference);
+
+/// Whether the final fit keeps a frame each session's own: significant, and its held-out gain at
+/// least kSessionDifferenceLeastShare of the held-out error with every frame shared.
+bool keepsOwnFrame(const SessionDifference& difference);
 
 /// Per joint frame, whether the sessions need their own value: k-fold cross-validation over each
 /// session's poses (pose_id), every frame shared against this one each session's own. Empty

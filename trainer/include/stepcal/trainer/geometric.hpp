@@ -154,9 +154,10 @@ inline constexpr double kSessionDifferenceZ = 2.326;
 /// thousands of rows, a frame that absorbs a cause the geometry cannot take differently in each
 /// session is significant for a gain of a few µm, and keeping it per session undoes the pooling.
 /// Measured: a joint zero moved 300 µrad between two twin campaigns removes ~70 % of the
-/// held-out error (0.0577 → 0.0174 mm on the moved campaign's validation rows); on the real UR10
-/// the significant frames of any three of its four series remove 0.7–8.6 % (0.003–0.038 mm of
-/// ~0.45 mm). 20 % lies far from both: a change of the robot removes most of the error.
+/// held-out error (72 % held out; 0.0577 → 0.0174 mm on the moved campaign's validation rows); on
+/// the real UR10 the significant frames of any three of its four series remove at most 8.6 %
+/// (0.003–0.038 mm of ~0.45 mm; re-measured by tools/ur10_sessions.sh: 0.01–8.3 % of
+/// 0.40–0.45 mm). 20 % lies far from both: a change of the robot removes most of the error.
 inline constexpr double kSessionDifferenceLeastShare = 0.20;
 
 /// The held-out gain's share of the held-out error with every frame shared (0 when that is 0).

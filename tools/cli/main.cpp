@@ -634,8 +634,9 @@ int main(int argc, char** argv) {
   calibrate
       ->add_option("campaign", campaign_dirs,
                    "campaign folder (or its campaign.yaml); several: one robot measured in several "
-                   "sessions (tracker stations, target remounted), fitted together, the first "
-                   "one's tracker frame and tool the model's")
+                   "sessions (tracker stations, target remounted), fitted together; the model "
+                   "takes the first one's tracker frame, tool and the joint frames each campaign "
+                   "keeps its own: give first the campaign of the robot as it is now")
       ->required();
   calibrate->add_option("--out", model_out, "model file to write");
   calibrate->add_flag("--json", json, "print the report as JSON");

@@ -8,6 +8,7 @@
 
 #include "stepcal/common/lie.hpp"
 #include "diagnosis_report.hpp"
+#include "session_report.hpp"
 #include "text_format.hpp"
 
 namespace stepcal::cli {
@@ -103,19 +104,7 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
       }
       out << "\n";
     }
-    out << "  between the campaigns, per joint frame (held out, 5 folds of each campaign's poses: "
-           "every frame shared against this one each campaign's own):\n";
-    if (outcome.session_differences.empty()) {
-      out << "    not tested: a campaign has fewer than 10 fit poses (2 per fold)\n";
-    }
-    for (const trainer::SessionDifference& d : outcome.session_differences) {
-      out << format("    %-24s %s: own frames remove %.4f mm, z = %.1f", d.name.c_str(),
-                    d.significant ? "differs" : "one serves all", d.held_out_gain_m * kMm,
-                    d.z_statistic);
-      out << "\n";
-    }
-    out << "    (the fit keeps every joint frame shared: a frame that differs is the robot changed "
-           "between the campaigns, or a cause the geometry cannot take)\n";
+    out << formatCampaignDifferences(campaign, outcome);
   }
 
   if (outcome.has_stiffness) {
@@ -374,23 +363,9 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
                         {"tool_from_first_deg", summary.tool_angle_rad * kDeg},
                         {"accuracy", accuracy}});
   }
-  nlohmann::json differences = nlohmann::json::array();
-  for (const trainer::SessionDifference& d : outcome.session_differences) {
-    nlohmann::json against_first = nlohmann::json::array();
-    for (const Vec6& v : d.differences) {
-      against_first.push_back({{"translation_um", v.head<3>().norm() * 1e6},
-                               {"rotation_urad", v.tail<3>().norm() * 1e6},
-                               {"twist_m_rad", {v(0), v(1), v(2), v(3), v(4), v(5)}}});
-    }
-    differences.push_back({{"frame", d.name},
-                           {"held_out_gain_mm", d.held_out_gain_m * kMm},
-                           {"z_statistic", d.z_statistic},
-                           {"differs", d.significant},
-                           {"against_first", against_first}});
-  }
-  return {{"campaign", campaign.directory},
+  nlohmann::json report = {{"campaign", campaign.directory},
           {"sessions", sessions},
-          {"session_differences", differences},
+          {"session_differences", sessionDifferencesJson(campaign, outcome)},
           {"stiffness_nm_per_rad", stiffness},
           {"stiffness_validation", stiffness_validation},
           {"gpr", gpr},
@@ -411,6 +386,8 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
             {"unobservable", unobservable}}},
           {"validation", validation},
           {"fit", fit}};
+  addCampaignDifferencesJson(campaign, outcome, report);
+  return report;
 }
 
 std::string formatPlan(const trainer::CampaignPlan& plan, const trainer::PlanOptions& options) {

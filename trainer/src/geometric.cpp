@@ -2,68 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <sstream>
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/trainer/registration.hpp"
-#include "diagnose/cross_validation.hpp"
-#include "diagnose/parallel.hpp"
-#include "least_squares.hpp"
+#include "geometric_fit.hpp"
 
 namespace stepcal::trainer {
 namespace {
-
-// Where each of a chain's 6(n+1) initial-pose parameters sits among the fit's unknowns: every
-// session has its own tracker registration T_{0,1} and tool T_{n,n+1} (and, when asked, one joint
-// frame of its own), the joint frames between are shared. Columns block by block, an own block
-// session by session.
-class ParameterLayout {
- public:
-  ParameterLayout(int dof, int sessions, const GeometricOptions& options)
-      : sessions_(sessions), offset_(static_cast<size_t>(dof + 1), -1), own_(offset_.size(), false) {
-    int next = 0;
-    for (int k = 0; k <= dof; ++k) {
-      const bool frame = k == 0 || k == dof;
-      if (!frame && options.scope != GeometricScope::kFullPoe) continue;
-      own_[static_cast<size_t>(k)] = frame || k == options.own_frame;
-      offset_[static_cast<size_t>(k)] = next;
-      next += own_[static_cast<size_t>(k)] ? 6 * sessions : 6;
-    }
-    count_ = next;
-  }
-  int count() const { return count_; }
-  int sessions() const { return sessions_; }
-  /// Column of chain parameter 6k + c in a session; −1: not fitted.
-  int column(int session, int parameter) const {
-    const auto k = static_cast<size_t>(parameter / 6);
-    if (offset_[k] < 0) return -1;
-    return offset_[k] + (own_[k] ? 6 * session : 0) + parameter % 6;
-  }
-  /// Every column of a chain parameter (one per session for an own block, one when shared).
-  std::vector<int> columns(int parameter) const {
-    std::vector<int> out;
-    for (int s = 0; s < sessions_; ++s) {
-      const int c = column(s, parameter);
-      if (c >= 0 && (out.empty() || out.back() != c)) out.push_back(c);
-    }
-    return out;
-  }
-  /// The session's chain parameters of a solution (0 where not fitted).
-  Eigen::VectorXd chainDelta(int session, const Eigen::VectorXd& x) const {
-    Eigen::VectorXd delta = Eigen::VectorXd::Zero(6 * static_cast<Eigen::Index>(offset_.size()));
-    for (int i = 0; i < delta.size(); ++i) {
-      if (const int c = column(session, i); c >= 0) delta(i) = x(c);
-    }
-    return delta;
-  }
-
- private:
-  int sessions_, count_ = 0;
-  std::vector<int> offset_;  // first column of each block, −1: not fitted
-  std::vector<bool> own_;    // a block each session has its own
-};
 
 // Fit statistics of one session's rows.
 struct SessionStats {
@@ -306,6 +253,11 @@ GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
 GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
                                   const std::vector<GeometricSession>& sessions,
                                   const GeometricOptions& options) {
+  return fitGeometry(nominal_Base, sessions, options).result;
+}
+
+GeometricFit fitGeometry(const KinematicChain& nominal_Base, const std::vector<GeometricSession>& sessions,
+                         const GeometricOptions& options) {
   const int n = nominal_Base.dof();
   if (sessions.empty()) throw InputError("geometric calibration needs at least one session");
   for (size_t s = 0; s < sessions.size(); ++s) {
@@ -371,116 +323,10 @@ GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
   }
   result.chain_Tracker = chains[0];
   result.observability = analyseObservability(chains[0], layout, last);
-  return result;
-}
-
-namespace {
-
-// Held-out errors of rows under a session's chain: squared over the stated noise, and the
-// position error, m.
-void heldOutErrors(const KinematicChain& chain, const std::vector<const Measurement*>& rows,
-                   const TrackerNoise& noise, std::vector<double>& squared,
-                   std::vector<double>& position_m) {
-  ChainWorkspace ws;
-  for (const Measurement* row : rows) {
-    forwardKinematics(chain, row->q_rad, ws);
-    const Pose& X = tipPose(ws);
-    const double p = (row->p_TipInTracker_m - X.translation()).norm();
-    double e = std::pow(p / noise.position_sigma_m, 2);
-    if (row->has_orientation) {
-      const Vec3 r_R = lie::logSO3(row->q_TrackerTip.toRotationMatrix() * X.linear().transpose());
-      e += r_R.squaredNorm() / std::pow(noise.orientation_sigma_rad, 2);
-    }
-    squared.push_back(e);
-    position_m.push_back(p);
-  }
-}
-
-}  // namespace
-
-std::vector<SessionDifference> testSessionDifferences(const KinematicChain& nominal_Base,
-                                                      const std::vector<GeometricSession>& sessions,
-                                                      const GeometricOptions& options, int folds) {
-  std::vector<SessionDifference> out;
-  const int n = nominal_Base.dof();
-  if (sessions.size() < 2 || options.scope != GeometricScope::kFullPoe) return out;
-  // A fold of each session: its poses in the order first measured, dealt round. A session of
-  // fewer than 2 poses per fold leaves folds too small to fit on: no test then (a result).
-  std::vector<std::vector<int>> fold_of(sessions.size());
-  for (size_t s = 0; s < sessions.size(); ++s) {
-    std::map<std::string, int> pose_fold;
-    for (const Measurement* row : sessions[s].rows) {
-      const auto [it, added] = pose_fold.emplace(row->pose_id, static_cast<int>(pose_fold.size()) % folds);
-      fold_of[s].push_back(it->second);
-    }
-    if (static_cast<int>(pose_fold.size()) < 2 * folds) return out;
-  }
-  // Every fit the test needs, fold by fold, with frame k each session's own (k = 0: every frame
-  // shared), then frame k's own on every row (fold = folds): independent, so on the cores.
-  struct Fit {
-    int own_frame = 0, fold = 0;
-    GeometricResult result;
-  };
-  std::vector<Fit> fits;
-  for (int k = 0; k < n; ++k) {
-    for (int f = 0; f <= folds; ++f) {
-      if (k > 0 || f < folds) fits.push_back({k, f, {}});
-    }
-  }
-  const auto rowsOf = [&](int fold, bool held_out) {
-    std::vector<GeometricSession> part = sessions;
-    for (size_t s = 0; s < sessions.size(); ++s) {
-      part[s].rows.clear();
-      for (size_t i = 0; i < sessions[s].rows.size(); ++i) {
-        if ((fold_of[s][i] == fold) == held_out) part[s].rows.push_back(sessions[s].rows[i]);
-      }
-    }
-    return part;
-  };
-  diagnosis::parallelFor(fits.size(), [&](size_t i) {
-    GeometricOptions fit_options = options;
-    fit_options.own_frame = fits[i].own_frame;
-    fits[i].result = calibrateGeometry(nominal_Base, rowsOf(fits[i].fold, false), fit_options);
-  });
-  // Held-out errors of every row under the fits with frame k own, fold by fold.
-  const auto heldOut = [&](int own_frame, std::vector<double>& squared, std::vector<double>& position_m) {
-    for (const Fit& fit : fits) {
-      if (fit.own_frame != own_frame || fit.fold == folds) continue;
-      const std::vector<GeometricSession> test = rowsOf(fit.fold, true);
-      for (size_t s = 0; s < sessions.size(); ++s) {
-        heldOutErrors(fit.result.sessions[s].chain_Tracker, test[s].rows, sessions[s].noise,
-                      squared, position_m);
-      }
-    }
-  };
-  std::vector<double> shared_squared, shared_position;
-  heldOut(0, shared_squared, shared_position);
-  const auto mean = [](const std::vector<double>& v) {
-    double sum = 0.0;
-    for (double x : v) sum += x;
-    return sum / static_cast<double>(v.size());
-  };
-  const std::vector<std::string> names = parameterNames(nominal_Base);
-  for (int k = 1; k < n; ++k) {
-    SessionDifference d;
-    d.frame = k;
-    d.name = names[static_cast<size_t>(6 * k)].substr(0, names[static_cast<size_t>(6 * k)].rfind('.'));
-    std::vector<double> squared, position;
-    heldOut(k, squared, position);
-    d.held_out_gain_m = mean(shared_position) - mean(position);
-    d.z_statistic = diagnosis::signedRankZ(shared_squared, squared);
-    d.significant = d.z_statistic > kSessionDifferenceZ;
-    const GeometricResult& all =
-        std::find_if(fits.begin(), fits.end(), [&](const Fit& fit) {
-          return fit.own_frame == k && fit.fold == folds;
-        })->result;
-    const Pose& first = all.sessions[0].chain_Tracker.initialPose(k);
-    for (const SessionFrames& session : all.sessions) {
-      d.differences.push_back(lie::logSE3(first.inverse() * session.chain_Tracker.initialPose(k)));
-    }
-    out.push_back(std::move(d));
-  }
-  return out;
+  if (sessions.size() > 1) result.own_frames = options.own_frames;
+  const double dof_residual = std::max<double>(1.0, static_cast<double>(sys.r.size() - last.rank));
+  const double chi2_reduced = sys.stats.weighted_cost / dof_residual;
+  return {std::move(result), layout, std::move(last), chi2_reduced};
 }
 
 }  // namespace stepcal::trainer

@@ -242,6 +242,16 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
   poe_options.scope = GeometricScope::kFullPoe;
   out.poe = calibrateGeometry(out.nominal_Base, sessions, poe_options);
   out.session_differences = testSessionDifferences(out.nominal_Base, sessions, poe_options);
+  // A campaign keeps its own value of a joint frame only where the held-out test demands it: a
+  // significant difference that removes a practical share of the held-out error (keepsOwnFrame).
+  std::vector<int> own_frames;
+  for (const SessionDifference& d : out.session_differences) {
+    if (d.kept_per_session) own_frames.push_back(d.frame);
+  }
+  if (!own_frames.empty()) {
+    poe_options.own_frames = own_frames;
+    out.poe = calibrateGeometry(out.nominal_Base, sessions, poe_options);
+  }
   out.seconds_geometry = secondsSince(clock);
 
   // Step 2 where the campaign has loaded/unloaded pairs and a sensor: one compliance for the
@@ -268,6 +278,15 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
           deflectionPairs(ofSession(campaign.rowsIn(RowSet::kValidation), k))));
     }
     out.stiffness_validation = session_count == 1 ? validation[0] : mergedByLoad(validation);
+  }
+  if (session_count > 1) {
+    if (out.has_stiffness) {
+      out.compliance_differences =
+          testComplianceDifferences(stiffness_sessions, out.sensor_frame, out.stiffness);
+    } else {
+      out.compliance_differences.not_tested =
+          out.sensor_frame < 0 ? "the campaigns name no sensor_link" : "no campaign has loaded pairs";
+    }
   }
   out.seconds_stiffness = secondsSince(clock);
 

@@ -11,6 +11,7 @@
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "deflection_system.hpp"
 
 namespace stepcal::trainer {
 namespace {
@@ -67,6 +68,57 @@ std::vector<DeflectionPair> deflectionPairs(const std::vector<const Measurement*
   return pairs;
 }
 
+DeflectionSystem deflectionSystem(const std::vector<StiffnessSession>& sessions, int sensor_frame) {
+  const int n = sessions.at(0).chain_Tracker->dof();
+  ChainWorkspace ws;
+  Jacobian J_s, J_tip;
+  DeflectionSystem out;
+  out.max_torque_nm = JointVector::Zero(n);
+  std::vector<JointVector> torques;  // per pair, sessions in order
+  int equations = 0;
+  for (size_t s = 0; s < sessions.size(); ++s) {
+    for (const DeflectionPair& p : sessions[s].pairs) {
+      if (!p.loaded->has_wrench) {
+        throw InputError("loaded row has no wrench; step 2 needs the F/T sensor reading",
+                         "measurements.csv", p.loaded->source_line, "fx_n");
+      }
+      torques.push_back(pairTorques(*sessions[s].chain_Tracker, sensor_frame, p, ws, J_s));
+      out.max_torque_nm = out.max_torque_nm.cwiseMax(torques.back().cwiseAbs());
+      out.first_equation.push_back(equations);
+      out.session.push_back(static_cast<int>(s));
+      equations += p.loaded->has_orientation && p.unloaded->has_orientation ? 6 : 3;
+    }
+  }
+  out.first_equation.push_back(equations);
+  out.B = Eigen::MatrixXd::Zero(equations, n);
+  out.y = Eigen::VectorXd::Zero(equations);
+  size_t i = 0;
+  for (const StiffnessSession& session : sessions) {
+    const double w_p = 1.0 / (std::sqrt(2.0) * session.noise.position_sigma_m);
+    const double w_r = 1.0 / (std::sqrt(2.0) * session.noise.orientation_sigma_rad);
+    for (const DeflectionPair& p : session.pairs) {
+      int eq = out.first_equation[i];
+      forwardKinematics(*session.chain_Tracker, p.loaded->q_rad, ws);
+      tipPointJacobian(*session.chain_Tracker, ws, J_tip);
+      for (int j = 0; j < n; ++j) {
+        out.B.block(eq, j, 3, 1) = w_p * J_tip.block<3, 1>(0, j) * torques[i](j);
+      }
+      out.y.segment<3>(eq) = w_p * (p.loaded->p_TipInTracker_m - p.unloaded->p_TipInTracker_m);
+      eq += 3;
+      if (p.loaded->has_orientation && p.unloaded->has_orientation) {
+        for (int j = 0; j < n; ++j) {
+          out.B.block(eq, j, 3, 1) = w_r * J_tip.block<3, 1>(3, j) * torques[i](j);
+        }
+        out.y.segment<3>(eq) = w_r * lie::logSO3(p.loaded->q_TrackerTip.toRotationMatrix() *
+                                                 p.unloaded->q_TrackerTip.toRotationMatrix().transpose());
+      }
+      out.position_weight.push_back(w_p);
+      ++i;
+    }
+  }
+  return out;
+}
+
 StiffnessResult identifyCompliance(const KinematicChain& chain_Tracker, int sensor_frame,
                                    const std::vector<DeflectionPair>& pairs,
                                    const TrackerNoise& noise, const StiffnessOptions& options) {
@@ -87,65 +139,19 @@ StiffnessResult identifyCompliance(const std::vector<StiffnessSession>& sessions
   if (sensor_frame < 0) {
     throw InputError("the campaign names no sensor_link; step 2 needs the F/T sensor's wrench");
   }
-  ChainWorkspace ws;
-  Jacobian J_s, J_tip;
-  std::vector<JointVector> torques;  // per pair, sessions in order
-  JointVector max_torque = JointVector::Zero(n);
-  for (const StiffnessSession& session : sessions) {
-    for (const DeflectionPair& p : session.pairs) {
-      if (!p.loaded->has_wrench) {
-        throw InputError("loaded row has no wrench; step 2 needs the F/T sensor reading",
-                         "measurements.csv", p.loaded->source_line, "fx_n");
-      }
-      torques.push_back(pairTorques(*session.chain_Tracker, sensor_frame, p, ws, J_s));
-      max_torque = max_torque.cwiseMax(torques.back().cwiseAbs());
-    }
-  }
+  const DeflectionSystem system = deflectionSystem(sessions, sensor_frame);
+  const Eigen::MatrixXd& B_all = system.B;
+  const Eigen::VectorXd& y = system.y;
+  const auto equations = static_cast<int>(y.size());
   StiffnessResult result;
   result.pairs = static_cast<int>(pair_count);
   std::vector<int> excited;
   for (int j = 0; j < n; ++j) {
     JointCompliance jc;
     jc.joint = first_chain.joints()[static_cast<size_t>(j)].name;
-    jc.max_torque_nm = max_torque(j);
-    if (max_torque(j) > 0.0) excited.push_back(j);
+    jc.max_torque_nm = system.max_torque_nm(j);
+    if (system.max_torque_nm(j) > 0.0) excited.push_back(j);
     result.joints.push_back(jc);
-  }
-
-  // Weighted system: a deflection is the difference of two measurements, hence √2·σ.
-  int equations = 0;
-  for (const StiffnessSession& session : sessions) {
-    for (const DeflectionPair& p : session.pairs) {
-      equations += p.loaded->has_orientation && p.unloaded->has_orientation ? 6 : 3;
-    }
-  }
-  Eigen::MatrixXd B_all = Eigen::MatrixXd::Zero(equations, n);
-  Eigen::VectorXd y = Eigen::VectorXd::Zero(equations);
-  std::vector<double> position_weight;  // per pair, 1/m
-  int eq = 0;
-  size_t i = 0;
-  for (const StiffnessSession& session : sessions) {
-    const double w_p = 1.0 / (std::sqrt(2.0) * session.noise.position_sigma_m);
-    const double w_r = 1.0 / (std::sqrt(2.0) * session.noise.orientation_sigma_rad);
-    for (const DeflectionPair& p : session.pairs) {
-      forwardKinematics(*session.chain_Tracker, p.loaded->q_rad, ws);
-      tipPointJacobian(*session.chain_Tracker, ws, J_tip);
-      for (int j = 0; j < n; ++j) {
-        B_all.block(eq, j, 3, 1) = w_p * J_tip.block<3, 1>(0, j) * torques[i](j);
-      }
-      y.segment<3>(eq) = w_p * (p.loaded->p_TipInTracker_m - p.unloaded->p_TipInTracker_m);
-      eq += 3;
-      if (p.loaded->has_orientation && p.unloaded->has_orientation) {
-        for (int j = 0; j < n; ++j) {
-          B_all.block(eq, j, 3, 1) = w_r * J_tip.block<3, 1>(3, j) * torques[i](j);
-        }
-        y.segment<3>(eq) = w_r * lie::logSO3(p.loaded->q_TrackerTip.toRotationMatrix() *
-                                             p.unloaded->q_TrackerTip.toRotationMatrix().transpose());
-        eq += 3;
-      }
-      position_weight.push_back(w_p);
-      ++i;
-    }
   }
 
   // Least squares (eq. 22) on the identifiable joints; drop the least certain until all are.
@@ -196,14 +202,9 @@ StiffnessResult identifyCompliance(const std::vector<StiffnessSession>& sessions
     result.compliance_sigma_rad_per_nm(j) = jc.compliance_sigma_rad_per_nm;
   }
   double sum_p2 = 0.0;
-  eq = 0;
-  i = 0;
-  for (const StiffnessSession& session : sessions) {
-    for (const DeflectionPair& p : session.pairs) {
-      sum_p2 += residual.segment<3>(eq).squaredNorm() / (position_weight[i] * position_weight[i]);
-      eq += p.loaded->has_orientation && p.unloaded->has_orientation ? 6 : 3;
-      ++i;
-    }
+  for (size_t i = 0; i < pair_count; ++i) {
+    const double w = system.position_weight[i];
+    sum_p2 += residual.segment<3>(system.first_equation[i]).squaredNorm() / (w * w);
   }
   result.rms_position_residual_m = std::sqrt(sum_p2 / static_cast<double>(pair_count));
   return result;

@@ -12,6 +12,7 @@
 #include "page.hpp"
 #include "report.hpp"
 #include "report_html.hpp"
+#include "session_report.hpp"
 #include "stepcal/common/error.hpp"
 #include "text_format.hpp"
 
@@ -271,16 +272,58 @@ class PageWriter {
     }
     out_ << "</table>\n<p>Per joint frame, whether one value serves every campaign: held out (5 "
             "folds of each campaign's poses), every frame shared against this one each campaign's "
-            "own; named above z = 2.326. The fit keeps every joint frame shared.</p>\n<table>\n"
-            "<tr><th class=\"l\">frame</th><th>own frames remove, mm</th><th>z</th><th class=\"l\">"
-            "</th></tr>\n";
+            "own; named above z = 2.326, kept per campaign in the fit only when it also removes at "
+            "least " << format("%.0f", 100.0 * trainer::kSessionDifferenceLeastShare)
+         << " % of the held-out error with every frame shared (a change of the robot removes most "
+            "of it). Each campaign against the first, fitted on every row with "
+            "this frame each campaign's own, ± 1-σ: the rotation about the joint's axis is its "
+            "zero.</p>\n<table>\n<tr><th class=\"l\">frame</th><th>own frames remove, mm</th>"
+            "<th>z</th><th class=\"l\"></th><th class=\"l\">each campaign against the first</th></tr>\n";
     for (const trainer::SessionDifference& d : outcome_.session_differences) {
-      out_ << "<tr><td class=\"l\">" << escape(d.name) << "</td><td>"
-           << cell("%.4f", d.held_out_gain_m * kMm) << "</td><td>" << format("%.1f", d.z_statistic)
-           << "</td><td class=\"l\">" << (d.significant ? "differs" : "one serves all")
-           << "</td></tr>\n";
+      std::vector<std::string> against_first;
+      for (size_t s = 1; s < d.against_first.size(); ++s) {
+        against_first.push_back(frameDifferenceText(campaign_, d, s));
+      }
+      writeDifferenceRow(d.name, d.held_out_gain_m, d.z_statistic, frameVerdictText(d), against_first);
+    }
+    out_ << "</table>\n<p>" << escape(ownFramesText(outcome_)) << ".</p>\n";
+    writeCompliances();
+  }
+
+  // Whether one compliance of each joint serves every campaign.
+  void writeCompliances() {
+    const trainer::ComplianceDifferences& all = outcome_.compliance_differences;
+    out_ << "<p>Per joint compliance, whether one value serves every campaign: held out (5 folds "
+            "of each campaign's loaded poses), every compliance shared against this one each "
+            "campaign's own; named above z = 2.326. Step 2 keeps one compliance per joint.</p>\n";
+    for (const std::string& line : untestedComplianceLines(campaign_, all)) {
+      out_ << "<p>" << escape(line) << ".</p>\n";
+    }
+    if (all.joints.empty()) return;
+    out_ << "<table>\n<tr><th class=\"l\">joint</th><th>own compliances remove, mm</th><th>z</th>"
+            "<th class=\"l\"></th><th class=\"l\">each campaign against the first</th></tr>\n";
+    for (const trainer::ComplianceDifference& d : all.joints) {
+      std::vector<std::string> against_first;
+      for (size_t s = 1; s < d.difference_rad_per_nm.size(); ++s) {
+        against_first.push_back(complianceDifferenceText(campaign_, all, d, s));
+      }
+      writeDifferenceRow(d.joint, d.held_out_gain_m, d.z_statistic,
+                         d.significant ? "differs" : "one serves all", against_first);
     }
     out_ << "</table>\n";
+  }
+
+  // A row of a held-out test between the campaigns: what was tested, the held-out gain (m), z,
+  // the verdict and each campaign against the first.
+  void writeDifferenceRow(const std::string& name, double gain_m, double z, const std::string& verdict,
+                          const std::vector<std::string>& against_first) {
+    out_ << "<tr><td class=\"l\">" << escape(name) << "</td><td>" << cell("%.4f", gain_m * kMm)
+         << "</td><td>" << format("%.1f", z) << "</td><td class=\"l\">" << escape(verdict)
+         << "</td><td class=\"l\">";
+    for (size_t s = 0; s < against_first.size(); ++s) {
+      out_ << (s > 0 ? "<br>" : "") << escape(against_first[s]);
+    }
+    out_ << "</td></tr>\n";
   }
 
   void writeConvergence() {

@@ -29,9 +29,9 @@ struct GeometricOptions {
   double relative_cost_tolerance = 1e-9;
   /// Singular values below this fraction of the largest count as unobservable.
   double rank_tolerance = 1e-9;
-  /// With several sessions: the joint frame T_{k,k+1} (1 ≤ k < n) each session fits its own, as
-  /// its tracker registration and tool; 0: every joint frame shared.
-  int own_frame = 0;
+  /// With several sessions: the joint frames T_{k,k+1} (1 ≤ k < n) each session fits its own, as
+  /// its tracker registration and tool; empty: every joint frame shared.
+  std::vector<int> own_frames;
 };
 
 /// Fit statistics of one Gauss–Newton iteration (before its update).
@@ -82,6 +82,9 @@ struct GeometricResult {
   bool converged = false;
   Observability observability;
   int fit_rows = 0;
+  /// The joint frames T_{k,k+1} each session has its own (GeometricOptions::own_frames), the
+  /// others shared; empty with one session.
+  std::vector<int> own_frames;
 };
 
 /// Calibrates the chain (rooted at base_link) on the given rows. Throws InputError when the
@@ -97,25 +100,72 @@ GeometricResult calibrateGeometry(const KinematicChain& nominal_Base,
                                   const std::vector<GeometricSession>& sessions,
                                   const GeometricOptions& options = {});
 
+/// A session's value of a joint frame T_{k,k+1} against the first session's, in the terms of the
+/// joint k+1 whose initial pose it is, with 1-σ from the fit with this frame each session's own
+/// on every row (the tracker's stated noise, times the reduced χ² when above 1). Only what the
+/// rows determine: a direction in which the frame trades with the session's own registration or
+/// tool (joint 1's zero, joint n's zero, a translation along their axes) is left out.
+struct FrameDifference {
+  /// Whether the joint's zero is determined: false when it trades with the session's own tool
+  /// (the last joint) and the rows cannot tell them apart.
+  bool zero_determined = true;
+  /// The rotation about joint k+1's axis: the session's link angle minus the first's at the same
+  /// reading (its zero offset), rad; and its 1-σ, rad.
+  double zero_offset_rad = 0.0, zero_offset_sigma_rad = 0.0;
+  /// The rest of the frame's rotation (about axes across the joint's), its size and 1-σ, rad.
+  double other_rotation_rad = 0.0, other_rotation_sigma_rad = 0.0;
+  /// The rest of the frame's translation, its size and 1-σ, m.
+  double translation_m = 0.0, translation_sigma_m = 0.0;
+  /// Directions of the difference the rows do not determine (left out of the sizes above).
+  int undetermined_directions = 0;
+};
+
 /// Whether one value of a joint frame serves every session, judged on rows held out.
 struct SessionDifference {
   int frame = 0;         ///< the initial pose T_{k,k+1}, 1 ≤ k < n
   std::string name;      ///< e.g. "T(joint_2->joint_3)"
+  std::string joint;     ///< joint k+1, whose initial pose the frame is: its zero turns the frame
   /// Mean held-out position error of the rows with every joint frame shared minus with this one
   /// each session's own, m (positive: the own frames predict better).
   double held_out_gain_m = 0.0;
+  /// Mean held-out position error of the rows with every joint frame shared, m (the same for
+  /// every frame): the gain's share of it says whether the difference matters.
+  double shared_held_out_m = 0.0;
   double z_statistic = 0.0;  ///< one-sided signed-rank z of the rows' held-out squared errors
   bool significant = false;  ///< z above the one-sided 1 % point (kSessionDifferenceZ)
+  /// Whether the final fit keeps this frame each session's own (keepsOwnFrame): significant and
+  /// its held-out gain at least kSessionDifferenceLeastShare of the held-out error.
+  bool kept_per_session = false;
   /// Per session, its own frame against the first session's, fitted on every row: log(T₁⁻¹ T_s)
   /// (v [m], ω [rad]); the first is zero.
   /// Part of it trades with the session's own registration and tool (a difference the rows
   /// barely see can be large): the held-out gain, not its size, says whether it matters.
   std::vector<Vec6> differences;
+  /// Per session, the same in the joint's terms with 1-σ (FrameDifference); the first is zero.
+  std::vector<FrameDifference> against_first;
 };
 
 /// One-sided 1 % point of the standard normal: a frame's difference between sessions is named
 /// when the held-out reduction's signed-rank z exceeds it.
 inline constexpr double kSessionDifferenceZ = 2.326;
+
+/// Least share of the held-out error with every frame shared that a frame's own values per session
+/// must remove to be kept per session in the final fit. Significance alone is not enough: with
+/// thousands of rows, a frame that absorbs a cause the geometry cannot take differently in each
+/// session is significant for a gain of a few µm, and keeping it per session undoes the pooling.
+/// Measured: a joint zero moved 300 µrad between two twin campaigns removes ~70 % of the
+/// held-out error (72 % held out; 0.0577 → 0.0174 mm on the moved campaign's validation rows); on
+/// the real UR10 the significant frames of any three of its four series remove at most 8.6 %
+/// (0.003–0.038 mm of ~0.45 mm; re-measured by tools/ur10_sessions.sh: 0.01–8.3 % of
+/// 0.40–0.45 mm). 20 % lies far from both: a change of the robot removes most of the error.
+inline constexpr double kSessionDifferenceLeastShare = 0.20;
+
+/// The held-out gain's share of the held-out error with every frame shared (0 when that is 0).
+double heldOutShare(const SessionDifference& difference);
+
+/// Whether the final fit keeps a frame each session's own: significant, and its held-out gain at
+/// least kSessionDifferenceLeastShare of the held-out error with every frame shared.
+bool keepsOwnFrame(const SessionDifference& difference);
 
 /// Per joint frame, whether the sessions need their own value: k-fold cross-validation over each
 /// session's poses (pose_id), every frame shared against this one each session's own. Empty

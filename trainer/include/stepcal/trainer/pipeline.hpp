@@ -54,11 +54,16 @@ struct CalibrationOutcome {
   Pose X_TrackerBase_nominal;      ///< tracker registered to the nominal chain (closed form)
   GeometricResult frames;          ///< tracker and tool frames fitted, joints nominal
   GeometricResult poe;             ///< step 1: full local POE (METHOD.md eq. 7–9)
-  /// With several sessions: per joint frame, whether one value serves them all (the fit keeps
-  /// every joint frame shared; this says where the robot changed between them).
+  /// With several sessions: per joint frame, whether one value serves them all (where the robot
+  /// changed between them). The step-1 fit (poe) gives each session its own value of the frames
+  /// named here (GeometricResult::own_frames), the others shared; the first session's are the
+  /// model file's.
   std::vector<SessionDifference> session_differences;
   bool has_stiffness = false;      ///< step 2 ran (stiffness pairs and a sensor exist)
   StiffnessResult stiffness;       ///< step 2 (METHOD.md eq. 19–22)
+  /// With several sessions: per joint, whether one compliance serves them all (step 2 keeps it
+  /// shared); not tested with one session.
+  ComplianceDifferences compliance_differences;
   std::vector<StiffnessValidation> stiffness_validation;  ///< on validation pairs, per load
   std::optional<ResidualModel> gpr;           ///< step 3 on the POE + stiffness residual
   std::optional<ResidualModel> gpr_baseline;  ///< "POE + GPR": step 3 on the POE residual

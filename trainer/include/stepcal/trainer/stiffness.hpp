@@ -80,6 +80,46 @@ struct StiffnessSession {
 StiffnessResult identifyCompliance(const std::vector<StiffnessSession>& sessions, int sensor_frame,
                                    const StiffnessOptions& options = {});
 
+/// Whether one compliance of a joint serves every session, judged on pairs held out.
+struct ComplianceDifference {
+  std::string joint;
+  int index = 0;                    ///< the joint's index in the chain, from 0
+  double shared_rad_per_nm = 0.0;   ///< the compliance every session shares, fitted on every pair
+  /// Mean held-out tip deflection error of the model it was tested against (the joints named
+  /// before it each session's own, the others shared) minus with this joint's each session's own
+  /// too, m (positive: the own compliances predict better).
+  double held_out_gain_m = 0.0;
+  double z_statistic = 0.0;  ///< one-sided signed-rank z of the pairs' held-out squared errors
+  bool significant = false;  ///< z above the one-sided 1 % point (kComplianceDifferenceZ)
+  /// Per tested session (ComplianceDifferences::sessions), its own compliance minus the first
+  /// tested session's, fitted on every pair with this joint and the named ones each session's
+  /// own, and its 1-σ
+  /// (stated noise, times the reduced χ² when above 1), rad/(N·m); the first is zero.
+  std::vector<double> difference_rad_per_nm, difference_sigma_rad_per_nm;
+};
+
+/// The held-out test of the sessions' compliances (testComplianceDifferences).
+struct ComplianceDifferences {
+  bool tested = false;
+  std::string not_tested;       ///< why not, when not tested
+  std::vector<int> sessions;    ///< the sessions tested, from 0: those with 2·folds loaded poses
+  std::vector<int> untested_sessions;  ///< the others: too few loaded pairs, left out
+  std::vector<ComplianceDifference> joints;  ///< one per joint the shared fit identified
+};
+
+/// One-sided 1 % point of the standard normal: a joint's compliance is named as differing between
+/// sessions when the held-out reduction's signed-rank z exceeds it.
+inline constexpr double kComplianceDifferenceZ = 2.326;
+
+/// Per joint identified in shared (identifyCompliance of these sessions), whether the sessions need
+/// their own compliance: k-fold cross-validation over each session's loaded poses, forward: every
+/// compliance shared against one joint's each session's own, the most significant named and kept
+/// its own while the others are tested again, until none is significant. Sessions with fewer than
+/// 2·folds loaded poses are left out; fewer than two left: not tested (a result, not an error).
+ComplianceDifferences testComplianceDifferences(const std::vector<StiffnessSession>& sessions,
+                                                int sensor_frame, const StiffnessResult& shared,
+                                                int folds = 5);
+
 /// Modelled vs measured tip deflection on pairs, grouped by load.
 std::vector<StiffnessValidation> validateCompliance(const KinematicChain& chain_Tracker,
                                                     int sensor_frame,

@@ -140,6 +140,24 @@ TEST(JointZeroDrift, TheRuntimeAppliesItOnlyWhereTheRequestGivesATemperature) {
   EXPECT_LT((r.X_TrackerTip.translation() - expected.X_TrackerTip.translation()).norm(), 1e-12);
 }
 
+// A campaign built in memory whose rows all carry one seq (the reader refuses that, a program may
+// not): no time order to drift along. The registration drift is untestable, said why, and the
+// diagnosis runs to its verdict.
+TEST(DriftDiagnosis, RowsWithoutATimeOrderLeaveTheRegistrationDriftUntested) {
+  Campaign campaign = paperCampaign();
+  for (Measurement& row : campaign.rows) row.seq = 7;
+  const Diagnosis d = trainer::diagnose(campaign, paperModel());
+  bool said = false;
+  for (const trainer::UntestableCandidate& u : d.untestable) {
+    said = said || (u.name == "registration_drift" && u.reason == "every fit row has the same seq");
+  }
+  EXPECT_TRUE(said);
+  EXPECT_FALSE(d.drift.registration);
+  EXPECT_NE(d.drift.text.find("could not be tried (every fit row has the same seq)"),
+            std::string::npos)
+      << d.drift.text;
+}
+
 const FoundEffect* effectOf(const Diagnosis& d, MechanismKind kind) {
   for (const FoundEffect& e : d.effects) {
     if (e.mechanism.kind == kind) return &e;

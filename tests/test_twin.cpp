@@ -598,6 +598,30 @@ TEST(Twin, BadHiddenEffectsAreRefusedWithTheValue) {
       {{{"name", "sensor_bias"}, {"force_n", {1.0, 0.0, 0.0}}, {"moment_nm", {0.0, 0.0, -150.0}}},
        "sensor_bias.moment_nm = [0, 0, -150] N·m"},
       {{{"name", "sensor_bias"}, {"force_n", {1.0, 0.0, 0.0}}}, "moment_nm"},
+      {{{"name", "joint_zero_drift"}, {"joint", 0}, {"drift_rad_per_k", 3e-5},
+        {"reference_temp_c", 20.0}},
+       "joint_zero_drift.joint = 0; expected a joint 1 … 6"},
+      {{{"name", "joint_zero_drift"}, {"joint", 2}, {"drift_rad_per_k", 2e-3},
+        {"reference_temp_c", 20.0}},
+       "joint_zero_drift.drift_rad_per_k = 0.002 rad/K; expected a finite value with |value| < "
+       "0.001 rad/K"},
+      {{{"name", "joint_zero_drift"}, {"joint", 2}, {"drift_rad_per_k", 3e-5},
+        {"reference_temp_c", std::nan("")}},
+       "joint_zero_drift.reference_temp_c = nan"},
+      {{{"name", "joint_zero_drift"}, {"joint", 2}, {"reference_temp_c", 20.0}}, "drift_rad_per_k"},
+      {{{"name", "registration_drift"}, {"translation_m", {0.02, 0.0, 0.0}},
+        {"rotation_rad", {0.0, 0.0, 0.0}}},
+       "registration_drift.translation_m = [0.02, 0, 0] m; expected finite values with norm < "
+       "0.01 m"},
+      {{{"name", "registration_drift"}, {"translation_m", {1e-4, 0.0, 0.0}},
+        {"rotation_rad", {0.0, 0.05, 0.0}}},
+       "registration_drift.rotation_rad = [0, 0.05, 0] rad"},
+      {{{"name", "registration_drift"}, {"translation_m", {1e-4, 0.0}},
+        {"rotation_rad", {0.0, 0.0, 0.0}}},
+       "registration_drift.translation_m = [0.0001,0.0]; expected three numbers"},
+      {{{"name", "registration_drift"}, {"translation_m", {1e-4, 0.0, 0.0}},
+        {"rotation_rad", {0.0, 0.0, 0.0}}, {"settling_rows", -5.0}},
+       "registration_drift.settling_rows = -5; expected a finite number of rows ≥ 0"},
   };
   for (const auto& [spec, message] : cases) {
     TwinOptions o = paperOptions();
@@ -766,6 +790,33 @@ TEST(Twin, SecondSelfWeightThermalOrBiasIsRefused) {
       EXPECT_NE(std::string(e.what()).find(name + " is given twice; expected at most one"),
                 std::string::npos)
           << e.what();
+    }
+  }
+}
+
+TEST(Twin, ASecondDriftOfAJointOrOfTheTrackerIsRefused) {
+  const nlohmann::json warm = {{"name", "joint_zero_drift"}, {"joint", 2},
+                               {"drift_rad_per_k", 3e-5}, {"reference_temp_c", 20.0}};
+  nlohmann::json other_joint = warm;
+  other_joint["joint"] = 3;
+  const nlohmann::json settling = {{"name", "registration_drift"},
+                                   {"translation_m", {1e-4, 0.0, 0.0}},
+                                   {"rotation_rad", {0.0, 0.0, 1e-5}}};
+  TwinOptions o = paperOptions();
+  o.hidden_effects = {warm, other_joint, settling};
+  EXPECT_NO_THROW(TwinRobot robot(o)) << "one drift per joint and one of the tracker";
+  for (const auto& [specs, message] :
+       {std::pair{std::vector<nlohmann::json>{warm, warm},
+                  std::string("joint_zero_drift of joint 2 is given twice; expected at most one "
+                              "per joint")},
+        std::pair{std::vector<nlohmann::json>{settling, settling},
+                  std::string("registration_drift is given twice; expected at most one")}}) {
+    o.hidden_effects = specs;
+    try {
+      TwinRobot robot(o);
+      ADD_FAILURE() << "accepted " << message;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
     }
   }
 }

@@ -462,19 +462,26 @@ bool isMeasurementOnly(MechanismKind kind) noexcept {
   return kind == MechanismKind::kRegistrationDrift;
 }
 
+double legendrePolynomial(int degree, double s) noexcept {
+  // (d + 1) P_{d+1} = (2d + 1) s P_d − d P_{d−1}, from P_0 = 1, P_1 = s.
+  double previous = 1.0, current = s;
+  if (degree == 0) return previous;
+  for (int d = 1; d < degree; ++d) {
+    const double next = ((2 * d + 1) * s * current - d * previous) / (d + 1);
+    previous = current;
+    current = next;
+  }
+  return current;
+}
+
 Vec6 registrationDrift(const Mechanism& drift, double seq) noexcept {
   const double first = drift.parameters[0], last = drift.parameters[1];
   // Outside the span it was fitted on, the drift holds its value at the nearer end: a
   // polynomial is not extrapolated.
   const double s = std::clamp(2.0 * (seq - first) / (last - first) - 1.0, -1.0, 1.0);
-  // Legendre polynomials by Bonnet's recurrence: (d + 1) P_{d+1} = (2d + 1) s P_d − d P_{d−1}.
   Vec6 xi = Vec6::Zero();
-  double previous = 1.0, current = s;
   for (int d = 1; d <= drift.order; ++d) {
-    xi += current * Eigen::Map<const Vec6>(drift.parameters.data() + 2 + 6 * (d - 1));
-    const double next = ((2 * d + 1) * s * current - d * previous) / (d + 1);
-    previous = current;
-    current = next;
+    xi += legendrePolynomial(d, s) * Eigen::Map<const Vec6>(drift.parameters.data() + 2 + 6 * (d - 1));
   }
   return xi;
 }

@@ -86,18 +86,6 @@ struct ScaledSource {
   }
 };
 
-// Legendre polynomial P_degree(s) (Bonnet's recurrence).
-double legendre(int degree, double s) {
-  double previous = 1.0, current = s;
-  if (degree == 0) return previous;
-  for (int d = 1; d < degree; ++d) {
-    const double next = ((2 * d + 1) * s * current - d * previous) / (d + 1);
-    previous = current;
-    current = next;
-  }
-  return current;
-}
-
 // A dense column of the screening matrix that is a geometry column times a polynomial of the
 // row's time order: the tracker registration's columns moved in time (registration_drift). Made
 // from the linearisation, no evaluation of its own.
@@ -152,7 +140,7 @@ void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, s
       const double s = 2.0 * (seq - t.first_seq) / (t.last_seq - t.first_seq) - 1.0;
       const Eigen::Index e_i = fit.start[i] - first, k = fit.equations(i);
       chunk.dense.block(e_i, t.dense, k, 1) =
-          lin.geometry.block(e_i, t.geometry, k, 1) * legendre(t.degree, s);
+          lin.geometry.block(e_i, t.geometry, k, 1) * legendrePolynomial(t.degree, s);
     }
   }
   chunk.link_angle = std::move(lin.link_angle);
@@ -610,18 +598,17 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
   const bool few_temps = temps.size() * 2 < fit.rows.size();
   if (!present(global, MechanismKind::kThermalExpansion, -1, -1) &&
       wanted(MechanismKind::kThermalExpansion)) {
-    const double mean = mean_temp, spread = temp_spread;
     if (few_temps) {
       s.untestable.push_back({"thermal_expansion", "fewer than half the fit rows have temp_c"});
-    } else if (spread < 0.5) {
+    } else if (temp_spread < 0.5) {
       char reason[120];
       std::snprintf(reason, sizeof reason,
-                    "temp_c varies by less than 0.5 °C (standard deviation %.2f °C)", spread);
+                    "temp_c varies by less than 0.5 °C (standard deviation %.2f °C)", temp_spread);
       s.untestable.push_back({"thermal_expansion", reason});
     } else {
       Family f;
       f.mechanism = blank(MechanismKind::kThermalExpansion, n);
-      f.mechanism.parameters[1] = mean;
+      f.mechanism.parameters[1] = mean_temp;
       f.free = {0};
       PhysicalModel with = whole;
       with.mechanisms.push_back(f.mechanism);
@@ -643,52 +630,54 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
       first_seq = i == 0 ? seq : std::min(first_seq, seq);
       last_seq = i == 0 ? seq : std::max(last_seq, seq);
     }
-    for (const int degree : kDriftDegrees) {
-      Family f;
-      f.mechanism = blank(MechanismKind::kRegistrationDrift, n, -1, -1, degree);
-      f.mechanism.parameters[0] = first_seq;
-      f.mechanism.parameters[1] = last_seq;
-      std::vector<Eigen::Index> columns;
-      for (int d = 1; d <= degree; ++d) {
-        for (Eigen::Index c = 0; c < 6; ++c) {
-          f.free.push_back(2 + 6 * (d - 1) + static_cast<int>(c));
-          columns.push_back(sink.timeScaled(c, d, first_seq, last_seq));
+    // A campaign's seq is unique (the reader refuses repeats); one built in memory may not be.
+    if (!(last_seq > first_seq)) {
+      s.untestable.push_back({"registration_drift", "every fit row has the same seq"});
+    } else {
+      for (const int degree : kDriftDegrees) {
+        Family f;
+        f.mechanism = blank(MechanismKind::kRegistrationDrift, n, -1, -1, degree);
+        f.mechanism.parameters[0] = first_seq;
+        f.mechanism.parameters[1] = last_seq;
+        std::vector<Eigen::Index> columns;
+        for (int d = 1; d <= degree; ++d) {
+          for (Eigen::Index c = 0; c < 6; ++c) {
+            f.free.push_back(2 + 6 * (d - 1) + static_cast<int>(c));
+            columns.push_back(sink.timeScaled(c, d, first_seq, last_seq));
+          }
         }
+        std::vector<double> steps(columns.size(), typicalStep(f.mechanism, 2));
+        addGlobal(std::move(f), std::move(columns), std::move(steps));
       }
-      std::vector<double> steps(columns.size(), typicalStep(f.mechanism, 2));
-      addGlobal(std::move(f), std::move(columns), std::move(steps));
     }
   }
-  {
-    const double mean = mean_temp, spread = temp_spread;
-    for (int j = 0; j < n; ++j) {
-      if (present(global, MechanismKind::kJointZeroDrift, j, -1) ||
-          !wanted(MechanismKind::kJointZeroDrift, j)) {
-        continue;
-      }
-      const std::string name = "joint_zero_drift (joint " + std::to_string(j + 1) + ")";
-      if (few_temps) {
-        s.untestable.push_back({name, "fewer than half the fit rows have temp_c"});
-        continue;
-      }
-      if (spread < kMinZeroDriftSpreadC) {
-        char reason[120];
-        std::snprintf(reason, sizeof reason,
-                      "temp_c varies by less than %.2f °C (standard deviation %.3f °C)",
-                      kMinZeroDriftSpreadC, spread);
-        s.untestable.push_back({name, reason});
-        continue;
-      }
-      Family f;
-      f.mechanism = blank(MechanismKind::kJointZeroDrift, n, j);
-      f.mechanism.parameters[1] = mean;
-      f.free = {0};
-      ScaledSource source;
-      source.kind = ScaledSource::Kind::kTemperature;
-      source.reference_c = mean;
-      // A step that moves the joint by ~1e-4 rad over the rows' spread of temperature.
-      addGlobal(std::move(f), {sink.feature(j, std::move(source))}, {1e-4 / spread});
+  for (int j = 0; j < n; ++j) {
+    if (present(global, MechanismKind::kJointZeroDrift, j, -1) ||
+        !wanted(MechanismKind::kJointZeroDrift, j)) {
+      continue;
     }
+    const std::string name = "joint_zero_drift (joint " + std::to_string(j + 1) + ")";
+    if (few_temps) {
+      s.untestable.push_back({name, "fewer than half the fit rows have temp_c"});
+      continue;
+    }
+    if (temp_spread < kMinZeroDriftSpreadC) {
+      char reason[120];
+      std::snprintf(reason, sizeof reason,
+                    "temp_c varies by less than %.2f °C (standard deviation %.3f °C)",
+                    kMinZeroDriftSpreadC, temp_spread);
+      s.untestable.push_back({name, reason});
+      continue;
+    }
+    Family f;
+    f.mechanism = blank(MechanismKind::kJointZeroDrift, n, j);
+    f.mechanism.parameters[1] = mean_temp;
+    f.free = {0};
+    ScaledSource source;
+    source.kind = ScaledSource::Kind::kTemperature;
+    source.reference_c = mean_temp;
+    // A step that moves the joint by ~1e-4 rad over the rows' spread of temperature.
+    addGlobal(std::move(f), {sink.feature(j, std::move(source))}, {1e-4 / temp_spread});
   }
 
   // One profile per joint not yet profiled, at the highest order (lower orders are its leading

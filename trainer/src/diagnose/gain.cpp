@@ -12,7 +12,6 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-
 // A row as the tracker would have measured it standing as at the last fit row (drift: the found
 // model's, or null: the row as measured). Rows after the fit rows are measured there already.
 Measurement withoutDrift(Measurement row, const Mechanism* drift) {
@@ -39,16 +38,15 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
   const DiagnoseOptions& options = search.options;
   Diagnosis& d = search.d;
   // The robot's part of what was found: a drift of the tracker is the campaign's, never a
-  // correction.
-  PhysicalModel extended_physical = extended_found;
-  // The rows the GPR learns from and the validation rows are judged as the tracker would have
-  // measured them had it stood as at the last fit row (withoutDrift).
-  auto& mechanisms = extended_physical.mechanisms;
-  const auto drift_at = std::find_if(extended_found.mechanisms.begin(), extended_found.mechanisms.end(),
-                                     [](const Mechanism& m) { return isMeasurementOnly(m.kind); });
+  // correction. The rows the GPR learns from and the validation rows are judged as the tracker
+  // would have measured them had it stood as at the last fit row (withoutDrift).
+  const auto measurementOnly = [](const Mechanism& m) { return isMeasurementOnly(m.kind); };
+  const auto drift_at = std::find_if(extended_found.mechanisms.begin(),
+                                     extended_found.mechanisms.end(), measurementOnly);
   const Mechanism* drift = drift_at != extended_found.mechanisms.end() ? &*drift_at : nullptr;
-  mechanisms.erase(std::remove_if(mechanisms.begin(), mechanisms.end(),
-                                  [](const Mechanism& m) { return isMeasurementOnly(m.kind); }),
+  PhysicalModel extended_physical = extended_found;
+  auto& mechanisms = extended_physical.mechanisms;
+  mechanisms.erase(std::remove_if(mechanisms.begin(), mechanisms.end(), measurementOnly),
                    mechanisms.end());
   // The model's tracker frame is the tracker as it last stood (the one a user measures in next),
   // its base unmoved: the tracker registration and the chain's root move together.

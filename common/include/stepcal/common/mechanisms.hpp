@@ -153,6 +153,10 @@ std::string describe(const Mechanism& mechanism);
 /// fits it, a model file never holds it, no correction applies it.
 bool isMeasurementOnly(MechanismKind kind) noexcept;
 
+/// Legendre polynomial P_degree(s), degree ≥ 0 (Bonnet's recurrence): a registration_drift's
+/// basis in the time order s ∈ [−1, 1].
+double legendrePolynomial(int degree, double s) noexcept;
+
 /// Twist (v m, ω rad; tracker axes) by which a registration_drift moves the tracker's frame at
 /// time order seq: Σ_d P_d(s) ξ_d (Mechanism's layout). Allocation-free.
 Vec6 registrationDrift(const Mechanism& drift, double seq) noexcept;

@@ -18,7 +18,7 @@ constexpr MechanismKind kAllKinds[] = {
     MechanismKind::kThermalExpansion,   MechanismKind::kSensorBias,
     MechanismKind::kJointCoupling,      MechanismKind::kProfileGeometry,
     MechanismKind::kTorsionCurve,       MechanismKind::kJointZeroDrift,
-    MechanismKind::kRegistrationDrift};
+    MechanismKind::kRegistrationDrift,  MechanismKind::kSessionFrames};
 
 constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
 
@@ -44,6 +44,7 @@ const char* toString(MechanismKind kind) noexcept {
     case MechanismKind::kTorsionCurve: return "torsion_curve";
     case MechanismKind::kJointZeroDrift: return "joint_zero_drift";
     case MechanismKind::kRegistrationDrift: return "registration_drift";
+    case MechanismKind::kSessionFrames: return "session_frames";
   }
   return "unknown";
 }
@@ -307,6 +308,10 @@ std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof, in
       return {"fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm"};
     case MechanismKind::kJointCoupling: return {"ratio"};
     case MechanismKind::kJointZeroDrift: return {"drift_rad_per_k", "reference_temp_c"};
+    case MechanismKind::kSessionFrames:
+      return {"station_x_m",  "station_y_m",  "station_z_m",  "station_rx_rad",
+              "station_ry_rad", "station_rz_rad", "tool_x_m",     "tool_y_m",
+              "tool_z_m",     "tool_rx_rad",  "tool_ry_rad",  "tool_rz_rad"};
     case MechanismKind::kRegistrationDrift: {
       std::vector<std::string> names = {"first_seq", "last_seq"};
       for (int d = 1; d <= order; ++d) {
@@ -344,19 +349,21 @@ std::string mechanismProblem(const Mechanism& m, int dof) {
   for (MechanismKind kind : kAllKinds) known = known || kind == m.kind;
   if (!known) {
     return "mechanism kind " + std::to_string(static_cast<uint32_t>(m.kind)) +
-           "; expected 1 to 11 (mechanisms.hpp)";
+           "; expected 1 to 12 (mechanisms.hpp)";
   }
   const std::string what = toString(m.kind);
   const bool order_fits =
       m.kind == MechanismKind::kTransmissionError ? m.order >= 1 && m.order <= kMaxHarmonics
       : m.kind == MechanismKind::kTorsionCurve    ? m.order >= 0 && m.order <= kMaxTorsionTerms
       : m.kind == MechanismKind::kRegistrationDrift ? m.order >= 1 && m.order <= kMaxDriftDegree
+      : m.kind == MechanismKind::kSessionFrames     ? m.order >= 1
                                                     : m.order == 0;
   if (!order_fits) {
     return what + " order " + std::to_string(m.order) + "; expected 1 to " +
            std::to_string(kMaxHarmonics) + " harmonics for transmission_error, 0 to " +
            std::to_string(kMaxTorsionTerms) + " terms for torsion_curve, 1 to " +
-           std::to_string(kMaxDriftDegree) + " (degree) for registration_drift, else 0";
+           std::to_string(kMaxDriftDegree) +
+           " (degree) for registration_drift, a campaign index ≥ 1 for session_frames, else 0";
   }
   const size_t count = mechanismParameterNames(m.kind, dof, m.order).size();
   if (m.parameters.size() != count || m.sigma.size() != count) {
@@ -437,6 +444,8 @@ std::string describe(const Mechanism& m) {
              (m.order < 4 ? std::string(kDegrees[m.order]) : "degree " + std::to_string(m.order)) +
              " in time order)";
     }
+    case MechanismKind::kSessionFrames:
+      return s + " (campaign " + std::to_string(m.order + 1) + ")";
     case MechanismKind::kTransmissionError:
       return s + " (joint " + std::to_string(m.joint + 1) + ", " + std::to_string(m.order) +
              (m.order == 1 ? " harmonic)" : " harmonics)");
@@ -459,7 +468,28 @@ double PhysicalModel::linkLengthScale(double temp_c) const noexcept {
 }
 
 bool isMeasurementOnly(MechanismKind kind) noexcept {
-  return kind == MechanismKind::kRegistrationDrift;
+  return kind == MechanismKind::kRegistrationDrift || kind == MechanismKind::kSessionFrames;
+}
+
+StationAndTool stationAndTool(const Mechanism& frames) noexcept {
+  const auto pose = [&](size_t first) {
+    const double* p = frames.parameters.data() + first;
+    Pose X = Pose::Identity();
+    X.linear() = lie::expSO3(Vec3(p[3], p[4], p[5]));
+    X.translation() = Vec3(p[0], p[1], p[2]);
+    return X;
+  };
+  return {pose(0), pose(6)};
+}
+
+std::vector<double> stationAndToolParameters(const Pose& X_Station, const Pose& X_Tool) {
+  std::vector<double> p;
+  for (const Pose* X : {&X_Station, &X_Tool}) {
+    const Vec3 r = lie::logSO3(X->linear());
+    p.insert(p.end(), {X->translation().x(), X->translation().y(), X->translation().z(), r.x(),
+                       r.y(), r.z()});
+  }
+  return p;
 }
 
 double legendrePolynomial(int degree, double s) noexcept {

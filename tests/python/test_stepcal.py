@@ -101,8 +101,12 @@ def test_campaigns_of_one_robot_are_calibrated_together(campaign):
     # The same rows twice: each copy gets the same frames and fit.
     assert sessions[0]["fit_rms_position_mm"] == pytest.approx(sessions[1]["fit_rms_position_mm"], rel=1e-6)
     assert sessions[1]["tool_from_first_mm"] < 1e-6
-    with pytest.raises(stepcal.InputError, match="the diagnosis takes one campaign"):
-        stepcal.diagnose(merged)
+    # Diagnosed together, the second copy's station and tool are the first's.
+    campaigns = stepcal.diagnose(merged).report["campaigns"]
+    assert [c["fit_rows"] for c in campaigns] == [campaigns[0]["fit_rows"]] * 2
+    for frame in ("station", "tool"):
+        assert max(abs(x) for x in campaigns[1][frame]["translation_mm"]) < 1e-3
+        assert max(abs(x) for x in campaigns[1][frame]["rotation_deg"]) < 1e-4
 
 
 def test_diagnose_gives_the_command_lines_numbers(campaign, model):

@@ -284,6 +284,53 @@ nlohmann::json parametersJson(const Mechanism& mechanism, const std::vector<doub
   return j;
 }
 
+std::string campaignFrameText(const Mechanism& m, bool tool) {
+  const size_t first = tool ? 6 : 0;
+  const auto largest = [&](size_t from) {
+    return std::max({m.sigma[from], m.sigma[from + 1], m.sigma[from + 2]});
+  };
+  const std::vector<double>& p = m.parameters;
+  return format("t (%.3f, %.3f, %.3f) mm ± %.2g, r (%.4f, %.4f, %.4f) deg ± %.2g",
+                1e3 * p[first], 1e3 * p[first + 1], 1e3 * p[first + 2], 1e3 * largest(first),
+                kRadToDeg * p[first + 3], kRadToDeg * p[first + 4], kRadToDeg * p[first + 5],
+                kRadToDeg * largest(first + 3));
+}
+
+namespace {
+
+std::string campaignsText(const trainer::Diagnosis& d) {
+  if (d.campaigns.empty()) return "";
+  std::string out =
+      "\nCampaigns fitted together (one robot; each later campaign its own tracker station and "
+      "tool against the first's; fit rows' mean position error, starting model refitted -> "
+      "extended):\n";
+  for (size_t k = 0; k < d.campaigns.size(); ++k) {
+    const trainer::DiagnosedCampaign& c = d.campaigns[k];
+    out += format("  %zu %s: %d fit rows, %.4f -> %.4f mm", k + 1, c.directory.c_str(), c.fit_rows,
+                  1e3 * c.before_mean_m, 1e3 * c.after_mean_m);
+    if (c.frames.parameters.empty()) {
+      out += "; the extended model's tracker and tool\n";
+    } else {
+      out += "\n    station " + campaignFrameText(c.frames, false) + "\n    tool    " +
+             campaignFrameText(c.frames, true) + "\n";
+    }
+  }
+  return out;
+}
+
+nlohmann::json frameJson(const Mechanism& m, size_t first) {
+  const std::vector<double>& p = m.parameters;
+  const std::vector<double>& s = m.sigma;
+  return {{"translation_mm", {1e3 * p[first], 1e3 * p[first + 1], 1e3 * p[first + 2]}},
+          {"translation_sigma_mm", {1e3 * s[first], 1e3 * s[first + 1], 1e3 * s[first + 2]}},
+          {"rotation_deg",
+           {kRadToDeg * p[first + 3], kRadToDeg * p[first + 4], kRadToDeg * p[first + 5]}},
+          {"rotation_sigma_deg",
+           {kRadToDeg * s[first + 3], kRadToDeg * s[first + 4], kRadToDeg * s[first + 5]}}};
+}
+
+}  // namespace
+
 std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrate) {
   std::string out = format(
       "diagnosis on %d fit rows (%d poses, %d-fold cross-validation over poses), %d validation "
@@ -333,6 +380,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
            d.unexplained_trend + "\n";
   }
   if (!d.effects.empty()) out += "\n" + statisticsText("  after", d.after);
+  out += campaignsText(d);
 
   out += format("\nThe extended model's GPR: %d training rows, held-out reduction z %.1f: %s\n",
                 d.extended_gpr_rows, d.extended_gpr_z,
@@ -456,6 +504,18 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
     return x;
   };
   j["residual"] = {{"before", stats(d.before)}, {"after", stats(d.after)}};
+  j["campaigns"] = nlohmann::json::array();
+  for (const trainer::DiagnosedCampaign& c : d.campaigns) {
+    nlohmann::json x = {{"directory", c.directory},
+                        {"fit_rows", c.fit_rows},
+                        {"before_mean_position_mm", 1e3 * c.before_mean_m},
+                        {"after_mean_position_mm", 1e3 * c.after_mean_m}};
+    if (!c.frames.parameters.empty()) {
+      x["station"] = frameJson(c.frames, 0);
+      x["tool"] = frameJson(c.frames, 6);
+    }
+    j["campaigns"].push_back(x);
+  }
   j["gpr_method"] = d.gpr_method;
   j["noise_floor_position_mm"] = 1e3 * d.floor_position_m;
   j["gain"] = nlohmann::json::array();

@@ -25,8 +25,11 @@ std::string formatDiagnosis(const trainer::Diagnosis& diagnosis, double seconds_
 /// in the final fit).
 /// Then `candidates` → every family tried with its score, `untestable`, `identifiability`,
 /// `extended_gpr` {training_rows, z_statistic, taken},
-/// `unexplained_trend`, `residual` {before, after}, `gain` → [{load_kg, rows,
-/// before_mean_position_mm, after_mean_position_mm, gpr_mean_position_mm, …}], `timing_s`.
+/// `unexplained_trend`, `residual` {before, after}, `campaigns` (several campaigns diagnosed
+/// together; else empty) → [{directory, fit_rows, before_mean_position_mm, after_mean_position_mm,
+/// and after the first: station, tool → {translation_mm, translation_sigma_mm, rotation_deg,
+/// rotation_sigma_deg}}], `gain` → [{load_kg, rows, before_mean_position_mm,
+/// after_mean_position_mm, gpr_mean_position_mm, …}], `timing_s`.
 nlohmann::json diagnosisJson(const trainer::Diagnosis& diagnosis, double seconds_calibrate);
 
 /// A mechanism's parameters as a JSON object keyed by their names (SI, units in the names).
@@ -54,6 +57,11 @@ std::string profileGeometrySummary(const Mechanism& geometry);
 /// 120..840 N·m 3.3e+06 N·m/rad (lost motion apart); identified up to 840 N·m, the largest
 /// torque on the fit rows". Empty for other effects.
 std::string torqueCurveText(const trainer::FoundEffect& effect);
+
+/// A later campaign's station (tool = false) or tool against the first's (session_frames), e.g.
+/// "t (-2386.218, -4631.032, 74.971) mm ± 0.023, r (-0.6376, -0.0844, 50.2445) deg ± 0.00048":
+/// translation and rotation vector, each with its largest 1-σ.
+std::string campaignFrameText(const Mechanism& frames, bool tool);
 
 /// The joint angles a profile covers, deg, e.g. "covers 52..180 deg".
 std::string coverageText(const Mechanism& profile);

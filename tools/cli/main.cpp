@@ -433,13 +433,16 @@ void runValidate(const std::string& model_path, const std::string& dir, bool ref
 
 // Diagnosis of a campaign against its calibrated physical model (calibrated here, or the given
 // model file): the named causes, the extended model (written with --out) and its gain.
-void runDiagnose(const std::string& dir, const std::string& model_path,
+// Several campaigns: one robot from several tracker stations, diagnosed together (diagnose.hpp).
+void runDiagnose(const std::vector<std::string>& dirs, const std::string& model_path,
                  const std::string& model_out, const std::string& report_out, bool json,
                  int gpr_points) {
   trainer::DiagnoseOptions options;
   options.calibration = calibrationOptions(gpr_points);
   InterruptNotice notice(outputs({report_out, model_out}));
-  const Campaign campaign = readCampaign(dir);
+  std::vector<Campaign> campaigns;
+  for (const std::string& dir : dirs) campaigns.push_back(readCampaign(dir));
+  const Campaign campaign = mergeCampaigns(std::move(campaigns));
   const auto start = std::chrono::steady_clock::now();
   CalibratedModel model;
   if (model_path.empty()) {
@@ -686,12 +689,18 @@ int main(int argc, char** argv) {
   uint64_t demo_seed = 1;
   CLI::App* diagnose_cmd = app.add_subcommand(
       "diagnose", "name what the physical model gets wrong, extend it and measure the gain");
-  std::string diagnose_dir, diagnose_model, diagnose_out, diagnose_report;
+  std::vector<std::string> diagnose_dirs;
+  std::string diagnose_model, diagnose_out, diagnose_report;
   bool diagnose_json = false;
-  diagnose_cmd->add_option("campaign", diagnose_dir, "campaign folder (or its campaign.yaml)")
+  diagnose_cmd
+      ->add_option("campaign", diagnose_dirs,
+                   "campaign folder (or its campaign.yaml); several: one robot measured from "
+                   "several tracker stations, diagnosed together, each campaign with its own "
+                   "tracker and tool frames; the extended model takes the first one's")
       ->required();
   diagnose_cmd->add_option("--model", diagnose_model,
-                           "model file to diagnose (default: calibrate the campaign first)");
+                           "model file to diagnose, in the first campaign's tracker frame "
+                           "(default: calibrate the campaigns first)");
   diagnose_cmd->add_flag("--json", diagnose_json, "print the diagnosis as JSON");
   diagnose_cmd->add_option("--out", diagnose_out, "extended model file to write");
   diagnose_cmd->add_option("--report", diagnose_report, "HTML report with the plots to write");
@@ -729,7 +738,7 @@ int main(int argc, char** argv) {
           parseModel(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), inspect_model),
           bytes.size());
     } else if (*diagnose_cmd) {
-      runDiagnose(diagnose_dir, diagnose_model, diagnose_out, diagnose_report, diagnose_json,
+      runDiagnose(diagnose_dirs, diagnose_model, diagnose_out, diagnose_report, diagnose_json,
                   gpr_points);
     } else if (*export_urdf) {
       runExportUrdf(export_model, export_campaign, export_out);

@@ -3,9 +3,7 @@
 #include <memory>
 #include <string>
 
-#include "diagnose/fit_rows.hpp"
-#include "least_squares.hpp"
-#include "stepcal/trainer/registration.hpp"
+#include "diagnose/session_frames.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/gpr_predictor.hpp"
 #include "stepcal/common/lie.hpp"
@@ -13,56 +11,6 @@
 
 namespace stepcal::trainer {
 namespace {
-
-constexpr double kRankTolerance = 1e-9;
-constexpr int kFrameIterations = 10;
-
-// The tracker registered in closed form to the model's tip positions (the campaign's tracker may
-// stand anywhere; gravity turns with it), then Gauss–Newton on the initial poses of the root
-// (tracker) and the tip (tool), 12 parameters.
-PhysicalModel refitFrames(PhysicalModel model, const diagnosis::FitRows& fit) {
-  const int n = model.chain_Tracker.dof();
-  {
-    std::vector<Vec3> p_model, p_measured;
-    ChainWorkspace ws;
-    JointVector theta, tau;
-    for (const Measurement* row : fit.rows) {
-      physicalLinkAngles(model, row->q_rad, row->wrenchOrZero(), rowTemperature(*row), ws, theta,
-                         tau);
-      p_model.push_back(tipPose(ws).translation());
-      p_measured.push_back(row->p_TipInTracker_m);
-    }
-    const Pose X_NewOld = fitRigidTransform(p_model, p_measured);
-    model.chain_Tracker = model.chain_Tracker.rerooted(X_NewOld);
-    model.gravity_Tracker = X_NewOld.linear() * model.gravity_Tracker;
-  }
-  Eigen::VectorXd r = diagnosis::residuals(model, fit);
-  double cost = r.squaredNorm();
-  for (int it = 0; it < kFrameIterations; ++it) {
-    const Eigen::MatrixXd G = diagnosis::linearise(model, fit, r).geometry;
-    Eigen::MatrixXd A(fit.count, 12);
-    A << G.leftCols(6), G.rightCols(6);
-    const SvdSolution s = solveTruncated(A, r, kRankTolerance);
-    bool improved = false;
-    for (double fraction = 1.0; fraction > 1e-3; fraction *= 0.5) {
-      Eigen::VectorXd delta = Eigen::VectorXd::Zero(6 * (n + 1));
-      delta.head(6) = fraction * s.x.head(6);
-      delta.tail(6) = fraction * s.x.tail(6);
-      PhysicalModel moved = model;
-      moved.chain_Tracker = model.chain_Tracker.corrected(delta);
-      const Eigen::VectorXd r_moved = diagnosis::residuals(moved, fit);
-      if (r_moved.squaredNorm() < cost) {
-        improved = cost - r_moved.squaredNorm() > 1e-12 * cost;
-        model = std::move(moved);
-        r = r_moved;
-        cost = r.squaredNorm();
-        break;
-      }
-    }
-    if (!improved) break;
-  }
-  return model;
-}
 
 PoseModel withGpr(PoseModel physical, const GprParameters& parameters) {
   auto gpr = std::make_shared<const GprPredictor>(GprPredictor::fromParameters(parameters));
@@ -98,10 +46,10 @@ ValidationResult validateModel(const CalibratedModel& model, const Campaign& cam
     if (!refit_frames) {
       predictors.push_back(layer);
     } else if (name == kMethodPoe) {
-      physical_layer = physicalPoseModel(refitFrames(chain_only, fit));
+      physical_layer = physicalPoseModel(diagnosis::refitFrames(chain_only, fit));
       predictors.push_back(physical_layer);
     } else if (name == kMethodPoeStiffness || name == kMethodExtended) {
-      physical_layer = physicalPoseModel(refitFrames(physical, fit));
+      physical_layer = physicalPoseModel(diagnosis::refitFrames(physical, fit));
       predictors.push_back(physical_layer);
     } else {
       // The GPR on its physical layer, the one before it.

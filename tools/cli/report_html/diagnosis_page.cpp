@@ -117,6 +117,7 @@ class DiagnosisPage {
     writeSignatures();
     writeResidual();
     writeCandidates();
+    writeCampaigns();
     writeGain();
     out_ << pageEnd();
     return out_.str();
@@ -233,6 +234,23 @@ class DiagnosisPage {
     out_ << "</div>\n<p class=\"muted\">Significant: a one-sided signed-rank test over the folds' poses below "
             "1 % divided by every configuration tried in the round, at least 1 % of the held-out error "
             "removed and parameters of the sign their physics needs (docs/diagnosis.md).</p>\n";
+  }
+
+  void writeCampaigns() {
+    if (d_.campaigns.empty()) return;
+    out_ << "<h2 id=\"campaigns\">Campaigns fitted together</h2>\n<p>One robot; each later campaign "
+            "with its own tracker station and tool against the first's, which are the extended "
+            "model's.</p>\n<table><tr><th>campaign</th><th>fit rows</th><th>starting model "
+            "mean mm</th><th>extended mean mm</th><th>station</th><th>tool</th></tr>\n";
+    for (const trainer::DiagnosedCampaign& c : d_.campaigns) {
+      const bool own = !c.frames.parameters.empty();
+      out_ << "<tr><td>" << escape(c.directory) << "</td><td>" << c.fit_rows << "</td><td>"
+           << cell("%.4f", c.before_mean_m * kMm) << "</td><td>"
+           << cell("%.4f", c.after_mean_m * kMm) << "</td><td>"
+           << (own ? escape(campaignFrameText(c.frames, false)) : "the model's") << "</td><td>"
+           << (own ? escape(campaignFrameText(c.frames, true)) : "the model's") << "</td></tr>\n";
+    }
+    out_ << "</table>\n";
   }
 
   void writeGain() {

@@ -630,8 +630,14 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
       first_seq = i == 0 ? seq : std::min(first_seq, seq);
       last_seq = i == 0 ? seq : std::max(last_seq, seq);
     }
+    const bool several_campaigns = std::any_of(fit.rows.begin(), fit.rows.end(),
+                                               [](const Measurement* row) { return row->session > 0; });
     // A campaign's seq is unique (the reader refuses repeats); one built in memory may not be.
-    if (!(last_seq > first_seq)) {
+    if (several_campaigns) {
+      s.untestable.push_back({"registration_drift",
+                              "the fit rows are several campaigns, each with its own tracker "
+                              "station; a drift within one of them is not modelled"});
+    } else if (!(last_seq > first_seq)) {
       s.untestable.push_back({"registration_drift", "every fit row has the same seq"});
     } else {
       for (const int degree : kDriftDegrees) {

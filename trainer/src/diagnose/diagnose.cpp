@@ -8,6 +8,7 @@
 #include "profiles.hpp"
 #include "residual_statistics.hpp"
 #include "search.hpp"
+#include "session_frames.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/urdf.hpp"
 
@@ -37,14 +38,6 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
                    const DiagnoseOptions& options) {
   Diagnosis d;
   const int n = model.chain_Tracker.dof();
-  if (campaign.sessions.size() > 1) {
-    // One tracker frame for every row: several sessions' rows would be fitted in the first's.
-    throw InputError("the diagnosis takes one campaign, got " +
-                         std::to_string(campaign.sessions.size()) +
-                         " merged; expected one campaign folder (hint: stepcal calibrate fits "
-                         "several together; diagnose each campaign on its own)",
-                     campaign.directory);
-  }
   requireJointCount(campaign, n);
   std::vector<const Measurement*> rows;
   for (const Measurement& row : campaign.rows) {
@@ -92,6 +85,11 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
                                             options.coverage_fade_deg * kDegToRad);
     dm.profiles.push_back(std::move(p));
   }
+  // Several campaigns: each later one's own tracker station and tool, fitted with the rest.
+  const int sessions = campaign.sessionCount();
+  for (Mechanism& frames : startingSessionFrames(dm.global, rows, sessions, campaign.tracker)) {
+    dm.global.mechanisms.push_back(std::move(frames));
+  }
   for (int j = 0; j < n; ++j) dm.compliance_free.push_back(dm.global.compliance_rad_per_nm(j) > 0.0);
   search.starting_compliance = dm.compliance_free;
   if (!dm.profiles.empty()) {
@@ -115,6 +113,16 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
     d.variable_names = variables.names;
     d.variable_values = variables.values;
     d.before = statistics(e.r, fit, variables, options.family_alpha);
+    if (sessions > 1) {
+      const std::vector<double> mean = sessionMeanErrors(e.r, fit, sessions);
+      for (int s = 0; s < sessions; ++s) {
+        DiagnosedCampaign c;
+        c.directory = campaign.directoryOf(s);
+        c.before_mean_m = mean[static_cast<size_t>(s)];
+        for (const Measurement* row : rows) c.fit_rows += row->session == s ? 1 : 0;
+        d.campaigns.push_back(std::move(c));
+      }
+    }
   }
   d.seconds_trends += secondsSince(clock);
 
@@ -132,6 +140,13 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
   {
     const Evaluation e = evaluate(extended_physical, fit);
     d.after = statistics(e.r, fit, trendVariables(fit, e.tau_nm, n), options.family_alpha);
+    if (sessions > 1) {
+      const std::vector<double> mean = sessionMeanErrors(e.r, fit, sessions);
+      for (int s = 0; s < sessions; ++s) d.campaigns[static_cast<size_t>(s)].after_mean_m = mean[static_cast<size_t>(s)];
+      for (const Mechanism& m : extended_physical.mechanisms) {
+        if (m.kind == MechanismKind::kSessionFrames) d.campaigns[static_cast<size_t>(m.order)].frames = m;
+      }
+    }
   }
   d.seconds_trends += secondsSince(clock);
   judgeDrift(search);

@@ -45,6 +45,30 @@ Pose X_FittedLast(const Mechanism& drift) {
   return lie::expSE3(mean / (kSamples + 1));
 }
 
+MeasurementFrames measurementFramesOf(const PhysicalModel& model) {
+  MeasurementFrames frames;
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kRegistrationDrift) frames.drift = &m;
+    if (m.kind != MechanismKind::kSessionFrames) continue;
+    const size_t session = static_cast<size_t>(m.order);
+    if (frames.sessions.size() <= session) frames.sessions.resize(session + 1);
+    frames.sessions[session] = stationAndTool(m);
+  }
+  return frames;
+}
+
+const StationAndTool* MeasurementFrames::ownFrames(const Measurement& row) const {
+  const size_t session = static_cast<size_t>(row.session);
+  return session < sessions.size() && sessions[session] ? &*sessions[session] : nullptr;
+}
+
+Pose MeasurementFrames::measured(const Measurement& row, const Pose& X_TipInTracker) const {
+  Pose X = X_TipInTracker;
+  if (const StationAndTool* own = ownFrames(row)) X = own->X_Station * X * own->X_Tool;
+  if (drift != nullptr) X = lie::expSE3(registrationDrift(*drift, static_cast<double>(row.seq))) * X;
+  return X;
+}
+
 void requireJointCount(const Campaign& campaign, int n) {
   for (const Measurement& row : campaign.rows) {
     if (row.q_rad.size() != n) {
@@ -62,8 +86,9 @@ FitRows makeFitRows(const std::vector<const Measurement*>& rows, const TrackerNo
   fit.folds = folds;
   fit.w_p = 1.0 / noise.position_sigma_m;
   fit.w_r = 1.0 / noise.orientation_sigma_rad;
-  std::map<std::string, int> pose_index;
-  for (const Measurement* row : rows) pose_index.emplace(row->pose_id, 0);
+  // A pose is a pose_id of one campaign: merged campaigns may use the same ids.
+  std::map<std::pair<int, std::string>, int> pose_index;
+  for (const Measurement* row : rows) pose_index.emplace(std::pair(row->session, row->pose_id), 0);
   std::vector<int> order(pose_index.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
   std::mt19937_64 rng(kFoldSeed);
@@ -72,7 +97,7 @@ FitRows makeFitRows(const std::vector<const Measurement*>& rows, const TrackerNo
   for (auto& [id, index] : pose_index) index = i++;
   fit.poses = static_cast<int>(pose_index.size());
   for (const Measurement* row : rows) {
-    const int p = pose_index.at(row->pose_id);
+    const int p = pose_index.at(std::pair(row->session, row->pose_id));
     fit.start.push_back(fit.count);
     fit.pose.push_back(p);
     fit.fold.push_back(order[static_cast<size_t>(p)] % folds);
@@ -83,21 +108,22 @@ FitRows makeFitRows(const std::vector<const Measurement*>& rows, const TrackerNo
 
 namespace {
 
-// The model's registration_drift, if any: the tracker's frame moving with time order.
-const Mechanism* registrationDriftOf(const PhysicalModel& model) {
-  for (const Mechanism& m : model.mechanisms) {
-    if (m.kind == MechanismKind::kRegistrationDrift) return &m;
-  }
-  return nullptr;
+// Twists (v, ω) in the first campaign's tracker axes, columns of V, into a campaign's tracker
+// axes: the adjoint of its station.
+template <typename Columns>
+void toStation(const Pose& X_Station, Columns& V) {
+  const Mat3 R = X_Station.linear();
+  const Eigen::Matrix<double, 3, Eigen::Dynamic> w = R * V.bottomRows(3);
+  V.topRows(3) = R * V.topRows(3) + lie::hat(X_Station.translation()) * w;
+  V.bottomRows(3) = w;
 }
 
 // Row i's weighted residual into r.segment(e, k): measured − modelled at the tip pose X, as the
-// tracker sees it at the row's time when its registration drifts.
-void rowResidual(const FitRows& fit, size_t i, const Mechanism* drift, const Pose& X_modelled,
-                 Eigen::Index e, Eigen::VectorXd& r) {
+// row's tracker sees it (MeasurementFrames::measured).
+void rowResidual(const FitRows& fit, size_t i, const MeasurementFrames& frames,
+                 const Pose& X_modelled, Eigen::Index e, Eigen::VectorXd& r) {
   const Measurement& row = *fit.rows[i];
-  Pose X = X_modelled;
-  if (drift != nullptr) X = lie::expSE3(registrationDrift(*drift, static_cast<double>(row.seq))) * X;
+  const Pose X = frames.measured(row, X_modelled);
   r.segment<3>(e) = fit.w_p * (row.p_TipInTracker_m - X.translation());
   if (row.has_orientation) {
     r.segment<3>(e + 3) =
@@ -112,38 +138,47 @@ void rowResidual(const FitRows& fit, size_t i, const Mechanism* drift, const Pos
 void evaluateRows(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
                   Eigen::Index first, ChainWorkspace& ws, Evaluation& out, size_t offset) {
   const PhysicalConstants constants = physicalConstants(model);
-  const Mechanism* drift = registrationDriftOf(model);
+  const MeasurementFrames frames = measurementFramesOf(model);
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
     physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws,
                        out.theta_rad[i - offset], out.tau_nm[i - offset], nullptr, &constants);
-    rowResidual(fit, i, drift, tipPose(ws), fit.start[i] - first, out.r);
+    rowResidual(fit, i, frames, tipPose(ws), fit.start[i] - first, out.r);
   }
 }
 
 void residualRows(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end,
                   Eigen::Index first, ChainWorkspace& ws, Eigen::VectorXd& r) {
   const PhysicalConstants constants = physicalConstants(model);
-  const Mechanism* drift = registrationDriftOf(model);
+  const MeasurementFrames frames = measurementFramesOf(model);
   JointVector theta, tau;
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
     physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta, tau,
                        nullptr, &constants);
-    rowResidual(fit, i, drift, tipPose(ws), fit.start[i] - first, r);
+    rowResidual(fit, i, frames, tipPose(ws), fit.start[i] - first, r);
   }
 }
 
 // Row i's linearisation (its equations from e) at the frames ws holds, r its residual there.
+// A campaign's own station turns the twists into its tracker's axes, and its tool moves the point
+// whose motion they give (the registration drift, small, is left out).
 struct RowLinearisation {
   explicit RowLinearisation(int n) : P(6, 6 * (n + 1)) {}
   Eigen::Matrix<double, 6, Eigen::Dynamic> P;
   Jacobian J;
-  void operator()(const KinematicChain& chain, const ChainWorkspace& ws, const FitRows& fit,
-                  size_t i, Eigen::Index e, const Eigen::VectorXd& r, Linearisation& lin) {
+  void operator()(const KinematicChain& chain, const ChainWorkspace& ws,
+                  const MeasurementFrames& frames, const FitRows& fit, size_t i, Eigen::Index e,
+                  const Eigen::VectorXd& r, Linearisation& lin) {
     parameterJacobian(chain, ws, P);
     spatialJacobian(chain, ws, J);
-    const Mat3 p_hat = lie::hat(tipPose(ws).translation());
+    Vec3 p_Tip = tipPose(ws).translation();
+    if (const StationAndTool* own = frames.ownFrames(*fit.rows[i])) {
+      toStation(own->X_Station, P);
+      toStation(own->X_Station, J);
+      p_Tip = (own->X_Station * tipPose(ws) * own->X_Tool).translation();
+    }
+    const Mat3 p_hat = lie::hat(p_Tip);
     // Spatial twists (v, ω) → tip position ṗ = v − p̂ ω and rotation ω (METHOD.md, weighting).
     lin.geometry.middleRows<3>(e) = fit.w_p * (P.topRows<3>() - p_hat * P.bottomRows<3>());
     lin.link_angle.middleRows<3>(e) = fit.w_p * (J.topRows<3>() - p_hat * J.bottomRows<3>());
@@ -162,13 +197,14 @@ void lineariseRows(const PhysicalModel& model, const FitRows& fit, size_t begin,
                    Eigen::Index first, const Eigen::VectorXd& r, ChainWorkspace& ws,
                    Linearisation& lin) {
   const PhysicalConstants constants = physicalConstants(model);
+  const MeasurementFrames frames = measurementFramesOf(model);
   RowLinearisation row_linearisation(model.chain_Tracker.dof());
   JointVector theta, tau;
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
     physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), kUnscaledLinks, ws, theta, tau,
                        nullptr, &constants);
-    row_linearisation(model.chain_Tracker, ws, fit, i, fit.start[i] - first, r, lin);
+    row_linearisation(model.chain_Tracker, ws, frames, fit, i, fit.start[i] - first, r, lin);
   }
 }
 
@@ -236,10 +272,10 @@ Eigen::MatrixXd differenceColumns(const std::vector<const PhysicalModel*>& model
   const Eigen::Index first = equationOf(fit, begin);
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(r0.size(), static_cast<Eigen::Index>(models.size()));
   std::vector<PhysicalConstants> constants;
-  std::vector<const Mechanism*> drifts;
+  std::vector<MeasurementFrames> frames;
   for (const PhysicalModel* model : models) {
     constants.push_back(physicalConstants(*model));
-    drifts.push_back(registrationDriftOf(*model));
+    frames.push_back(measurementFramesOf(*model));
   }
   ChainWorkspace ws;
   JointVector theta, tau;
@@ -254,7 +290,7 @@ Eigen::MatrixXd differenceColumns(const std::vector<const PhysicalModel*>& model
       if (!needed[m]) continue;
       physicalLinkAngles(*models[m], row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta,
                          tau, nullptr, &constants[m], &start);
-      rowResidual(fit, i, drifts[m], tipPose(ws), 0, r);
+      rowResidual(fit, i, frames[m], tipPose(ws), 0, r);
       out.block(e, static_cast<Eigen::Index>(m), k, 1) = (r0.segment(e, k) - r.head(k)) / steps[m];
     }
   }
@@ -269,7 +305,7 @@ void evaluateAndLinearise(const PhysicalModel& model, const FitRows& fit, size_t
   evaluation.tau_nm.resize(end - begin);
   lin = sizedLinearisation(model, evaluation.r.size());
   const PhysicalConstants constants = physicalConstants(model);
-  const Mechanism* drift = registrationDriftOf(model);
+  const MeasurementFrames frames = measurementFramesOf(model);
   RowLinearisation row_linearisation(model.chain_Tracker.dof());
   ChainWorkspace ws;
   JointVector theta, tau;
@@ -280,13 +316,13 @@ void evaluateAndLinearise(const PhysicalModel& model, const FitRows& fit, size_t
                        evaluation.theta_rad[i - begin], evaluation.tau_nm[i - begin], nullptr,
                        &constants);
     const Eigen::Index e = fit.start[i] - first;
-    rowResidual(fit, i, drift, tipPose(ws), e, evaluation.r);
+    rowResidual(fit, i, frames, tipPose(ws), e, evaluation.r);
     // Where the model scales no link at the row's temperature, its frames are the unscaled ones.
     if (model.linkLengthScale(temp_c) != 1.0) {
       physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), kUnscaledLinks, ws, theta, tau,
                          nullptr, &constants);
     }
-    row_linearisation(model.chain_Tracker, ws, fit, i, e, evaluation.r, lin);
+    row_linearisation(model.chain_Tracker, ws, frames, fit, i, e, evaluation.r, lin);
   }
 }
 

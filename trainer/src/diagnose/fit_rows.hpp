@@ -2,6 +2,7 @@
 // its linearisation (internal to stepcal::trainer).
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -26,6 +27,20 @@ struct FitRows {
 /// drift's mean over the fit rows): exp of the drift's mean over the last tenth of its time span
 /// (a polynomial is least determined at its very end). The extended model's tracker frame.
 Pose X_FittedLast(const Mechanism& drift);
+
+/// What stands between the model's tip and a row's measurement: the tracker's registration drift
+/// in time order, and, where several campaigns are fitted together, each later campaign's own
+/// tracker station and tool (session_frames; the first campaign's are the chain's own).
+struct MeasurementFrames {
+  const Mechanism* drift = nullptr;  ///< the model's registration_drift, if any
+  std::vector<std::optional<StationAndTool>> sessions;  ///< per campaign index, where it has own
+  /// The campaign's own station and tool of a row, null for the chain's own.
+  const StationAndTool* ownFrames(const Measurement& row) const;
+  /// The model's tip pose X (first campaign's tracker and tool) as the row's tracker measures it.
+  Pose measured(const Measurement& row, const Pose& X_TipInTracker) const;
+};
+/// A model's measurement frames (pointers into model: valid while it lives and is unchanged).
+MeasurementFrames measurementFramesOf(const PhysicalModel& model);
 
 /// Throws InputError naming the file and line of the first row whose joint count is not n.
 void requireJointCount(const Campaign& campaign, int n);

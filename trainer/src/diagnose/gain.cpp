@@ -3,6 +3,7 @@
 #include <chrono>
 
 #include "search.hpp"
+#include "session_frames.hpp"
 #include "stepcal/common/lie.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -31,6 +32,33 @@ std::vector<Measurement> validationRows(const Campaign& campaign, const Mechanis
   return rows;
 }
 
+// A row of a later campaign as the first campaign's tracker would have measured it with the first
+// campaign's tool, by that campaign's own frames (at the modelled orientation where the row has
+// none): the rows the extended model's GPR learns from.
+Measurement inFirstCampaignTerms(Measurement row, const MeasurementFrames& frames,
+                                 const PoseModel& model) {
+  const StationAndTool* own = frames.ownFrames(row);
+  if (own == nullptr) return row;
+  if (row.has_orientation) {
+    const Pose X = own->X_Station.inverse() * row.X_TrackerTip() * own->X_Tool.inverse();
+    row.p_TipInTracker_m = X.translation();
+    row.q_TrackerTip = Eigen::Quaterniond(X.linear());
+  } else {
+    row.p_TipInTracker_m = own->X_Station.inverse() * row.p_TipInTracker_m -
+                           model(row).linear() * own->X_Tool.translation();
+  }
+  return row;
+}
+
+// A model of the first campaign's tracker and tool, each row seen from its own campaign's.
+PoseModel inOwnFrames(PoseModel model, MeasurementFrames frames) {
+  frames.drift = nullptr;
+  if (frames.sessions.empty()) return model;
+  return [model = std::move(model), frames = std::move(frames)](const Measurement& row) {
+    return frames.measured(row, model(row));
+  };
+}
+
 }  // namespace
 
 void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
@@ -39,14 +67,17 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
   Diagnosis& d = search.d;
   // The robot's part of what was found: a drift of the tracker is the campaign's, never a
   // correction. The rows the GPR learns from and the validation rows are judged as the tracker
-  // would have measured them had it stood as at the last fit row (withoutDrift).
-  const auto measurementOnly = [](const Mechanism& m) { return isMeasurementOnly(m.kind); };
-  const auto drift_at = std::find_if(extended_found.mechanisms.begin(),
-                                     extended_found.mechanisms.end(), measurementOnly);
-  const Mechanism* drift = drift_at != extended_found.mechanisms.end() ? &*drift_at : nullptr;
+  // would have measured them had it stood as at the last fit row (withoutDrift). Several
+  // campaigns' own stations and tools are theirs too: the model's are the first campaign's.
+  const Mechanism* drift = nullptr;
+  for (const Mechanism& m : extended_found.mechanisms) {
+    if (m.kind == MechanismKind::kRegistrationDrift) drift = &m;
+  }
+  const MeasurementFrames found_frames = measurementFramesOf(extended_found);
   PhysicalModel extended_physical = extended_found;
   auto& mechanisms = extended_physical.mechanisms;
-  mechanisms.erase(std::remove_if(mechanisms.begin(), mechanisms.end(), measurementOnly),
+  mechanisms.erase(std::remove_if(mechanisms.begin(), mechanisms.end(),
+                                  [](const Mechanism& m) { return isMeasurementOnly(m.kind); }),
                    mechanisms.end());
   // The model's tracker frame is the tracker as it last stood (the one a user measures in next),
   // its base unmoved: the tracker registration and the chain's root move together.
@@ -76,12 +107,14 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
     gpr_rows = campaign.rowsIn(RowSet::kGeometry);
     gpr_set = "geometry";
   }
-  std::vector<Measurement> undrifted;
-  if (drift != nullptr) {
-    for (const Measurement* row : gpr_rows) undrifted.push_back(withoutDrift(*row, drift));
-    for (size_t i = 0; i < undrifted.size(); ++i) gpr_rows[i] = &undrifted[i];
-  }
   const PoseModel after = physicalPoseModel(extended_physical);
+  std::vector<Measurement> as_first;
+  if (drift != nullptr || !found_frames.sessions.empty()) {
+    for (const Measurement* row : gpr_rows) {
+      as_first.push_back(inFirstCampaignTerms(withoutDrift(*row, drift), found_frames, after));
+    }
+    for (size_t i = 0; i < as_first.size(); ++i) gpr_rows[i] = &as_first[i];
+  }
   const ResidualModel residual =
       fitResidual(after, gpr_rows, gpr_set, campaign.tracker, options.calibration);
   ext.gpr.reset();
@@ -96,16 +129,26 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
   d.validation_rows = static_cast<int>(validation.size());
   d.floor_position_m = noiseFloorMean(campaign.tracker.position_sigma_m);
   if (!validation.empty()) {
+    // Each model sees a later campaign's rows through its own fit of that campaign's frames.
+    PhysicalModel before_physical = physicalModelOf(model);
+    for (Mechanism& m : startingSessionFrames(before_physical, search.fit.rows,
+                                              campaign.sessionCount(), campaign.tracker)) {
+      before_physical.mechanisms.push_back(std::move(m));
+    }
+    const MeasurementFrames before_frames = measurementFramesOf(before_physical);
     const auto base_layers = modelLayers(model);
-    const PoseModel before = physicalPoseModel(physicalModelOf(model));
+    const PoseModel before = inOwnFrames(physicalPoseModel(physicalModelOf(model)), before_frames);
     const bool has_gpr = model.gpr.has_value();
     d.gpr_method = has_gpr ? base_layers.back().first : "";
     const auto s_before = summarize("before", before, validation);
-    const auto s_after = summarize(kMethodExtended, after, validation);
-    const auto s_after_gpr =
-        summarize(kMethodExtendedGpr, withResidual(after, residual), validation);
+    const auto s_after = summarize(kMethodExtended, inOwnFrames(after, found_frames), validation);
+    const auto s_after_gpr = summarize(
+        kMethodExtendedGpr, inOwnFrames(withResidual(after, residual), found_frames), validation);
     std::vector<AccuracySummary> s_gpr;
-    if (has_gpr) s_gpr = summarize(d.gpr_method, base_layers.back().second, validation);
+    if (has_gpr) {
+      s_gpr = summarize(d.gpr_method, inOwnFrames(base_layers.back().second, before_frames),
+                        validation);
+    }
     for (size_t g = 0; g < s_before.size(); ++g) {
       GainRow row;
       row.load_kg = s_before[g].load_kg;
@@ -118,7 +161,8 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
     }
     ext.provenance.validation.clear();
     for (const auto& [method, layer] : modelLayers(ext)) {
-      for (const AccuracySummary& s : summarize(method, layer, validation)) {
+      for (const AccuracySummary& s :
+           summarize(method, inOwnFrames(layer, found_frames), validation)) {
         ext.provenance.validation.push_back({s.method, s.load_kg, s.rows, s.mean_position_m,
                                              s.max_position_m, s.mean_orientation_rad});
       }

@@ -134,6 +134,7 @@ double typicalStep(const Mechanism& m, int index) {
     case MechanismKind::kThermalExpansion: return 1e-5;
     case MechanismKind::kJointZeroDrift: return 1e-5;  // rad/K
     case MechanismKind::kRegistrationDrift: return 1e-5;  // m or rad of a degree's twist
+    case MechanismKind::kSessionFrames: return 1e-5;      // m or rad of a station or a tool
     case MechanismKind::kSensorBias: return index < 3 ? 1.0 : 0.1;
     case MechanismKind::kSelfWeight: return index % 4 == 0 ? 1.0 : 0.5;
     default: return 1e-4;

@@ -120,6 +120,10 @@ std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Di
     model.gravity_Tracker = X_LastFitted.linear() * model.gravity_Tracker;
     model.mechanisms.push_back(e.mechanism);
   }
+  // Several campaigns: each later one's rows through its own station and tool.
+  for (const DiagnosedCampaign& c : diagnosis.campaigns) {
+    if (!c.frames.parameters.empty()) model.mechanisms.push_back(c.frames);
+  }
   std::vector<const Measurement*> rows;
   for (const Measurement& row : campaign.rows) {
     if (row.set != RowSet::kValidation) rows.push_back(&row);
@@ -230,7 +234,8 @@ std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Di
       }
       case MechanismKind::kSensorBias:
       case MechanismKind::kProfileGeometry:
-      case MechanismKind::kRegistrationDrift: break;  // six constants, its own frame, not a model's
+      case MechanismKind::kRegistrationDrift:
+      case MechanismKind::kSessionFrames: break;  // six constants, its own frame, not a model's
     }
   }
   return signatures;

@@ -50,6 +50,7 @@ enum class MechanismKind : uint32_t {
   kTorsionCurve = 9,        ///< joint j: lost motion and stiffening terms of its torque, one curve
   kJointZeroDrift = 10,     ///< joint j: its zero moves by k (T − T_ref) with temperature
   kRegistrationDrift = 11,  ///< the tracker's frame moves in time order: measurement, not robot
+  kSessionFrames = 12,      ///< a campaign's own tracker station and tool: measurement, not robot
 };
 
 /// Snake-case name, e.g. "transmission_error".
@@ -97,7 +98,8 @@ struct Mechanism {
   int source_joint = -1;  ///< joint_coupling: the joint whose commanded angle drives it
   /// transmission_error: harmonics 1 … order (1 ≤ order ≤ kMaxHarmonics); torsion_curve: its
   /// stiffening terms (0 ≤ order ≤ kMaxTorsionTerms); registration_drift: its polynomial's
-  /// degree (1 ≤ order ≤ kMaxDriftDegree); other kinds 0.
+  /// degree (1 ≤ order ≤ kMaxDriftDegree); session_frames: the campaign's index among those
+  /// fitted together (≥ 1; the first campaign's frames are the chain's own); other kinds 0.
   int order = 0;
   /// Layout per kind (mechanismParameterNames):
   ///   backlash            [b rad, τ_b N·m]: b tanh(τ_j/τ_b), a sign smoothed over ±τ_b (with
@@ -131,6 +133,11 @@ struct Mechanism {
   ///                       the fitted one, ξ(s) = Σ_d P_d(s) ξ_d, P_d the Legendre polynomials,
   ///                       s = 2 (seq − first_seq)/(last_seq − first_seq) − 1 (tracker axes),
   ///                       held at ±1 outside the span it was fitted on
+  ///   session_frames      [station: t m (3), r rad (3); tool: t m (3), r rad (3)]: a row of
+  ///                       campaign `order` is measured at X_Station · X · X_Tool, X the tip in
+  ///                       the first campaign's tracker with its tool, X_Station = (exp r̂, t)
+  ///                       the first campaign's tracker axes in this campaign's tracker, X_Tool
+  ///                       = (exp r̂, t) this campaign's tool in the first campaign's (stationAndTool)
   std::vector<double> parameters;
   std::vector<double> sigma;  ///< 1-σ of each parameter, same size (0 = not estimated)
   /// transmission_error: the angles of its joint it was fitted on (empty: everywhere); other
@@ -149,8 +156,8 @@ std::string mechanismProblem(const Mechanism& mechanism, int dof);
 /// Short human name, e.g. "backlash (joint 2)", "transmission_error (joint 3, 24 harmonics)".
 std::string describe(const Mechanism& mechanism);
 
-/// Whether a kind describes the measurement, not the robot (registration_drift): the diagnosis
-/// fits it, a model file never holds it, no correction applies it.
+/// Whether a kind describes the measurement, not the robot (registration_drift, session_frames):
+/// the diagnosis fits it, a model file never holds it, no correction applies it.
 bool isMeasurementOnly(MechanismKind kind) noexcept;
 
 /// Legendre polynomial P_degree(s), degree ≥ 0 (Bonnet's recurrence): a registration_drift's
@@ -160,6 +167,15 @@ double legendrePolynomial(int degree, double s) noexcept;
 /// Twist (v m, ω rad; tracker axes) by which a registration_drift moves the tracker's frame at
 /// time order seq: Σ_d P_d(s) ξ_d (Mechanism's layout). Allocation-free.
 Vec6 registrationDrift(const Mechanism& drift, double seq) noexcept;
+
+/// A session_frames mechanism's station and tool as poses (Mechanism's layout).
+struct StationAndTool {
+  Pose X_Station;  ///< the first campaign's tracker frame in this campaign's tracker frame
+  Pose X_Tool;     ///< this campaign's tool frame in the first campaign's tool frame
+};
+StationAndTool stationAndTool(const Mechanism& frames) noexcept;
+/// The parameters (Mechanism's layout) of a station and a tool.
+std::vector<double> stationAndToolParameters(const Pose& X_Station, const Pose& X_Tool);
 
 /// Whether a kind is a joint's torque–deflection beyond its linear compliance: backlash,
 /// nonlinear_stiffness or torsion_curve.

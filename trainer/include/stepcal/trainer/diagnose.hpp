@@ -208,6 +208,18 @@ struct DriftVerdict {
   std::string text;  ///< the verdict's sentences
 };
 
+/// One of several campaigns of one robot diagnosed together (`stepcal diagnose DIR1 DIR2 …`):
+/// one robot, each campaign measured from its own tracker station with its own tool.
+struct DiagnosedCampaign {
+  std::string directory;
+  int fit_rows = 0;
+  /// Its tracker station and tool against the first campaign's, with 1-σ (session_frames); the
+  /// first campaign's are the model's own, and this is empty (no parameters).
+  Mechanism frames;
+  /// Its fit rows' mean position error, m: the starting model refitted, the extended model.
+  double before_mean_m = 0.0, after_mean_m = 0.0;
+};
+
 struct Diagnosis {
   Verdict verdict = Verdict::kNone;
   DriftVerdict drift;
@@ -229,6 +241,9 @@ struct Diagnosis {
   bool extended_gpr_taken = true;
   double floor_position_m = 0.0;           ///< mean error the tracker noise alone gives
   CalibratedModel extended_model;          ///< the model with the effects and its GPR
+  /// With several campaigns, each in the order given; empty for one. The extended model's tracker
+  /// and tool are the first campaign's.
+  std::vector<DiagnosedCampaign> campaigns;
   /// Fit-row variables for plots: names (trend variables) and values (row-major, per fit row).
   std::vector<std::string> variable_names;
   std::vector<std::vector<double>> variable_values;
@@ -278,8 +293,12 @@ std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Di
 
 /// Diagnoses a campaign against a calibrated model (its chain, compliance and mechanisms are
 /// the starting point; its GPR, if any, is the reference of the gain table). Link masses come
-/// from the campaign's URDF <inertial> elements when it has them. Throws InputError when the
-/// campaign does not fit the model or has too few fit poses for the folds.
+/// from the campaign's URDF <inertial> elements when it has them. A campaign merged from
+/// several (mergeCampaigns) is one robot seen from several tracker stations: the model's tracker
+/// and tool are the first campaign's, each later one has its own (session_frames, fitted with the
+/// rest), and every row is weighed by the merged campaign's tracker noise (the largest stated).
+/// Throws InputError when the campaign does not fit the model or has too few fit poses for the
+/// folds.
 Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
                    const DiagnoseOptions& options = {});
 

@@ -743,8 +743,8 @@ TEST_F(ModelFileTest, EachMalformedMechanismIsRefusedWithItsOffsetIndexAndProble
                nonlinear = mechanismAt(b, 3), coupling = mechanismAt(b, 6);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const std::vector<Case> cases = {
-      {[&](auto& e) { putU32(e, backlash, 13); }, backlash, "mechanisms[0]",
-       "mechanism kind 13; expected 1 to 12"},
+      {[&](auto& e) { putU32(e, backlash, 14); }, backlash, "mechanisms[0]",
+       "mechanism kind 14; expected 1 to 13"},
       {[&](auto& e) { putU32(e, backlash + 4, 6); }, backlash, "mechanisms[0]",
        "backlash joint index 6; expected 0 to 5"},
       {[&](auto& e) { putU32(e, backlash + 4, uint32_t(-1)); }, backlash, "mechanisms[0]",

@@ -18,7 +18,8 @@ constexpr MechanismKind kAllKinds[] = {
     MechanismKind::kThermalExpansion,   MechanismKind::kSensorBias,
     MechanismKind::kJointCoupling,      MechanismKind::kProfileGeometry,
     MechanismKind::kTorsionCurve,       MechanismKind::kJointZeroDrift,
-    MechanismKind::kRegistrationDrift,  MechanismKind::kSessionFrames};
+    MechanismKind::kRegistrationDrift,  MechanismKind::kSessionFrames,
+    MechanismKind::kCampaignJointZero};
 
 constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
 
@@ -26,7 +27,7 @@ bool usesJoint(MechanismKind kind) {
   return kind == MechanismKind::kBacklash || kind == MechanismKind::kTransmissionError ||
          kind == MechanismKind::kNonlinearStiffness || kind == MechanismKind::kJointCoupling ||
          kind == MechanismKind::kProfileGeometry || kind == MechanismKind::kTorsionCurve ||
-         kind == MechanismKind::kJointZeroDrift;
+         kind == MechanismKind::kJointZeroDrift || kind == MechanismKind::kCampaignJointZero;
 }
 
 }  // namespace
@@ -45,6 +46,7 @@ const char* toString(MechanismKind kind) noexcept {
     case MechanismKind::kJointZeroDrift: return "joint_zero_drift";
     case MechanismKind::kRegistrationDrift: return "registration_drift";
     case MechanismKind::kSessionFrames: return "session_frames";
+    case MechanismKind::kCampaignJointZero: return "campaign_joint_zero";
   }
   return "unknown";
 }
@@ -308,6 +310,11 @@ std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof, in
       return {"fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm"};
     case MechanismKind::kJointCoupling: return {"ratio"};
     case MechanismKind::kJointZeroDrift: return {"drift_rad_per_k", "reference_temp_c"};
+    case MechanismKind::kCampaignJointZero: {
+      std::vector<std::string> names;
+      for (int k = 1; k <= order; ++k) names.push_back("campaign" + std::to_string(k + 1) + "_rad");
+      return names;
+    }
     case MechanismKind::kSessionFrames:
       return {"station_x_m",  "station_y_m",  "station_z_m",  "station_rx_rad",
               "station_ry_rad", "station_rz_rad", "tool_x_m",     "tool_y_m",
@@ -349,21 +356,23 @@ std::string mechanismProblem(const Mechanism& m, int dof) {
   for (MechanismKind kind : kAllKinds) known = known || kind == m.kind;
   if (!known) {
     return "mechanism kind " + std::to_string(static_cast<uint32_t>(m.kind)) +
-           "; expected 1 to 12 (mechanisms.hpp)";
+           "; expected 1 to 13 (mechanisms.hpp)";
   }
   const std::string what = toString(m.kind);
   const bool order_fits =
       m.kind == MechanismKind::kTransmissionError ? m.order >= 1 && m.order <= kMaxHarmonics
       : m.kind == MechanismKind::kTorsionCurve    ? m.order >= 0 && m.order <= kMaxTorsionTerms
       : m.kind == MechanismKind::kRegistrationDrift ? m.order >= 1 && m.order <= kMaxDriftDegree
-      : m.kind == MechanismKind::kSessionFrames     ? m.order >= 1
-                                                    : m.order == 0;
+      : m.kind == MechanismKind::kSessionFrames || m.kind == MechanismKind::kCampaignJointZero
+          ? m.order >= 1
+          : m.order == 0;
   if (!order_fits) {
     return what + " order " + std::to_string(m.order) + "; expected 1 to " +
            std::to_string(kMaxHarmonics) + " harmonics for transmission_error, 0 to " +
            std::to_string(kMaxTorsionTerms) + " terms for torsion_curve, 1 to " +
            std::to_string(kMaxDriftDegree) +
-           " (degree) for registration_drift, a campaign index ≥ 1 for session_frames, else 0";
+           " (degree) for registration_drift, a campaign index ≥ 1 for session_frames, the "
+           "campaigns after the first (≥ 1) for campaign_joint_zero, else 0";
   }
   const size_t count = mechanismParameterNames(m.kind, dof, m.order).size();
   if (m.parameters.size() != count || m.sigma.size() != count) {
@@ -437,6 +446,7 @@ std::string describe(const Mechanism& m) {
     case MechanismKind::kProfileGeometry:
     case MechanismKind::kTorsionCurve:
     case MechanismKind::kJointZeroDrift:
+    case MechanismKind::kCampaignJointZero:
       return s + " (joint " + std::to_string(m.joint + 1) + ")";
     case MechanismKind::kRegistrationDrift: {
       static const char* const kDegrees[] = {"", "linear", "quadratic", "cubic"};
@@ -468,7 +478,8 @@ double PhysicalModel::linkLengthScale(double temp_c) const noexcept {
 }
 
 bool isMeasurementOnly(MechanismKind kind) noexcept {
-  return kind == MechanismKind::kRegistrationDrift || kind == MechanismKind::kSessionFrames;
+  return kind == MechanismKind::kRegistrationDrift || kind == MechanismKind::kSessionFrames ||
+         kind == MechanismKind::kCampaignJointZero;
 }
 
 StationAndTool stationAndTool(const Mechanism& frames) noexcept {

@@ -965,8 +965,8 @@ std::string mechanismInModelProblem(const CalibratedModel& model, size_t index) 
   if (!problem.empty()) return problem;
   if (isMeasurementOnly(m.kind)) {
     return std::string(toString(m.kind)) +
-           " describes a campaign's measurement (its tracker, its tool), not the robot; expected "
-           "none in a model file (hint: the diagnosis leaves it out of the model it writes)";
+           " describes a campaign's measurement (its tracker, its tool, its readings), not the "
+           "robot as it is now; expected none in a model file (hint: the diagnosis leaves it out of the model it writes)";
   }
   const bool single = m.kind == MechanismKind::kSelfWeight ||
                       m.kind == MechanismKind::kSensorBias ||

@@ -298,6 +298,13 @@ std::string campaignFrameText(const Mechanism& m, bool tool) {
 
 namespace {
 
+// Joint j's zero in campaign k (from 0) against the first's, e.g. "joint 2's zero differs from
+// the first campaign's by +1593.2 ± 60.1 urad".
+std::string campaignZeroText(const Mechanism& m, size_t k) {
+  return format("joint %d's zero differs from the first campaign's by %+.1f ± %.1f urad", m.joint + 1,
+                1e6 * m.parameters[k - 1], 1e6 * m.sigma[k - 1]);
+}
+
 std::string campaignsText(const trainer::Diagnosis& d) {
   if (d.campaigns.empty()) return "";
   std::string out =
@@ -309,10 +316,21 @@ std::string campaignsText(const trainer::Diagnosis& d) {
     out += format("  %zu %s: %d fit rows, %.4f -> %.4f mm", k + 1, c.directory.c_str(), c.fit_rows,
                   1e3 * c.before_mean_m, 1e3 * c.after_mean_m);
     if (c.frames.parameters.empty()) {
-      out += "; the extended model's tracker and tool\n";
-    } else {
-      out += "\n    station " + campaignFrameText(c.frames, false) + "\n    tool    " +
-             campaignFrameText(c.frames, true) + "\n";
+      out += "; the extended model's tracker, tool and joint zeros\n";
+      continue;
+    }
+    out += "\n    station " + campaignFrameText(c.frames, false) + "\n    tool    " +
+           campaignFrameText(c.frames, true) + "\n";
+    for (const trainer::FoundEffect& e : d.effects) {
+      if (e.mechanism.kind != MechanismKind::kCampaignJointZero) continue;
+      out += "    " + campaignZeroText(e.mechanism, k) + "\n";
+    }
+    for (const trainer::CampaignProfileDifference& p : c.profile_differences) {
+      const trainer::CandidateScore& s = p.score;
+      out += format("    joint %d's profile: %s (its own here removes %.1f %% held out, %.4f mm, "
+                    "z %.1f; RMS difference %.0f urad)\n",
+                    s.mechanism.joint + 1, s.significant ? "differs here" : "one serves both",
+                    100.0 * s.relative_reduction, s.cv_gain_mm, s.z_statistic, 1e6 * p.rms_rad);
     }
   }
   return out;
@@ -513,6 +531,19 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
     if (!c.frames.parameters.empty()) {
       x["station"] = frameJson(c.frames, 0);
       x["tool"] = frameJson(c.frames, 6);
+    }
+    x["profile_differences"] = nlohmann::json::array();
+    for (const trainer::CampaignProfileDifference& p : c.profile_differences) {
+      const trainer::CandidateScore& s = p.score;
+      x["profile_differences"].push_back({{"joint", s.mechanism.joint + 1},
+                                          {"order", s.mechanism.order},
+                                          {"ridge", s.ridge},
+                                          {"cv_gain_mm", s.cv_gain_mm},
+                                          {"relative_reduction", s.relative_reduction},
+                                          {"z_statistic", s.z_statistic},
+                                          {"p_value", s.p_value},
+                                          {"significant", s.significant},
+                                          {"rms_difference_urad", 1e6 * p.rms_rad}});
     }
     j["campaigns"].push_back(x);
   }

@@ -28,7 +28,8 @@ std::string formatDiagnosis(const trainer::Diagnosis& diagnosis, double seconds_
 /// `unexplained_trend`, `residual` {before, after}, `campaigns` (several campaigns diagnosed
 /// together; else empty) → [{directory, fit_rows, before_mean_position_mm, after_mean_position_mm,
 /// and after the first: station, tool → {translation_mm, translation_sigma_mm, rotation_deg,
-/// rotation_sigma_deg}}], `gain` → [{load_kg, rows, before_mean_position_mm,
+/// rotation_sigma_deg}, profile_differences → [{joint, order, ridge, cv_gain_mm,
+/// relative_reduction, z_statistic, p_value, significant, rms_difference_urad}]}], `gain` → [{load_kg, rows, before_mean_position_mm,
 /// after_mean_position_mm, gpr_mean_position_mm, …}], `timing_s`.
 nlohmann::json diagnosisJson(const trainer::Diagnosis& diagnosis, double seconds_calibrate);
 

@@ -236,19 +236,33 @@ class DiagnosisPage {
             "removed and parameters of the sign their physics needs (docs/diagnosis.md).</p>\n";
   }
 
+  // The joints whose profile a later campaign would need its own of, with its held-out share.
+  static std::string differingProfiles(const trainer::DiagnosedCampaign& c) {
+    if (c.profile_differences.empty()) return "–";
+    std::string text;
+    for (const trainer::CampaignProfileDifference& p : c.profile_differences) {
+      if (!p.score.significant) continue;
+      text += (text.empty() ? "" : ", ") +
+              format("joint %d (%.1f %%)", p.score.mechanism.joint + 1, 100.0 * p.score.relative_reduction);
+    }
+    return text.empty() ? "none: one serves every campaign" : text;
+  }
+
   void writeCampaigns() {
     if (d_.campaigns.empty()) return;
     out_ << "<h2 id=\"campaigns\">Campaigns fitted together</h2>\n<p>One robot; each later campaign "
             "with its own tracker station and tool against the first's, which are the extended "
             "model's.</p>\n<table><tr><th>campaign</th><th>fit rows</th><th>starting model "
-            "mean mm</th><th>extended mean mm</th><th>station</th><th>tool</th></tr>\n";
+            "mean mm</th><th>extended mean mm</th><th>station</th><th>tool</th><th>profiles "
+            "that differ here</th></tr>\n";
     for (const trainer::DiagnosedCampaign& c : d_.campaigns) {
       const bool own = !c.frames.parameters.empty();
       out_ << "<tr><td>" << escape(c.directory) << "</td><td>" << c.fit_rows << "</td><td>"
            << cell("%.4f", c.before_mean_m * kMm) << "</td><td>"
            << cell("%.4f", c.after_mean_m * kMm) << "</td><td>"
            << (own ? escape(campaignFrameText(c.frames, false)) : "the model's") << "</td><td>"
-           << (own ? escape(campaignFrameText(c.frames, true)) : "the model's") << "</td></tr>\n";
+           << (own ? escape(campaignFrameText(c.frames, true)) : "the model's") << "</td><td>"
+           << escape(differingProfiles(c)) << "</td></tr>\n";
     }
     out_ << "</table>\n";
   }

@@ -1,6 +1,7 @@
 #include "candidates.hpp"
 
 #include <algorithm>
+#include <numeric>
 #include <cmath>
 #include <iterator>
 #include <utility>
@@ -71,17 +72,20 @@ struct ScaledSource {
     kGravityTorque,  // the joint's gravity torque under the URDF's masses at the row's link angles
     kProfile,        // a profile's gated harmonics, 2·order columns
     kTemperature,    // the row's temperature less a reference (0 where it is not known)
+    kCampaign,       // 1 on the rows of one campaign, 0 on the others
   };
   Kind kind = Kind::kTorquePart;
   Mechanism unit;            // kTorquePart
   int source_joint = -1;     // kJointAngle
   double reference_c = 0.0;  // kTemperature
+  int campaign = 0;          // kCampaign; kProfile: ≥ 1, its columns on that campaign's rows only
   AngleCoverage coverage;    // kProfile
   int order = 0;             // kProfile
   Eigen::Index first = 0;    // its first column among the joint's scaled ones
   bool sameColumn(const ScaledSource& other) const {
     return kind == other.kind && kind != Kind::kProfile && source_joint == other.source_joint &&
-           reference_c == other.reference_c && unit.kind == other.unit.kind &&
+           reference_c == other.reference_c && campaign == other.campaign &&
+           unit.kind == other.unit.kind &&
            unit.parameters == other.unit.parameters;
   }
 };
@@ -185,9 +189,13 @@ void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, s
             out(r, source.first) =
                 fit.rows[i]->temp_c ? *fit.rows[i]->temp_c - source.reference_c : 0.0;
             break;
+          case ScaledSource::Kind::kCampaign:
+            out(r, source.first) = fit.rows[i]->session == source.campaign ? 1.0 : 0.0;
+            break;
           case ScaledSource::Kind::kProfile:
             harmonics.resize(2 * source.order);
             profileFeatures(source.coverage, source.order, fit.rows[i]->q_rad(joint), harmonics.data());
+            if (source.campaign > 0 && fit.rows[i]->session != source.campaign) harmonics.setZero();
             out.row(r).segment(source.first, 2 * source.order) = harmonics.transpose();
             break;
         }
@@ -240,11 +248,13 @@ struct ColumnSink {
     sources.push_back(std::move(source));
     return added({joint, sources.back().first}, 0.0);
   }
-  std::vector<Eigen::Index> profile(int joint, const AngleCoverage& coverage, int order) {
+  std::vector<Eigen::Index> profile(int joint, const AngleCoverage& coverage, int order,
+                                    int campaign = 0) {
     ScaledSource source;
     source.kind = ScaledSource::Kind::kProfile;
     source.coverage = coverage;
     source.order = order;
+    source.campaign = campaign;
     source.first = layout_.scaled[static_cast<size_t>(joint)];
     layout_.scaled[static_cast<size_t>(joint)] += 2 * order;
     recipe_.scaled[static_cast<size_t>(joint)].push_back(source);
@@ -684,6 +694,43 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
     source.reference_c = mean_temp;
     // A step that moves the joint by ~1e-4 rad over the rows' spread of temperature.
     addGlobal(std::move(f), {sink.feature(j, std::move(source))}, {1e-4 / temp_spread});
+  }
+
+  // Several campaigns: each joint's zero in each later campaign against the first's (a joint
+  // re-mastered between them), one column per later campaign.
+  const int campaigns = 1 + std::accumulate(fit.rows.begin(), fit.rows.end(), 0,
+                                            [](int most, const Measurement* row) {
+                                              return std::max(most, row->session);
+                                            });
+  for (int j = 0; j < n && campaigns > 1; ++j) {
+    if (present(global, MechanismKind::kCampaignJointZero, j, -1) ||
+        !wanted(MechanismKind::kCampaignJointZero, j)) {
+      continue;
+    }
+    Family f;
+    f.mechanism = blank(MechanismKind::kCampaignJointZero, n, j, -1, campaigns - 1);
+    std::vector<Eigen::Index> columns;
+    for (int k = 1; k < campaigns; ++k) {
+      f.free.push_back(k - 1);
+      ScaledSource source;
+      source.kind = ScaledSource::Kind::kCampaign;
+      source.campaign = k;
+      columns.push_back(sink.feature(j, std::move(source)));
+    }
+    std::vector<double> steps(columns.size(), typicalStep(f.mechanism, 0));
+    addGlobal(std::move(f), std::move(columns), std::move(steps));
+  }
+
+  // Each current profile's difference in one later campaign: whether one profile serves them.
+  for (const Profile& p : model.profiles) {
+    if (scope.campaign_profiles < 1) break;
+    Family f;
+    f.stage = Stage::kProfile;
+    f.campaign = scope.campaign_profiles;
+    f.mechanism = blank(MechanismKind::kTransmissionError, n, p.mechanism.joint, -1, p.mechanism.order);
+    f.mechanism.coverage = p.mechanism.coverage;
+    f.columns = sink.profile(f.mechanism.joint, f.mechanism.coverage, f.mechanism.order, f.campaign);
+    s.families.push_back(std::move(f));
   }
 
   // One profile per joint not yet profiled, at the highest order (lower orders are its leading

@@ -40,6 +40,9 @@ struct Family {
   int extends = -1;
   /// Fitted on every row it makes every compliance it frees negative: not a deflection.
   bool negative_compliance = false;
+  /// A profile's difference in this later campaign (its columns zero on the other campaigns'
+  /// rows), tested for the report and never added; 0: a family of the robot.
+  int campaign = 0;
 };
 
 /// One round's screening matrix: the current model's columns and every family's.
@@ -69,6 +72,8 @@ void setStage2(Screening& s, const DiagnosisModel& model, Eigen::Index geometry)
 struct ScreeningScope {
   bool families = true;
   const Mechanism* only = nullptr;
+  /// ≥ 1: the families are each current profile's difference in that later campaign alone.
+  int campaign_profiles = 0;
 };
 
 /// Builds the round's screening: the current model's stage-1 and stage-2 columns, and the

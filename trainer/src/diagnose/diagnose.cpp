@@ -87,7 +87,10 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
   }
   // Several campaigns: each later one's own tracker station and tool, fitted with the rest.
   const int sessions = campaign.sessionCount();
-  for (Mechanism& frames : startingSessionFrames(dm.global, rows, sessions, campaign.tracker)) {
+  std::vector<std::string> directories;
+  for (int s = 0; s < sessions; ++s) directories.push_back(campaign.directoryOf(s));
+  for (Mechanism& frames :
+       startingSessionFrames(dm.global, rows, sessions, campaign.tracker, directories)) {
     dm.global.mechanisms.push_back(std::move(frames));
   }
   for (int j = 0; j < n; ++j) dm.compliance_free.push_back(dm.global.compliance_rad_per_nm(j) > 0.0);
@@ -150,6 +153,7 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
   }
   d.seconds_trends += secondsSince(clock);
   judgeDrift(search);
+  judgeCampaignProfiles(search);
   const std::string remaining = trendSummary(d.after, options.noise_ratio_limit);
   if (!d.effects.empty()) {
     d.verdict = Verdict::kFound;

@@ -86,7 +86,8 @@ void describeEffects(Search& search) {
       f.stiffness_segments =
           stiffnessSegments(m, dm.global.compliance_rad_per_nm(m.joint), f.max_torque_nm);
     } else if (m.kind == MechanismKind::kRegistrationDrift ||
-               m.kind == MechanismKind::kJointZeroDrift) {
+               m.kind == MechanismKind::kJointZeroDrift ||
+               m.kind == MechanismKind::kCampaignJointZero) {
       tipMotion(search, m, whole.r, f);
     } else if (m.kind == MechanismKind::kSelfWeight && dm.masses_from_urdf) {
       f.gravity_loaded_joints =

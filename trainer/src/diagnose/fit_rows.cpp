@@ -47,12 +47,25 @@ Pose X_FittedLast(const Mechanism& drift) {
 
 MeasurementFrames measurementFramesOf(const PhysicalModel& model) {
   MeasurementFrames frames;
+  const int n = model.chain_Tracker.dof();
   for (const Mechanism& m : model.mechanisms) {
-    if (m.kind == MechanismKind::kRegistrationDrift) frames.drift = &m;
-    if (m.kind != MechanismKind::kSessionFrames) continue;
-    const size_t session = static_cast<size_t>(m.order);
-    if (frames.sessions.size() <= session) frames.sessions.resize(session + 1);
-    frames.sessions[session] = stationAndTool(m);
+    const size_t campaign = static_cast<size_t>(m.order);
+    switch (m.kind) {
+      case MechanismKind::kRegistrationDrift: frames.drift = &m; break;
+      case MechanismKind::kSessionFrames:
+        if (frames.sessions.size() <= campaign) frames.sessions.resize(campaign + 1);
+        frames.sessions[campaign] = stationAndTool(m);
+        break;
+      case MechanismKind::kCampaignJointZero:  // order: the campaigns after the first
+        if (frames.zero_offset_rad.size() <= campaign) {
+          frames.zero_offset_rad.resize(campaign + 1, JointVector::Zero(n));
+        }
+        for (size_t k = 1; k <= campaign; ++k) {
+          frames.zero_offset_rad[k](m.joint) += m.parameters[k - 1];
+        }
+        break;
+      default: break;
+    }
   }
   return frames;
 }
@@ -60,6 +73,12 @@ MeasurementFrames measurementFramesOf(const PhysicalModel& model) {
 const StationAndTool* MeasurementFrames::ownFrames(const Measurement& row) const {
   const size_t session = static_cast<size_t>(row.session);
   return session < sessions.size() && sessions[session] ? &*sessions[session] : nullptr;
+}
+
+JointVector MeasurementFrames::commanded(const Measurement& row) const {
+  const size_t session = static_cast<size_t>(row.session);
+  if (session >= zero_offset_rad.size()) return row.q_rad;
+  return row.q_rad + zero_offset_rad[session];
 }
 
 Pose MeasurementFrames::measured(const Measurement& row, const Pose& X_TipInTracker) const {
@@ -141,7 +160,7 @@ void evaluateRows(const PhysicalModel& model, const FitRows& fit, size_t begin, 
   const MeasurementFrames frames = measurementFramesOf(model);
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
-    physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws,
+    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), rowTemperature(row), ws,
                        out.theta_rad[i - offset], out.tau_nm[i - offset], nullptr, &constants);
     rowResidual(fit, i, frames, tipPose(ws), fit.start[i] - first, out.r);
   }
@@ -154,8 +173,8 @@ void residualRows(const PhysicalModel& model, const FitRows& fit, size_t begin, 
   JointVector theta, tau;
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
-    physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta, tau,
-                       nullptr, &constants);
+    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), rowTemperature(row), ws,
+                       theta, tau, nullptr, &constants);
     rowResidual(fit, i, frames, tipPose(ws), fit.start[i] - first, r);
   }
 }
@@ -202,8 +221,8 @@ void lineariseRows(const PhysicalModel& model, const FitRows& fit, size_t begin,
   JointVector theta, tau;
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
-    physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), kUnscaledLinks, ws, theta, tau,
-                       nullptr, &constants);
+    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), kUnscaledLinks, ws, theta,
+                       tau, nullptr, &constants);
     row_linearisation(model.chain_Tracker, ws, frames, fit, i, fit.start[i] - first, r, lin);
   }
 }
@@ -288,8 +307,8 @@ Eigen::MatrixXd differenceColumns(const std::vector<const PhysicalModel*>& model
     start.first_pass = &first_pass;
     for (size_t m = 0; m < models.size(); ++m) {
       if (!needed[m]) continue;
-      physicalLinkAngles(*models[m], row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta,
-                         tau, nullptr, &constants[m], &start);
+      physicalLinkAngles(*models[m], frames[m].commanded(row), row.wrenchOrZero(),
+                         rowTemperature(row), ws, theta, tau, nullptr, &constants[m], &start);
       rowResidual(fit, i, frames[m], tipPose(ws), 0, r);
       out.block(e, static_cast<Eigen::Index>(m), k, 1) = (r0.segment(e, k) - r.head(k)) / steps[m];
     }
@@ -312,15 +331,16 @@ void evaluateAndLinearise(const PhysicalModel& model, const FitRows& fit, size_t
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
     const double temp_c = rowTemperature(row);
-    physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), temp_c, ws,
+    const JointVector q = frames.commanded(row);
+    physicalLinkAngles(model, q, row.wrenchOrZero(), temp_c, ws,
                        evaluation.theta_rad[i - begin], evaluation.tau_nm[i - begin], nullptr,
                        &constants);
     const Eigen::Index e = fit.start[i] - first;
     rowResidual(fit, i, frames, tipPose(ws), e, evaluation.r);
     // Where the model scales no link at the row's temperature, its frames are the unscaled ones.
     if (model.linkLengthScale(temp_c) != 1.0) {
-      physicalLinkAngles(model, row.q_rad, row.wrenchOrZero(), kUnscaledLinks, ws, theta, tau,
-                         nullptr, &constants);
+      physicalLinkAngles(model, q, row.wrenchOrZero(), kUnscaledLinks, ws, theta, tau, nullptr,
+                         &constants);
     }
     row_linearisation(model.chain_Tracker, ws, frames, fit, i, e, evaluation.r, lin);
   }

@@ -28,14 +28,18 @@ struct FitRows {
 /// (a polynomial is least determined at its very end). The extended model's tracker frame.
 Pose X_FittedLast(const Mechanism& drift);
 
-/// What stands between the model's tip and a row's measurement: the tracker's registration drift
-/// in time order, and, where several campaigns are fitted together, each later campaign's own
-/// tracker station and tool (session_frames; the first campaign's are the chain's own).
+/// What stands between the model and a row's measurement: the tracker's registration drift in
+/// time order, and, where several campaigns are fitted together, each later campaign's own
+/// tracker station and tool (session_frames; the first campaign's are the chain's own) and its
+/// joints' zeros (campaign_joint_zero).
 struct MeasurementFrames {
   const Mechanism* drift = nullptr;  ///< the model's registration_drift, if any
   std::vector<std::optional<StationAndTool>> sessions;  ///< per campaign index, where it has own
+  std::vector<JointVector> zero_offset_rad;  ///< per campaign index: δ per joint (empty: none)
   /// The campaign's own station and tool of a row, null for the chain's own.
   const StationAndTool* ownFrames(const Measurement& row) const;
+  /// The row's recorded joint angles in the first campaign's readings: q + δ of its campaign.
+  JointVector commanded(const Measurement& row) const;
   /// The model's tip pose X (first campaign's tracker and tool) as the row's tracker measures it.
   Pose measured(const Measurement& row, const Pose& X_TipInTracker) const;
 };

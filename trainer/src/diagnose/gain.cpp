@@ -37,6 +37,7 @@ std::vector<Measurement> validationRows(const Campaign& campaign, const Mechanis
 // none): the rows the extended model's GPR learns from.
 Measurement inFirstCampaignTerms(Measurement row, const MeasurementFrames& frames,
                                  const PoseModel& model) {
+  row.q_rad = frames.commanded(row);
   const StationAndTool* own = frames.ownFrames(row);
   if (own == nullptr) return row;
   if (row.has_orientation) {
@@ -50,12 +51,15 @@ Measurement inFirstCampaignTerms(Measurement row, const MeasurementFrames& frame
   return row;
 }
 
-// A model of the first campaign's tracker and tool, each row seen from its own campaign's.
+// A model of the first campaign's tracker, tool and readings, each row seen from its own
+// campaign's.
 PoseModel inOwnFrames(PoseModel model, MeasurementFrames frames) {
   frames.drift = nullptr;
-  if (frames.sessions.empty()) return model;
+  if (frames.sessions.empty() && frames.zero_offset_rad.empty()) return model;
   return [model = std::move(model), frames = std::move(frames)](const Measurement& row) {
-    return frames.measured(row, model(row));
+    Measurement as_first = row;
+    as_first.q_rad = frames.commanded(row);
+    return frames.measured(row, model(as_first));
   };
 }
 
@@ -109,7 +113,7 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
   }
   const PoseModel after = physicalPoseModel(extended_physical);
   std::vector<Measurement> as_first;
-  if (drift != nullptr || !found_frames.sessions.empty()) {
+  if (drift != nullptr || !found_frames.sessions.empty() || !found_frames.zero_offset_rad.empty()) {
     for (const Measurement* row : gpr_rows) {
       as_first.push_back(inFirstCampaignTerms(withoutDrift(*row, drift), found_frames, after));
     }
@@ -131,8 +135,11 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
   if (!validation.empty()) {
     // Each model sees a later campaign's rows through its own fit of that campaign's frames.
     PhysicalModel before_physical = physicalModelOf(model);
+    std::vector<std::string> directories;
+    for (int s = 0; s < campaign.sessionCount(); ++s) directories.push_back(campaign.directoryOf(s));
     for (Mechanism& m : startingSessionFrames(before_physical, search.fit.rows,
-                                              campaign.sessionCount(), campaign.tracker)) {
+                                              campaign.sessionCount(), campaign.tracker,
+                                              directories)) {
       before_physical.mechanisms.push_back(std::move(m));
     }
     const MeasurementFrames before_frames = measurementFramesOf(before_physical);

@@ -5,6 +5,7 @@
 //                 joint fits, and the causes the final fit leaves without a size dropped;
 //   effects.cpp   what each found effect is on the fit rows (its RMS, its share of the geometry,
 //                 the torques it was identified over, the joints its self weight identifies);
+//   campaign_profiles.cpp  with several campaigns, whether one profile serves them all;
 //   drift.cpp     what drifted in time and temperature, and what the rows tell apart;
 //   gain.cpp      the extended model with its GPR, and its gain on the validation rows.
 // Each phase reads and changes the Search; what it finds goes into the Diagnosis as structured
@@ -59,6 +60,10 @@ void refine(Search& s);
 /// share of the geometry, a torque-driven mechanism's torque range, self weight's identified
 /// joints and the gravity torque spread of the others.
 void describeEffects(Search& s);
+
+/// With several campaigns: per later campaign, whether each profile serves it as it serves the
+/// first (DiagnosedCampaign::profile_differences), the model left as it is.
+void judgeCampaignProfiles(Search& s);
 
 /// What drifted (DriftVerdict): the drift effects found, the candidates of the last round and
 /// the trends left, in sentences.

@@ -1,6 +1,7 @@
 #include "session_frames.hpp"
 
 #include "../least_squares.hpp"
+#include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/trainer/registration.hpp"
@@ -10,6 +11,8 @@ namespace {
 
 constexpr double kRankTolerance = 1e-9;
 constexpr int kFrameIterations = 10;
+// A station and a tool are 12 parameters; a position-only row gives 3 equations.
+constexpr size_t kLeastRowsPerStation = 4;
 
 }  // namespace
 
@@ -59,7 +62,8 @@ PhysicalModel refitFrames(PhysicalModel model, const FitRows& fit) {
 
 std::vector<Mechanism> startingSessionFrames(const PhysicalModel& model,
                                              const std::vector<const Measurement*>& rows,
-                                             int sessions, const TrackerNoise& noise) {
+                                             int sessions, const TrackerNoise& noise,
+                                             const std::vector<std::string>& directories) {
   const int n = model.chain_Tracker.dof();
   const Pose& X_TrackerRoot = model.chain_Tracker.initialPose(0);
   const Pose& X_LastTool = model.chain_Tracker.initialPose(n);
@@ -68,6 +72,14 @@ std::vector<Mechanism> startingSessionFrames(const PhysicalModel& model,
     std::vector<const Measurement*> own;
     for (const Measurement* row : rows) {
       if (row->session == s) own.push_back(row);
+    }
+    if (own.size() < kLeastRowsPerStation) {
+      throw InputError("campaign " + std::to_string(s + 1) + " has " + std::to_string(own.size()) +
+                           " fit rows (outside set=validation); expected at least " +
+                           std::to_string(kLeastRowsPerStation) +
+                           " to place its own tracker station and tool (hint: measure more poses "
+                           "there, or leave the campaign out)",
+                       directories[static_cast<size_t>(s)]);
     }
     const KinematicChain chain = refitFrames(model, makeFitRows(own, noise, 1)).chain_Tracker;
     Mechanism m;

@@ -3,6 +3,7 @@
 // model, and a model's tracker and tool frames fitted again on a campaign's rows.
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "fit_rows.hpp"
@@ -16,10 +17,12 @@ PhysicalModel refitFrames(PhysicalModel model, const FitRows& fit);
 
 /// Per campaign after the first among the rows (Measurement::session, 1 … sessions − 1), its
 /// session_frames against the model's own frames: refitFrames on that campaign's rows alone.
-/// The σ are left zero (the diagnosis's refit sets them).
+/// The σ are left zero (the diagnosis's refit sets them). Throws InputError naming the campaign
+/// (directories: per campaign, its folder) when it has fewer than 4 of the rows.
 std::vector<Mechanism> startingSessionFrames(const PhysicalModel& model,
                                              const std::vector<const Measurement*>& rows,
-                                             int sessions, const TrackerNoise& noise);
+                                             int sessions, const TrackerNoise& noise,
+                                             const std::vector<std::string>& directories);
 
 /// Per campaign (0 … sessions − 1), the mean position error of its rows, m: |measured − modelled|
 /// from the weighted residual r of the fit (evaluate).

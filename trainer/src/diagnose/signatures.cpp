@@ -120,9 +120,12 @@ std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Di
     model.gravity_Tracker = X_LastFitted.linear() * model.gravity_Tracker;
     model.mechanisms.push_back(e.mechanism);
   }
-  // Several campaigns: each later one's rows through its own station and tool.
+  // Several campaigns: each later one's rows through its own station, tool and joint zeros.
   for (const DiagnosedCampaign& c : diagnosis.campaigns) {
     if (!c.frames.parameters.empty()) model.mechanisms.push_back(c.frames);
+  }
+  for (const FoundEffect& e : diagnosis.effects) {
+    if (e.mechanism.kind == MechanismKind::kCampaignJointZero) model.mechanisms.push_back(e.mechanism);
   }
   std::vector<const Measurement*> rows;
   for (const Measurement& row : campaign.rows) {
@@ -235,7 +238,8 @@ std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Di
       case MechanismKind::kSensorBias:
       case MechanismKind::kProfileGeometry:
       case MechanismKind::kRegistrationDrift:
-      case MechanismKind::kSessionFrames: break;  // six constants, its own frame, not a model's
+      case MechanismKind::kSessionFrames:
+      case MechanismKind::kCampaignJointZero: break;  // constants of a campaign, not a model's
     }
   }
   return signatures;

@@ -51,6 +51,7 @@ enum class MechanismKind : uint32_t {
   kJointZeroDrift = 10,     ///< joint j: its zero moves by k (T − T_ref) with temperature
   kRegistrationDrift = 11,  ///< the tracker's frame moves in time order: measurement, not robot
   kSessionFrames = 12,      ///< a campaign's own tracker station and tool: measurement, not robot
+  kCampaignJointZero = 13,  ///< joint j: its zero in each later campaign against the first's
 };
 
 /// Snake-case name, e.g. "transmission_error".
@@ -99,7 +100,8 @@ struct Mechanism {
   /// transmission_error: harmonics 1 … order (1 ≤ order ≤ kMaxHarmonics); torsion_curve: its
   /// stiffening terms (0 ≤ order ≤ kMaxTorsionTerms); registration_drift: its polynomial's
   /// degree (1 ≤ order ≤ kMaxDriftDegree); session_frames: the campaign's index among those
-  /// fitted together (≥ 1; the first campaign's frames are the chain's own); other kinds 0.
+  /// fitted together (≥ 1; the first campaign's frames are the chain's own);
+  /// campaign_joint_zero: the number of campaigns after the first (≥ 1); other kinds 0.
   int order = 0;
   /// Layout per kind (mechanismParameterNames):
   ///   backlash            [b rad, τ_b N·m]: b tanh(τ_j/τ_b), a sign smoothed over ±τ_b (with
@@ -138,6 +140,10 @@ struct Mechanism {
   ///                       the first campaign's tracker with its tool, X_Station = (exp r̂, t)
   ///                       the first campaign's tracker axes in this campaign's tracker, X_Tool
   ///                       = (exp r̂, t) this campaign's tool in the first campaign's (stationAndTool)
+  ///   campaign_joint_zero [δ_1 rad, …, δ_order rad]: in campaign k (from 0, the first) joint j's
+  ///                       recorded angle reads δ_k less than the first campaign's at the same
+  ///                       link angle (the joint re-mastered between them): the model of that
+  ///                       campaign's rows takes q_j + δ_k
   std::vector<double> parameters;
   std::vector<double> sigma;  ///< 1-σ of each parameter, same size (0 = not estimated)
   /// transmission_error: the angles of its joint it was fitted on (empty: everywhere); other
@@ -156,8 +162,9 @@ std::string mechanismProblem(const Mechanism& mechanism, int dof);
 /// Short human name, e.g. "backlash (joint 2)", "transmission_error (joint 3, 24 harmonics)".
 std::string describe(const Mechanism& mechanism);
 
-/// Whether a kind describes the measurement, not the robot (registration_drift, session_frames):
-/// the diagnosis fits it, a model file never holds it, no correction applies it.
+/// Whether a kind describes the measurement, not the robot as it is now (registration_drift,
+/// session_frames, campaign_joint_zero: a campaign's tracker or the robot as an earlier campaign
+/// found it): the diagnosis fits it, a model file never holds it, no correction applies it.
 bool isMeasurementOnly(MechanismKind kind) noexcept;
 
 /// Legendre polynomial P_degree(s), degree ≥ 0 (Bonnet's recurrence): a registration_drift's

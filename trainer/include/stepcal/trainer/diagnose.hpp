@@ -208,6 +208,16 @@ struct DriftVerdict {
   std::string text;  ///< the verdict's sentences
 };
 
+/// Whether one profile of a joint serves a later campaign as it serves the first: the profile's
+/// difference on that campaign's rows alone, screened held out like a candidate (over the orders
+/// up to the profile's and the ridges), reported and never added to the model.
+struct CampaignProfileDifference {
+  /// The difference (a transmission_error of the profile's joint and coverage) at its simplest
+  /// configuration, with its held-out gain, reduction, z; significant as a candidate would be.
+  CandidateScore score;
+  double rms_rad = 0.0;  ///< its RMS over the campaign's fit rows (gate included), rad
+};
+
 /// One of several campaigns of one robot diagnosed together (`stepcal diagnose DIR1 DIR2 …`):
 /// one robot, each campaign measured from its own tracker station with its own tool.
 struct DiagnosedCampaign {
@@ -218,6 +228,8 @@ struct DiagnosedCampaign {
   Mechanism frames;
   /// Its fit rows' mean position error, m: the starting model refitted, the extended model.
   double before_mean_m = 0.0, after_mean_m = 0.0;
+  /// After the first: per profile of the extended model, its difference here (empty for the first).
+  std::vector<CampaignProfileDifference> profile_differences;
 };
 
 struct Diagnosis {

@@ -308,13 +308,18 @@ TEST(DiagnoseSessions, TheCliReportsEveryCampaign) {
   EXPECT_EQ(second["station"]["translation_mm"].size(), 3u);
   EXPECT_EQ(second["tool"]["rotation_sigma_deg"].size(), 3u);
   for (const nlohmann::json& c : j["campaigns"]) EXPECT_LT(c["after_mean_position_mm"].get<double>(), 0.03);
-  const test::CommandResult text = test::run(bin + " diagnose " + a + " " + b);
+  const std::string html = (dir.path() / "report.html").string();
+  const test::CommandResult text = test::run(bin + " diagnose " + a + " " + b + " --report " + html);
   ASSERT_EQ(text.status, 0) << text.out;
   EXPECT_NE(text.out.find("Campaigns fitted together"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("2 " + b + ": 80 fit rows"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("registration_drift (the fit rows are several campaigns"),
             std::string::npos)
       << text.out;
+  const std::string page = test::readText(html);
+  EXPECT_NE(page.find("<a href=\"#campaigns\">campaigns</a>"), std::string::npos);
+  EXPECT_NE(page.find("<h2 id=\"campaigns\">Campaigns fitted together</h2>"), std::string::npos);
+  EXPECT_NE(page.find("<td>" + b + "</td><td>80</td>"), std::string::npos);
 }
 
 }  // namespace

@@ -104,7 +104,9 @@ class DiagnosisPage {
     out_ << pageHead("stepcal diagnosis: " + name);
     out_ << "<h1>stepcal diagnosis</h1>\n<nav><a href=\"#effects\">effects found</a>"
             "<a href=\"#signatures\">signatures</a><a href=\"#residual\">residual</a>"
-            "<a href=\"#candidates\">candidates</a><a href=\"#gain\">gain</a></nav>\n<p>"
+            "<a href=\"#candidates\">candidates</a>"
+        << (d_.campaigns.empty() ? "" : "<a href=\"#campaigns\">campaigns</a>")
+        << "<a href=\"#gain\">gain</a></nav>\n<p>"
         << escape(name) << ": " << d_.fit_rows << " fit rows, " << d_.validation_rows
         << " validation rows. Verdict: <b>" << toString(d_.verdict) << "</b>";
     for (const trainer::FoundEffect& e : d_.effects) out_ << "; " << escape(describe(e.mechanism));

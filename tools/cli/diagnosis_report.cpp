@@ -289,11 +289,14 @@ std::string campaignFrameText(const Mechanism& m, bool tool) {
   const auto largest = [&](size_t from) {
     return std::max({m.sigma[from], m.sigma[from + 1], m.sigma[from + 2]});
   };
+  // A value that rounds to zero at the digits printed is printed as 0, not -0.
+  const auto shown = [](double value, double unit) { return std::abs(value) < 0.5 * unit ? 0.0 : value; };
   const std::vector<double>& p = m.parameters;
-  return format("t (%.3f, %.3f, %.3f) mm ± %.2g, r (%.4f, %.4f, %.4f) deg ± %.2g",
-                1e3 * p[first], 1e3 * p[first + 1], 1e3 * p[first + 2], 1e3 * largest(first),
-                kRadToDeg * p[first + 3], kRadToDeg * p[first + 4], kRadToDeg * p[first + 5],
-                kRadToDeg * largest(first + 3));
+  const auto mm = [&](size_t i) { return shown(1e3 * p[i], 1e-3); };
+  const auto deg = [&](size_t i) { return shown(kRadToDeg * p[i], 1e-4); };
+  return format("t (%.3f, %.3f, %.3f) mm ± %.2g, r (%.4f, %.4f, %.4f) deg ± %.2g", mm(first),
+                mm(first + 1), mm(first + 2), 1e3 * largest(first), deg(first + 3), deg(first + 4),
+                deg(first + 5), kRadToDeg * largest(first + 3));
 }
 
 namespace {

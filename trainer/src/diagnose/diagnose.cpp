@@ -85,14 +85,15 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
                                             options.coverage_fade_deg * kDegToRad);
     dm.profiles.push_back(std::move(p));
   }
-  // Several campaigns: each later one's own tracker station and tool, fitted with the rest.
+  // Several campaigns: each later one's own tracker station and tool as the given model places
+  // it, then fitted with the rest.
   const int sessions = campaign.sessionCount();
   std::vector<std::string> directories;
   for (int s = 0; s < sessions; ++s) directories.push_back(campaign.directoryOf(s));
-  for (Mechanism& frames :
-       startingSessionFrames(dm.global, rows, sessions, campaign.tracker, directories)) {
-    dm.global.mechanisms.push_back(std::move(frames));
-  }
+  search.starting_frames =
+      startingSessionFrames(physicalModelOf(model), rows, sessions, campaign.tracker, directories);
+  dm.global.mechanisms.insert(dm.global.mechanisms.end(), search.starting_frames.begin(),
+                              search.starting_frames.end());
   for (int j = 0; j < n; ++j) dm.compliance_free.push_back(dm.global.compliance_rad_per_nm(j) > 0.0);
   search.starting_compliance = dm.compliance_free;
   if (!dm.profiles.empty()) {

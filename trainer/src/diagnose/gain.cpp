@@ -3,7 +3,6 @@
 #include <chrono>
 
 #include "search.hpp"
-#include "session_frames.hpp"
 #include "stepcal/common/lie.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -134,15 +133,9 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
   d.floor_position_m = noiseFloorMean(campaign.tracker.position_sigma_m);
   if (!validation.empty()) {
     // Each model sees a later campaign's rows through its own fit of that campaign's frames.
-    PhysicalModel before_physical = physicalModelOf(model);
-    std::vector<std::string> directories;
-    for (int s = 0; s < campaign.sessionCount(); ++s) directories.push_back(campaign.directoryOf(s));
-    for (Mechanism& m : startingSessionFrames(before_physical, search.fit.rows,
-                                              campaign.sessionCount(), campaign.tracker,
-                                              directories)) {
-      before_physical.mechanisms.push_back(std::move(m));
-    }
-    const MeasurementFrames before_frames = measurementFramesOf(before_physical);
+    PhysicalModel starting;  // the frames alone: the given model's fit of each campaign's
+    starting.mechanisms = search.starting_frames;
+    const MeasurementFrames before_frames = measurementFramesOf(starting);
     const auto base_layers = modelLayers(model);
     const PoseModel before = inOwnFrames(physicalPoseModel(physicalModelOf(model)), before_frames);
     const bool has_gpr = model.gpr.has_value();

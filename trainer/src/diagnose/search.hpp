@@ -39,6 +39,8 @@ struct Search {
   DiagnosisModel model;
   JointVector compliance_sigma;          ///< n entries, rad/(N·m)
   std::vector<bool> starting_compliance;  ///< per joint: fitted in the starting model
+  /// Per later campaign, its station and tool as the given model places them (session_frames).
+  std::vector<Mechanism> starting_frames;
   /// The starting model's global mechanisms and profiles come first; the causes found follow.
   size_t base_globals = 0, base_profiles = 0;
   Eigen::Index geometry = 0;  ///< 6(n+1) initial-pose corrections

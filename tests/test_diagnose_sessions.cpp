@@ -255,13 +255,48 @@ TEST(DiagnoseSessions, ACampaignTooSmallForItsOwnStationIsRefusedByName) {
   }
 }
 
-TEST(DiagnoseSessions, ACampaignsFramesAreRefusedInAModelFile) {
-  CalibratedModel model = together().d.extended_model;
-  model.mechanisms = {together().d.campaigns[1].frames};
-  const std::string problem = mechanismInModelProblem(model, 0);
-  EXPECT_NE(problem.find("session_frames describes a campaign's measurement"), std::string::npos)
-      << problem;
-  EXPECT_THROW(serializeModel(model), InputError);
+TEST(DiagnoseSessions, ACampaignsFramesAndZerosAreRefusedInAModelFile) {
+  const trainer::FoundEffect* zero = effectOf(together().d, MechanismKind::kCampaignJointZero);
+  ASSERT_NE(zero, nullptr);
+  for (const Mechanism& m : {together().d.campaigns[1].frames, zero->mechanism}) {
+    CalibratedModel model = together().d.extended_model;
+    model.mechanisms = {m};
+    const std::string problem = mechanismInModelProblem(model, 0);
+    EXPECT_NE(problem.find(std::string(toString(m.kind)) + " describes a campaign's measurement"),
+              std::string::npos)
+        << problem;
+    EXPECT_THROW(serializeModel(model), InputError);
+  }
+}
+
+// A joint zero per campaign needs its joint and at least one later campaign.
+TEST(DiagnoseSessions, AMalformedCampaignJointZeroIsNamed) {
+  Mechanism m;
+  m.kind = MechanismKind::kCampaignJointZero;
+  m.joint = 2;
+  m.order = 2;
+  m.parameters = {1e-4, -2e-4};
+  m.sigma = {1e-6, 1e-6};
+  EXPECT_EQ(mechanismProblem(m, 6), "");
+  EXPECT_EQ(mechanismParameterNames(m.kind, 6, 2),
+            (std::vector<std::string>{"campaign2_rad", "campaign3_rad"}));
+  Mechanism no_joint = m;
+  no_joint.joint = -1;
+  EXPECT_NE(mechanismProblem(no_joint, 6).find("campaign_joint_zero joint index -1; expected 0 to 5"),
+            std::string::npos)
+      << mechanismProblem(no_joint, 6);
+  Mechanism no_campaign = m;
+  no_campaign.order = 0;
+  no_campaign.parameters.clear();
+  no_campaign.sigma.clear();
+  EXPECT_NE(mechanismProblem(no_campaign, 6).find("campaign_joint_zero order 0; expected"),
+            std::string::npos)
+      << mechanismProblem(no_campaign, 6);
+  Mechanism short_of_one = m;
+  short_of_one.parameters.pop_back();
+  EXPECT_NE(mechanismProblem(short_of_one, 6).find("has 1 parameters and 2 sigmas; expected 2"),
+            std::string::npos)
+      << mechanismProblem(short_of_one, 6);
 }
 
 // A station and a tool through the parameters and back, at rotations up to near a half turn.

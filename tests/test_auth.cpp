@@ -31,6 +31,8 @@
 #include "stepcal/service/can_feed.hpp"
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/lcm_server.hpp"
+#include "stepcal/service/reply.hpp"
+#include "stepcal/service/request.hpp"
 #include "stepcal/service/service.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
@@ -75,18 +77,12 @@ const Measurement& row(size_t i = 0) {
 }
 
 std::vector<uint8_t> forwardBytes(const Measurement& r, int64_t id) {
-  correction_request_t msg{};
+  correction_request_t msg = blankRequest();
   msg.request_id = id;
-  msg.message_version = correction_request_t::VERSION;
-  msg.tool_quaternion_wxyz[0] = 1.0;
-  msg.desired_quaternion_wxyz[0] = 1.0;
   msg.wrench_source = correction_request_t::WRENCH_GIVEN;
-  msg.temp_c = std::nan("");
   for (int j = 0; j < 6; ++j) msg.q_rad[j] = r.q_rad[j];
   for (int j = 0; j < 6; ++j) msg.wrench[j] = r.wrenchOrZero()[j];
-  std::vector<uint8_t> bytes(size_t(msg.getEncodedSize()));
-  msg.encode(bytes.data(), 0, int(bytes.size()));
-  return bytes;
+  return encodeRequest(msg);
 }
 
 std::vector<uint8_t> sealed(std::vector<uint8_t> bytes, MessageSigner& signer) {
@@ -228,7 +224,7 @@ TEST(Auth, ForgedAndReplayedTrafficIsRefusedAndCounted) {
   EXPECT_EQ(client_check.verify(genuine_reply.data(), int(genuine_reply.size()), unixMicroseconds()),
             Verdict::kAuthentic);
   correction_reply_t reply{};
-  reply.decode(genuine_reply.data(), 0, int(genuine_reply.size()));
+  ASSERT_EQ(decodeReply(genuine_reply.data(), int(genuine_reply.size()), reply), ReplyKind::kReply);
   EXPECT_EQ(reply.status, int8_t(Status::kOk));
   EXPECT_EQ(reply.request_id, 1);
 
@@ -252,7 +248,8 @@ TEST(Auth, ForgedAndReplayedTrafficIsRefusedAndCounted) {
   spoof.request_id = 5;
   spoof.predicted_position_m[0] += 0.1;
   std::vector<uint8_t> spoof_bytes(size_t(spoof.getEncodedSize()));
-  spoof.encode(spoof_bytes.data(), 0, int(spoof_bytes.size()));
+  ASSERT_EQ(encodeReply(spoof, spoof_bytes.data(), int(spoof_bytes.size())),
+            int(spoof_bytes.size()));
   const std::vector<uint8_t> spoof_sealed = sealed(spoof_bytes, impostor);
   publish(kReplyChannel, spoof_bytes);
   publish(kReplyChannel, spoof_sealed);

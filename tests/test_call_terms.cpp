@@ -13,6 +13,8 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/runtime/corrector.hpp"
+#include "stepcal/service/reply.hpp"
+#include "stepcal/service/request.hpp"
 #include "stepcal/service/service.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
@@ -384,20 +386,16 @@ TEST(CallTerms, AModelThatNeedsNoWrenchAnswersWithoutOne) {
 
   const auto answer = [](std::unique_ptr<const runtime::RuntimeModel> m, const Measurement& row) {
     service::Service server(std::move(m), "model.stepcal", {});
-    stepcal_lcm::correction_request_t msg{};
+    stepcal_lcm::correction_request_t msg = service::blankRequest();
     msg.request_id = 7;
-    msg.message_version = stepcal_lcm::correction_request_t::VERSION;
-    msg.tool_quaternion_wxyz[0] = 1.0;
-    msg.desired_quaternion_wxyz[0] = 1.0;
     msg.wrench_source = stepcal_lcm::correction_request_t::WRENCH_LIVE_SENSOR;
-    msg.temp_c = std::nan("");
     for (int j = 0; j < 6; ++j) msg.q_rad[j] = row.q_rad[j];
-    std::vector<uint8_t> bytes(size_t(msg.getEncodedSize())), reply(size_t(service::Service::replyBytes()));
-    msg.encode(bytes.data(), 0, int(bytes.size()));
+    const std::vector<uint8_t> bytes = service::encodeRequest(msg);
+    std::vector<uint8_t> reply(size_t(service::replyBytes()));
     const int size = server.handleRequest(bytes.data(), int(bytes.size()), runtime::Clock::now(),
                                           reply.data(), int(reply.size()));
     stepcal_lcm::correction_reply_t decoded{};
-    EXPECT_EQ(decoded.decode(reply.data(), 0, size), size);
+    EXPECT_EQ(service::decodeReply(reply.data(), size, decoded), service::ReplyKind::kReply);
     return decoded;
   };
   const Measurement& row = *campaign.rowsIn(RowSet::kValidation)[0];

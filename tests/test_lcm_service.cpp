@@ -35,6 +35,7 @@
 #include "stepcal/service/can_feed.hpp"
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/lcm_server.hpp"
+#include "stepcal/service/reply.hpp"
 #include "stepcal/service/request.hpp"
 #include "stepcal/service/service.hpp"
 #include "stepcal/trainer/pipeline.hpp"
@@ -99,15 +100,10 @@ ServiceOptions generousOptions() {
 }
 
 correction_request_t forwardRequest(const Measurement& row, int64_t id) {
-  correction_request_t msg{};
+  correction_request_t msg = blankRequest();
   msg.request_id = id;
-  msg.message_version = correction_request_t::VERSION;
-  msg.tool_quaternion_wxyz[0] = 1.0;
-  msg.user_frame_quaternion_wxyz[0] = 1.0;
   msg.mode = correction_request_t::MODE_FORWARD;
   msg.wrench_source = correction_request_t::WRENCH_GIVEN;
-  msg.desired_quaternion_wxyz[0] = 1.0;
-  msg.temp_c = runtime::kUnknownTemperature_c;
   for (int j = 0; j < 6; ++j) msg.q_rad[j] = row.q_rad[j];
   for (int j = 0; j < 6; ++j) msg.wrench[j] = row.wrenchOrZero()[j];
   return msg;
@@ -118,19 +114,10 @@ correction_request_t inverseRequest(const Measurement& row, int64_t id,
                                     std::optional<Pose> X_TrackerTip_desired = std::nullopt) {
   correction_request_t msg = forwardRequest(row, id);
   msg.mode = correction_request_t::MODE_INVERSE;
-  const Pose X = X_TrackerTip_desired.value_or(row.X_TrackerTip());
-  const Eigen::Quaterniond q(X.linear());
-  const double wxyz[4] = {q.w(), q.x(), q.y(), q.z()};
-  for (int j = 0; j < 3; ++j) msg.desired_position_m[j] = X.translation()[j];
-  for (int j = 0; j < 4; ++j) msg.desired_quaternion_wxyz[j] = wxyz[j];
+  writePose(X_TrackerTip_desired.value_or(row.X_TrackerTip()), msg.desired_position_m,
+            msg.desired_quaternion_wxyz);
   for (int j = 0; j < 6; ++j) msg.seed_q_rad[j] = row.q_rad[j] + (j % 2 ? -2 : 2) * kDeg;
   return msg;
-}
-
-std::vector<uint8_t> encode(const correction_request_t& msg) {
-  std::vector<uint8_t> bytes(size_t(msg.getEncodedSize()));
-  EXPECT_EQ(msg.encode(bytes.data(), 0, int(bytes.size())), int(bytes.size()));
-  return bytes;
 }
 
 /// Handles bytes directly (no LCM); the decoded reply, or nullopt when none was due.
@@ -140,7 +127,7 @@ std::optional<correction_reply_t> handle(Service& service, const std::vector<uin
                                          reply.data(), int(reply.size()));
   if (size == 0) return std::nullopt;
   correction_reply_t decoded;
-  EXPECT_EQ(decoded.decode(reply.data(), 0, size), size);
+  EXPECT_EQ(decodeReply(reply.data(), size, decoded), ReplyKind::kReply);
   return decoded;
 }
 
@@ -192,7 +179,7 @@ class MemqService {
  private:
   static void onReply(const lcm_recv_buf_t* rbuf, const char*, void* user) {
     correction_reply_t reply;
-    ASSERT_EQ(reply.decode(rbuf->data, 0, int(rbuf->data_size)), int(rbuf->data_size));
+    ASSERT_EQ(decodeReply(rbuf->data, int(rbuf->data_size), reply), ReplyKind::kReply);
     static_cast<MemqService*>(user)->replies_.push_back(reply);
   }
   static void onStatus(const lcm_recv_buf_t* rbuf, const char*, void* user) {
@@ -216,7 +203,7 @@ TEST(LcmService, DecodeRequestKeepsEveryField) {
   msg.deadline_us = 150;
   msg.temp_c = 23.5;
   Request request;
-  ASSERT_EQ(decodeRequest(encode(msg).data(), msg.getEncodedSize(), request), Status::kOk);
+  ASSERT_EQ(decodeRequest(encodeRequest(msg).data(), msg.getEncodedSize(), request), Status::kOk);
   EXPECT_EQ(request.temp_c, 23.5);
   EXPECT_TRUE(request.request_id_known);
   EXPECT_EQ(request.request_id, -42);
@@ -237,7 +224,7 @@ TEST(LcmService, DecodeRequestKeepsEveryField) {
   // Not measured (NaN) is a valid temperature; so are both ends of the range.
   for (const double temp_c : {std::nan(""), -50.0, 150.0}) {
     msg.temp_c = temp_c;
-    ASSERT_EQ(decodeRequest(encode(msg).data(), msg.getEncodedSize(), request), Status::kOk)
+    ASSERT_EQ(decodeRequest(encodeRequest(msg).data(), msg.getEncodedSize(), request), Status::kOk)
         << temp_c;
     EXPECT_TRUE(std::isnan(temp_c) ? std::isnan(request.temp_c) : request.temp_c == temp_c);
   }
@@ -254,7 +241,7 @@ TEST(LcmService, RequestsCarryTheTemperatureToTheModel) {
     for (const double temp_c : {runtime::kUnknownTemperature_c, 35.0}) {
       correction_request_t msg = forwardRequest(row, int64_t(i));
       msg.temp_c = temp_c;
-      std::vector<correction_reply_t> replies = memq.exchange(encode(msg));
+      std::vector<correction_reply_t> replies = memq.exchange(encodeRequest(msg));
       ASSERT_EQ(replies.size(), 1u);
       const runtime::ForwardResult expected =
           runtime::correctForward(*model, ws, row.q_rad, row.wrenchOrZero(), temp_c);
@@ -275,7 +262,7 @@ TEST(LcmService, RequestsCarryTheTemperatureToTheModel) {
 
       correction_request_t inverse = inverseRequest(row, int64_t(100 + i), expected.X_TrackerTip);
       inverse.temp_c = temp_c;
-      replies = memq.exchange(encode(inverse));
+      replies = memq.exchange(encodeRequest(inverse));
       ASSERT_EQ(replies.size(), 1u);
       EXPECT_EQ(replies[0].status, int8_t(Status::kOk));
       EXPECT_LT(replies[0].residual_position_m, 1e-6);
@@ -291,7 +278,7 @@ TEST(LcmService, ForwardReplyEqualsCorrectForward) {
   for (size_t i = 0; i < 20; ++i) {
     const Measurement& row = validationRow(i * 7);
     const std::vector<correction_reply_t> replies =
-        memq.exchange(encode(forwardRequest(row, int64_t(i))));
+        memq.exchange(encodeRequest(forwardRequest(row, int64_t(i))));
     ASSERT_EQ(replies.size(), 1u);
     const correction_reply_t& r = replies[0];
     const runtime::ForwardResult expected = runtime::correctForward(
@@ -323,11 +310,11 @@ TEST(LcmService, InverseReplyEqualsSolveInverse) {
                                                       runtime::kUnknownTemperature_c)
                                   .X_TrackerTip;
     const correction_request_t msg = inverseRequest(row, int64_t(100 + i), X_TrackerTip);
-    const std::vector<correction_reply_t> replies = memq.exchange(encode(msg));
+    const std::vector<correction_reply_t> replies = memq.exchange(encodeRequest(msg));
     ASSERT_EQ(replies.size(), 1u);
     const correction_reply_t& r = replies[0];
     Request request;
-    ASSERT_EQ(decodeRequest(encode(msg).data(), msg.getEncodedSize(), request), Status::kOk);
+    ASSERT_EQ(decodeRequest(encodeRequest(msg).data(), msg.getEncodedSize(), request), Status::kOk);
     const runtime::InverseResult expected = runtime::solveInverse(
         *model, ws, request.X_FrameTcp_desired, request.terms.wrench_Sensor,
         runtime::kUnknownTemperature_c, request.seed_q_rad, Clock::now() + std::chrono::seconds(1));
@@ -351,7 +338,7 @@ TEST(LcmService, BadRequestsGetBadRequestOrAreCounted) {
   MemqService memq;
   const Measurement& row = validationRow();
   const auto badReply = [&](const correction_request_t& msg) {
-    const std::vector<correction_reply_t> replies = memq.exchange(encode(msg));
+    const std::vector<correction_reply_t> replies = memq.exchange(encodeRequest(msg));
     EXPECT_EQ(replies.size(), 1u);
     return !replies.empty() && replies[0].status == int8_t(Status::kBadRequest) &&
            replies[0].request_id == msg.request_id;
@@ -386,7 +373,7 @@ TEST(LcmService, BadRequestsGetBadRequestOrAreCounted) {
   }
 
   // Truncated: a reply when the id can be read, none (counted) below 16 bytes.
-  const std::vector<uint8_t> good = encode(forwardRequest(row, 77));
+  const std::vector<uint8_t> good = encodeRequest(forwardRequest(row, 77));
   for (size_t size = 0; size < good.size(); ++size) {
     const std::vector<uint8_t> truncated(good.begin(), good.begin() + long(size));
     const int64_t unaddressable = memq.service().counters().unaddressable;
@@ -465,7 +452,8 @@ TEST(LcmService, AVersion1RequestIsRefusedByName) {
   EXPECT_EQ(service.counters().status_counts[size_t(Status::kBadRequest)], 1);
   EXPECT_EQ(service.status(false).old_version_requests, 1);
   correction_reply_t as_new{};
-  EXPECT_LT(as_new.decode(reply.data(), 0, size), 0) << "and no new client misreads it";
+  EXPECT_EQ(decodeReply(reply.data(), size, as_new), ReplyKind::kOldVersion)
+      << "and no new client misreads it";
 
   ServiceOptions keyed = generousOptions();
   keyed.key = CellKey::fromBytes({});
@@ -486,7 +474,7 @@ TEST(LcmService, StaleLiveWrenchIsStaleWrench) {
   correction_request_t msg = forwardRequest(row, 9);
   msg.wrench_source = correction_request_t::WRENCH_LIVE_SENSOR;
   const auto status = [&] {
-    const std::vector<correction_reply_t> replies = memq.exchange(encode(msg));
+    const std::vector<correction_reply_t> replies = memq.exchange(encodeRequest(msg));
     EXPECT_EQ(replies.size(), 1u);
     return replies.empty() ? Status::kOk : static_cast<Status>(replies[0].status);
   };
@@ -513,8 +501,8 @@ TEST(LcmService, StaleLiveWrenchIsStaleWrench) {
   std::vector<uint8_t> bytes(size_t(wrench.getEncodedSize()));
   wrench.encode(bytes.data(), 0, int(bytes.size()));
   memq.publish(kWrenchChannel, bytes);
-  std::vector<correction_reply_t> live = memq.exchange(encode(msg));
-  const std::vector<correction_reply_t> given = memq.exchange(encode(forwardRequest(row, 9)));
+  std::vector<correction_reply_t> live = memq.exchange(encodeRequest(msg));
+  const std::vector<correction_reply_t> given = memq.exchange(encodeRequest(forwardRequest(row, 9)));
   ASSERT_EQ(live.size(), 1u);
   ASSERT_EQ(given.size(), 1u);
   EXPECT_EQ(live[0].status, int8_t(Status::kOk));
@@ -571,13 +559,13 @@ TEST(LcmService, CanFeedServesTheLiveWrenchAndTakesCommands) {
     live.wrench_source = correction_request_t::WRENCH_LIVE_SENSOR;
     const auto ask = [&](const correction_request_t& msg) {
       replies.messages.clear();
-      const std::vector<uint8_t> bytes = encode(msg);
+      const std::vector<uint8_t> bytes = encodeRequest(msg);
       lcm_publish(lcm.get(), kRequestChannel, bytes.data(), unsigned(bytes.size()));
       pump();
       correction_reply_t reply{};
       EXPECT_EQ(replies.messages.size(), 1u);
       if (!replies.messages.empty()) {
-        reply.decode(replies.messages[0].data(), 0, int(replies.messages[0].size()));
+        decodeReply(replies.messages[0].data(), int(replies.messages[0].size()), reply);
       }
       return reply;
     };
@@ -657,7 +645,7 @@ TEST(LcmService, ReloadKeepsAnsweringAndChangesTheModelId) {
   int64_t last_model = 0;
   for (int64_t id = 0; !reloaded || answers < 10; ++id) {
     const std::vector<correction_reply_t> replies =
-        memq.exchange(encode(forwardRequest(validationRow(size_t(id)), id)));
+        memq.exchange(encodeRequest(forwardRequest(validationRow(size_t(id)), id)));
     ASSERT_EQ(replies.size(), 1u);
     EXPECT_EQ(replies[0].status, int8_t(Status::kOk));
     last_model = replies[0].model_id;
@@ -680,7 +668,7 @@ TEST(LcmService, ReloadKeepsAnsweringAndChangesTheModelId) {
   service.reloadFile(good);
   EXPECT_NE(service.modelId(), kSecondModelId);
   const std::vector<correction_reply_t> replies =
-      memq.exchange(encode(forwardRequest(validationRow(), 1)));
+      memq.exchange(encodeRequest(forwardRequest(validationRow(), 1)));
   ASSERT_EQ(replies.size(), 1u);
   EXPECT_EQ(replies[0].model_id, int64_t(service.modelId()));
 
@@ -720,10 +708,10 @@ TEST(LcmService, ModelsWithOtherThanSixJointsAreRefused) {
 
 TEST(LcmService, StatusCountsRepliesAndComputeTimes) {
   MemqService memq;
-  for (int64_t id = 0; id < 30; ++id) memq.exchange(encode(forwardRequest(validationRow(size_t(id)), id)));
+  for (int64_t id = 0; id < 30; ++id) memq.exchange(encodeRequest(forwardRequest(validationRow(size_t(id)), id)));
   correction_request_t bad = forwardRequest(validationRow(), 99);
   bad.mode = 3;
-  memq.exchange(encode(bad));
+  memq.exchange(encodeRequest(bad));
   memq.server().publishStatus(true);
   memq.pump();
   ASSERT_EQ(memq.statuses().size(), 1u);
@@ -749,8 +737,8 @@ TEST(LcmService, HandlingARequestAllocatesNothing) {
   runtime::Workspace ws = runtime::makeWorkspace(*model);
   std::vector<std::vector<uint8_t>> requests, mechanism_requests;
   for (size_t i = 0; i < 20; ++i) {
-    requests.push_back(encode(forwardRequest(validationRow(i), int64_t(i))));
-    requests.push_back(encode(inverseRequest(validationRow(i), int64_t(i))));
+    requests.push_back(encodeRequest(forwardRequest(validationRow(i), int64_t(i))));
+    requests.push_back(encodeRequest(inverseRequest(validationRow(i), int64_t(i))));
     // With mechanisms: at 18 … 37 °C, the inverse asking for the model's own pose.
     const Measurement& row = validationRow(i);
     const double temp_c = 18.0 + double(i);
@@ -760,8 +748,8 @@ TEST(LcmService, HandlingARequestAllocatesNothing) {
         row, int64_t(i),
         runtime::correctForward(*model, ws, row.q_rad, row.wrenchOrZero(), temp_c).X_TrackerTip);
     inverse.temp_c = temp_c;
-    mechanism_requests.push_back(encode(forward));
-    mechanism_requests.push_back(encode(inverse));
+    mechanism_requests.push_back(encodeRequest(forward));
+    mechanism_requests.push_back(encodeRequest(inverse));
   }
   // In the controller's terms: a user frame, a tool from the flange, a payload.
   const auto paper_model = paperModel();
@@ -787,7 +775,7 @@ TEST(LcmService, HandlingARequestAllocatesNothing) {
     msg.wrench_source = correction_request_t::WRENCH_PAYLOAD;
     msg.payload_kg = 30.0;
     msg.payload_cog_m[2] = 0.1;
-    requests.push_back(encode(msg));
+    requests.push_back(encodeRequest(msg));
     const Pose X = runtime::correctForward(*paper_model, paper_ws, row.q_rad, terms,
                                            runtime::kUnknownTemperature_c).X_FrameTcp;
     correction_request_t inverse = inverseRequest(row, int64_t(200 + i), X);
@@ -798,11 +786,11 @@ TEST(LcmService, HandlingARequestAllocatesNothing) {
     inverse.wrench_source = msg.wrench_source;
     inverse.payload_kg = msg.payload_kg;
     inverse.payload_cog_m[2] = 0.1;
-    requests.push_back(encode(inverse));
+    requests.push_back(encodeRequest(inverse));
   }
   correction_request_t live = forwardRequest(validationRow(), 5);
   live.wrench_source = correction_request_t::WRENCH_LIVE_SENSOR;
-  requests.push_back(encode(live));
+  requests.push_back(encodeRequest(live));
   requests.push_back({1, 2, 3});
   requests.push_back(std::vector<uint8_t>(requests[0].begin(), requests[0].end() - 3));
   std::vector<uint8_t> reply(static_cast<size_t>(Service::replyBytes()));
@@ -981,7 +969,7 @@ TEST(LcmUdpm, MessagesQueuedDuringAStallAreAllHandled) {
   const int64_t kernel_drops_before = udpReceiveBufferErrors();
 
   for (int i = 0; i < kStalledRequests; ++i) {
-    const std::vector<uint8_t> bytes = encode(forwardRequest(validationRow(size_t(i)), i));
+    const std::vector<uint8_t> bytes = encodeRequest(forwardRequest(validationRow(size_t(i)), i));
     ASSERT_EQ(lcm_publish(client_lcm.get(), kRequestChannel, bytes.data(), unsigned(bytes.size())), 0);
     std::this_thread::sleep_for(std::chrono::microseconds(100));  // 10 kHz: receivers keep pace
   }
@@ -999,7 +987,7 @@ TEST(LcmUdpm, MessagesQueuedDuringAStallAreAllHandled) {
   std::vector<bool> answered(size_t(kStalledRequests), false);
   for (const std::vector<uint8_t>& bytes : replies.messages) {
     correction_reply_t reply;
-    ASSERT_EQ(reply.decode(bytes.data(), 0, int(bytes.size())), int(bytes.size()));
+    ASSERT_EQ(decodeReply(bytes.data(), int(bytes.size()), reply), ReplyKind::kReply);
     ASSERT_GE(reply.request_id, 0);
     ASSERT_LT(reply.request_id, kStalledRequests);
     EXPECT_FALSE(answered[size_t(reply.request_id)]) << "two replies to " << reply.request_id;

@@ -1,6 +1,6 @@
 // stepcal.Client: requests to the stepcal-runtime daemon and their replies over LCM, through
-// LCM's C library and the generated C++ types (docs/python.md, "The daemon from Python").
-#include <poll.h>
+// LCM's C library and the wire contract and requester stepcal-client uses too
+// (stepcal/service/request.hpp, lcm_requester.hpp; docs/python.md, "The daemon from Python").
 #include <unistd.h>
 
 #include <chrono>
@@ -15,10 +15,10 @@
 
 #include "bindings.hpp"
 #include "stepcal/common/error.hpp"
-#include "stepcal/service/auth.hpp"
 #include "stepcal/runtime/corrector.hpp"
+#include "stepcal/service/auth.hpp"
 #include "stepcal/service/channels.hpp"
-#include "stepcal/service/lcm_server.hpp"
+#include "stepcal/service/lcm_requester.hpp"
 #include "stepcal/service/request.hpp"
 
 namespace stepcal::python {
@@ -26,18 +26,7 @@ namespace {
 
 using stepcal_lcm::correction_reply_t;
 using stepcal_lcm::correction_request_t;
-using Clock = std::chrono::steady_clock;
 constexpr int kJoints = service::kMessageJoints;
-
-/// A pose into a message's position (m) and unit quaternion (w, x, y, z).
-void setPose(const Pose& X, double* position_m, double* quaternion_wxyz) {
-  const Eigen::Quaterniond q(X.linear());
-  for (int k = 0; k < 3; ++k) position_m[k] = X.translation()(k);
-  quaternion_wxyz[0] = q.w();
-  quaternion_wxyz[1] = q.x();
-  quaternion_wxyz[2] = q.y();
-  quaternion_wxyz[3] = q.z();
-}
 
 template <size_t N>
 py::array_t<double> arrayOf(const double (&values)[N]) {
@@ -60,17 +49,17 @@ class Client {
   Client(std::string lcm_url, double timeout_ms, const py::object& key_file)
       : url_(std::move(lcm_url)), timeout_ms_(timeout_ms) {
     if (!(timeout_ms_ > 0.0)) throw py::value_error("timeout_ms: expected a time > 0");
-    if (!key_file.is_none()) {
-      const service::CellKey key = service::CellKey::load(py::str(key_file).cast<std::string>());
-      signer_.emplace(key);
-      verifier_.emplace(key);
-    }
+    std::optional<service::CellKey> key;
+    if (!key_file.is_none()) key = service::CellKey::load(py::str(key_file).cast<std::string>());
     lcm_ = lcm_create(url_.c_str());
     if (lcm_ == nullptr) throw InputError("lcm_url '" + url_ + "': LCM cannot open it");
-    service::subscribeQueued(lcm_, service::kReplyChannel, &Client::onReply, this);
+    requester_.emplace(lcm_, key);
     next_id_ = int64_t(getpid()) << 32;
   }
-  ~Client() { lcm_destroy(lcm_); }
+  ~Client() {
+    requester_.reset();  // unsubscribes: before the LCM instance goes
+    lcm_destroy(lcm_);
+  }
   Client(const Client&) = delete;
   Client& operator=(const Client&) = delete;
 
@@ -100,19 +89,15 @@ class Client {
   correction_request_t newRequest(const py::object& wrench, double temp_c, int deadline_us,
                                   const py::object& terms_arg) {
     const runtime::CallTerms terms = termsOf(terms_arg);
-    correction_request_t request{};
-    request.message_version = correction_request_t::VERSION;
-    request.desired_quaternion_wxyz[0] = 1.0;
+    correction_request_t request = service::blankRequest();
     request.request_id = ++next_id_;
-    request.utime = std::chrono::duration_cast<std::chrono::microseconds>(
-                        std::chrono::system_clock::now().time_since_epoch())
-                        .count();
     request.temp_c = temp_c;
     request.deadline_us = deadline_us;
     request.frame = int8_t(terms.frame);
-    setPose(terms.X_BaseUser, request.user_frame_position_m, request.user_frame_quaternion_wxyz);
+    service::writePose(terms.X_BaseUser, request.user_frame_position_m,
+                       request.user_frame_quaternion_wxyz);
     request.tool_from = int8_t(terms.tool_from);
-    setPose(terms.X_Tool, request.tool_position_m, request.tool_quaternion_wxyz);
+    service::writePose(terms.X_Tool, request.tool_position_m, request.tool_quaternion_wxyz);
     if (terms.load_from == runtime::LoadFrom::kPayload) {
       if (!wrench.is_none()) throw py::value_error("wrench and terms.payload_kg: give one load, not both");
       request.wrench_source = correction_request_t::WRENCH_PAYLOAD;
@@ -128,46 +113,33 @@ class Client {
     return request;
   }
 
-  py::object exchange(const correction_request_t& request) {
-    std::vector<uint8_t> bytes(size_t(request.getEncodedSize()));
-    request.encode(bytes.data(), 0, int(bytes.size()));
-    if (signer_) signer_->seal(bytes.data(), int(bytes.size()));
-    awaited_ = request.request_id;
-    reply_.reset();
+  /// Sends the request and waits for its reply (LcmRequester: sealed, verified, a daemon of
+  /// message version 1 told apart). No reply: TimeoutError, saying why when the refused replies
+  /// do.
+  py::object exchange(correction_request_t& request) {
+    const int64_t request_id = request.request_id;
+    const service::RequesterCounters before = requester_->counters();
+    std::optional<correction_reply_t> reply;
     {
       const py::gil_scoped_release unlocked;
-      if (lcm_publish(lcm_, service::kRequestChannel, bytes.data(), unsigned(bytes.size())) != 0) {
+      try {
+        reply = requester_->exchange(request, request_id,
+                                     std::chrono::microseconds(int64_t(timeout_ms_ * 1e3)));
+      } catch (const InputError&) {
         throw InputError("lcm_url '" + url_ + "': the request could not be sent");
       }
-      const Clock::time_point until =
-          Clock::now() + std::chrono::microseconds(int64_t(timeout_ms_ * 1e3));
-      while (!reply_) {
-        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now());
-        if (left.count() <= 0) break;
-        pollfd fd{lcm_get_fileno(lcm_), POLLIN, 0};
-        if (poll(&fd, 1, int(left.count())) > 0) lcm_handle(lcm_);
-      }
     }
-    if (!reply_) {
-      const std::string message = "no reply from stepcal-runtime on " + url_ + " within " +
-                                  std::to_string(int(timeout_ms_)) + " ms (request " +
-                                  std::to_string(request.request_id) + ")";
+    if (!reply) {
+      std::string message = "no reply from stepcal-runtime on " + url_ + " within " +
+                            std::to_string(int(timeout_ms_)) + " ms (request " +
+                            std::to_string(request_id) + ")";
+      for (const std::string& reason : requester_->explainSilence("key_file", before)) {
+        message += "; " + reason;
+      }
       PyErr_SetString(PyExc_TimeoutError, message.c_str());
       throw py::error_already_set();
     }
-    return replyObject(*reply_);
-  }
-
-  static void onReply(const lcm_recv_buf_t* rbuf, const char*, void* user) {
-    auto* self = static_cast<Client*>(user);
-    if (self->verifier_ &&
-        self->verifier_->verify(static_cast<const uint8_t*>(rbuf->data), int(rbuf->data_size),
-                                service::unixMicroseconds()) != service::Verdict::kAuthentic) {
-      return;  // not the cell's daemon (another key, none, a replay): never an answer
-    }
-    correction_reply_t reply;
-    if (reply.decode(rbuf->data, 0, int(rbuf->data_size)) != int(rbuf->data_size)) return;
-    if (reply.request_id == self->awaited_) self->reply_ = reply;
+    return replyObject(*reply);
   }
 
   static py::object replyObject(const correction_reply_t& r) {
@@ -193,12 +165,9 @@ class Client {
 
   std::string url_;
   double timeout_ms_;
-  std::optional<service::MessageSigner> signer_;
-  std::optional<service::MessageVerifier> verifier_;
   lcm_t* lcm_ = nullptr;
+  std::optional<service::LcmRequester> requester_;
   int64_t next_id_ = 0;
-  int64_t awaited_ = -1;
-  std::optional<correction_reply_t> reply_;
 };
 
 }  // namespace

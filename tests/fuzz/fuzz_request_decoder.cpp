@@ -9,7 +9,8 @@
 // name.
 //
 // Built with -DSTEPCAL_FUZZ_SEED_MAIN (and without -fsanitize=fuzzer) the same file is instead
-// a seed generator: `make_seeds FOLDER` writes valid forward and inverse requests.
+// a seed generator: `make_seeds FOLDER` writes valid forward and inverse requests (through the
+// shared encoder, stepcal::service::encodeRequest).
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -108,9 +109,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
 namespace {
 
 void writeSeed(const std::string& path, const correction_request_t& msg) {
-  std::vector<uint8_t> bytes(size_t(msg.getEncodedSize()));
-  msg.encode(bytes.data(), 0, int(bytes.size()));
-  stepcal::fuzz::writeSeedBytes(path, bytes);
+  stepcal::fuzz::writeSeedBytes(path, stepcal::service::encodeRequest(msg));
 }
 
 }  // namespace
@@ -121,16 +120,12 @@ int main(int argc, char** argv) {
     return 2;
   }
   const std::string folder = argv[1];
-  correction_request_t forward{};
-  forward.message_version = correction_request_t::VERSION;
-  forward.tool_quaternion_wxyz[0] = 1.0;
-  forward.user_frame_quaternion_wxyz[0] = 1.0;
+  correction_request_t forward = stepcal::service::blankRequest();
   forward.request_id = 1;
   forward.utime = 1700000000000000;
   forward.mode = correction_request_t::MODE_FORWARD;
   const double q_rad[6] = {0.1, -0.4, 0.3, 1.2, 0.7, -2.0};
   std::memcpy(forward.q_rad, q_rad, sizeof q_rad);
-  forward.desired_quaternion_wxyz[0] = 1.0;
   forward.wrench_source = correction_request_t::WRENCH_GIVEN;
   const double wrench[6] = {3.0, -1.5, -196.0, 0.4, 0.2, -0.01};
   std::memcpy(forward.wrench, wrench, sizeof wrench);

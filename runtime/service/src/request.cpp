@@ -2,7 +2,6 @@
 
 #include <cmath>
 
-#include <stepcal_lcm/correction_request_t.hpp>
 #include <stepcal_lcm/correction_request_v1_t.hpp>
 
 namespace stepcal::service {
@@ -115,6 +114,42 @@ Status decodeRequest(const void* data, int size, Request& out) noexcept {
     return Status::kBadRequest;
   }
   return Status::kOk;
+}
+
+correction_request_t blankRequest() noexcept {
+  correction_request_t request{};
+  request.message_version = correction_request_t::VERSION;
+  request.desired_quaternion_wxyz[0] = 1.0;
+  request.user_frame_quaternion_wxyz[0] = 1.0;
+  request.tool_quaternion_wxyz[0] = 1.0;
+  request.temp_c = runtime::kUnknownTemperature_c;
+  return request;
+}
+
+void writePose(const Pose& X, double* position_m, double* quaternion_wxyz) noexcept {
+  const Eigen::Quaterniond q(X.linear());
+  for (int i = 0; i < 3; ++i) position_m[i] = X.translation()[i];
+  quaternion_wxyz[0] = q.w();
+  quaternion_wxyz[1] = q.x();
+  quaternion_wxyz[2] = q.y();
+  quaternion_wxyz[3] = q.z();
+}
+
+int requestBytes() noexcept {
+  static const int bytes = correction_request_t{}.getEncodedSize();
+  return bytes;
+}
+
+int encodeRequest(const correction_request_t& request, uint8_t* out, int capacity) noexcept {
+  if (out == nullptr || capacity < requestBytes()) return 0;
+  const int bytes = request.encode(out, 0, capacity);
+  return bytes > 0 ? bytes : 0;
+}
+
+std::vector<uint8_t> encodeRequest(const correction_request_t& request) {
+  std::vector<uint8_t> bytes(static_cast<size_t>(requestBytes()));
+  encodeRequest(request, bytes.data(), int(bytes.size()));
+  return bytes;
 }
 
 }  // namespace stepcal::service

@@ -5,10 +5,9 @@
 #include <algorithm>
 #include <utility>
 
-#include <stepcal_lcm/correction_reply_v1_t.hpp>
-
 #include "stepcal/common/error.hpp"
 #include "stepcal/service/latency.hpp"
+#include "stepcal/service/reply.hpp"
 
 namespace stepcal::service {
 namespace {
@@ -19,15 +18,6 @@ using runtime::Status;
 
 int64_t steadyNanoseconds(Clock::time_point t) noexcept {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
-}
-
-void writePose(const Pose& X, double* position_m, double* quaternion_wxyz) noexcept {
-  const Eigen::Quaterniond q(X.linear());
-  for (int i = 0; i < 3; ++i) position_m[i] = X.translation()[i];
-  quaternion_wxyz[0] = q.w();
-  quaternion_wxyz[1] = q.x();
-  quaternion_wxyz[2] = q.y();
-  quaternion_wxyz[3] = q.z();
 }
 
 void writeVector(const Vec6& v, double* out) noexcept {
@@ -94,19 +84,12 @@ Service::Service(std::unique_ptr<const runtime::RuntimeModel> model, std::string
   models_.swap(std::move(model));
 }
 
-int Service::replyBytes() noexcept {
-  static const int bytes = std::max(stepcal_lcm::correction_reply_t{}.getEncodedSize(),
-                                    stepcal_lcm::correction_reply_v1_t{}.getEncodedSize());
-  return bytes;
-}
+int Service::replyBytes() noexcept { return service::replyBytes(); }
 
 int Service::refuseOldVersion(int64_t request_id, uint8_t* reply, int capacity) noexcept {
-  stepcal_lcm::correction_reply_v1_t refusal{};
-  refusal.request_id = request_id;
-  refusal.utime = unixMicroseconds();
-  refusal.status = stepcal_lcm::correction_reply_v1_t::STATUS_BAD_REQUEST;
-  refusal.model_id = static_cast<int64_t>(models_.currentModelId());
-  const int bytes = refusal.encode(reply, 0, capacity);
+  const int bytes =
+      encodeOldVersionRefusal(request_id, unixMicroseconds(),
+                              static_cast<int64_t>(models_.currentModelId()), reply, capacity);
   if (bytes <= 0) return 0;
   ++counters_.replies;
   ++counters_.status_counts[static_cast<size_t>(Status::kBadRequest)];
@@ -163,7 +146,7 @@ int Service::handleRequest(const void* data, int size, Clock::time_point receive
   reply_.compute_ns = static_cast<int64_t>(compute_ns);
   recordCompute(compute_ns * 1e-3);
   ++counters_.status_counts[static_cast<size_t>(status)];
-  const int bytes = reply_.encode(reply, 0, capacity);
+  const int bytes = encodeReply(reply_, reply, capacity);
   if (bytes <= 0) return 0;
   if (signer_) signer_->seal(reply, bytes);
   ++counters_.replies;

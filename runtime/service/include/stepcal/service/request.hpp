@@ -1,9 +1,14 @@
-// Decoding and validation of one correction request (lcmtypes/correction_request_t.lcm) from its
-// raw LCM bytes: the pure, allocation-free front of the daemon, fuzzed by
-// tests/fuzz/fuzz_request_decoder.cpp.
+// The request side of the wire contract (lcmtypes/correction_request_t.lcm): encoding for every
+// sender (stepcal-client, the Python client, tests) and the decoding and validation of the raw LCM
+// bytes, the pure, allocation-free front of the daemon, fuzzed by
+// tests/fuzz/fuzz_request_decoder.cpp. The reply side is reply.hpp; tests/test_wire.cpp round-trips
+// both.
 #pragma once
 
 #include <cstdint>
+#include <vector>
+
+#include <stepcal_lcm/correction_request_t.hpp>
 
 #include "stepcal/common/types.hpp"
 #include "stepcal/runtime/corrector.hpp"
@@ -55,5 +60,24 @@ struct Request {
 /// flange, gravity) is checked by the runtime's calls. Never allocates, never throws, never reads
 /// outside [data, data + size).
 runtime::Status decodeRequest(const void* data, int size, Request& out) noexcept;
+
+/// A version-2 request that asks nothing yet, where every sender starts: message_version set,
+/// the quaternions (desired pose, user frame, tool) the identity, temp_c NaN (not measured),
+/// everything else zero (forward, tracker frame, tool from the target, live sensor, ids 0).
+stepcal_lcm::correction_request_t blankRequest() noexcept;
+
+/// A pose into a message's position (m) and unit quaternion (w, x, y, z) fields.
+void writePose(const Pose& X, double* position_m, double* quaternion_wxyz) noexcept;
+
+/// Bytes of one encoded correction_request_t.
+int requestBytes() noexcept;
+
+/// Encodes request into out[0 .. capacity): its size in bytes (requestBytes()), or 0 when
+/// capacity is too small. The fields go as they are (decodeRequest judges them).
+/// Allocation-free.
+int encodeRequest(const stepcal_lcm::correction_request_t& request, uint8_t* out,
+                  int capacity) noexcept;
+/// The same into a new buffer of requestBytes().
+std::vector<uint8_t> encodeRequest(const stepcal_lcm::correction_request_t& request);
 
 }  // namespace stepcal::service

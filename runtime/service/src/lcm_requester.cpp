@@ -1,0 +1,112 @@
+#include "stepcal/service/lcm_requester.hpp"
+
+#include <poll.h>
+#include <time.h>
+
+#include <algorithm>
+
+#include "stepcal/common/error.hpp"
+#include "stepcal/service/channels.hpp"
+#include "stepcal/service/lcm_server.hpp"
+#include "stepcal/service/request.hpp"
+#include "stepcal/service/service.hpp"
+
+namespace stepcal::service {
+
+using stepcal_lcm::correction_reply_t;
+using stepcal_lcm::correction_request_t;
+
+void handleLcmUntil(lcm_t* lcm, std::chrono::steady_clock::time_point until) {
+  const auto wait =
+      std::max(std::chrono::steady_clock::duration::zero(), until - std::chrono::steady_clock::now());
+  const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(wait).count();
+  timespec timeout{static_cast<time_t>(ns / 1000000000), static_cast<long>(ns % 1000000000)};
+  pollfd fd{lcm_get_fileno(lcm), POLLIN, 0};
+  if (ppoll(&fd, 1, &timeout, nullptr) > 0) lcm_handle(lcm);
+}
+
+LcmRequester::LcmRequester(lcm_t* lcm, const std::optional<CellKey>& key)
+    : lcm_(lcm), buffer_(size_t(requestBytes())) {
+  if (key) {
+    signer_.emplace(*key);
+    verifier_.emplace(*key);
+  }
+  subscription_ = subscribeQueued(lcm_, kReplyChannel, &LcmRequester::onReply, this);
+}
+
+LcmRequester::~LcmRequester() { lcm_unsubscribe(lcm_, subscription_); }
+
+bool LcmRequester::send(correction_request_t& request, int64_t request_id) {
+  request.request_id = request_id;
+  request.utime = unixMicroseconds();
+  const int size = encodeRequest(request, buffer_.data(), int(buffer_.size()));
+  if (signer_) signer_->seal(buffer_.data(), size);
+  return lcm_publish(lcm_, kRequestChannel, buffer_.data(), unsigned(size)) == 0;
+}
+
+ReplyVerdict LcmRequester::judge(const void* data, int size, correction_reply_t& reply) noexcept {
+  const ReplyKind kind = decodeReply(data, size, reply);
+  if (kind == ReplyKind::kOldVersion) {
+    ++counters_.old_version;
+    return ReplyVerdict::kOldVersion;
+  }
+  if (verifier_) {
+    const Verdict verdict =
+        verifier_->verify(static_cast<const uint8_t*>(data), size, unixMicroseconds());
+    if (verdict == Verdict::kForged) {
+      ++counters_.rejected_forged;
+      return ReplyVerdict::kForged;
+    }
+    if (verdict == Verdict::kReplayed) {
+      ++counters_.rejected_replayed;
+      return ReplyVerdict::kReplayed;
+    }
+  }
+  return kind == ReplyKind::kReply ? ReplyVerdict::kAccepted : ReplyVerdict::kMalformed;
+}
+
+void LcmRequester::onReply(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+  const Clock::time_point received = Clock::now();
+  auto* self = static_cast<LcmRequester*>(user);
+  correction_reply_t reply;
+  if (self->judge(rbuf->data, int(rbuf->data_size), reply) != ReplyVerdict::kAccepted) return;
+  if (self->awaiting_ && reply.request_id == self->awaited_id_) self->awaited_reply_ = reply;
+  if (self->listener_) self->listener_(reply, received);
+}
+
+std::optional<correction_reply_t> LcmRequester::exchange(correction_request_t& request,
+                                                         int64_t request_id,
+                                                         std::chrono::nanoseconds timeout) {
+  awaited_reply_.reset();
+  awaited_id_ = request_id;
+  awaiting_ = true;
+  if (!send(request, request_id)) {
+    awaiting_ = false;
+    throw InputError("the request could not be sent (LCM refused it)");
+  }
+  const Clock::time_point until = Clock::now() + timeout;
+  while (!awaited_reply_ && Clock::now() < until) handleLcmUntil(lcm_, until);
+  awaiting_ = false;
+  return awaited_reply_;
+}
+
+std::vector<std::string> LcmRequester::explainSilence(const std::string& key_option,
+                                                      const RequesterCounters& since) const {
+  const long old_version = counters_.old_version - since.old_version;
+  const long forged = counters_.rejected_forged - since.rejected_forged;
+  const long replayed = counters_.rejected_replayed - since.rejected_replayed;
+  std::vector<std::string> reasons;
+  if (old_version > 0) {
+    reasons.push_back(
+        "the daemon answered in message version 1 (correction_reply_v1_t): it predates this "
+        "client's version 2; update stepcal-runtime");
+  }
+  if (forged + replayed > 0) {
+    reasons.push_back("rejected " + std::to_string(forged) +
+                      " replies whose code does not verify and " + std::to_string(replayed) +
+                      " whose counter is not fresh (" + key_option + ": is it the daemon's key?)");
+  }
+  return reasons;
+}
+
+}  // namespace stepcal::service

@@ -5,6 +5,7 @@ in a private network namespace, python_client; tests/CMakeLists.txt sets the env
   STEPCAL_CAMPAIGN     a twin campaign (the can_e2e fixture's, seed 4) and
   STEPCAL_MODEL        its calibrated model file
   STEPCAL_REFERENCE    tests/python/runtime_reference: the C++ runtime's answers on that campaign
+  STEPCAL_OLD_DAEMON   tests/python/old_daemon: a daemon of message version 1 (refusals only)
   STEPCAL_DOCS_DIR     docs/, whose python.md holds the example script run here
 """
 import json
@@ -388,3 +389,23 @@ def test_client_with_the_cell_key(tmp_path, campaign):
     os.chmod(key, 0o644)
     with pytest.raises(stepcal.InputError, match="cell.key"):
         stepcal.Client(key_file=str(key))
+
+
+@needs_netns
+def test_client_refuses_a_daemon_of_message_version_1_by_name(tmp_path):
+    # Its version-1 replies are never taken for answers; the timeout says what answered.
+    log = tmp_path / "old_daemon.log"
+    old = subprocess.Popen([os.environ["STEPCAL_OLD_DAEMON"], stepcal.DEFAULT_LCM_URL],
+                           stderr=open(log, "w"))
+    try:
+        for _ in range(100):
+            if "serving" in log.read_text():
+                break
+            time.sleep(0.1)
+        with pytest.raises(TimeoutError, match=r"message version 1 \(correction_reply_v1_t\): "
+                                               r"it predates this client's version 2; update "
+                                               r"stepcal-runtime"):
+            stepcal.Client(timeout_ms=300).forward([0.0] * 6, wrench=np.zeros(6))
+    finally:
+        old.terminate()
+        old.wait(timeout=10)

@@ -634,68 +634,122 @@ ForwardResult forwardWith(const RuntimeModel& model, Workspace& ws, const JointV
   return result;
 }
 
-/// solveInverse with the terms resolved.
-InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& X_FrameTcp_desired,
-                          const Prepared& call, const Vec6& wrench_Sensor, double temp_c,
-                          const JointVector& q_seed_rad, Clock::time_point deadline,
-                          const InverseOptions& options) noexcept {
-  InverseResult result;
-  const KinematicChain& chain = model.file.chain_Tracker;
-  if (q_seed_rad.size() != chain.dof() || !q_seed_rad.allFinite() ||
-      !wrench_Sensor.allFinite() || !validTemperature(temp_c) ||
-      !X_FrameTcp_desired.translation().allFinite() || !isRotation(X_FrameTcp_desired.linear()) ||
-      !validOptions(options) || !workspaceFits(model, ws)) {
-    return result;
-  }
-  // Residuals, tolerances and the Jacobian are the TCP's, in the tracker frame.
-  const Pose X_TrackerTcp_desired =
-      call.in_tracker ? X_FrameTcp_desired : Pose(call.X_TrackerFrame * X_FrameTcp_desired);
+/// solveInverse's iteration: the request it solves and the state carried from one step to the
+/// next. Damped Newton steps from the seed, one chord step after the first, the GPR's twist
+/// frozen between its evaluations; each step is a member, inverseWith's loop runs them in order.
+/// Allocation-free: every vector has a fixed capacity (JointVector, Vec6) or is the workspace's.
+struct InverseIteration {
+  // The request, checked by inverseWith.
+  const RuntimeModel& model;
+  const KinematicChain& chain;
+  Workspace& ws;
+  const Prepared& call;
+  const Vec6& wrench_Sensor;
+  const double temp_c;
+  const InverseOptions& options;
+  /// Residuals, tolerances and the Jacobian are the TCP's, in the tracker frame.
+  const Pose X_TrackerTcp_desired;
 
-  JointVector q_rad = q_seed_rad;
-  clampToLimits(chain, q_rad);
-  JointVector q_best_rad = q_rad;
-  const Vec3 p_TipDesired = call.at_target
-                               ? X_TrackerTcp_desired.translation()
-                               : (X_TrackerTcp_desired * call.X_TipTcp.inverse()).translation();
-  const bool beyond_reach =
-      (p_TipDesired - model.p_ReachCentreInTracker_m).norm() > model.reach_radius_m;
-  bool converged = false, held_at_limit = false;
+  // The iterate, and the best one so far.
+  JointVector q_rad;
+  JointVector q_best_rad;
   double best_cost = std::numeric_limits<double>::infinity();
-  JointVector dq_rad;
-  double sigma_min_last_step = 0.0;  // σ_min of the last step's Jacobian (dampedStep)
+  int iterations = 0;            ///< steps taken (Newton steps and the chord)
+  bool converged = false;        ///< the full model at q_best_rad is within the tolerances
+  bool held_at_limit = false;    ///< the last step was clamped into the joint limits
+  /// The iterate's physical tip, as evaluateIterate last left it.
+  Pose X_TrackerTip_physical = Pose::Identity();
+
   // The GPR's residual twist varies slowly with q: the Newton steps hold it frozen where it was
   // last evaluated (after the first step, again when the iterate has moved farther than
   // kFrozenTwistDistance_rad), and evaluate it with its std bound where the frozen model has
   // converged. There the full model decides: converged, or the steps go on with that twist. Two
   // GPR evaluations per call instead of one per step.
   Vec6 xi_frozen = Vec6::Zero();
-  Pose exp_frozen_tcp = call.X_TipTcp;  // exp(ξ̂) of xi_frozen, then the tool
+  Pose exp_frozen_tcp;                        ///< exp(ξ̂) of xi_frozen, then the tool
   bool have_twist = false;
-  JointVector q_twist_rad = q_rad;  // where xi_frozen was evaluated
-  Pose X_TrackerTip_last = Pose::Identity();  // the full model's at q_best_rad when converged
-  Vec6 reading_last = Vec6::Zero();           // the wrench used there
+  JointVector q_twist_rad;                    ///< where xi_frozen was evaluated
+  Pose X_TrackerTip_last = Pose::Identity();  ///< the full model's at q_best_rad when converged
+  Vec6 reading_last = Vec6::Zero();           ///< the wrench used there
+
   // The iterates are evaluated with the physical model's one-pass approximation (physicalTip),
   // started from the deflection of the iterate before (the seed's from θ₀); where that is within
   // the tolerances, or after a short step, with the full model, which alone decides convergence.
-  ws.deflection_rad.setZero(chain.dof());
   bool full_model_next = false;
   // After the long first step from the seed, one chord step: the seed's Jacobian and factor
   // again, at an iterate evaluated with the seed's deflection held. The first step leaves
   // ~1e-3 of the seed's error (its quadratic term); the chord cuts that by the Jacobian's change
   // over the step (~2°: a few %) for the price of a forward evaluation, so the next Newton step,
   // with the full model, lands within the tolerance where it would otherwise need two.
+  bool chord_next = false;
+  bool last_step_chord = false;
   detail::StepFactor factor;
-  bool chord_next = false, last_step_chord = false;
-  while (!beyond_reach) {
-    bool full_model = full_model_next;
-    const bool chord = chord_next;
-    Pose X_physical = physicalTip(model, ws, q_rad, call, wrench_Sensor, temp_c, !chord,
-                                  chord        ? Deflection::kHeld
-                                  : full_model ? Deflection::kModel
-                                               : Deflection::kOnePass);
-    // The seed's own twist would serve one step only (the first step is the long one): the
-    // first step goes without, the twist is evaluated after it, and again after long moves.
-    if ((!have_twist && result.iterations > 0) ||
+  JointVector dq_rad;
+  double sigma_min_last_step = 0.0;  ///< σ_min of the last step's Jacobian (dampedStep)
+
+  InverseIteration(const RuntimeModel& the_model, Workspace& the_ws, const Prepared& the_call,
+                   const Vec6& the_wrench_Sensor, double the_temp_c,
+                   const InverseOptions& the_options, const Pose& X_FrameTcp_desired,
+                   const JointVector& q_seed_rad) noexcept
+      : model(the_model),
+        chain(the_model.file.chain_Tracker),
+        ws(the_ws),
+        call(the_call),
+        wrench_Sensor(the_wrench_Sensor),
+        temp_c(the_temp_c),
+        options(the_options),
+        X_TrackerTcp_desired(the_call.in_tracker
+                                 ? X_FrameTcp_desired
+                                 : Pose(the_call.X_TrackerFrame * X_FrameTcp_desired)),
+        q_rad(q_seed_rad),
+        exp_frozen_tcp(the_call.X_TipTcp) {
+    clampToLimits(chain, q_rad);
+    q_best_rad = q_rad;
+    q_twist_rad = q_rad;
+    ws.deflection_rad.setZero(chain.dof());
+  }
+
+  /// The desired tip farther from the reach sphere's centre than its radius: no step is taken.
+  bool beyondReach() const noexcept {
+    const Vec3 p_TipDesired = call.at_target
+                                  ? X_TrackerTcp_desired.translation()
+                                  : (X_TrackerTcp_desired * call.X_TipTcp.inverse()).translation();
+    return (p_TipDesired - model.p_ReachCentreInTracker_m).norm() > model.reach_radius_m;
+  }
+
+  bool within(const Vec6& e) const noexcept {
+    return e.head<3>().norm() <= options.position_tolerance_m &&
+           e.tail<3>().norm() <= options.orientation_tolerance_rad;
+  }
+
+  /// The residual of the physical tip with the frozen twist.
+  Vec6 frozenResidual() const noexcept {
+    return poseResidual(X_TrackerTcp_desired, Pose(X_TrackerTip_physical * exp_frozen_tcp));
+  }
+
+  /// Step "evaluate": the iterate's physical tip (the seed's deflection held for a chord step,
+  /// the full model after a short step, else its one-pass approximation, then the full model
+  /// where that is within the tolerances) and its residual with the frozen twist.
+  Vec6 evaluateIterate(bool chord) noexcept {
+    const bool full_model = full_model_next;
+    X_TrackerTip_physical = physicalTip(model, ws, q_rad, call, wrench_Sensor, temp_c, !chord,
+                                        chord        ? Deflection::kHeld
+                                        : full_model ? Deflection::kModel
+                                                     : Deflection::kOnePass);
+    refreezeTwist();
+    Vec6 e = frozenResidual();
+    if (!full_model && within(e)) {
+      X_TrackerTip_physical = physicalTip(model, ws, q_rad, call, wrench_Sensor, temp_c, true);
+      e = frozenResidual();
+    }
+    return e;
+  }
+
+  /// The frozen twist evaluated again (without its std) after the first step and after long
+  /// moves. The seed's own twist would serve one step only (the first step is the long one): the
+  /// first step goes without.
+  void refreezeTwist() noexcept {
+    if ((!have_twist && iterations > 0) ||
         (have_twist && (q_rad - q_twist_rad).cwiseAbs().maxCoeff() > kFrozenTwistDistance_rad)) {
       xi_frozen =
           residualTwist(model, ws, q_rad, loadReading(model, ws, call, wrench_Sensor), false);
@@ -704,40 +758,41 @@ InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& 
       q_twist_rad = q_rad;
       have_twist = true;
     }
-    Vec6 e = poseResidual(X_TrackerTcp_desired, Pose(X_physical * exp_frozen_tcp));
-    const auto within = [&](const Vec6& r) {
-      return r.head<3>().norm() <= options.position_tolerance_m &&
-             r.tail<3>().norm() <= options.orientation_tolerance_rad;
-    };
-    if (!full_model && within(e)) {
-      X_physical = physicalTip(model, ws, q_rad, call, wrench_Sensor, temp_c, true);
-      full_model = true;
-      e = poseResidual(X_TrackerTcp_desired, Pose(X_physical * exp_frozen_tcp));
-    }
-    if (within(e)) {  // the full model's physical tip here
-      // The full model here: the twist at q_rad with its std (kept in ws.gpr_std).
-      reading_last = loadReading(model, ws, call, wrench_Sensor);
-      xi_frozen = residualTwist(model, ws, q_rad, reading_last, true);
-      const Pose exp_twist = lie::expSE3(xi_frozen);
-      exp_frozen_tcp = call.at_target ? exp_twist : Pose(exp_twist * call.X_TipTcp);
-      q_twist_rad = q_rad;
-      have_twist = true;
-      X_TrackerTip_last = Pose(X_physical * exp_twist);
-      e = poseResidual(X_TrackerTcp_desired, call.at_target
-                                                 ? X_TrackerTip_last
-                                                 : Pose(X_TrackerTip_last * call.X_TipTcp));
-      if (within(e)) {
-        converged = true;
-        q_best_rad = q_rad;
-        break;
-      }
-    }
+  }
+
+  /// Step "check convergence", where the full model's physical tip is within the tolerances
+  /// with the frozen twist: the twist at q_rad with its std (kept in ws.gpr_std), frozen from
+  /// here on. Returns the full model's residual; within the tolerances, the iterate is the answer.
+  Vec6 fullModelResidual() noexcept {
+    reading_last = loadReading(model, ws, call, wrench_Sensor);
+    xi_frozen = residualTwist(model, ws, q_rad, reading_last, true);
+    const Pose exp_twist = lie::expSE3(xi_frozen);
+    exp_frozen_tcp = call.at_target ? exp_twist : Pose(exp_twist * call.X_TipTcp);
+    q_twist_rad = q_rad;
+    have_twist = true;
+    X_TrackerTip_last = Pose(X_TrackerTip_physical * exp_twist);
+    return poseResidual(X_TrackerTcp_desired, call.at_target
+                                                  ? X_TrackerTip_last
+                                                  : Pose(X_TrackerTip_last * call.X_TipTcp));
+  }
+
+  void acceptAsConverged() noexcept {
+    converged = true;
+    q_best_rad = q_rad;
+  }
+
+  void keepIfBest(const Vec6& e) noexcept {
     const double cost = e.squaredNorm();
     if (cost < best_cost) {
       best_cost = cost;
       q_best_rad = q_rad;
     }
-    if (result.iterations >= options.max_iterations || Clock::now() >= deadline) break;
+  }
+
+  /// Step "take the step": the chord step with the last factor, or a damped step on the
+  /// corrected Jacobian here; shortened to max_step_rad, clamped into the limits. Decides how
+  /// the next iterate is evaluated.
+  void takeStep(bool chord, const Vec6& e) noexcept {
     if (chord) {
       detail::stepFromFactor(ws.J, factor.cholesky, e, dq_rad);
     } else {
@@ -752,59 +807,105 @@ InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& 
     held_at_limit = clampToLimits(chain, q_rad);
     full_model_next = largest_rad <= kFullModelStep_rad;
     // A shortened or clamped first step is not the Newton step the chord refines.
-    chord_next = result.iterations == 0 && !full_model_next && !shortened && !held_at_limit &&
-                 factor.valid;
-    ++result.iterations;
+    chord_next =
+        iterations == 0 && !full_model_next && !shortened && !held_at_limit && factor.valid;
+    ++iterations;
   }
 
-  result.q_target_rad = q_best_rad;
-  if (converged) {
-    result.X_TrackerTip_predicted = X_TrackerTip_last;
-    result.wrench_Sensor = reading_last;
-  } else {
-    result.X_TrackerTip_predicted =
-        correctedTip(model, ws, q_best_rad, call, wrench_Sensor, temp_c, &result.wrench_Sensor);
+  /// The answer q_best_rad and the full model's prediction there (kept from the convergence
+  /// check, else evaluated now), in the tracker and the call's frame, and its residual.
+  void predictAnswer(InverseResult& result) noexcept {
+    result.q_target_rad = q_best_rad;
+    if (converged) {
+      result.X_TrackerTip_predicted = X_TrackerTip_last;
+      result.wrench_Sensor = reading_last;
+    } else {
+      result.X_TrackerTip_predicted =
+          correctedTip(model, ws, q_best_rad, call, wrench_Sensor, temp_c, &result.wrench_Sensor);
+    }
+    if (model.file.gpr) result.gpr_std = ws.gpr_std;
+    result.uncovered_joints = jointsOutsideCoverage(model.physical, q_best_rad);
+    const Pose X_TrackerTcp_predicted = call.at_target
+                                            ? result.X_TrackerTip_predicted
+                                            : Pose(result.X_TrackerTip_predicted * call.X_TipTcp);
+    result.X_FrameTcp_predicted =
+        call.in_tracker ? X_TrackerTcp_predicted
+                        : Pose(call.X_TrackerFrame.inverse() * X_TrackerTcp_predicted);
+    const Vec6 e = poseResidual(X_TrackerTcp_desired, X_TrackerTcp_predicted);
+    result.residual_position_m = e.head<3>().norm();
+    result.residual_orientation_rad = e.tail<3>().norm();
   }
-  if (model.file.gpr) result.gpr_std = ws.gpr_std;
-  result.uncovered_joints = jointsOutsideCoverage(model.physical, q_best_rad);
-  const Pose X_TrackerTcp_predicted = call.at_target
-                                          ? result.X_TrackerTip_predicted
-                                          : Pose(result.X_TrackerTip_predicted * call.X_TipTcp);
-  result.X_FrameTcp_predicted = call.in_tracker
-                                    ? X_TrackerTcp_predicted
-                                    : Pose(call.X_TrackerFrame.inverse() * X_TrackerTcp_predicted);
-  const Vec6 e = poseResidual(X_TrackerTcp_desired, X_TrackerTcp_predicted);
-  result.residual_position_m = e.head<3>().norm();
-  result.residual_orientation_rad = e.tail<3>().norm();
-  if (!converged) {
-    result.status = beyond_reach || held_at_limit ? Status::kUnreachable : Status::kNotConverged;
-  } else {
+
+  /// The answer's status, after predictAnswer (its gpr_std).
+  Status answerStatus(const InverseResult& result, bool beyond_reach) noexcept {
+    if (!converged) {
+      return beyond_reach || held_at_limit ? Status::kUnreachable : Status::kNotConverged;
+    }
     // On the last step's Jacobian, taken within the tolerance of the answer (a fresh one when
     // the seed itself was the answer, or the last step a chord with the seed's Jacobian).
-    if (result.iterations == 0 || last_step_chord) {
+    if (iterations == 0 || last_step_chord) {
       correctedJacobian(model, ws, call, wrench_Sensor);
       sigma_min_last_step =
           detail::smallestSingularValueOfJacobianOrFloor(ws.J, options.singular_value_threshold);
     }
-    if (sigma_min_last_step < options.singular_value_threshold) {
-      result.status = Status::kNearSingular;
-    } else {
-      result.status = outOfDomain(model, result.gpr_std) ? Status::kOutOfDomain : Status::kOk;
+    if (sigma_min_last_step < options.singular_value_threshold) return Status::kNearSingular;
+    return outOfDomain(model, result.gpr_std) ? Status::kOutOfDomain : Status::kOk;
+  }
+
+  /// What the controller is to be commanded for the answer: the nominal chain's tip at
+  /// q_best_rad, and its TCP (the tool as given, in the call's frame).
+  void commandAnswer(InverseResult& result) noexcept {
+    forwardKinematics(model.file.nominal_Base, q_best_rad, ws.chain);
+    result.X_BaseTip_commanded = tipPose(ws.chain);
+    const Pose X_BaseRef =
+        call.from_flange ? Pose(ws.chain.X_RootFrame[static_cast<size_t>(chain.dof())] *
+                                model.X_LastFlange_nominal)
+                         : result.X_BaseTip_commanded;
+    result.X_ControllerTcp_commanded = X_BaseRef;
+    if (call.X_NominalRefTcp.matrix() != Eigen::Matrix4d::Identity()) {
+      result.X_ControllerTcp_commanded = result.X_ControllerTcp_commanded * call.X_NominalRefTcp;
+    }
+    if (!call.in_tracker) {
+      result.X_ControllerTcp_commanded =
+          call.X_ControllerFrameBase * result.X_ControllerTcp_commanded;
     }
   }
-  forwardKinematics(model.file.nominal_Base, q_best_rad, ws.chain);
-  result.X_BaseTip_commanded = tipPose(ws.chain);
-  const Pose X_BaseRef =
-      call.from_flange ? Pose(ws.chain.X_RootFrame[static_cast<size_t>(chain.dof())] *
-                              model.X_LastFlange_nominal)
-                       : result.X_BaseTip_commanded;
-  result.X_ControllerTcp_commanded = X_BaseRef;
-  if (call.X_NominalRefTcp.matrix() != Eigen::Matrix4d::Identity()) {
-    result.X_ControllerTcp_commanded = result.X_ControllerTcp_commanded * call.X_NominalRefTcp;
+};
+
+/// solveInverse with the terms resolved.
+InverseResult inverseWith(const RuntimeModel& model, Workspace& ws, const Pose& X_FrameTcp_desired,
+                          const Prepared& call, const Vec6& wrench_Sensor, double temp_c,
+                          const JointVector& q_seed_rad, Clock::time_point deadline,
+                          const InverseOptions& options) noexcept {
+  InverseResult result;
+  const KinematicChain& chain = model.file.chain_Tracker;
+  if (q_seed_rad.size() != chain.dof() || !q_seed_rad.allFinite() ||
+      !wrench_Sensor.allFinite() || !validTemperature(temp_c) ||
+      !X_FrameTcp_desired.translation().allFinite() || !isRotation(X_FrameTcp_desired.linear()) ||
+      !validOptions(options) || !workspaceFits(model, ws)) {
+    return result;
   }
-  if (!call.in_tracker) {
-    result.X_ControllerTcp_commanded = call.X_ControllerFrameBase * result.X_ControllerTcp_commanded;
+  InverseIteration it(model, ws, call, wrench_Sensor, temp_c, options, X_FrameTcp_desired,
+                      q_seed_rad);
+  const bool beyond_reach = it.beyondReach();
+  while (!beyond_reach) {
+    const bool chord = it.chord_next;
+    Vec6 e = it.evaluateIterate(chord);
+    if (it.within(e)) {
+      e = it.fullModelResidual();
+      if (it.within(e)) {
+        it.acceptAsConverged();
+        break;
+      }
+    }
+    it.keepIfBest(e);
+    if (it.iterations >= options.max_iterations || Clock::now() >= deadline) break;
+    it.takeStep(chord, e);
   }
+  result.iterations = it.iterations;
+  it.predictAnswer(result);
+  result.status = it.answerStatus(result, beyond_reach);
+  it.commandAnswer(result);
   return result;
 }
 

@@ -227,22 +227,11 @@ class Coverage {
   std::vector<bool> covered_;
 };
 
-}  // namespace
-
-CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
-                          const PlanOptions& options) {
-  validate(nominal_Base, sensor_frame, options);
-  Eigen::setCpuCacheSizes(kPinnedL1CacheBytes, kPinnedL2CacheBytes, kPinnedL3CacheBytes);
-  const int n = nominal_Base.dof();
-  std::vector<double> payloads_kg;
-  for (double load_kg : options.loads_kg) {
-    if (load_kg > 0.0) payloads_kg.push_back(load_kg);
-  }
-
-  CampaignPlan plan;
-  std::vector<Candidate> candidates;
-  std::vector<std::string> candidate_ids;  // given candidates' pose_ids
-  std::mt19937_64 engine(options.seed);
+/// The given candidate poses (PlanOptions::given_candidates), each with its pose_id.
+void takeGivenCandidates(const KinematicChain& nominal_Base, int sensor_frame,
+                         const std::vector<double>& payloads_kg, const PlanOptions& options,
+                         std::vector<Candidate>& candidates,
+                         std::vector<std::string>& candidate_ids, CampaignPlan& plan) {
   ChainWorkspace ws;
   for (const PlannedMeasurement& given : options.given_candidates) {
     forwardKinematics(nominal_Base, given.q_rad, ws);
@@ -251,7 +240,17 @@ CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
     candidate_ids.push_back(given.pose_id);
     ++plan.candidates_drawn;
   }
-  for (int draw = 0; options.given_candidates.empty() && draw < options.candidates; ++draw) {
+}
+
+/// options.candidates poses drawn uniformly in the joint ranges; the visible ones kept, the
+/// others counted in the plan by the reason they were rejected.
+void drawVisibleCandidates(const KinematicChain& nominal_Base, int sensor_frame,
+                           const std::vector<double>& payloads_kg, const PlanOptions& options,
+                           std::mt19937_64& engine, std::vector<Candidate>& candidates,
+                           CampaignPlan& plan) {
+  const int n = nominal_Base.dof();
+  ChainWorkspace ws;
+  for (int draw = 0; draw < options.candidates; ++draw) {
     JointVector q(n);
     for (int i = 0; i < n; ++i) {
       const auto [lower, upper] = jointRange(nominal_Base.joints()[static_cast<size_t>(i)]);
@@ -265,10 +264,14 @@ CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
       case Visibility::kLineOfSight: ++plan.rejected_line_of_sight; continue;
       case Visibility::kVisible: break;
     }
-    candidates.push_back({q, identificationBlock(nominal_Base, sensor_frame, ws, payloads_kg, options)});
+    candidates.push_back(
+        {q, identificationBlock(nominal_Base, sensor_frame, ws, payloads_kg, options)});
   }
-  if (static_cast<int>(candidates.size()) < options.poses) {
-    throw InputError(std::to_string(candidates.size()) + " of " +
+}
+
+void requireEnoughCandidates(size_t visible, const CampaignPlan& plan, const PlanOptions& options) {
+  if (static_cast<int>(visible) < options.poses) {
+    throw InputError(std::to_string(visible) + " of " +
                      std::to_string(plan.candidates_drawn) + " candidate poses are visible (" +
                      std::to_string(plan.rejected_range) + " out of the tracker's range, " +
                      std::to_string(plan.rejected_floor) + " below the floor, " +
@@ -278,9 +281,12 @@ CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
                      " (hint: move the tracker nearer the robot, widen the range or draw more "
                      "candidates)");
   }
+}
 
-  // Columns normalised to unit mean square per candidate; columns no candidate excites (a
-  // vertical payload's torque on a vertical joint 1) are left out, the ridge stands for them.
+/// Columns normalised to unit mean square per candidate; columns no candidate excites (a
+/// vertical payload's torque on a vertical joint 1) are left out, the ridge stands for them.
+/// Returns the number of columns.
+Eigen::Index normaliseColumns(std::vector<Candidate>& candidates) {
   const Eigen::Index columns = candidates.front().block.cols();
   Eigen::VectorXd column_scale = Eigen::VectorXd::Zero(columns);
   for (const Candidate& c : candidates) column_scale += c.block.colwise().squaredNorm().transpose();
@@ -290,19 +296,26 @@ CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
     column_scale(j) = column_scale(j) > excited ? 1.0 / column_scale(j) : 0.0;
   }
   for (Candidate& c : candidates) c.block = c.block * column_scale.asDiagonal();
+  return columns;
+}
 
-  std::vector<size_t> chosen;
-  std::vector<bool> taken(candidates.size(), false);
-  Coverage coverage(nominal_Base, options.spread_bins);
-  Eigen::MatrixXd information = options.ridge * Eigen::MatrixXd::Identity(columns, columns);
-  if (options.selection == PoseSelection::kRandom) {
-    std::vector<size_t> order(candidates.size());
-    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-    for (size_t i = order.size() - 1; i > 0; --i) {  // Fisher–Yates
-      std::swap(order[i], order[static_cast<size_t>(uniform01(engine) * static_cast<double>(i + 1))]);
-    }
-    chosen.assign(order.begin(), order.begin() + options.poses);
+/// The first `poses` of the candidates in a random order (Fisher–Yates).
+std::vector<size_t> randomPoses(size_t candidates, int poses, std::mt19937_64& engine) {
+  std::vector<size_t> order(candidates);
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  for (size_t i = order.size() - 1; i > 0; --i) {
+    std::swap(order[i], order[static_cast<size_t>(uniform01(engine) * static_cast<double>(i + 1))]);
   }
+  return std::vector<size_t>(order.begin(), order.begin() + poses);
+}
+
+/// Poses added to `chosen` until it holds options.poses, each the candidate not chosen yet of
+/// the largest gain in log det of the information, weighted by the joint bins it covers anew;
+/// the information and coverage updated with each.
+void chooseGreedily(const std::vector<Candidate>& candidates, const PlanOptions& options, int n,
+                    std::vector<size_t>& chosen, Eigen::MatrixXd& information,
+                    Coverage& coverage) {
+  std::vector<bool> taken(candidates.size(), false);
   while (static_cast<int>(chosen.size()) < options.poses) {
     const Eigen::LLT<Eigen::MatrixXd> factor(information);
     double best_score = -1.0;
@@ -327,6 +340,62 @@ CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
     information += candidates[best].block.transpose() * candidates[best].block;
     coverage.add(candidates[best].q_rad);
   }
+}
+
+/// Measurement order: every pose unloaded, then every pose at each payload (changing the
+/// payload is the slow step).
+std::vector<PlannedMeasurement> measurementOrder(const std::vector<double>& loads_kg,
+                                                 const std::vector<size_t>& chosen,
+                                                 const std::vector<Candidate>& candidates,
+                                                 const std::vector<std::string>& candidate_ids) {
+  std::vector<PlannedMeasurement> rows;
+  for (double load_kg : loads_kg) {
+    for (size_t k = 0; k < chosen.size(); ++k) {
+      char pose_id[32];
+      std::snprintf(pose_id, sizeof pose_id, "plan-%03zu", k);
+      rows.push_back({candidate_ids.empty() ? std::string(pose_id) : candidate_ids[chosen[k]],
+                      load_kg, candidates[chosen[k]].q_rad, 0});
+    }
+  }
+  std::stable_sort(rows.begin(), rows.end(),
+                   [](const PlannedMeasurement& a, const PlannedMeasurement& b) {
+                     return a.load_kg < b.load_kg;
+                   });
+  return rows;
+}
+
+}  // namespace
+
+CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
+                          const PlanOptions& options) {
+  validate(nominal_Base, sensor_frame, options);
+  Eigen::setCpuCacheSizes(kPinnedL1CacheBytes, kPinnedL2CacheBytes, kPinnedL3CacheBytes);
+  const int n = nominal_Base.dof();
+  std::vector<double> payloads_kg;
+  for (double load_kg : options.loads_kg) {
+    if (load_kg > 0.0) payloads_kg.push_back(load_kg);
+  }
+
+  CampaignPlan plan;
+  std::vector<Candidate> candidates;
+  std::vector<std::string> candidate_ids;  // given candidates' pose_ids
+  std::mt19937_64 engine(options.seed);
+  takeGivenCandidates(nominal_Base, sensor_frame, payloads_kg, options, candidates, candidate_ids,
+                      plan);
+  if (options.given_candidates.empty()) {
+    drawVisibleCandidates(nominal_Base, sensor_frame, payloads_kg, options, engine, candidates,
+                          plan);
+  }
+  requireEnoughCandidates(candidates.size(), plan, options);
+  const Eigen::Index columns = normaliseColumns(candidates);
+
+  std::vector<size_t> chosen;
+  Coverage coverage(nominal_Base, options.spread_bins);
+  Eigen::MatrixXd information = options.ridge * Eigen::MatrixXd::Identity(columns, columns);
+  if (options.selection == PoseSelection::kRandom) {
+    chosen = randomPoses(candidates.size(), options.poses, engine);
+  }
+  chooseGreedily(candidates, options, n, chosen, information, coverage);
   if (options.selection == PoseSelection::kRandom) {
     for (size_t c : chosen) {
       information += candidates[c].block.transpose() * candidates[c].block;
@@ -336,21 +405,7 @@ CampaignPlan planCampaign(const KinematicChain& nominal_Base, int sensor_frame,
   plan.log_det_information =
       2.0 * Eigen::LLT<Eigen::MatrixXd>(information).matrixLLT().diagonal().array().log().sum();
   for (int i = 0; i < n; ++i) plan.joint_coverage.push_back(coverage.share(i));
-
-  // Measurement order: every pose unloaded, then every pose at each payload (changing the
-  // payload is the slow step).
-  for (double load_kg : options.loads_kg) {
-    for (size_t k = 0; k < chosen.size(); ++k) {
-      char pose_id[32];
-      std::snprintf(pose_id, sizeof pose_id, "plan-%03zu", k);
-      plan.rows.push_back({candidate_ids.empty() ? std::string(pose_id) : candidate_ids[chosen[k]],
-                           load_kg, candidates[chosen[k]].q_rad, 0});
-    }
-  }
-  std::stable_sort(plan.rows.begin(), plan.rows.end(),
-                   [](const PlannedMeasurement& a, const PlannedMeasurement& b) {
-                     return a.load_kg < b.load_kg;
-                   });
+  plan.rows = measurementOrder(options.loads_kg, chosen, candidates, candidate_ids);
   return plan;
 }
 

@@ -113,8 +113,11 @@ Vec6 ModelTwin::payloadReading(const JointVector& q_cmd_rad, double load_kg,
   return wrench + bias;
 }
 
-Campaign simulateFromModel(const ModelTwinOptions& options, nlohmann::json* truth_out) {
-  const CalibratedModel model = readModelFile(options.model_path);
+namespace {
+
+/// The campaign the twin takes its robot, noise and rows from: the given one, else the model's
+/// own (its provenance), which must be there.
+std::string campaignDirOf(const ModelTwinOptions& options, const CalibratedModel& model) {
   std::string dir = options.campaign_dir;
   if (dir.empty()) {
     dir = model.provenance.campaign_path;
@@ -125,14 +128,10 @@ Campaign simulateFromModel(const ModelTwinOptions& options, nlohmann::json* trut
                        options.model_path);
     }
   }
-  const Campaign source = readCampaign(dir);
-  requireSameRobot(model, source, options.model_path);
-  const double sigma_p_m =
-      sigmaOrStated(options.tracker_position_sigma_m, source.tracker.position_sigma_m,
-                    source.tracker.stated, "position", dir);
-  const double sigma_r_rad =
-      sigmaOrStated(options.tracker_orientation_sigma_rad, source.tracker.orientation_sigma_rad,
-                    source.tracker.stated, "orientation", dir);
+  return dir;
+}
+
+void requireValidFtNoise(const ModelTwinOptions& options) {
   if (!(std::isfinite(options.ft_force_sigma_n) && options.ft_force_sigma_n >= 0.0 &&
         std::isfinite(options.ft_moment_sigma_nm) && options.ft_moment_sigma_nm >= 0.0 &&
         options.p_CoGInSensor_m.allFinite())) {
@@ -140,8 +139,11 @@ Campaign simulateFromModel(const ModelTwinOptions& options, nlohmann::json* trut
                      std::to_string(options.ft_moment_sigma_nm) +
                      " N·m or the payload's centre of gravity; expected finite values, noise >= 0");
   }
-  const ModelTwin robot(model);
+}
 
+/// A campaign of the source's robot, sensor, flange and gravity, with the twin's tracker noise;
+/// no rows yet.
+Campaign campaignLike(const Campaign& source, double sigma_p_m, double sigma_r_rad) {
   Campaign campaign;
   campaign.urdf_xml = source.urdf_xml;
   campaign.base_link = source.base_link;
@@ -153,53 +155,68 @@ Campaign simulateFromModel(const ModelTwinOptions& options, nlohmann::json* trut
   campaign.tracker.stated = sigma_p_m > 0.0 && sigma_r_rad > 0.0;
   campaign.gravity_in_base = source.gravity_in_base;
   campaign.joint_count = source.joint_count;
+  return campaign;
+}
 
-  // The rows to measure: the campaign's, or the plan's and then the campaign's validation rows.
-  std::vector<Measurement> rows;
-  const bool has_plan = !options.planned_fit_rows.empty();
-  if (has_plan) {
-    double temp_sum = 0.0;
-    int temps = 0;
-    bool orientation = false;
-    for (const Measurement& row : source.rows) {
-      if (row.temp_c) {
-        temp_sum += *row.temp_c;
-        ++temps;
-      }
-      orientation = orientation || row.has_orientation;
+/// The plan's rows, to be measured as the campaign measured its own: at its mean temperature,
+/// with orientation if it has any, with the wrench wherever the model has a sensor.
+std::vector<Measurement> plannedRows(const ModelTwinOptions& options,
+                                     const CalibratedModel& model, const Campaign& source) {
+  double temp_sum = 0.0;
+  int temps = 0;
+  bool orientation = false;
+  for (const Measurement& row : source.rows) {
+    if (row.temp_c) {
+      temp_sum += *row.temp_c;
+      ++temps;
     }
-    const bool sensor = model.sensor_frame >= 0 && !source.sensor_link.empty();
-    for (const PlannedMeasurement& planned : options.planned_fit_rows) {
-      if (planned.q_rad.size() != source.joint_count) {
-        throw InputError("a planned row has " + std::to_string(planned.q_rad.size()) +
-                             " joint angles; expected " + std::to_string(source.joint_count) +
-                             " (hint: plan with the robot of the model)",
-                         "poses", planned.source_line);
-      }
-      if (planned.load_kg != 0.0 && !sensor) {
-        throw InputError("pose '" + planned.pose_id + "' at " + std::to_string(planned.load_kg) +
-                             " kg, but the model has no F/T sensor frame; expected unloaded rows "
-                             "only (a payload's wrench is read at the sensor)",
-                         "poses", planned.source_line);
-      }
-      Measurement m;
-      m.pose_id = planned.pose_id;
-      m.set = planned.load_kg == 0.0 ? RowSet::kGeometry : RowSet::kStiffness;
-      m.load_kg = planned.load_kg;
-      m.q_rad = planned.q_rad;
-      m.has_wrench = sensor;  // a mounted sensor reads every row, unloaded ones too
-      m.has_orientation = orientation;
-      // Measured at the campaign's mean temperature, unknown if it recorded none.
-      if (temps > 0) m.temp_c = temp_sum / temps;
-      rows.push_back(std::move(m));
-    }
-    for (const Measurement& row : source.rows) {
-      if (row.set == RowSet::kValidation) rows.push_back(row);
-    }
-  } else {
-    rows = source.rows;
+    orientation = orientation || row.has_orientation;
   }
+  const bool sensor = model.sensor_frame >= 0 && !source.sensor_link.empty();
+  std::vector<Measurement> rows;
+  for (const PlannedMeasurement& planned : options.planned_fit_rows) {
+    if (planned.q_rad.size() != source.joint_count) {
+      throw InputError("a planned row has " + std::to_string(planned.q_rad.size()) +
+                           " joint angles; expected " + std::to_string(source.joint_count) +
+                           " (hint: plan with the robot of the model)",
+                       "poses", planned.source_line);
+    }
+    if (planned.load_kg != 0.0 && !sensor) {
+      throw InputError("pose '" + planned.pose_id + "' at " + std::to_string(planned.load_kg) +
+                           " kg, but the model has no F/T sensor frame; expected unloaded rows "
+                           "only (a payload's wrench is read at the sensor)",
+                       "poses", planned.source_line);
+    }
+    Measurement m;
+    m.pose_id = planned.pose_id;
+    m.set = planned.load_kg == 0.0 ? RowSet::kGeometry : RowSet::kStiffness;
+    m.load_kg = planned.load_kg;
+    m.q_rad = planned.q_rad;
+    m.has_wrench = sensor;  // a mounted sensor reads every row, unloaded ones too
+    m.has_orientation = orientation;
+    // Measured at the campaign's mean temperature, unknown if it recorded none.
+    if (temps > 0) m.temp_c = temp_sum / temps;
+    rows.push_back(std::move(m));
+  }
+  return rows;
+}
 
+/// The rows to measure: the campaign's, or the plan's and then the campaign's validation rows.
+std::vector<Measurement> rowsToMeasure(const ModelTwinOptions& options,
+                                       const CalibratedModel& model, const Campaign& source) {
+  if (options.planned_fit_rows.empty()) return source.rows;
+  std::vector<Measurement> rows = plannedRows(options, model, source);
+  for (const Measurement& row : source.rows) {
+    if (row.set == RowSet::kValidation) rows.push_back(row);
+  }
+  return rows;
+}
+
+/// Each row measured on the twin: the planned rows' wrench read (the payload's, with noise),
+/// the tip with the tracker's noise; sequence numbers for a plan's rows.
+void measureRows(const ModelTwin& robot, const ModelTwinOptions& options, double sigma_p_m,
+                 double sigma_r_rad, std::vector<Measurement>& rows) {
+  const bool has_plan = !options.planned_fit_rows.empty();
   Rng noise_rng(options.seed, Stream::kModelTwinNoise);
   const size_t planned_rows = has_plan ? options.planned_fit_rows.size() : 0;
   int64_t seq = 1;
@@ -231,31 +248,58 @@ Campaign simulateFromModel(const ModelTwinOptions& options, nlohmann::json* trut
     m.extra.clear();  // the real campaign's own columns say nothing of the twin's rows
     m.source_line = 0;
   }
-  campaign.rows = std::move(rows);
+}
 
+/// truth.json: what the twin was and how it measured.
+nlohmann::json truthOf(const ModelTwinOptions& options, const CalibratedModel& model,
+                       const ModelTwin& robot, const std::string& dir, double sigma_p_m,
+                       double sigma_r_rad) {
+  nlohmann::json mechanisms = nlohmann::json::array();
+  for (const Mechanism& m : model.mechanisms) mechanisms.push_back(describe(m));
+  return {
+      {"format", kFormat},
+      {"model_path", options.model_path},
+      {"model_campaign_hash", model.provenance.campaign_hash},
+      {"campaign_dir", dir},
+      {"seed", options.seed},
+      {"planned_fit_rows", options.planned_fit_rows.size()},
+      {"noise",
+       {{"tracker_position_sigma_m", sigma_p_m},
+        {"tracker_orientation_sigma_rad", sigma_r_rad},
+        {"ft_force_sigma_n", options.ft_force_sigma_n},
+        {"ft_moment_sigma_nm", options.ft_moment_sigma_nm}}},
+      {"p_CoGInSensor_m",
+       {options.p_CoGInSensor_m.x(), options.p_CoGInSensor_m.y(), options.p_CoGInSensor_m.z()}},
+      {"compliance_rad_per_nm",
+       std::vector<double>(robot.physical().compliance_rad_per_nm.data(),
+                           robot.physical().compliance_rad_per_nm.data() +
+                               robot.physical().compliance_rad_per_nm.size())},
+      {"mechanisms", mechanisms},
+  };
+}
+
+}  // namespace
+
+Campaign simulateFromModel(const ModelTwinOptions& options, nlohmann::json* truth_out) {
+  const CalibratedModel model = readModelFile(options.model_path);
+  const std::string dir = campaignDirOf(options, model);
+  const Campaign source = readCampaign(dir);
+  requireSameRobot(model, source, options.model_path);
+  const double sigma_p_m =
+      sigmaOrStated(options.tracker_position_sigma_m, source.tracker.position_sigma_m,
+                    source.tracker.stated, "position", dir);
+  const double sigma_r_rad =
+      sigmaOrStated(options.tracker_orientation_sigma_rad, source.tracker.orientation_sigma_rad,
+                    source.tracker.stated, "orientation", dir);
+  requireValidFtNoise(options);
+  const ModelTwin robot(model);
+
+  Campaign campaign = campaignLike(source, sigma_p_m, sigma_r_rad);
+  std::vector<Measurement> rows = rowsToMeasure(options, model, source);
+  measureRows(robot, options, sigma_p_m, sigma_r_rad, rows);
+  campaign.rows = std::move(rows);
   if (truth_out != nullptr) {
-    nlohmann::json mechanisms = nlohmann::json::array();
-    for (const Mechanism& m : model.mechanisms) mechanisms.push_back(describe(m));
-    *truth_out = {
-        {"format", kFormat},
-        {"model_path", options.model_path},
-        {"model_campaign_hash", model.provenance.campaign_hash},
-        {"campaign_dir", dir},
-        {"seed", options.seed},
-        {"planned_fit_rows", options.planned_fit_rows.size()},
-        {"noise",
-         {{"tracker_position_sigma_m", sigma_p_m},
-          {"tracker_orientation_sigma_rad", sigma_r_rad},
-          {"ft_force_sigma_n", options.ft_force_sigma_n},
-          {"ft_moment_sigma_nm", options.ft_moment_sigma_nm}}},
-        {"p_CoGInSensor_m",
-         {options.p_CoGInSensor_m.x(), options.p_CoGInSensor_m.y(), options.p_CoGInSensor_m.z()}},
-        {"compliance_rad_per_nm",
-         std::vector<double>(robot.physical().compliance_rad_per_nm.data(),
-                             robot.physical().compliance_rad_per_nm.data() +
-                                 robot.physical().compliance_rad_per_nm.size())},
-        {"mechanisms", mechanisms},
-    };
+    *truth_out = truthOf(options, model, robot, dir, sigma_p_m, sigma_r_rad);
   }
   return campaign;
 }

@@ -23,27 +23,18 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-}  // namespace
-
-const char* toString(Verdict verdict) noexcept {
-  switch (verdict) {
-    case Verdict::kFound: return "found";
-    case Verdict::kNone: return "none";
-    case Verdict::kUnexplained: return "unexplained";
-  }
-  return "unknown";
-}
-
-Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
-                   const DiagnoseOptions& options) {
-  Diagnosis d;
-  const int n = model.chain_Tracker.dof();
-  requireJointCount(campaign, n);
+/// The campaign's fit rows: every row outside set=validation.
+std::vector<const Measurement*> fitRowsOf(const Campaign& campaign) {
   std::vector<const Measurement*> rows;
   for (const Measurement& row : campaign.rows) {
     if (row.set != RowSet::kValidation) rows.push_back(&row);
   }
-  const FitRows fit = makeFitRows(rows, campaign.tracker, options.folds);
+  return rows;
+}
+
+/// Throws when the fit rows hold too few poses for options.folds-fold cross-validation.
+void requireEnoughPoses(const FitRows& fit, const DiagnoseOptions& options,
+                        const Campaign& campaign) {
   if (fit.poses < 4 * options.folds) {
     throw InputError("diagnosis needs at least " + std::to_string(4 * options.folds) +
                          " fit poses (distinct pose_id outside set=validation) for " +
@@ -51,18 +42,21 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
                          std::to_string(fit.poses),
                      campaign.directory + "/" + campaign.measurements_file);
   }
-  d.fit_rows = static_cast<int>(rows.size());
-  d.fit_poses = fit.poses;
-  d.folds = options.folds;
-  Search search(fit, options,
-                bodyMassesFromUrdf(campaign.urdf_xml, campaign.base_link, campaign.tip_link,
-                                   campaign.directory.empty()
-                                       ? campaign.robot_file
-                                       : campaign.directory + "/" + campaign.robot_file),
-                d);
-  const std::optional<std::vector<double>>& body_masses = search.body_masses;
+}
 
-  // The starting model: its global part, its profiles (their ridge as the middle of the grid).
+/// The campaign URDF's link masses and first moments, if it has them.
+std::optional<std::vector<double>> urdfBodyMasses(const Campaign& campaign) {
+  return bodyMassesFromUrdf(campaign.urdf_xml, campaign.base_link, campaign.tip_link,
+                            campaign.directory.empty()
+                                ? campaign.robot_file
+                                : campaign.directory + "/" + campaign.robot_file);
+}
+
+/// The starting model: the given model's global part, and its profiles to be refitted.
+void startFromGivenModel(Search& search, const CalibratedModel& model,
+                         const std::vector<const Measurement*>& rows) {
+  const std::optional<std::vector<double>>& body_masses = search.body_masses;
+  const DiagnoseOptions& options = search.options;
   DiagnosisModel& dm = search.model;
   dm.global = physicalModelOf(model);
   dm.global.mechanisms.clear();
@@ -85,76 +79,104 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
                                             options.coverage_fade_deg * kDegToRad);
     dm.profiles.push_back(std::move(p));
   }
-  // Several campaigns: each later one's own tracker station and tool as the given model places
-  // it, then fitted with the rest.
+}
+
+/// Several campaigns: each later one's own tracker station and tool as the given model places
+/// it, then fitted with the rest.
+void addStartingSessionFrames(Search& search, const Campaign& campaign,
+                              const CalibratedModel& model,
+                              const std::vector<const Measurement*>& rows) {
   const int sessions = campaign.sessionCount();
   std::vector<std::string> directories;
   for (int s = 0; s < sessions; ++s) directories.push_back(campaign.directoryOf(s));
   search.starting_frames =
       startingSessionFrames(physicalModelOf(model), rows, sessions, campaign.tracker, directories);
+  DiagnosisModel& dm = search.model;
   dm.global.mechanisms.insert(dm.global.mechanisms.end(), search.starting_frames.begin(),
                               search.starting_frames.end());
-  for (int j = 0; j < n; ++j) dm.compliance_free.push_back(dm.global.compliance_rad_per_nm(j) > 0.0);
+}
+
+/// The starting model's fitted compliances, and its profiles' ridge (the middle of the grid).
+void startComplianceAndRidges(Search& search, int n) {
+  DiagnosisModel& dm = search.model;
+  for (int j = 0; j < n; ++j) {
+    dm.compliance_free.push_back(dm.global.compliance_rad_per_nm(j) > 0.0);
+  }
   search.starting_compliance = dm.compliance_free;
   if (!dm.profiles.empty()) {
-    const Eigen::VectorXd r = residuals(dm.global, fit);
+    const DiagnoseOptions& options = search.options;
+    const Eigen::VectorXd r = residuals(dm.global, search.fit);
     const double rho = options.profile_ridges[options.profile_ridges.size() / 2];
-    for (Profile& p : dm.profiles) p.ridge = rho * profileRidgeScale(dm.global, r, p.mechanism, fit);
+    for (Profile& p : dm.profiles) {
+      p.ridge = rho * profileRidgeScale(dm.global, r, p.mechanism, search.fit);
+    }
   }
+}
 
-  // 1. The model refitted jointly; what it gets wrong.
-  auto clock = std::chrono::steady_clock::now();
+/// Phase 1: the starting model refitted jointly on the fit rows (the given model's compliance
+/// prior, if it has one).
+void refitStartingModel(Search& search, const CalibratedModel& model, int n) {
+  const auto clock = std::chrono::steady_clock::now();
+  DiagnosisModel& dm = search.model;
   search.compliance_sigma = model.compliance_sigma_rad_per_nm.size() == n
                                 ? model.compliance_sigma_rad_per_nm
                                 : JointVector(JointVector::Zero(n));
-  refitPhysical(dm, fit, options, dm.global.mechanisms.size(), search.compliance_sigma, d);
-  fitProfiles(dm, fit);
-  d.seconds_refit += secondsSince(clock);
-  clock = std::chrono::steady_clock::now();
-  {
-    const Evaluation e = evaluate(dm.combined(), fit);
-    const Variables variables = trendVariables(fit, e.tau_nm, n);
-    d.variable_names = variables.names;
-    d.variable_values = variables.values;
-    d.before = statistics(e.r, fit, variables, options.family_alpha);
-    if (sessions > 1) {
-      const std::vector<double> mean = sessionMeanErrors(e.r, fit, sessions);
-      for (int s = 0; s < sessions; ++s) {
-        DiagnosedCampaign c;
-        c.directory = campaign.directoryOf(s);
-        c.before_mean_m = mean[static_cast<size_t>(s)];
-        for (const Measurement* row : rows) c.fit_rows += row->session == s ? 1 : 0;
-        d.campaigns.push_back(std::move(c));
+  refitPhysical(dm, search.fit, search.options, dm.global.mechanisms.size(),
+                search.compliance_sigma, search.d);
+  fitProfiles(dm, search.fit);
+  search.d.seconds_refit += secondsSince(clock);
+}
+
+/// Phase 1: what the refitted model gets wrong, its trends and, with several campaigns, each
+/// one's mean error.
+void trendsBefore(Search& search, const Campaign& campaign,
+                  const std::vector<const Measurement*>& rows, int n) {
+  const auto clock = std::chrono::steady_clock::now();
+  Diagnosis& d = search.d;
+  const FitRows& fit = search.fit;
+  const int sessions = campaign.sessionCount();
+  const Evaluation e = evaluate(search.model.combined(), fit);
+  const Variables variables = trendVariables(fit, e.tau_nm, n);
+  d.variable_names = variables.names;
+  d.variable_values = variables.values;
+  d.before = statistics(e.r, fit, variables, search.options.family_alpha);
+  if (sessions > 1) {
+    const std::vector<double> mean = sessionMeanErrors(e.r, fit, sessions);
+    for (int s = 0; s < sessions; ++s) {
+      DiagnosedCampaign c;
+      c.directory = campaign.directoryOf(s);
+      c.before_mean_m = mean[static_cast<size_t>(s)];
+      for (const Measurement* row : rows) c.fit_rows += row->session == s ? 1 : 0;
+      d.campaigns.push_back(std::move(c));
+    }
+  }
+  d.seconds_trends += secondsSince(clock);
+}
+
+/// Phase 3: the trends the extended model leaves and, with several campaigns, each one's mean
+/// error and fitted station and tool.
+void trendsAfter(Search& search, const PhysicalModel& extended_physical, int sessions, int n) {
+  const auto clock = std::chrono::steady_clock::now();
+  Diagnosis& d = search.d;
+  const FitRows& fit = search.fit;
+  const Evaluation e = evaluate(extended_physical, fit);
+  d.after = statistics(e.r, fit, trendVariables(fit, e.tau_nm, n), search.options.family_alpha);
+  if (sessions > 1) {
+    const std::vector<double> mean = sessionMeanErrors(e.r, fit, sessions);
+    for (int s = 0; s < sessions; ++s) {
+      d.campaigns[static_cast<size_t>(s)].after_mean_m = mean[static_cast<size_t>(s)];
+    }
+    for (const Mechanism& m : extended_physical.mechanisms) {
+      if (m.kind == MechanismKind::kSessionFrames) {
+        d.campaigns[static_cast<size_t>(m.order)].frames = m;
       }
     }
   }
   d.seconds_trends += secondsSince(clock);
+}
 
-  // 2. Families, round by round; then the model refined and its effects described.
-  search.base_globals = dm.global.mechanisms.size();
-  search.base_profiles = dm.profiles.size();
-  search.geometry = 6 * (n + 1);
-  searchRounds(search);
-  refine(search);
-  describeEffects(search);
-  const PhysicalModel extended_physical = dm.combined();
-
-  // 3. Verdict.
-  clock = std::chrono::steady_clock::now();
-  {
-    const Evaluation e = evaluate(extended_physical, fit);
-    d.after = statistics(e.r, fit, trendVariables(fit, e.tau_nm, n), options.family_alpha);
-    if (sessions > 1) {
-      const std::vector<double> mean = sessionMeanErrors(e.r, fit, sessions);
-      for (int s = 0; s < sessions; ++s) d.campaigns[static_cast<size_t>(s)].after_mean_m = mean[static_cast<size_t>(s)];
-      for (const Mechanism& m : extended_physical.mechanisms) {
-        if (m.kind == MechanismKind::kSessionFrames) d.campaigns[static_cast<size_t>(m.order)].frames = m;
-      }
-    }
-  }
-  d.seconds_trends += secondsSince(clock);
-  judgeDrift(search);
-  judgeCampaignProfiles(search);
+/// Phase 3: found (effects), unexplained (a trend left above the noise) or none.
+void giveVerdict(Diagnosis& d, const DiagnoseOptions& options) {
   const std::string remaining = trendSummary(d.after, options.noise_ratio_limit);
   if (!d.effects.empty()) {
     d.verdict = Verdict::kFound;
@@ -163,6 +185,54 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
     d.verdict = Verdict::kUnexplained;
     d.unexplained_trend = remaining;
   }
+}
+
+}  // namespace
+
+const char* toString(Verdict verdict) noexcept {
+  switch (verdict) {
+    case Verdict::kFound: return "found";
+    case Verdict::kNone: return "none";
+    case Verdict::kUnexplained: return "unexplained";
+  }
+  return "unknown";
+}
+
+Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
+                   const DiagnoseOptions& options) {
+  Diagnosis d;
+  const int n = model.chain_Tracker.dof();
+  requireJointCount(campaign, n);
+  const std::vector<const Measurement*> rows = fitRowsOf(campaign);
+  const FitRows fit = makeFitRows(rows, campaign.tracker, options.folds);
+  requireEnoughPoses(fit, options, campaign);
+  d.fit_rows = static_cast<int>(rows.size());
+  d.fit_poses = fit.poses;
+  d.folds = options.folds;
+  Search search(fit, options, urdfBodyMasses(campaign), d);
+
+  startFromGivenModel(search, model, rows);
+  addStartingSessionFrames(search, campaign, model, rows);
+  startComplianceAndRidges(search, n);
+
+  // 1. The model refitted jointly; what it gets wrong.
+  refitStartingModel(search, model, n);
+  trendsBefore(search, campaign, rows, n);
+
+  // 2. Families, round by round; then the model refined and its effects described.
+  search.base_globals = search.model.global.mechanisms.size();
+  search.base_profiles = search.model.profiles.size();
+  search.geometry = 6 * (n + 1);
+  searchRounds(search);
+  refine(search);
+  describeEffects(search);
+  const PhysicalModel extended_physical = search.model.combined();
+
+  // 3. Verdict.
+  trendsAfter(search, extended_physical, campaign.sessionCount(), n);
+  judgeDrift(search);
+  judgeCampaignProfiles(search);
+  giveVerdict(d, options);
 
   // 4. The extended model with its GPR, and the gain on validation rows.
   extendAndEvaluate(campaign, model, extended_physical, search);

@@ -16,9 +16,9 @@
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/text_number.hpp"
 #include "stepcal/common/urdf.hpp"
+#include "stepcal/report/text_format.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/twin/twin.hpp"
-#include "text_format.hpp"
 
 namespace stepcal::cli {
 namespace {

@@ -20,9 +20,9 @@
 #include <vector>
 
 #include "correct.hpp"
-#include "diagnosis_report.hpp"
-#include "report.hpp"
-#include "report_html.hpp"
+#include "stepcal/report/diagnosis_report.hpp"
+#include "stepcal/report/report.hpp"
+#include "stepcal/report/report_html.hpp"
 #include "stepcal/common/atomic_file.hpp"
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"

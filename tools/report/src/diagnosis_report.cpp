@@ -1,10 +1,10 @@
-#include "diagnosis_report.hpp"
+#include "stepcal/report/diagnosis_report.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 
-#include "text_format.hpp"
+#include "stepcal/report/text_format.hpp"
 
 namespace stepcal::cli {
 namespace {

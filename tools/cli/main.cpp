@@ -15,10 +15,17 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   // In the order `stepcal --help` lists them.
   const std::vector<Subcommand> subcommands = {
-      addSimulateCommand(app), addPlanCommand(app),     addImportCommand(app),
-      addCalibrateCommand(app), addValidateCommand(app), addInspectCommand(app),
-      addExportCommand(app),   addDiagnoseCommand(app), addDemoCommand(app),
-      addCorrectCommand(app)};
+      addSimulateCommand(app),
+      addPlanCommand(app),
+      addImportCommand(app),
+      addCalibrateCommand(app),
+      addValidateCommand(app),
+      addInspectCommand(app),
+      addExportCommand(app),
+      addDiagnoseCommand(app),
+      addDemoCommand(app),
+      addCorrectCommand(app),
+  };
   CLI11_PARSE(app, argc, argv);
   try {
     for (const Subcommand& subcommand : subcommands) {

@@ -11,10 +11,10 @@
 #include <cmath>
 #include <set>
 
-#include "diagnosis_report.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/report/diagnosis_report.hpp"
 #include "support/command.hpp"
 #include "support/files.hpp"
 #include "support/hidden_effects.hpp"

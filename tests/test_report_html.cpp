@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "report_html.hpp"
+#include "stepcal/report/report_html.hpp"
 #include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"

@@ -11,10 +11,10 @@
 #include <algorithm>
 #include <cstdio>
 
-#include "report.hpp"
-#include "session_report.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/report/report.hpp"
+#include "stepcal/report/session_report.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
 #include "support/command.hpp"

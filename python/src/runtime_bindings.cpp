@@ -6,8 +6,8 @@
 
 #include "bindings.hpp"
 #include "model_handle.hpp"
-#include "report.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/report/report.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/request.hpp"
 

@@ -8,11 +8,11 @@
 #include <pybind11/stl.h>
 
 #include "bindings.hpp"
-#include "diagnosis_report.hpp"
 #include "model_handle.hpp"
-#include "report.hpp"
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/report/diagnosis_report.hpp"
+#include "stepcal/report/report.hpp"
 #include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 

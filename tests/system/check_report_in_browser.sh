@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Opens an HTML report in headless Chromium and fails on any console message (the reports log
 # nothing, so any is an error, e.g. an exception) or when the report's own check on load
-# (tools/cli/report_html/page.hpp) finds a chart without data or a file the page refers to; saves
-# a screenshot of the whole page. Every host name resolves to nothing: the check runs offline.
+# (tools/report/include/stepcal/report/html/page.hpp) finds a chart without data or a file the
+# page refers to; saves a screenshot of the whole page. Every host name resolves to nothing: the
+# check runs offline.
 #   tests/system/check_report_in_browser.sh REPORT.html SCREENSHOT.png
 # Exit 0: passed; 1: failed; 77 (ctest's SKIP_RETURN_CODE): no chromium, or REPORT.html.skip says
 # why the report was not made.

@@ -19,12 +19,12 @@
 #include <string>
 #include <vector>
 
-#include "report_html/charts.hpp"
-#include "report_html/page.hpp"
 #include "stepcal/common/atomic_file.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/robots.hpp"
 #include "stepcal/common/urdf.hpp"
+#include "stepcal/report/html/charts.hpp"
+#include "stepcal/report/html/page.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/trainer/plan.hpp"
 #include "stepcal/twin/twin.hpp"

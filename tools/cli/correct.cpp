@@ -1,13 +1,19 @@
-#include "correct.hpp"
-
+// `stepcal correct MODEL PROGRAM --out CORRECTED`: an offline program's targets (poses in a
+// chosen frame, or the nominal joint targets of an offline programming tool), each with its
+// tool and payload, corrected with a model: joint targets and pre-distorted poses that make the
+// real robot reach them, with each line's status, predicted residual and coverage, and a
+// summary. The file formats are in docs/runtime.md ("Correcting an offline program").
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <memory>
 #include <optional>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -16,9 +22,10 @@
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/text_number.hpp"
 #include "stepcal/common/urdf.hpp"
+#include "stepcal/report/text_format.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/twin/twin.hpp"
-#include "text_format.hpp"
+#include "subcommands.hpp"
 
 namespace stepcal::cli {
 namespace {
@@ -26,6 +33,15 @@ namespace {
 constexpr double kDegToRad = M_PI / 180.0;
 constexpr double kQuaternionNormTolerance = 1e-6;
 constexpr int kStatusCount = 7;
+
+struct CorrectArgs {
+  std::string model, program, out;
+  std::string frame = "tracker";    ///< tracker | base | user: the frame of the pose targets
+  std::vector<double> user_frame;   ///< --frame user: x y z (mm) qw qx qy qz, in the base frame
+  std::vector<double> seed_deg;     ///< the first pose target's seed when the file has none, deg
+  std::string truth;                ///< the twin's truth.json: each target run on it too
+  bool json = false;                ///< the summary as JSON
+};
 
 const std::array<const char*, 7> kPoseColumns = {"x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"};
 const std::array<const char*, 7> kToolColumns = {"tool_x_mm", "tool_y_mm", "tool_z_mm", "tool_qw",
@@ -383,9 +399,234 @@ runtime::PoseFrame parseFrame(const std::string& frame) {
   throw InputError("--frame '" + frame + "': expected tracker, base or user");
 }
 
+runtime::CallTerms frameTerms(const CorrectArgs& args) {
+  runtime::CallTerms frame_terms;
+  frame_terms.frame = parseFrame(args.frame);
+  if ((frame_terms.frame == runtime::PoseFrame::kUser) != !args.user_frame.empty()) {
+    throw InputError("--user-frame x y z qw qx qy qz goes with --frame user, and --frame user needs it");
+  }
+  if (!args.user_frame.empty()) {
+    const std::vector<double>& u = args.user_frame;
+    const Eigen::Quaterniond q(u[3], u[4], u[5], u[6]);
+    if (!(std::abs(q.norm() - 1.0) <= kQuaternionNormTolerance)) {
+      throw InputError("--user-frame: the quaternion has norm " + formatShortest(q.norm()) +
+                       "; expected a unit quaternion (within 1e-6)");
+    }
+    frame_terms.X_BaseUser.linear() = q.normalized().toRotationMatrix();
+    frame_terms.X_BaseUser.translation() = Vec3(u[0], u[1], u[2]) * 1e-3;
+  }
+  return frame_terms;
+}
+
+/// --seed in radians; none when not given.
+std::optional<JointVector> seedOption(const CorrectArgs& args, int dof) {
+  std::optional<JointVector> seed_option;
+  if (!args.seed_deg.empty()) {
+    if (int(args.seed_deg.size()) != dof) {
+      throw InputError("--seed has " + std::to_string(args.seed_deg.size()) +
+                       " angles; the model has " + std::to_string(dof) + " joints");
+    }
+    seed_option = JointVector(dof);
+    for (int j = 0; j < dof; ++j) (*seed_option)[j] = args.seed_deg[size_t(j)] * kDegToRad;
+  }
+  return seed_option;
+}
+
+/// Refuses a line that needs the flange when the model knows none.
+void checkFlangeNeeds(const std::vector<ProgramLine>& program, const runtime::RuntimeModel& model,
+                      const std::string& program_path) {
+  for (const ProgramLine& p : program) {
+    if (p.terms.tool_from == runtime::ToolFrom::kFlange && !model.has_flange) {
+      throw InputError("tool_from flange, but the model knows no flange (its campaign.yaml names "
+                       "no flange_link); give the tool from the measured target, or calibrate "
+                       "with flange_link",
+                       program_path, p.line, "tool_from");
+    }
+    if (p.terms.payload.mass_kg > 0.0 && p.terms.payload.frame == runtime::CogFrame::kFlange &&
+        !model.has_flange) {
+      throw InputError("a centre of gravity in the flange frame, but the model knows no flange; "
+                       "give cog_frame tool",
+                       program_path, p.line, "payload_kg");
+    }
+  }
+}
+
+/// --truth: the twin's true robot, and the controller's own inverse that commands it without a
+/// correction (nominalModel).
+struct TwinTruth {
+  twin::TwinRobot robot;
+  std::unique_ptr<const runtime::RuntimeModel> nominal;
+  runtime::Workspace nominal_ws;
+};
+
+std::optional<TwinTruth> readTruth(const std::string& path, const runtime::RuntimeModel& model) {
+  if (path.empty()) return std::nullopt;
+  std::ifstream in(path);
+  if (!in) throw InputError("--truth: cannot read the file", path);
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(std::string("--truth: not JSON: ") + e.what(), path);
+  }
+  twin::TwinRobot robot = twin::TwinRobot::fromTruthJson(j);
+  std::unique_ptr<const runtime::RuntimeModel> nominal = nominalModel(model);
+  runtime::Workspace nominal_ws = runtime::makeWorkspace(*nominal);
+  return TwinTruth{std::move(robot), std::move(nominal), std::move(nominal_ws)};
+}
+
+/// What the corrected program's lines came to.
+struct Tally {
+  std::array<long, kStatusCount> statuses{};
+  long in_coverage = 0;
+  ErrorStats before, after;  ///< on the twin: as commanded, as corrected
+};
+
+std::string correctedHeader(int dof, bool with_truth) {
+  std::string out = "line,id,target,status";
+  for (int j = 0; j < dof; ++j) out += ",q" + std::to_string(j + 1) + "_deg";
+  out += ",x_mm,y_mm,z_mm,qw,qx,qy,qz,residual_mm,residual_deg,gpr_std_mm,in_coverage,"
+         "uncovered_joints,iterations";
+  if (with_truth) out += ",error_commanded_mm,error_commanded_deg,error_corrected_mm,error_corrected_deg";
+  out += "\n";
+  return out;
+}
+
+/// A line's target run on the twin as commanded without a correction and as corrected (q_rad):
+/// the errors appended to its CSV line and counted.
+void appendTwinErrors(std::string& out, TwinTruth& truth, const runtime::RuntimeModel& model,
+                      const ProgramLine& p, const Pose& X_FrameTcp_desired, const JointVector& seed,
+                      const JointVector& q_rad, Tally& tally) {
+  const Pose X_TrackerTcp_desired =
+      runtime::trackerFromFrame(model, p.terms.frame, p.terms.X_BaseUser) * X_FrameTcp_desired;
+  JointVector commanded_rad = p.q_rad;
+  if (!p.joint_target) {
+    commanded_rad = runtime::solveInverse(*truth.nominal, truth.nominal_ws, X_FrameTcp_desired,
+                                          p.terms, p.temp_c, seed, runtime::Clock::time_point::max())
+                        .q_target_rad;
+  }
+  const PoseError e_before = errorBetween(trueTcp(truth.robot, model, p, commanded_rad),
+                                          X_TrackerTcp_desired);
+  const PoseError e_after = errorBetween(trueTcp(truth.robot, model, p, q_rad),
+                                         X_TrackerTcp_desired);
+  tally.before.add(e_before);
+  tally.after.add(e_after);
+  out += "," + number(e_before.position_m * 1e3) + "," +
+         number(e_before.orientation_rad / kDegToRad) + "," +
+         number(e_after.position_m * 1e3) + "," + number(e_after.orientation_rad / kDegToRad);
+}
+
+/// Corrects every line (each pose target's search starting where the previous line's ended):
+/// the corrected program's CSV.
+std::string correctProgram(const runtime::RuntimeModel& model, runtime::Workspace& ws,
+                           const std::vector<ProgramLine>& program,
+                           std::optional<JointVector> previous_rad, std::optional<TwinTruth>& truth,
+                           Tally& tally) {
+  const int dof = model.file.chain_Tracker.dof();
+  std::string out = correctedHeader(dof, truth.has_value());
+  for (const ProgramLine& p : program) {
+    const Pose X_FrameTcp_desired =
+        p.joint_target ? runtime::nominalTcp(model, ws, p.q_rad, p.terms) : p.X_FrameTcp;
+    const JointVector seed = p.seed_rad ? *p.seed_rad : p.joint_target ? p.q_rad : *previous_rad;
+    const runtime::InverseResult r =
+        runtime::solveInverse(model, ws, X_FrameTcp_desired, p.terms, p.temp_c, seed,
+                              runtime::Clock::time_point::max());
+    ++tally.statuses[size_t(r.status)];
+    const bool answered = r.status != runtime::Status::kBadRequest;
+    previous_rad = answered ? r.q_target_rad : seed;
+    out += std::to_string(p.line) + "," + p.id + "," + (p.joint_target ? "joints" : "pose") + "," +
+           runtime::toString(r.status);
+    if (!answered) {
+      out += std::string(size_t(dof + 13 + (truth ? 4 : 0)), ',') + "\n";
+      continue;
+    }
+    for (int j = 0; j < dof; ++j) out += "," + number(r.q_target_rad[j] / kDegToRad, "%.8f");
+    appendPose(out, r.X_ControllerTcp_commanded);
+    const bool covered = runtime::withinDomain(model, r.gpr_std) && r.uncovered_joints == 0;
+    tally.in_coverage += covered;
+    std::string uncovered;
+    for (int j = 0; j < dof; ++j) {
+      if ((r.uncovered_joints >> j) & 1u) uncovered += (uncovered.empty() ? "" : ";") + std::to_string(j + 1);
+    }
+    out += "," + number(r.residual_position_m * 1e3, "%.6f") + "," +
+           number(r.residual_orientation_rad / kDegToRad, "%.6f") + "," +
+           number(r.gpr_std.head<3>().norm() * 1e3, "%.6f") + "," + (covered ? "yes" : "no") +
+           "," + uncovered + "," + std::to_string(r.iterations);
+    if (truth) appendTwinErrors(out, *truth, model, p, X_FrameTcp_desired, seed, r.q_target_rad, tally);
+    out += "\n";
+  }
+  return out;
+}
+
+nlohmann::json summaryJson(const CorrectArgs& args, size_t lines, const Tally& tally,
+                           bool with_truth, const runtime::RuntimeModel& model) {
+  nlohmann::json summary = {{"program", args.program}, {"out", args.out},
+                            {"lines", lines}, {"in_coverage", tally.in_coverage}};
+  nlohmann::json by_status = nlohmann::json::object();
+  for (int k = 0; k < kStatusCount; ++k) {
+    by_status[runtime::toString(runtime::Status(k))] = tally.statuses[size_t(k)];
+  }
+  summary["statuses"] = by_status;
+  if (with_truth) {
+    summary["error_commanded"] = tally.before.toJson();
+    summary["error_corrected"] = tally.after.toJson();
+    for (const ValidationFigure& v : model.file.provenance.validation) {
+      summary["model_validation"].push_back({{"method", v.method},
+                                             {"load_kg", v.load_kg},
+                                             {"rows", v.rows},
+                                             {"mean_position_mm", v.mean_position_m * 1e3},
+                                             {"max_position_mm", v.max_position_m * 1e3}});
+    }
+  }
+  return summary;
+}
+
+void printSummary(const CorrectArgs& args, size_t lines, const Tally& tally, bool with_truth) {
+  const std::array<long, kStatusCount>& statuses = tally.statuses;
+  std::cout << "wrote " << args.out << ": " << lines << " lines: " << statuses[0]
+            << " OK, " << statuses[3] << " OUT_OF_DOMAIN, " << statuses[4] << " UNREACHABLE, "
+            << statuses[1] << " NOT_CONVERGED, " << statuses[5] << " NEAR_SINGULAR, "
+            << statuses[6] << " BAD_REQUEST; " << tally.in_coverage << " in the model's coverage\n";
+  if (with_truth) {
+    for (const auto& [name, stats] : {std::pair{"as commanded", &tally.before}, std::pair{"as corrected", &tally.after}}) {
+      const nlohmann::json j = stats->toJson();
+      std::cout << format("on the twin, %s: mean %.4f mm, max %.4f mm, mean %.4f deg over %d targets\n",
+                          name, j["mean_position_mm"].get<double>(),
+                          j["max_position_mm"].get<double>(),
+                          j["mean_orientation_deg"].get<double>(), stats->count);
+    }
+  }
+}
+
+/// Reads the model and the program, corrects every line, writes args.out (atomically) and prints
+/// the summary. Throws InputError naming the file, line and column of bad input.
+void runCorrect(const CorrectArgs& args) {
+  const std::unique_ptr<const runtime::RuntimeModel> model = runtime::RuntimeModel::load(args.model);
+  const int dof = model->file.chain_Tracker.dof();
+  runtime::Workspace ws = runtime::makeWorkspace(*model);
+  const runtime::CallTerms frame_terms = frameTerms(args);
+  const std::optional<JointVector> seed_option = seedOption(args, dof);
+  const std::vector<ProgramLine> program =
+      readProgram(args.program, dof, frame_terms, seed_option.has_value());
+  checkFlangeNeeds(program, *model, args.program);
+  std::optional<TwinTruth> truth = readTruth(args.truth, *model);
+
+  Tally tally;
+  const std::string out = correctProgram(*model, ws, program, seed_option, truth, tally);
+  writeFileAtomically(args.out, out.data(), out.size(), "corrected program");
+  if (args.json) {
+    std::cout << summaryJson(args, program.size(), tally, truth.has_value(), *model).dump(2)
+              << "\n";
+    return;
+  }
+  printSummary(args, program.size(), tally, truth.has_value());
+}
+
 }  // namespace
 
-CLI::App* addCorrectCommand(CLI::App& app, CorrectArgs& args) {
+Subcommand addCorrectCommand(CLI::App& app) {
+  auto args_owned = std::make_shared<CorrectArgs>();
+  CorrectArgs& args = *args_owned;
   CLI::App* correct = app.add_subcommand(
       "correct", "correct an offline program's targets: joint targets and pre-distorted poses");
   correct->add_option("model", args.model, "model file")->required();
@@ -407,168 +648,7 @@ CLI::App* addCorrectCommand(CLI::App& app, CorrectArgs& args) {
                       "the twin's truth.json: run every target on the simulated robot, as "
                       "commanded and as corrected (its payload at the twin's own centre of gravity)");
   correct->add_flag("--json", args.json, "print the summary as JSON");
-  return correct;
-}
-
-void runCorrect(const CorrectArgs& args) {
-  const std::unique_ptr<const runtime::RuntimeModel> model = runtime::RuntimeModel::load(args.model);
-  const int dof = model->file.chain_Tracker.dof();
-  runtime::Workspace ws = runtime::makeWorkspace(*model);
-
-  runtime::CallTerms frame_terms;
-  frame_terms.frame = parseFrame(args.frame);
-  if ((frame_terms.frame == runtime::PoseFrame::kUser) != !args.user_frame.empty()) {
-    throw InputError("--user-frame x y z qw qx qy qz goes with --frame user, and --frame user needs it");
-  }
-  if (!args.user_frame.empty()) {
-    const std::vector<double>& u = args.user_frame;
-    const Eigen::Quaterniond q(u[3], u[4], u[5], u[6]);
-    if (!(std::abs(q.norm() - 1.0) <= kQuaternionNormTolerance)) {
-      throw InputError("--user-frame: the quaternion has norm " + formatShortest(q.norm()) +
-                       "; expected a unit quaternion (within 1e-6)");
-    }
-    frame_terms.X_BaseUser.linear() = q.normalized().toRotationMatrix();
-    frame_terms.X_BaseUser.translation() = Vec3(u[0], u[1], u[2]) * 1e-3;
-  }
-  std::optional<JointVector> seed_option;
-  if (!args.seed_deg.empty()) {
-    if (int(args.seed_deg.size()) != dof) {
-      throw InputError("--seed has " + std::to_string(args.seed_deg.size()) +
-                       " angles; the model has " + std::to_string(dof) + " joints");
-    }
-    seed_option = JointVector(dof);
-    for (int j = 0; j < dof; ++j) (*seed_option)[j] = args.seed_deg[size_t(j)] * kDegToRad;
-  }
-  const std::vector<ProgramLine> program =
-      readProgram(args.program, dof, frame_terms, seed_option.has_value());
-  for (const ProgramLine& p : program) {
-    if (p.terms.tool_from == runtime::ToolFrom::kFlange && !model->has_flange) {
-      throw InputError("tool_from flange, but the model knows no flange (its campaign.yaml names "
-                       "no flange_link); give the tool from the measured target, or calibrate "
-                       "with flange_link",
-                       args.program, p.line, "tool_from");
-    }
-    if (p.terms.payload.mass_kg > 0.0 && p.terms.payload.frame == runtime::CogFrame::kFlange &&
-        !model->has_flange) {
-      throw InputError("a centre of gravity in the flange frame, but the model knows no flange; "
-                       "give cog_frame tool",
-                       args.program, p.line, "payload_kg");
-    }
-  }
-  std::optional<twin::TwinRobot> truth;
-  std::unique_ptr<const runtime::RuntimeModel> nominal;
-  std::optional<runtime::Workspace> nominal_ws;
-  if (!args.truth.empty()) {
-    std::ifstream in(args.truth);
-    if (!in) throw InputError("--truth: cannot read the file", args.truth);
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(in);
-    } catch (const nlohmann::json::exception& e) {
-      throw InputError(std::string("--truth: not JSON: ") + e.what(), args.truth);
-    }
-    truth = twin::TwinRobot::fromTruthJson(j);
-    nominal = nominalModel(*model);
-    nominal_ws = runtime::makeWorkspace(*nominal);
-  }
-
-  std::string out = "line,id,target,status";
-  for (int j = 0; j < dof; ++j) out += ",q" + std::to_string(j + 1) + "_deg";
-  out += ",x_mm,y_mm,z_mm,qw,qx,qy,qz,residual_mm,residual_deg,gpr_std_mm,in_coverage,"
-         "uncovered_joints,iterations";
-  if (truth) out += ",error_commanded_mm,error_commanded_deg,error_corrected_mm,error_corrected_deg";
-  out += "\n";
-
-  std::array<long, kStatusCount> statuses{};
-  long in_coverage = 0;
-  ErrorStats before, after;
-  std::optional<JointVector> previous_rad = seed_option;
-  for (const ProgramLine& p : program) {
-    const Pose X_FrameTcp_desired =
-        p.joint_target ? runtime::nominalTcp(*model, ws, p.q_rad, p.terms) : p.X_FrameTcp;
-    const JointVector seed = p.seed_rad ? *p.seed_rad : p.joint_target ? p.q_rad : *previous_rad;
-    const runtime::InverseResult r =
-        runtime::solveInverse(*model, ws, X_FrameTcp_desired, p.terms, p.temp_c, seed,
-                              runtime::Clock::time_point::max());
-    ++statuses[size_t(r.status)];
-    const bool answered = r.status != runtime::Status::kBadRequest;
-    previous_rad = answered ? r.q_target_rad : seed;
-    out += std::to_string(p.line) + "," + p.id + "," + (p.joint_target ? "joints" : "pose") + "," +
-           runtime::toString(r.status);
-    if (!answered) {
-      out += std::string(size_t(dof + 13 + (truth ? 4 : 0)), ',') + "\n";
-      continue;
-    }
-    for (int j = 0; j < dof; ++j) out += "," + number(r.q_target_rad[j] / kDegToRad, "%.8f");
-    appendPose(out, r.X_ControllerTcp_commanded);
-    const bool covered = runtime::withinDomain(*model, r.gpr_std) && r.uncovered_joints == 0;
-    in_coverage += covered;
-    std::string uncovered;
-    for (int j = 0; j < dof; ++j) {
-      if ((r.uncovered_joints >> j) & 1u) uncovered += (uncovered.empty() ? "" : ";") + std::to_string(j + 1);
-    }
-    out += "," + number(r.residual_position_m * 1e3, "%.6f") + "," +
-           number(r.residual_orientation_rad / kDegToRad, "%.6f") + "," +
-           number(r.gpr_std.head<3>().norm() * 1e3, "%.6f") + "," + (covered ? "yes" : "no") +
-           "," + uncovered + "," + std::to_string(r.iterations);
-    if (truth) {
-      const Pose X_TrackerTcp_desired =
-          runtime::trackerFromFrame(*model, p.terms.frame, p.terms.X_BaseUser) * X_FrameTcp_desired;
-      JointVector commanded_rad = p.q_rad;
-      if (!p.joint_target) {
-        commanded_rad = runtime::solveInverse(*nominal, *nominal_ws, X_FrameTcp_desired, p.terms,
-                                              p.temp_c, seed, runtime::Clock::time_point::max())
-                            .q_target_rad;
-      }
-      const PoseError e_before = errorBetween(trueTcp(*truth, *model, p, commanded_rad),
-                                              X_TrackerTcp_desired);
-      const PoseError e_after = errorBetween(trueTcp(*truth, *model, p, r.q_target_rad),
-                                             X_TrackerTcp_desired);
-      before.add(e_before);
-      after.add(e_after);
-      out += "," + number(e_before.position_m * 1e3) + "," +
-             number(e_before.orientation_rad / kDegToRad) + "," +
-             number(e_after.position_m * 1e3) + "," + number(e_after.orientation_rad / kDegToRad);
-    }
-    out += "\n";
-  }
-  writeFileAtomically(args.out, out.data(), out.size(), "corrected program");
-
-  nlohmann::json summary = {{"program", args.program}, {"out", args.out},
-                            {"lines", program.size()}, {"in_coverage", in_coverage}};
-  nlohmann::json by_status = nlohmann::json::object();
-  for (int k = 0; k < kStatusCount; ++k) {
-    by_status[runtime::toString(runtime::Status(k))] = statuses[size_t(k)];
-  }
-  summary["statuses"] = by_status;
-  if (truth) {
-    summary["error_commanded"] = before.toJson();
-    summary["error_corrected"] = after.toJson();
-    for (const ValidationFigure& v : model->file.provenance.validation) {
-      summary["model_validation"].push_back({{"method", v.method},
-                                             {"load_kg", v.load_kg},
-                                             {"rows", v.rows},
-                                             {"mean_position_mm", v.mean_position_m * 1e3},
-                                             {"max_position_mm", v.max_position_m * 1e3}});
-    }
-  }
-  if (args.json) {
-    std::cout << summary.dump(2) << "\n";
-    return;
-  }
-  std::cout << "wrote " << args.out << ": " << program.size() << " lines: " << statuses[0]
-            << " OK, " << statuses[3] << " OUT_OF_DOMAIN, " << statuses[4] << " UNREACHABLE, "
-            << statuses[1] << " NOT_CONVERGED, " << statuses[5] << " NEAR_SINGULAR, "
-            << statuses[6] << " BAD_REQUEST; " << in_coverage << " in the model's coverage\n";
-  if (truth) {
-    for (const auto& [name, stats] : {std::pair{"as commanded", &before}, std::pair{"as corrected", &after}}) {
-      const nlohmann::json j = stats->toJson();
-      std::cout << format("on the twin, %s: mean %.4f mm, max %.4f mm, mean %.4f deg over %d targets\n",
-                          name, j["mean_position_mm"].get<double>(),
-                          j["max_position_mm"].get<double>(),
-                          j["mean_orientation_deg"].get<double>(), stats->count);
-    }
-  }
+  return {correct, [args_owned] { runCorrect(*args_owned); }};
 }
 
 }  // namespace stepcal::cli

@@ -9,7 +9,7 @@
 //   drift.cpp     what drifted in time and temperature, and what the rows tell apart;
 //   gain.cpp      the extended model with its GPR, and its gain on the validation rows.
 // Each phase reads and changes the Search; what it finds goes into the Diagnosis as structured
-// results (the words are the report's: tools/cli/diagnosis_report.cpp).
+// results (the words are the report's: tools/report/src/diagnosis_report.cpp).
 #pragma once
 
 #include <memory>

@@ -1,9 +1,9 @@
-#include "page.hpp"
+#include "stepcal/report/html/page.hpp"
 
 #include <cmath>
 #include <sstream>
 
-#include "text_format.hpp"
+#include "stepcal/report/text_format.hpp"
 
 namespace stepcal::cli::html {
 

@@ -8,13 +8,13 @@
 #include <sstream>
 #include <vector>
 
-#include "charts.hpp"
-#include "page.hpp"
-#include "report.hpp"
-#include "report_html.hpp"
-#include "session_report.hpp"
 #include "stepcal/common/error.hpp"
-#include "text_format.hpp"
+#include "stepcal/report/html/charts.hpp"
+#include "stepcal/report/html/page.hpp"
+#include "stepcal/report/report.hpp"
+#include "stepcal/report/report_html.hpp"
+#include "stepcal/report/session_report.hpp"
+#include "stepcal/report/text_format.hpp"
 
 namespace stepcal::cli {
 namespace {

@@ -9,9 +9,9 @@
 #include <string_view>
 #include <vector>
 
-#include "charts.hpp"
-#include "page.hpp"
-#include "text_format.hpp"
+#include "stepcal/report/html/charts.hpp"
+#include "stepcal/report/html/page.hpp"
+#include "stepcal/report/text_format.hpp"
 
 namespace stepcal::cli::html {
 

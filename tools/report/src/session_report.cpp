@@ -1,9 +1,9 @@
-#include "session_report.hpp"
+#include "stepcal/report/session_report.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-#include "text_format.hpp"
+#include "stepcal/report/text_format.hpp"
 
 namespace stepcal::cli {
 namespace {

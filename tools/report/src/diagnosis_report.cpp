@@ -1,10 +1,10 @@
-#include "diagnosis_report.hpp"
+#include "stepcal/report/diagnosis_report.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 
-#include "text_format.hpp"
+#include "stepcal/report/text_format.hpp"
 
 namespace stepcal::cli {
 namespace {
@@ -432,65 +432,153 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
   return out;
 }
 
+namespace {
+
+// diagnosisJson's sections, one function each.
+
+nlohmann::json effectJson(const trainer::FoundEffect& e, const trainer::Diagnosis& d) {
+  nlohmann::json x = mechanismJson(e.mechanism, e.geometry_share);
+  if (e.mechanism.kind == MechanismKind::kTransmissionError) {
+    x["rms_urad"] = 1e6 * e.rms_rad;
+    x["ridge"] = e.ridge;
+    x["harmonics_separable"] = e.harmonics_separable;
+  }
+  if (!e.compliance_joints.empty()) {
+    x["compliance"] = nlohmann::json::array();
+    for (int j : e.compliance_joints) {
+      x["compliance"].push_back(
+          {{"joint", j + 1},
+           {"compliance_rad_per_nm", d.extended_model.compliance_rad_per_nm(j)},
+           {"sigma_rad_per_nm", d.extended_model.compliance_sigma_rad_per_nm(j)}});
+    }
+  }
+  x["alternatives"] = nlohmann::json::array();
+  for (const Mechanism& m : e.alternatives) x["alternatives"].push_back(describe(m));
+  x["cv_gain_mm"] = e.cv_gain_mm;
+  x["z_statistic"] = e.z_statistic;
+  x["p_value"] = e.p_value;
+  x["round"] = e.round;
+  x["size_chi2"] = e.size_chi2;
+  x["size_dof"] = e.size_dof;
+  if (e.mechanism.kind == MechanismKind::kRegistrationDrift ||
+      e.mechanism.kind == MechanismKind::kJointZeroDrift) {
+    x["tip_motion_rms_mm"] = 1e3 * e.tip_motion_rms_m;
+    x["tip_motion_max_mm"] = 1e3 * e.tip_motion_max_m;
+    x["applied_to_corrections"] = !isMeasurementOnly(e.mechanism.kind);
+  }
+  if (isTorqueDeflection(e.mechanism.kind)) {
+    x["max_torque_nm"] = e.max_torque_nm;
+    x["stiffness_segments"] = nlohmann::json::array();
+    for (const auto& s : e.stiffness_segments) {
+      x["stiffness_segments"].push_back({{"from_nm", s.from_nm},
+                                         {"to_nm", s.to_nm},
+                                         {"stiffness_nm_per_rad", s.stiffness_nm_per_rad}});
+    }
+  }
+  return x;
+}
+
+nlohmann::json candidateJson(const trainer::CandidateScore& c) {
+  nlohmann::json x = mechanismJson(c.mechanism);
+  x["round"] = c.round;
+  x["configurations"] = c.configurations;
+  if (c.mechanism.kind == MechanismKind::kTransmissionError) x["ridge"] = c.ridge;
+  x["cv_gain_mm"] = c.cv_gain_mm;
+  x["relative_reduction"] = c.relative_reduction;
+  x["z_statistic"] = c.z_statistic;
+  x["p_value"] = c.p_value;
+  x["significant"] = c.significant;
+  x["chosen"] = c.chosen;
+  return x;
+}
+
+nlohmann::json driftJson(const trainer::DriftVerdict& drift) {
+  nlohmann::json zero_drift = nlohmann::json::array();
+  for (int joint : drift.zero_drift_joints) zero_drift.push_back(joint + 1);
+  return {{"registration", drift.registration},
+          {"zero_drift_joints", zero_drift},
+          {"seq_temp_correlation", std::isfinite(drift.seq_temp_correlation)
+                                       ? nlohmann::json(drift.seq_temp_correlation)
+                                       : nlohmann::json(nullptr)},
+          {"text", drift.text}};
+}
+
+nlohmann::json residualStatisticsJson(const trainer::ResidualStatistics& s) {
+  nlohmann::json x = {{"rows", s.rows},
+                      {"mean_position_mm", 1e3 * s.mean_position_m},
+                      {"rms_position_mm", 1e3 * s.rms_position_m},
+                      {"max_position_mm", 1e3 * s.max_position_m},
+                      {"rms_orientation_deg", kRadToDeg * s.rms_orientation_rad},
+                      {"noise_ratio", s.noise_ratio}};
+  x["trends"] = nlohmann::json::array();
+  for (const trainer::TrendScore& t : s.trends) {
+    x["trends"].push_back({{"variable", t.variable},
+                           {"cv_gain_mm", t.cv_gain_mm},
+                           {"z_statistic", t.z_statistic},
+                           {"p_value", t.p_value},
+                           {"significant", t.significant}});
+  }
+  return x;
+}
+
+nlohmann::json campaignJson(const trainer::DiagnosedCampaign& c) {
+  nlohmann::json x = {{"directory", c.directory},
+                      {"fit_rows", c.fit_rows},
+                      {"before_mean_position_mm", 1e3 * c.before_mean_m},
+                      {"after_mean_position_mm", 1e3 * c.after_mean_m}};
+  if (!c.frames.parameters.empty()) {
+    x["station"] = frameJson(c.frames, 0);
+    x["tool"] = frameJson(c.frames, 6);
+  }
+  x["profile_differences"] = nlohmann::json::array();
+  for (const trainer::CampaignProfileDifference& p : c.profile_differences) {
+    const trainer::CandidateScore& s = p.score;
+    x["profile_differences"].push_back({{"joint", s.mechanism.joint + 1},
+                                        {"order", s.mechanism.order},
+                                        {"ridge", s.ridge},
+                                        {"cv_gain_mm", s.cv_gain_mm},
+                                        {"relative_reduction", s.relative_reduction},
+                                        {"z_statistic", s.z_statistic},
+                                        {"p_value", s.p_value},
+                                        {"significant", s.significant},
+                                        {"rms_difference_urad", 1e6 * p.rms_rad}});
+  }
+  return x;
+}
+
+/// A validation load's row of the gain table; null where a model has no rows there.
+nlohmann::json gainRowJson(const trainer::GainRow& g) {
+  auto optional_mm = [](const trainer::AccuracySummary& s, double v) {
+    return s.rows > 0 ? nlohmann::json(1e3 * v) : nlohmann::json(nullptr);
+  };
+  auto optional_deg = [](const trainer::AccuracySummary& s, double v) {
+    return s.rows > 0 ? nlohmann::json(kRadToDeg * v) : nlohmann::json(nullptr);
+  };
+  return {
+      {"load_kg", g.load_kg},
+      {"rows", g.rows},
+      {"before_mean_position_mm", optional_mm(g.before, g.before.mean_position_m)},
+      {"after_mean_position_mm", optional_mm(g.after, g.after.mean_position_m)},
+      {"gpr_mean_position_mm", optional_mm(g.gpr, g.gpr.mean_position_m)},
+      {"after_gpr_mean_position_mm", optional_mm(g.after_gpr, g.after_gpr.mean_position_m)},
+      {"before_max_position_mm", optional_mm(g.before, g.before.max_position_m)},
+      {"after_max_position_mm", optional_mm(g.after, g.after.max_position_m)},
+      {"gpr_max_position_mm", optional_mm(g.gpr, g.gpr.max_position_m)},
+      {"before_mean_orientation_deg", optional_deg(g.before, g.before.mean_orientation_rad)},
+      {"after_mean_orientation_deg", optional_deg(g.after, g.after.mean_orientation_rad)},
+      {"gpr_mean_orientation_deg", optional_deg(g.gpr, g.gpr.mean_orientation_rad)},
+  };
+}
+
+}  // namespace
+
 nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibrate) {
   nlohmann::json j;
   j["verdict"] = toString(d.verdict);
   j["effects"] = nlohmann::json::array();
-  for (const trainer::FoundEffect& e : d.effects) {
-    nlohmann::json x = mechanismJson(e.mechanism, e.geometry_share);
-    if (e.mechanism.kind == MechanismKind::kTransmissionError) {
-      x["rms_urad"] = 1e6 * e.rms_rad;
-      x["ridge"] = e.ridge;
-      x["harmonics_separable"] = e.harmonics_separable;
-    }
-    if (!e.compliance_joints.empty()) {
-      x["compliance"] = nlohmann::json::array();
-      for (int j : e.compliance_joints) {
-        x["compliance"].push_back(
-            {{"joint", j + 1},
-             {"compliance_rad_per_nm", d.extended_model.compliance_rad_per_nm(j)},
-             {"sigma_rad_per_nm", d.extended_model.compliance_sigma_rad_per_nm(j)}});
-      }
-    }
-    x["alternatives"] = nlohmann::json::array();
-    for (const Mechanism& m : e.alternatives) x["alternatives"].push_back(describe(m));
-    x["cv_gain_mm"] = e.cv_gain_mm;
-    x["z_statistic"] = e.z_statistic;
-    x["p_value"] = e.p_value;
-    x["round"] = e.round;
-    x["size_chi2"] = e.size_chi2;
-    x["size_dof"] = e.size_dof;
-    if (e.mechanism.kind == MechanismKind::kRegistrationDrift ||
-        e.mechanism.kind == MechanismKind::kJointZeroDrift) {
-      x["tip_motion_rms_mm"] = 1e3 * e.tip_motion_rms_m;
-      x["tip_motion_max_mm"] = 1e3 * e.tip_motion_max_m;
-      x["applied_to_corrections"] = !isMeasurementOnly(e.mechanism.kind);
-    }
-    if (isTorqueDeflection(e.mechanism.kind)) {
-      x["max_torque_nm"] = e.max_torque_nm;
-      x["stiffness_segments"] = nlohmann::json::array();
-      for (const auto& s : e.stiffness_segments) {
-        x["stiffness_segments"].push_back({{"from_nm", s.from_nm},
-                                           {"to_nm", s.to_nm},
-                                           {"stiffness_nm_per_rad", s.stiffness_nm_per_rad}});
-      }
-    }
-    j["effects"].push_back(x);
-  }
+  for (const trainer::FoundEffect& e : d.effects) j["effects"].push_back(effectJson(e, d));
   j["candidates"] = nlohmann::json::array();
-  for (const trainer::CandidateScore& c : d.candidates) {
-    nlohmann::json x = mechanismJson(c.mechanism);
-    x["round"] = c.round;
-    x["configurations"] = c.configurations;
-    if (c.mechanism.kind == MechanismKind::kTransmissionError) x["ridge"] = c.ridge;
-    x["cv_gain_mm"] = c.cv_gain_mm;
-    x["relative_reduction"] = c.relative_reduction;
-    x["z_statistic"] = c.z_statistic;
-    x["p_value"] = c.p_value;
-    x["significant"] = c.significant;
-    x["chosen"] = c.chosen;
-    j["candidates"].push_back(x);
-  }
+  for (const trainer::CandidateScore& c : d.candidates) j["candidates"].push_back(candidateJson(c));
   j["untestable"] = nlohmann::json::array();
   for (const auto& u : d.untestable) j["untestable"].push_back({{"name", u.name}, {"reason", u.reason}});
   j["identifiability"] = identifiabilityLines(d);
@@ -499,82 +587,15 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
                        {"taken", d.extended_gpr_taken}};
   j["unexplained_trend"] =
       d.unexplained_trend.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.unexplained_trend);
-  nlohmann::json zero_drift = nlohmann::json::array();
-  for (int joint : d.drift.zero_drift_joints) zero_drift.push_back(joint + 1);
-  j["drift"] = {{"registration", d.drift.registration},
-                {"zero_drift_joints", zero_drift},
-                {"seq_temp_correlation", std::isfinite(d.drift.seq_temp_correlation)
-                                             ? nlohmann::json(d.drift.seq_temp_correlation)
-                                             : nlohmann::json(nullptr)},
-                {"text", d.drift.text}};
-  auto stats = [](const trainer::ResidualStatistics& s) {
-    nlohmann::json x = {{"rows", s.rows},
-                        {"mean_position_mm", 1e3 * s.mean_position_m},
-                        {"rms_position_mm", 1e3 * s.rms_position_m},
-                        {"max_position_mm", 1e3 * s.max_position_m},
-                        {"rms_orientation_deg", kRadToDeg * s.rms_orientation_rad},
-                        {"noise_ratio", s.noise_ratio}};
-    x["trends"] = nlohmann::json::array();
-    for (const trainer::TrendScore& t : s.trends) {
-      x["trends"].push_back({{"variable", t.variable},
-                             {"cv_gain_mm", t.cv_gain_mm},
-                             {"z_statistic", t.z_statistic},
-                             {"p_value", t.p_value},
-                             {"significant", t.significant}});
-    }
-    return x;
-  };
-  j["residual"] = {{"before", stats(d.before)}, {"after", stats(d.after)}};
+  j["drift"] = driftJson(d.drift);
+  j["residual"] = {{"before", residualStatisticsJson(d.before)},
+                   {"after", residualStatisticsJson(d.after)}};
   j["campaigns"] = nlohmann::json::array();
-  for (const trainer::DiagnosedCampaign& c : d.campaigns) {
-    nlohmann::json x = {{"directory", c.directory},
-                        {"fit_rows", c.fit_rows},
-                        {"before_mean_position_mm", 1e3 * c.before_mean_m},
-                        {"after_mean_position_mm", 1e3 * c.after_mean_m}};
-    if (!c.frames.parameters.empty()) {
-      x["station"] = frameJson(c.frames, 0);
-      x["tool"] = frameJson(c.frames, 6);
-    }
-    x["profile_differences"] = nlohmann::json::array();
-    for (const trainer::CampaignProfileDifference& p : c.profile_differences) {
-      const trainer::CandidateScore& s = p.score;
-      x["profile_differences"].push_back({{"joint", s.mechanism.joint + 1},
-                                          {"order", s.mechanism.order},
-                                          {"ridge", s.ridge},
-                                          {"cv_gain_mm", s.cv_gain_mm},
-                                          {"relative_reduction", s.relative_reduction},
-                                          {"z_statistic", s.z_statistic},
-                                          {"p_value", s.p_value},
-                                          {"significant", s.significant},
-                                          {"rms_difference_urad", 1e6 * p.rms_rad}});
-    }
-    j["campaigns"].push_back(x);
-  }
+  for (const trainer::DiagnosedCampaign& c : d.campaigns) j["campaigns"].push_back(campaignJson(c));
   j["gpr_method"] = d.gpr_method;
   j["noise_floor_position_mm"] = 1e3 * d.floor_position_m;
   j["gain"] = nlohmann::json::array();
-  auto optional_mm = [](const trainer::AccuracySummary& s, double v) {
-    return s.rows > 0 ? nlohmann::json(1e3 * v) : nlohmann::json(nullptr);
-  };
-  auto optional_deg = [](const trainer::AccuracySummary& s, double v) {
-    return s.rows > 0 ? nlohmann::json(kRadToDeg * v) : nlohmann::json(nullptr);
-  };
-  for (const trainer::GainRow& g : d.gain) {
-    j["gain"].push_back({
-        {"load_kg", g.load_kg},
-        {"rows", g.rows},
-        {"before_mean_position_mm", optional_mm(g.before, g.before.mean_position_m)},
-        {"after_mean_position_mm", optional_mm(g.after, g.after.mean_position_m)},
-        {"gpr_mean_position_mm", optional_mm(g.gpr, g.gpr.mean_position_m)},
-        {"after_gpr_mean_position_mm", optional_mm(g.after_gpr, g.after_gpr.mean_position_m)},
-        {"before_max_position_mm", optional_mm(g.before, g.before.max_position_m)},
-        {"after_max_position_mm", optional_mm(g.after, g.after.max_position_m)},
-        {"gpr_max_position_mm", optional_mm(g.gpr, g.gpr.max_position_m)},
-        {"before_mean_orientation_deg", optional_deg(g.before, g.before.mean_orientation_rad)},
-        {"after_mean_orientation_deg", optional_deg(g.after, g.after.mean_orientation_rad)},
-        {"gpr_mean_orientation_deg", optional_deg(g.gpr, g.gpr.mean_orientation_rad)},
-    });
-  }
+  for (const trainer::GainRow& g : d.gain) j["gain"].push_back(gainRowJson(g));
   j["timing_s"] = {{"calibration", seconds_calibrate},     {"refit", d.seconds_refit},
                    {"screening", d.seconds_screening},     {"trends", d.seconds_trends},
                    {"gpr", d.seconds_gpr},                 {"evaluation", d.seconds_evaluation}};

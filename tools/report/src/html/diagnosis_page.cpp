@@ -4,11 +4,11 @@
 #include <sstream>
 #include <vector>
 
-#include "charts.hpp"
-#include "diagnosis_report.hpp"
-#include "page.hpp"
-#include "report_html.hpp"
-#include "text_format.hpp"
+#include "stepcal/report/diagnosis_report.hpp"
+#include "stepcal/report/html/charts.hpp"
+#include "stepcal/report/html/page.hpp"
+#include "stepcal/report/report_html.hpp"
+#include "stepcal/report/text_format.hpp"
 
 namespace stepcal::cli {
 namespace {

@@ -1,4 +1,4 @@
-#include "charts.hpp"
+#include "stepcal/report/html/charts.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -6,9 +6,9 @@
 #include <set>
 #include <sstream>
 
-#include "page.hpp"
+#include "stepcal/report/html/page.hpp"
+#include "stepcal/report/text_format.hpp"
 #include "svg_frame.hpp"
-#include "text_format.hpp"
 
 namespace stepcal::cli::html {
 namespace {

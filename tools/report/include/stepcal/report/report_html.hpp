@@ -10,7 +10,7 @@
 namespace stepcal::cli {
 
 /// A self-contained HTML page (inline SVG, one inline script that checks the charts, no external
-/// files; report_html/page.hpp) with the calibration's figures and tables.
+/// files; html/page.hpp) with the calibration's figures and tables.
 /// Figures after Tang et al. 2024: step 1 convergence (Fig. 5), per-point errors on the unloaded
 /// (Fig. 6) and on each loaded validation set (Fig. 9, 10), mean error against load, the
 /// stiffness check (Fig. 7); then the error's distribution per load and method, where in the

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "page.hpp"
-#include "text_format.hpp"
+#include "stepcal/report/html/page.hpp"
+#include "stepcal/report/text_format.hpp"
 
 namespace stepcal::cli::html {
 namespace {

@@ -1,4 +1,4 @@
-#include "report.hpp"
+#include "stepcal/report/report.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -7,9 +7,9 @@
 #include <sstream>
 
 #include "stepcal/common/lie.hpp"
-#include "diagnosis_report.hpp"
-#include "session_report.hpp"
-#include "text_format.hpp"
+#include "stepcal/report/diagnosis_report.hpp"
+#include "stepcal/report/session_report.hpp"
+#include "stepcal/report/text_format.hpp"
 
 namespace stepcal::cli {
 namespace {

@@ -1,0 +1,44 @@
+// `stepcal import ipa`: a series of the IPA UR10 data set as a campaign (importers/ipa.hpp).
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include "common.hpp"
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/common/robots.hpp"
+#include "stepcal/importers/ipa.hpp"
+#include "subcommands.hpp"
+
+namespace stepcal::cli {
+namespace {
+
+struct IpaArgs {
+  std::string csv, out, robot = "ur10";
+  int validation_from_row = -1;  ///< rows from here on become set=validation; -1: none
+};
+
+}  // namespace
+
+Subcommand addImportCommand(CLI::App& app) {
+  auto args = std::make_shared<IpaArgs>();
+  IpaArgs& a = *args;
+  CLI::App* import = app.add_subcommand("import", "convert foreign measurements into a campaign");
+  import->require_subcommand(1);
+  CLI::App* ipa = import->add_subcommand("ipa", "a series of the IPA UR10 data set (ipa-robot-accuracy)");
+  ipa->add_option("csv", a.csv, "the series' measurements CSV")->required();
+  ipa->add_option("--validation-from-row", a.validation_from_row,
+                  "rows from N on (0-based, after the header) become set=validation");
+  ipa->add_option("--robot", a.robot,
+                  "nominal UR10 description: a URDF file or a shipped robot's name (" +
+                      shippedRobotList() + ")")
+      ->capture_default_str();
+  ipa->add_option("--out", a.out, "campaign folder to write")->required();
+  return {ipa, [args] {
+            writeCampaign(importers::importIpaSeries(args->csv, args->validation_from_row,
+                                                     robotDescriptionPath(args->robot)),
+                          args->out);
+            std::cerr << "wrote " << args->out << "\n";
+          }};
+}
+
+}  // namespace stepcal::cli

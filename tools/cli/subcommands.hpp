@@ -1,0 +1,29 @@
+// The subcommands of `stepcal`, one file each (tools/cli/<name>.cpp): each registers its CLI11
+// subcommand with its options and says how to run it; main.cpp lists them in the order
+// `stepcal --help` shows them.
+#pragma once
+
+#include <functional>
+
+#include <CLI/CLI.hpp>
+
+namespace stepcal::cli {
+
+/// A registered subcommand, run when it is the one given on the command line.
+struct Subcommand {
+  CLI::App* command;          ///< the subcommand that selects it (`ipa` of `import ipa`)
+  std::function<void()> run;  ///< does its work; throws InputError on bad input (exit status 2)
+};
+
+Subcommand addSimulateCommand(CLI::App& app);   ///< simulate.cpp
+Subcommand addPlanCommand(CLI::App& app);       ///< plan.cpp
+Subcommand addImportCommand(CLI::App& app);     ///< import.cpp: import ipa
+Subcommand addCalibrateCommand(CLI::App& app);  ///< calibrate.cpp
+Subcommand addValidateCommand(CLI::App& app);   ///< validate.cpp
+Subcommand addInspectCommand(CLI::App& app);    ///< inspect.cpp
+Subcommand addExportCommand(CLI::App& app);     ///< export.cpp: export urdf
+Subcommand addDiagnoseCommand(CLI::App& app);   ///< diagnose.cpp
+Subcommand addDemoCommand(CLI::App& app);       ///< demo.cpp
+Subcommand addCorrectCommand(CLI::App& app);    ///< correct.cpp
+
+}  // namespace stepcal::cli

@@ -31,7 +31,7 @@ namespace fs = std::filesystem;
 const std::string kIrb = std::string(STEPCAL_ROBOTS_DIR) + "/irb4400.urdf";
 constexpr size_t kHeaderBytes = 24;
 
-/// Squared-exponential ARD kernel (METHOD.md eq. 27), written independently of the loader's.
+/// Squared-exponential ARD kernel (docs/method.md eq. 27), written independently of the loader's.
 Eigen::MatrixXd kernel(const Eigen::MatrixXd& X, const Eigen::VectorXd& length_scales,
                        double signal_sigma) {
   const Eigen::Index m = X.rows();

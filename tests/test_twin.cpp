@@ -216,7 +216,7 @@ TEST(Twin, SmallLoadDeflectionMatchesLinearisedStiffnessModel) {
   for (const Measurement* m : c.rowsIn(RowSet::kGeometry)) {
     const JointVector& q = m->q_rad;
     const Jacobian J = spatialJacobianAt(robot, q);
-    // METHOD.md eq. 17: ΔX = J K⁻¹ Jᵀ F.
+    // docs/method.md eq. 17: ΔX = J K⁻¹ Jᵀ F.
     const Vec6 predicted =
         J * (compliance.asDiagonal() * (J.transpose() * payloadWrench(robot, q, load_kg)));
     const Vec6 simulated = spatialDifference(robot.X_BaseTip(q, 0.0), robot.X_BaseTip(q, load_kg));

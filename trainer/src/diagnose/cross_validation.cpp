@@ -328,7 +328,7 @@ Eigen::VectorXd CrossValidation::trainingRhs(int f, const std::vector<Eigen::Ind
 }
 
 // Least squares on column-normalised normal equations with the ridges, truncated
-// eigen-decomposition (the geometry is rank deficient by construction: METHOD.md, rank 30 of 42).
+// eigen-decomposition (the geometry is rank deficient by construction: docs/method.md, rank 30 of 42).
 Eigen::VectorXd CrossValidation::solveRidged(int f, const std::vector<Eigen::Index>& columns,
                                              Eigen::VectorXd* unit_variance) const {
   const Eigen::Index m = static_cast<Eigen::Index>(columns.size());

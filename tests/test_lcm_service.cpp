@@ -30,6 +30,7 @@
 #include <sys/socket.h>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/ftsim/simulator.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/can_feed.hpp"
@@ -52,7 +53,6 @@ using runtime::Status;
 using stepcal_lcm::correction_reply_t;
 using stepcal_lcm::correction_request_t;
 
-constexpr double kDeg = M_PI / 180.0;
 constexpr uint64_t kFirstModelId = 0x5EED2;
 constexpr uint64_t kSecondModelId = 0x5EED3;
 
@@ -123,7 +123,7 @@ correction_request_t inverseRequest(const Measurement& row, int64_t id,
   const double wxyz[4] = {q.w(), q.x(), q.y(), q.z()};
   for (int j = 0; j < 3; ++j) msg.desired_position_m[j] = X.translation()[j];
   for (int j = 0; j < 4; ++j) msg.desired_quaternion_wxyz[j] = wxyz[j];
-  for (int j = 0; j < 6; ++j) msg.seed_q_rad[j] = row.q_rad[j] + (j % 2 ? -2 : 2) * kDeg;
+  for (int j = 0; j < 6; ++j) msg.seed_q_rad[j] = row.q_rad[j] + (j % 2 ? -2 : 2) * kRadPerDeg;
   return msg;
 }
 
@@ -232,7 +232,7 @@ TEST(LcmService, DecodeRequestKeepsEveryField) {
   EXPECT_TRUE(request.terms.X_Tool.isApprox(Pose::Identity(), 0.0));
   EXPECT_LT(poseDifference(request.X_FrameTcp_desired, row.X_TrackerTip()), 1e-15);
   EXPECT_EQ(request.seed_q_rad.size(), 6);
-  EXPECT_DOUBLE_EQ(request.seed_q_rad[0], row.q_rad[0] + 2 * kDeg);
+  EXPECT_DOUBLE_EQ(request.seed_q_rad[0], row.q_rad[0] + 2 * kRadPerDeg);
 
   // Not measured (NaN) is a valid temperature; so are both ends of the range.
   for (const double temp_c : {std::nan(""), -50.0, 150.0}) {

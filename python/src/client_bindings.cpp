@@ -15,6 +15,7 @@
 
 #include "bindings.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/service/auth.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/channels.hpp"
@@ -28,16 +29,6 @@ using stepcal_lcm::correction_reply_t;
 using stepcal_lcm::correction_request_t;
 using Clock = std::chrono::steady_clock;
 constexpr int kJoints = service::kMessageJoints;
-
-/// A pose into a message's position (m) and unit quaternion (w, x, y, z).
-void setPose(const Pose& X, double* position_m, double* quaternion_wxyz) {
-  const Eigen::Quaterniond q(X.linear());
-  for (int k = 0; k < 3; ++k) position_m[k] = X.translation()(k);
-  quaternion_wxyz[0] = q.w();
-  quaternion_wxyz[1] = q.x();
-  quaternion_wxyz[2] = q.y();
-  quaternion_wxyz[3] = q.z();
-}
 
 template <size_t N>
 py::array_t<double> arrayOf(const double (&values)[N]) {
@@ -110,9 +101,9 @@ class Client {
     request.temp_c = temp_c;
     request.deadline_us = deadline_us;
     request.frame = int8_t(terms.frame);
-    setPose(terms.X_BaseUser, request.user_frame_position_m, request.user_frame_quaternion_wxyz);
+    toPositionQuaternion(terms.X_BaseUser, request.user_frame_position_m, request.user_frame_quaternion_wxyz);
     request.tool_from = int8_t(terms.tool_from);
-    setPose(terms.X_Tool, request.tool_position_m, request.tool_quaternion_wxyz);
+    toPositionQuaternion(terms.X_Tool, request.tool_position_m, request.tool_quaternion_wxyz);
     if (terms.load_from == runtime::LoadFrom::kPayload) {
       if (!wrench.is_none()) throw py::value_error("wrench and terms.payload_kg: give one load, not both");
       request.wrench_source = correction_request_t::WRENCH_PAYLOAD;

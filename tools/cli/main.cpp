@@ -28,6 +28,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/common/robots.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/common/urdf_export.hpp"
 #include "stepcal/importers/ipa.hpp"
@@ -41,8 +42,6 @@
 namespace {
 
 using namespace stepcal;
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 /// --robot and the chain's links, as plan and simulate take them.
 struct RobotArgs {
@@ -138,9 +137,9 @@ void runSimulateModel(const SimulateArgs& a) {
   options.model_path = a.model;
   options.campaign_dir = a.campaign;
   options.seed = a.seed;
-  if (a.position_sigma_given) options.tracker_position_sigma_m = a.position_sigma_mm * 1e-3;
+  if (a.position_sigma_given) options.tracker_position_sigma_m = a.position_sigma_mm * kMPerMm;
   if (a.orientation_sigma_given) {
-    options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kDegToRad;
+    options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kRadPerDeg;
   }
   if (!a.payload_cog_m.empty()) options.p_CoGInSensor_m = payloadCoG(a.payload_cog_m);
   if (!a.poses.empty()) {
@@ -161,8 +160,8 @@ void runSimulate(const SimulateArgs& a) {
   if (!a.protocol.empty()) options.protocol = a.protocol;
   options.seed = a.seed;
   options.station = a.station;
-  options.tracker_position_sigma_m = a.position_sigma_mm * 1e-3;
-  options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kDegToRad;
+  options.tracker_position_sigma_m = a.position_sigma_mm * kMPerMm;
+  options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kRadPerDeg;
   if (!a.stiffness_nm_per_rad.empty()) options.stiffness_nm_per_rad = a.stiffness_nm_per_rad;
   if (!a.payload_cog_m.empty()) options.p_CoGInSensor_m = payloadCoG(a.payload_cog_m);
   for (const std::string& spec : a.effects) {

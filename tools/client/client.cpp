@@ -75,6 +75,8 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/pose_quaternion.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/runtime/can_socket.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/auth.hpp"
@@ -92,8 +94,7 @@ using stepcal_lcm::correction_reply_t;
 using stepcal_lcm::correction_request_t;
 using Clock = std::chrono::steady_clock;
 
-constexpr double kRadToDeg = 180.0 / M_PI;
-constexpr double kSeedOffsetRad = 2.0 / kRadToDeg;
+constexpr double kSeedOffsetRad = 2.0 * kRadPerDeg;
 constexpr int kStatusCount = 7;
 
 struct Args {
@@ -367,10 +368,7 @@ void setWrench(correction_request_t& msg, const Vec6& wrench_Sensor) {
 }
 
 void setDesiredPose(correction_request_t& msg, const Pose& X_TrackerTip) {
-  const Eigen::Quaterniond q(X_TrackerTip.linear());
-  const double wxyz[4] = {q.w(), q.x(), q.y(), q.z()};
-  for (int i = 0; i < 3; ++i) msg.desired_position_m[i] = X_TrackerTip.translation()[i];
-  std::copy(wxyz, wxyz + 4, msg.desired_quaternion_wxyz);
+  toPositionQuaternion(X_TrackerTip, msg.desired_position_m, msg.desired_quaternion_wxyz);
 }
 
 /// The requests for a campaign's rows (cycled up to count), and the rows they came from.
@@ -405,16 +403,6 @@ RowSet parseSet(const std::string& name) {
 }
 
 // ---- replies -------------------------------------------------------------------------------
-
-Pose poseOf(const double* position_m, const double* quaternion_wxyz) {
-  Pose X = Pose::Identity();
-  X.translation() = Vec3(position_m[0], position_m[1], position_m[2]);
-  X.linear() = Eigen::Quaterniond(quaternion_wxyz[0], quaternion_wxyz[1], quaternion_wxyz[2],
-                                  quaternion_wxyz[3])
-                   .normalized()
-                   .toRotationMatrix();
-  return X;
-}
 
 JointVector jointsOf(const double* q_rad) {
   JointVector q(service::kMessageJoints);
@@ -520,7 +508,7 @@ void printReply(const correction_reply_t& r, double round_trip_us, bool inverse,
   if (inverse) {
     std::printf("q_target_rad              %s\n", vectorText(r.q_target_rad, 6).c_str());
     std::printf("q_target_deg              %s\n",
-                vectorText(r.q_target_rad, 6, kRadToDeg).c_str());
+                vectorText(r.q_target_rad, 6, kDegPerRad).c_str());
     std::printf("commanded (%s) p_m %s  q_wxyz %s\n", frame == "user" ? "user   " : "base   ",
                 vectorText(r.commanded_position_m, 3).c_str(),
                 vectorText(r.commanded_quaternion_wxyz, 4).c_str());
@@ -536,7 +524,7 @@ void printReply(const correction_reply_t& r, double round_trip_us, bool inverse,
   }
   if (inverse) {
     std::printf("iterations %d, residual %.4f mm, %.5f deg\n", r.iterations,
-                r.residual_position_m * 1e3, r.residual_orientation_rad * kRadToDeg);
+                r.residual_position_m * kMmPerM, r.residual_orientation_rad * kDegPerRad);
   }
 }
 
@@ -661,10 +649,10 @@ struct Accuracy {
   nlohmann::json toJson(const std::string& against) const {
     return {{"against", against},
             {"poses", poses},
-            {"mean_position_mm", poses ? sum_position_m / poses * 1e3 : 0.0},
-            {"max_position_mm", max_position_m * 1e3},
+            {"mean_position_mm", poses ? sum_position_m / poses * kMmPerM : 0.0},
+            {"max_position_mm", max_position_m * kMmPerM},
             {"mean_orientation_deg",
-             orientations ? sum_orientation_rad / orientations * kRadToDeg : 0.0}};
+             orientations ? sum_orientation_rad / orientations * kDegPerRad : 0.0}};
   }
 };
 
@@ -936,7 +924,7 @@ int runCampaign(Args args) {
     const Measurement& row = *row_of[i];
     iterations += r.iterations;
     if (!inverse) {
-      const Pose X = poseOf(r.predicted_position_m, r.predicted_quaternion_wxyz);
+      const Pose X = poseFromPositionQuaternion(r.predicted_position_m, r.predicted_quaternion_wxyz);
       accuracy.add((X.translation() - row.p_TipInTracker_m).norm(),
                    row.has_orientation ? std::optional<double>(lie::angleBetween(
                                              row.q_TrackerTip.toRotationMatrix(), X.linear()))

@@ -41,9 +41,8 @@ bool allFinite(const correction_request_t& msg) noexcept {
 bool readPose(const double* position_m, const double* quaternion_wxyz, Pose& X) noexcept {
   const Eigen::Quaterniond q(quaternion_wxyz[0], quaternion_wxyz[1], quaternion_wxyz[2],
                              quaternion_wxyz[3]);
-  if (!(std::abs(q.norm() - 1.0) <= kQuaternionNormTolerance)) return false;
-  X.linear() = q.normalized().toRotationMatrix();
-  X.translation() = Vec3(position_m[0], position_m[1], position_m[2]);
+  if (!isUnitQuaternion(q)) return false;
+  X = poseFromPositionQuaternion(Vec3(position_m[0], position_m[1], position_m[2]), q);
   return true;
 }
 

@@ -8,6 +8,7 @@
 #include <stepcal_lcm/correction_reply_v1_t.hpp>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/service/latency.hpp"
 
 namespace stepcal::service {
@@ -19,15 +20,6 @@ using runtime::Status;
 
 int64_t steadyNanoseconds(Clock::time_point t) noexcept {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
-}
-
-void writePose(const Pose& X, double* position_m, double* quaternion_wxyz) noexcept {
-  const Eigen::Quaterniond q(X.linear());
-  for (int i = 0; i < 3; ++i) position_m[i] = X.translation()[i];
-  quaternion_wxyz[0] = q.w();
-  quaternion_wxyz[1] = q.x();
-  quaternion_wxyz[2] = q.y();
-  quaternion_wxyz[3] = q.z();
 }
 
 void writeVector(const Vec6& v, double* out) noexcept {
@@ -43,7 +35,7 @@ bool carriesAnswer(Status status) noexcept {
 
 void writeAnswer(const runtime::ForwardResult& r, stepcal_lcm::correction_reply_t& reply) noexcept {
   if (!carriesAnswer(r.status)) return;
-  writePose(r.X_FrameTcp, reply.predicted_position_m, reply.predicted_quaternion_wxyz);
+  toPositionQuaternion(r.X_FrameTcp, reply.predicted_position_m, reply.predicted_quaternion_wxyz);
   writeVector(r.gpr_std, reply.gpr_std);
   writeVector(r.wrench_Sensor, reply.wrench);
   reply.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);
@@ -52,9 +44,10 @@ void writeAnswer(const runtime::ForwardResult& r, stepcal_lcm::correction_reply_
 void writeAnswer(const runtime::InverseResult& r, stepcal_lcm::correction_reply_t& reply) noexcept {
   if (!carriesAnswer(r.status)) return;
   for (int i = 0; i < kMessageJoints; ++i) reply.q_target_rad[i] = r.q_target_rad[i];
-  writePose(r.X_ControllerTcp_commanded, reply.commanded_position_m,
-            reply.commanded_quaternion_wxyz);
-  writePose(r.X_FrameTcp_predicted, reply.predicted_position_m, reply.predicted_quaternion_wxyz);
+  toPositionQuaternion(r.X_ControllerTcp_commanded, reply.commanded_position_m,
+                       reply.commanded_quaternion_wxyz);
+  toPositionQuaternion(r.X_FrameTcp_predicted, reply.predicted_position_m,
+                       reply.predicted_quaternion_wxyz);
   writeVector(r.gpr_std, reply.gpr_std);
   writeVector(r.wrench_Sensor, reply.wrench);
   reply.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);

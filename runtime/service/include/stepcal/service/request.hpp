@@ -5,6 +5,7 @@
 
 #include <cstdint>
 
+#include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/common/types.hpp"
 #include "stepcal/runtime/corrector.hpp"
 
@@ -12,8 +13,8 @@ namespace stepcal::service {
 
 /// Joints in every LCM message (fixed-size arrays); the daemon refuses models with another dof.
 inline constexpr int kMessageJoints = 6;
-/// Largest |‖quaternion‖ − 1| accepted in a request.
-inline constexpr double kQuaternionNormTolerance = 1e-6;
+/// Largest |‖quaternion‖ − 1| accepted in a request (the common one, pose_quaternion.hpp).
+using stepcal::kQuaternionNormTolerance;
 
 /// What a request asks for (correction_request_t.mode).
 enum class Mode : int8_t { kForward = 0, kInverse = 1 };

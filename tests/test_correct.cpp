@@ -9,13 +9,14 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <sstream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "stepcal/common/campaign.hpp"
+#include "stepcal/common/csv.hpp"
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/common/text_number.hpp"
 #include "stepcal/common/units.hpp"
@@ -55,20 +56,17 @@ const Cell& cell() {
 
 /// The rows of a corrected program: column name → text, per line.
 std::vector<std::map<std::string, std::string>> readCsv(const std::string& path) {
-  std::ifstream in(path);
-  std::string line;
-  std::getline(in, line);
-  std::vector<std::string> names;
-  std::stringstream header(line);
-  for (std::string name; std::getline(header, name, ',');) names.push_back(name);
+  const std::string text = test::readText(path);
+  const std::vector<std::string_view> lines = splitLines(text);
   std::vector<std::map<std::string, std::string>> rows;
-  while (std::getline(in, line)) {
+  if (lines.empty()) return rows;
+  const std::vector<std::string_view> names = splitFields(lines[0]);
+  for (size_t i = 1; i < lines.size(); ++i) {
+    const std::vector<std::string_view> fields = splitFields(lines[i]);
+    EXPECT_EQ(fields.size(), names.size()) << path << ":" << i + 1;
     std::map<std::string, std::string> row;
-    std::stringstream fields(line);
-    std::string field;
-    for (const std::string& name : names) {
-      std::getline(fields, field, ',');
-      row[name] = field;
+    for (size_t k = 0; k < names.size() && k < fields.size(); ++k) {
+      row[std::string(names[k])] = std::string(fields[k]);
     }
     rows.push_back(row);
   }

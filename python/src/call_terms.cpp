@@ -6,7 +6,6 @@
 
 #include "bindings.hpp"
 #include "stepcal/common/pose_quaternion.hpp"
-#include "stepcal/service/request.hpp"
 
 namespace stepcal::python {
 namespace {

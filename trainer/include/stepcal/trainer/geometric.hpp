@@ -4,8 +4,9 @@
 // T_{k,k+1}(0) ← T_{k,k+1}(0)·exp(δt_k). Each measured row contributes its tip position
 // error (3 rows) and, when measured, its rotation error (3 rows), each weighted by the
 // tracker's stated 1-σ noise, so the lever arm to a distant tracker does not leak rotation
-// noise into position (docs/method.md, "Weighting matters"). Gauss–Newton with a truncated-SVD
-// pseudo-inverse: unobservable parameter combinations get no update and are reported.
+// noise into position (docs/method.md, step 1, "Weight by the instrument"). Gauss–Newton with
+// a truncated-SVD pseudo-inverse: unobservable parameter combinations get no update and are
+// reported.
 #pragma once
 
 #include <string>

@@ -11,7 +11,7 @@
 // so one Cholesky factor serves every output. The hyperparameters θ = (log ℓ_1..log ℓ_D,
 // log σ_f, log σ_n), in normalised input and standardised output units, maximise the summed
 // log marginal likelihood (analytic gradient, L-BFGS-B from several deterministic starts) —
-// docs/method.md "where this project goes further": gradients instead of Bayesian optimisation.
+// docs/method.md, step 3, "How stepcal does it": gradients instead of Bayesian optimisation.
 // While fitting, K carries a jitter ε σ_f² on its diagonal; the fitted σ_n absorbs it
 // (σ_n² ← σ_n² + ε σ_f²), so every GaussianProcess uses exactly K = σ_f² E + σ_n² I, the
 // form a model file stores.

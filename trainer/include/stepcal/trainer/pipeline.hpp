@@ -89,7 +89,7 @@ inline const char* const kMethodPoeStiffnessGpr = "poe+stiffness+gpr";
 inline const char* const kMethodExtended = "extended";
 inline const char* const kMethodExtendedGpr = "extended+gpr";
 
-/// GPR input of a row: x = (q [rad], wrench in sensor axes [N, N·m]) ∈ R^(n+6) (docs/method.md §3).
+/// GPR input of a row: x = (q [rad], wrench in sensor axes [N, N·m]) ∈ R^(n+6) (docs/method.md, step 3).
 Eigen::VectorXd gprInput(const Measurement& row);
 
 /// A row's temp_c, °C; NaN when it has none.

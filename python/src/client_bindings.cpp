@@ -101,7 +101,8 @@ class Client {
     request.temp_c = temp_c;
     request.deadline_us = deadline_us;
     request.frame = int8_t(terms.frame);
-    toPositionQuaternion(terms.X_BaseUser, request.user_frame_position_m, request.user_frame_quaternion_wxyz);
+    toPositionQuaternion(terms.X_BaseUser, request.user_frame_position_m,
+                         request.user_frame_quaternion_wxyz);
     request.tool_from = int8_t(terms.tool_from);
     toPositionQuaternion(terms.X_Tool, request.tool_position_m, request.tool_quaternion_wxyz);
     if (terms.load_from == runtime::LoadFrom::kPayload) {

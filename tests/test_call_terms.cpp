@@ -12,6 +12,7 @@
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/reply.hpp"
 #include "stepcal/service/request.hpp"
@@ -26,7 +27,6 @@ namespace {
 using runtime::CallTerms;
 using runtime::Status;
 
-constexpr double kDeg = M_PI / 180.0;
 
 struct Cell {
   twin::TwinOptions options;
@@ -73,7 +73,7 @@ Pose rotated(const Pose& X, const Vec3& axis, double angle_rad) {
 
 JointVector seedOff(const JointVector& q_rad) {
   JointVector seed = q_rad;
-  for (Eigen::Index j = 0; j < seed.size(); ++j) seed(j) += (j % 2 ? -2.0 : 2.0) * kDeg;
+  for (Eigen::Index j = 0; j < seed.size(); ++j) seed(j) += (j % 2 ? -2.0 : 2.0) * kRadPerDeg;
   return seed;
 }
 
@@ -145,7 +145,7 @@ TEST(CallTerms, ToolFromTheTargetAndTheFlangeAgainstTheTwin) {
   EXPECT_LT(sum[2], 0.35e-3);
   EXPECT_LT(max_inverse_m[0], 0.1e-3);
   EXPECT_LT(max_inverse_m[1], 0.5e-3);
-  EXPECT_LT(max_inverse_rad, 0.01 * kDeg);
+  EXPECT_LT(max_inverse_rad, 0.01 * kRadPerDeg);
 }
 
 // Poses in the base frame and in a user frame: the same answer as in the tracker frame, moved
@@ -160,7 +160,7 @@ TEST(CallTerms, BaseAndUserFramesRoundTrip) {
   const Pose X_TrueBaseModelBase = truth.X_TrackerBase().inverse() * model->file.X_TrackerBase;
   std::printf("base frame (registration) against the twin's true base_link: %.3f mm, %.4f deg\n",
               X_TrueBaseModelBase.translation().norm() * 1e3,
-              lie::angleBetween(Mat3::Identity(), X_TrueBaseModelBase.linear()) / kDeg);
+              lie::angleBetween(Mat3::Identity(), X_TrueBaseModelBase.linear()) / kRadPerDeg);
   Pose X_BaseUser = rotated(translation(1.4, -0.3, 0.2), Vec3(0.2, 0.1, 1.0), 0.7);
   const auto rows = cell().campaign.rowsIn(RowSet::kValidation);
   for (size_t i = 0; i < rows.size(); i += 37) {

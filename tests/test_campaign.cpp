@@ -14,6 +14,7 @@
 
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/units.hpp"
 #include "support/campaign_rows.hpp"
 #include "support/files.hpp"
 #include "support/input_error.hpp"
@@ -127,7 +128,6 @@ void expectYamlRefused(const std::string& yaml, int line,
   expectRefused(yaml, kValidCsv, "campaign.yaml", line, "", message_parts);
 }
 
-constexpr double kDeg = M_PI / 180.0;
 
 // ---------------------------------------------------------------------------------------------
 // Reading valid files
@@ -146,7 +146,7 @@ TEST(Campaign, ReadsTheValidExampleInSiUnits) {
   EXPECT_EQ(c.measurements_file, "measurements.csv");
   EXPECT_TRUE(c.tracker.stated);
   EXPECT_DOUBLE_EQ(c.tracker.position_sigma_m, 15e-6);
-  EXPECT_DOUBLE_EQ(c.tracker.orientation_sigma_rad, 0.01 * kDeg);
+  EXPECT_DOUBLE_EQ(c.tracker.orientation_sigma_rad, 0.01 * kRadPerDeg);
   ASSERT_TRUE(c.gravity_in_base.has_value());
   EXPECT_EQ(*c.gravity_in_base, Vec3(0, 0, -9.80665));
   EXPECT_EQ(c.joint_count, 3);
@@ -159,9 +159,9 @@ TEST(Campaign, ReadsTheValidExampleInSiUnits) {
   EXPECT_EQ(a.set, RowSet::kGeometry);
   EXPECT_EQ(a.load_kg, 0.0);
   ASSERT_EQ(a.q_rad.size(), 3);
-  EXPECT_DOUBLE_EQ(a.q_rad[0], 10 * kDeg);
-  EXPECT_DOUBLE_EQ(a.q_rad[1], -20.5 * kDeg);
-  EXPECT_EQ(a.q_rad[2], M_PI / 2);  // correctly rounded: "90" is exactly the double nearest π/2
+  EXPECT_DOUBLE_EQ(a.q_rad[0], 10 * kRadPerDeg);
+  EXPECT_DOUBLE_EQ(a.q_rad[1], -20.5 * kRadPerDeg);
+  EXPECT_EQ(a.q_rad[2], kPi / 2);  // correctly rounded: "90" is exactly the double nearest π/2
   EXPECT_FALSE(a.has_wrench);
   EXPECT_EQ(a.wrenchOrZero(), Vec6::Zero());
   EXPECT_EQ(a.p_TipInTracker_m, Vec3(1.0005, -0.2, 0.3));  // mm → m by moving the point: exact
@@ -247,7 +247,7 @@ TEST(Campaign, MinimalCsvWithoutOptionalColumns) {
   EXPECT_EQ(c.joint_count, 1);
   EXPECT_TRUE(c.extra_columns.empty());
   EXPECT_EQ(m.set, RowSet::kResidual);
-  EXPECT_DOUBLE_EQ(m.q_rad[0], 10 * kDeg);
+  EXPECT_DOUBLE_EQ(m.q_rad[0], 10 * kRadPerDeg);
   EXPECT_TRUE(std::signbit(m.p_TipInTracker_m.x()));
   EXPECT_EQ(m.p_TipInTracker_m.y(), 1.5e-6);
   EXPECT_EQ(m.p_TipInTracker_m.z(), 0.2);
@@ -307,7 +307,7 @@ Campaign randomCampaign(std::mt19937_64& rng, int rows) {
     m.has_wrench = i % 3 != 0;
     m.load_kg = m.has_wrench ? 40.0 / 3.0 : 0.0;
     m.q_rad.resize(6);
-    for (int j = 0; j < 6; ++j) m.q_rad[j] = awkward(rng, 2.0 * M_PI);
+    for (int j = 0; j < 6; ++j) m.q_rad[j] = awkward(rng, 2.0 * kPi);
     for (int a = 0; a < 6; ++a) m.wrench_Sensor[a] = m.has_wrench ? awkward(rng, 300.0) : 0.0;
     for (int a = 0; a < 3; ++a) m.p_TipInTracker_m[a] = awkward(rng, 5.0);
     m.has_orientation = i % 5 != 1;
@@ -368,7 +368,7 @@ TEST(Campaign, WritesReadableNumbersAndOmitsUnusedColumns) {
   m.seq = 0;
   m.pose_id = "r0000";
   m.q_rad.resize(2);
-  m.q_rad << M_PI / 2, -0.1 * kDeg;
+  m.q_rad << kPi / 2, -0.1 * kRadPerDeg;
   m.p_TipInTracker_m = Vec3(1.2345, -0.0005, 12.0);
   c.rows.push_back(m);
   TempDir dir;

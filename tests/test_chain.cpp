@@ -9,6 +9,7 @@
 #include "stepcal/common/chain.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/allocation_counter.hpp"
 
@@ -174,7 +175,7 @@ TEST(Chain, EvaluationDoesNotAllocate) {
 // deflection leaves alone) gives the unshifted values themselves.
 TEST(Chain, ShiftedJointTrigMatchesTheLibraryAtEveryShift) {
   std::mt19937_64 rng(11);
-  std::uniform_real_distribution<double> angle(-2.0 * M_PI, 2.0 * M_PI);
+  std::uniform_real_distribution<double> angle(-2.0 * kPi, 2.0 * kPi);
   const double shifts[] = {0.0, 1e-12, -1e-9, 1e-6, -1e-4, 3e-3, -0.0099, 0.0101, -0.5, 2.0};
   for (int trial = 0; trial < 200; ++trial) {
     JointVector q(6), delta(6);

@@ -15,6 +15,7 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/twin/draws.hpp"
 #include "support/command.hpp"
@@ -153,7 +154,7 @@ TEST(Cli, CampaignNotWrittenByTheTwinCalibratesToo) {
   for (int i = 0; i < 42; ++i) delta(i) = (i % 6 < 3 ? 2e-4 : 4e-4) * g(rng);
   const Pose X_TrackerBase = lie::expSE3((Vec6() << -2.0, 3.0, 0.7, 0.0, 0.01, -1.9).finished());
   const KinematicChain truth = nominal.corrected(delta).rerooted(X_TrackerBase);
-  const double sigma_p = 20e-6, sigma_r = 0.01 * M_PI / 180;
+  const double sigma_p = 20e-6, sigma_r = 0.01 * kRadPerDeg;
   Campaign c;
   c.urdf_xml = readTextFile(urdf_path);
   c.base_link = "base_link";
@@ -179,7 +180,7 @@ TEST(Cli, CampaignNotWrittenByTheTwinCalibratesToo) {
   writeCampaign(c, dir.string());
   const nlohmann::json report = calibrateJson(dir, dir / "model.stepcal");
   const auto& poe = validationRow(report, "poe", 0.0);
-  EXPECT_LE(poe["mean_position_mm"].get<double>(), 1.25 * 2 * std::sqrt(2 / M_PI) * 0.020);
+  EXPECT_LE(poe["mean_position_mm"].get<double>(), 1.25 * 2 * std::sqrt(2 / kPi) * 0.020);
   EXPECT_EQ(report["geometry"]["rank"].get<int>(), 30);
 }
 

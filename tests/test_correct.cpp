@@ -9,15 +9,17 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <sstream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "stepcal/common/campaign.hpp"
+#include "stepcal/common/csv.hpp"
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/common/text_number.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/twin/twin.hpp"
@@ -28,7 +30,6 @@ namespace stepcal {
 namespace {
 
 const std::string kStepcal = std::string(STEPCAL_BIN_DIR) + "/stepcal";
-constexpr double kDeg = M_PI / 180.0;
 
 /// A simulated cell (seed 1, the paper protocol), calibrated, and an offline program's poses (the
 /// rows of seed 5), made once for the binary with the stepcal command.
@@ -55,20 +56,17 @@ const Cell& cell() {
 
 /// The rows of a corrected program: column name → text, per line.
 std::vector<std::map<std::string, std::string>> readCsv(const std::string& path) {
-  std::ifstream in(path);
-  std::string line;
-  std::getline(in, line);
-  std::vector<std::string> names;
-  std::stringstream header(line);
-  for (std::string name; std::getline(header, name, ',');) names.push_back(name);
+  const std::string text = test::readText(path);
+  const std::vector<std::string_view> lines = splitLines(text);
   std::vector<std::map<std::string, std::string>> rows;
-  while (std::getline(in, line)) {
+  if (lines.empty()) return rows;
+  const std::vector<std::string_view> names = splitFields(lines[0]);
+  for (size_t i = 1; i < lines.size(); ++i) {
+    const std::vector<std::string_view> fields = splitFields(lines[i]);
+    EXPECT_EQ(fields.size(), names.size()) << path << ":" << i + 1;
     std::map<std::string, std::string> row;
-    std::stringstream fields(line);
-    std::string field;
-    for (const std::string& name : names) {
-      std::getline(fields, field, ',');
-      row[name] = field;
+    for (size_t k = 0; k < names.size() && k < fields.size(); ++k) {
+      row[std::string(names[k])] = std::string(fields[k]);
     }
     rows.push_back(row);
   }
@@ -99,7 +97,7 @@ TEST(Correct, AProgramOf500TargetsLandsAtTheModelsError) {
     for (size_t i = 0; i < 500; ++i) {
       const Measurement& row = olp.rows[i];
       out << row.pose_id;
-      for (int j = 0; j < 6; ++j) out << "," << formatShortest(row.q_rad[j] / kDeg);
+      for (int j = 0; j < 6; ++j) out << "," << formatShortest(row.q_rad[j] / kRadPerDeg);
       out << "," << formatShortest(row.load_kg) << ",30,-20,195,flange\n";
     }
   }
@@ -159,7 +157,7 @@ TEST(Correct, AProgramOf500TargetsLandsAtTheModelsError) {
     EXPECT_LT(number(rows[i].at("residual_mm")), 1e-3);
     sum_after += number(rows[i].at("error_corrected_mm"));
     JointVector q(6);
-    for (int j = 0; j < 6; ++j) q[j] = number(rows[i].at("q" + std::to_string(j + 1) + "_deg")) * kDeg;
+    for (int j = 0; j < 6; ++j) q[j] = number(rows[i].at("q" + std::to_string(j + 1) + "_deg")) * kRadPerDeg;
     runtime::CallTerms terms;
     const Pose X_desired = runtime::nominalTcp(*model, ws, olp.rows[i].q_rad, terms);
     EXPECT_LT((truth.X_TrackerTip(q, olp.rows[i].load_kg).translation() - X_desired.translation()).norm(),
@@ -205,7 +203,7 @@ TEST(Correct, PoseTargetsInAUserFrameComeBackToTheirJoints) {
           << "," << formatShortest(X.translation().z() * 1e3) << "," << formatShortest(r.w()) << ","
           << formatShortest(r.x()) << "," << formatShortest(r.y()) << "," << formatShortest(r.z());
       for (int j = 0; j < 6; ++j) {
-        out << "," << (i == 0 ? formatShortest(q[j] / kDeg + 2.0 * (j % 2 ? 1 : -1)) : "");
+        out << "," << (i == 0 ? formatShortest(q[j] / kRadPerDeg + 2.0 * (j % 2 ? 1 : -1)) : "");
       }
       out << ",flange,0,0,350,1,0,0,0,25,0,0,-100,tool,22\n";
     }
@@ -222,11 +220,11 @@ TEST(Correct, PoseTargetsInAUserFrameComeBackToTheirJoints) {
   for (size_t i = 0; i < rows.size(); ++i) {
     EXPECT_EQ(rows[i].at("target"), "pose");
     for (int j = 0; j < 6; ++j) {
-      EXPECT_NEAR(number(rows[i].at("q" + std::to_string(j + 1) + "_deg")) * kDeg, joints[i][j], 2e-5)
+      EXPECT_NEAR(number(rows[i].at("q" + std::to_string(j + 1) + "_deg")) * kRadPerDeg, joints[i][j], 2e-5)
           << "line " << i + 2;
     }
     JointVector q(6);
-    for (int j = 0; j < 6; ++j) q[j] = number(rows[i].at("q" + std::to_string(j + 1) + "_deg")) * kDeg;
+    for (int j = 0; j < 6; ++j) q[j] = number(rows[i].at("q" + std::to_string(j + 1) + "_deg")) * kRadPerDeg;
     const Pose X_nominal = runtime::nominalTcp(*model, ws, q, terms);
     EXPECT_NEAR(number(rows[i].at("x_mm")), X_nominal.translation().x() * 1e3, 1e-5);
     EXPECT_NEAR(number(rows[i].at("z_mm")), X_nominal.translation().z() * 1e3, 1e-5);
@@ -292,6 +290,32 @@ TEST(Correct, BadProgramsAreRefusedWithTheirLineAndColumn) {
     EXPECT_EQ(r.status, 2) << args << ": " << r.out;
     EXPECT_NE(r.out.find(expected), std::string::npos) << args << ": " << r.out;
   }
+}
+
+// A program's end of file (csv.hpp's rule): the last newline is optional, CRLF reads as LF, and,
+// unlike a campaign's measurements.csv, one blank line at the end is skipped; a second is refused.
+TEST(Correct, AProgramsLineEndsDoNotChangeItsTargets) {
+  const Cell& c = cell();
+  const test::TempDir dir;
+  const std::string path = (dir.path() / "program.csv").string();
+  const std::string out = (dir.path() / "out.csv").string();
+  const std::string header = "id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg";
+  const std::string a = "a,10,-20,30,0,40,0", b = "b,-5,15,20,10,-30,45";
+  auto correct = [&](const std::string& text) {
+    test::writeText(path, text);
+    const test::CommandResult r =
+        test::run(kStepcal + " correct " + c.model + " " + path + " --out " + out);
+    return r.status == 0 ? test::readText(out) : "status " + std::to_string(r.status) + ": " + r.out;
+  };
+  const std::string expected = correct(header + "\n" + a + "\n" + b + "\n");
+  ASSERT_EQ(expected.rfind("status ", 0), std::string::npos) << expected;
+  for (const std::string& text : {header + "\n" + a + "\n" + b,
+                                  header + "\r\n" + a + "\r\n" + b + "\r\n",
+                                  header + "\n" + a + "\n" + b + "\n\n"}) {
+    EXPECT_EQ(correct(text), expected) << text;
+  }
+  const std::string refused = correct(header + "\n" + a + "\n" + b + "\n\n\n");
+  EXPECT_NE(refused.find(path + ":4: empty line"), std::string::npos) << refused;
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
@@ -342,7 +343,7 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(Diagnose, AnUncataloguedErrorIsUnexplained) {
   Campaign campaign = twin::simulateCampaign(paperOptions(41, {}), nullptr);
   for (Measurement& row : campaign.rows) {
-    row.p_TipInTracker_m.x() += 5e-5 * std::sin(2.0 * M_PI * static_cast<double>(row.seq) / 40.0);
+    row.p_TipInTracker_m.x() += 5e-5 * std::sin(2.0 * kPi * static_cast<double>(row.seq) / 40.0);
   }
   const CalibratedModel model = modelFromOutcome(campaign, calibrateCampaign(campaign));
   const Diagnosis d = diagnose(campaign, model);

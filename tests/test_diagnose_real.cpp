@@ -20,6 +20,7 @@
 #include <tuple>
 
 #include "stepcal/common/mechanisms.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/importers/ipa.hpp"
 #include "stepcal/trainer/diagnose.hpp"
@@ -30,7 +31,6 @@
 namespace stepcal::trainer {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
 
 /// One series of the UR10 data in tests/data; rows from validation_from_row on held out (−1:
 /// none).
@@ -80,7 +80,7 @@ double coveredDegrees(const Diagnosis& d, int joint) {
   double width = 0.0;
   if (e == nullptr) return width;
   const std::vector<double>& arcs = e->mechanism.coverage.arcs_rad;
-  for (size_t i = 1; i < arcs.size(); i += 2) width = std::max(width, arcs[i] / kDeg);
+  for (size_t i = 1; i < arcs.size(); i += 2) width = std::max(width, arcs[i] / kRadPerDeg);
   return width;
 }
 
@@ -101,7 +101,7 @@ TEST_P(HiddenHarmonic, ChangesItsJointsProfileByExactlyIt) {
   const int lowest = static_cast<int>(std::ceil(2.0 * 360.0 / coveredDegrees(untouched(), joint)));
   const int k = std::uniform_int_distribution<int>(std::max(2, lowest), 24)(rng);
   const double amplitude = std::uniform_real_distribution<double>(1e-4, 3e-4)(rng);
-  const double phase = std::uniform_real_distribution<double>(-M_PI, M_PI)(rng);
+  const double phase = std::uniform_real_distribution<double>(-kPi, kPi)(rng);
   const Eigen::Vector2d hidden(amplitude * std::cos(phase), amplitude * std::sin(phase));
   SCOPED_TRACE("seed " + std::to_string(GetParam()) + ": joint " + std::to_string(joint + 1) +
                ", harmonic " + std::to_string(k) + ", sin_rad " + std::to_string(hidden(0)) +

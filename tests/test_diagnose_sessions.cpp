@@ -14,6 +14,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/report/diagnosis_report.hpp"
 #include "support/command.hpp"
 #include "support/files.hpp"
@@ -134,7 +135,7 @@ TEST(DiagnoseSessions, TheSecondStationAndItsRemountedTargetAreRecovered) {
   // The remount, 10 mm and 0.63°, found to within the noise (measured 0.9 µm, 0.0003°).
   const Pose X_Error = remountedTool().inverse() * fitted.X_Tool;
   EXPECT_LT(X_Error.translation().norm(), 0.02e-3);
-  EXPECT_LT(lie::logSO3(X_Error.linear()).norm(), 0.005 * M_PI / 180.0);
+  EXPECT_LT(lie::logSO3(X_Error.linear()).norm(), 0.005 * kRadPerDeg);
   for (size_t i = 0; i < 12; ++i) {
     EXPECT_GT(frames.sigma[i], 0.0) << i;
     EXPECT_LT(frames.sigma[i], 3e-5) << i;  // measured 0.6–5.0 µm and µrad

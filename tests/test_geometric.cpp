@@ -8,6 +8,7 @@
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/trainer/accuracy.hpp"
 #include "stepcal/trainer/geometric.hpp"
@@ -29,7 +30,7 @@ Truth makeTruth(const std::string& urdf, const std::string& tip, uint64_t seed) 
   const int n = t.nominal_Base.dof();
   Eigen::VectorXd delta(6 * (n + 1));
   for (int k = 0; k <= n; ++k) {
-    const double trans = k == n ? 3e-3 : 3e-4, rot = k == n ? 1.0 * M_PI / 180 : 5e-4;
+    const double trans = k == n ? 3e-3 : 3e-4, rot = k == n ? 1.0 * kRadPerDeg : 5e-4;
     for (int c = 0; c < 3; ++c) delta(6 * k + c) = trans * g(rng);
     for (int c = 3; c < 6; ++c) delta(6 * k + c) = rot * g(rng);
   }
@@ -98,7 +99,7 @@ TEST(Geometric, NoiselessDataRecoverIdentifiableParametersToRoundOff) {
 }
 
 TEST(Geometric, NoisyDataReachTheNoiseFloor) {
-  const double sigma_p = 10e-6, sigma_r = 0.005 * M_PI / 180;
+  const double sigma_p = 10e-6, sigma_r = 0.005 * kRadPerDeg;
   const Truth t = makeTruth("irb4400.urdf", "tmac", 4);
   const std::vector<Measurement> fit = measure(t.true_Tracker, 80, 5, sigma_p, sigma_r);
   const std::vector<Measurement> val = measure(t.true_Tracker, 400, 6, sigma_p, sigma_r);
@@ -114,7 +115,7 @@ TEST(Geometric, NoisyDataReachTheNoiseFloor) {
   const double floor_p = noiseFloorMean(sigma_p), floor_r = noiseFloorMean(sigma_r);
   std::printf("validation: %.4f mm (floor %.4f), %.5f deg (floor %.5f), %d iterations\n",
               summary[0].mean_position_m * 1e3, floor_p * 1e3,
-              summary[0].mean_orientation_rad * 180 / M_PI, floor_r * 180 / M_PI, r.iterations);
+              summary[0].mean_orientation_rad * kDegPerRad, floor_r * kDegPerRad, r.iterations);
   EXPECT_LE(summary[0].mean_position_m, 1.25 * floor_p);
   EXPECT_LE(summary[0].mean_orientation_rad, 1.25 * floor_r);
 }

@@ -12,6 +12,7 @@
 #include <Eigen/LU>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/trainer/gpr.hpp"
 #include "stepcal/allocation_counter.hpp"
 #include "support/random_matrix.hpp"
@@ -75,7 +76,7 @@ TEST(Gpr, SinglePointMatchesHandFormula) {
   EXPECT_NEAR(gp.predictStd(query)(0), std::sqrt(sf * sf - k_star * k_star / k_train), 1e-14);
   EXPECT_NEAR(gp.alpha()(0, 0), y / k_train, 1e-14);
   EXPECT_NEAR(gp.logMarginalLikelihood(),
-              -0.5 * y * y / k_train - 0.5 * std::log(k_train) - 0.5 * std::log(2 * M_PI), 1e-13);
+              -0.5 * y * y / k_train - 0.5 * std::log(k_train) - 0.5 * std::log(2 * kPi), 1e-13);
 }
 
 TEST(Gpr, TwoPointsMatchHandFormula) {
@@ -130,7 +131,7 @@ TEST(Gpr, MatchesIndependentDenseComputation) {
   const Eigen::MatrixXd K_inverse = K.inverse();
   EXPECT_LT((gp.alpha() - K_inverse * Yn).cwiseAbs().maxCoeff(), 1e-10);
   const double lml_dense = -0.5 * (Yn.transpose() * K_inverse * Yn).trace() -
-                           0.5 * P * std::log(K.determinant()) - 0.5 * P * m * std::log(2 * M_PI);
+                           0.5 * P * std::log(K.determinant()) - 0.5 * P * m * std::log(2 * kPi);
   EXPECT_NEAR(gp.logMarginalLikelihood(), lml_dense, 1e-10 * std::abs(lml_dense));
 
   for (int q = 0; q < 5; ++q) {

@@ -156,7 +156,7 @@ TEST(GprPredictor, RelativeStdIsNearZeroAtTheDataAndOneFarAway) {
 TEST(GprPredictor, ConditionedAlphaSolvesTheKernelSystem) {
   std::mt19937_64 rng(5);
   const GprParameters g = randomParameters(rng, 50, 4, 3, 0.05);
-  // The kernel written out independently (METHOD.md eq. 27).
+  // The kernel written out independently (docs/method.md eq. 27).
   Eigen::MatrixXd K(50, 50);
   for (Eigen::Index i = 0; i < 50; ++i) {
     for (Eigen::Index j = 0; j < 50; ++j) {
@@ -306,7 +306,7 @@ TEST(GprPredictor, StdBoundAllocatesNothing) {
 }
 
 /// Mean and std of predictInto at 40 queries (5 at training inputs: distance 0, the clamp)
-/// against the kernel written out term by term (METHOD.md eq. 27, 30, 31).
+/// against the kernel written out term by term (docs/method.md eq. 27, 30, 31).
 void expectPredictionsMatchTheDirectSum(const GprParameters& g, std::mt19937_64& rng) {
   const Eigen::Index m = g.inputs_normalised.rows(), D = g.inputs_normalised.cols();
   const GprPredictor predictor = GprPredictor::fromParameters(g);

@@ -14,6 +14,7 @@
 #include "stepcal/common/chain.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/importers/ipa.hpp"
 #include "stepcal/trainer/registration.hpp"
@@ -30,12 +31,11 @@ const std::string kUr10Urdf = std::string(STEPCAL_ROBOTS_DIR) + "/ur10.urdf";
 // A copy of Series C travels with the tests (tests/data/ipa-robot-accuracy/NOTICE.md).
 const fs::path kSeriesC = fs::path(STEPCAL_TEST_DATA_DIR) / "ipa-robot-accuracy" / "Series_C";
 const fs::path kSeriesCCsv = kSeriesC / "measurements_random_poses.csv";
-constexpr double kDeg = M_PI / 180.0;
 
 Mat3 eulerXyz(double rx_deg, double ry_deg, double rz_deg) {
-  return (Eigen::AngleAxisd(rx_deg * kDeg, Vec3::UnitX()) *
-          Eigen::AngleAxisd(ry_deg * kDeg, Vec3::UnitY()) *
-          Eigen::AngleAxisd(rz_deg * kDeg, Vec3::UnitZ()))
+  return (Eigen::AngleAxisd(rx_deg * kRadPerDeg, Vec3::UnitX()) *
+          Eigen::AngleAxisd(ry_deg * kRadPerDeg, Vec3::UnitY()) *
+          Eigen::AngleAxisd(rz_deg * kRadPerDeg, Vec3::UnitZ()))
       .toRotationMatrix();
 }
 
@@ -67,7 +67,7 @@ TEST(IpaImport, SeriesCRowsSetsAndUnits) {
   EXPECT_EQ(c.joint_count, 6);
   EXPECT_TRUE(c.tracker.stated);
   EXPECT_DOUBLE_EQ(c.tracker.position_sigma_m, 0.015e-3);
-  EXPECT_DOUBLE_EQ(c.tracker.orientation_sigma_rad, 0.01 * kDeg);
+  EXPECT_DOUBLE_EQ(c.tracker.orientation_sigma_rad, 0.01 * kRadPerDeg);
   EXPECT_EQ(c.extra_columns, (std::vector<std::string>{"std_x_mm", "std_y_mm", "std_z_mm",
                                                        "std_rx_deg", "std_ry_deg", "std_rz_deg"}));
 
@@ -166,7 +166,7 @@ TEST(IpaImport, SeriesCBaseIsUprightSoGravityIsMinusZ) {
   const KinematicChain chain = chainFromUrdf(c.urdf_xml, c.base_link, c.tip_link);
   const Pose X_TrackerBase = trainer::registerTracker(chain, rows);
   const double tilt_deg =
-      std::acos(std::min(1.0, X_TrackerBase.linear().col(2).dot(Vec3::UnitZ()))) / kDeg;
+      std::acos(std::min(1.0, X_TrackerBase.linear().col(2).dot(Vec3::UnitZ()))) / kRadPerDeg;
   EXPECT_LT(tilt_deg, 0.5);
 }
 
@@ -174,7 +174,7 @@ TEST(IpaImport, TrafoFileIsTheFlangeInTheTcpFrame) {
   const KinematicChain flange = chainFromUrdfFile(kUr10Urdf, "base_link", "tool0");
   const Pose X_File = readTrafoMatrix(kSeriesC / "Trafo_TM_F_init.txt");
   Pose X_RosBaseBase = Pose::Identity();
-  X_RosBaseBase.linear() = lie::rotationFromRpy(0, 0, M_PI);
+  X_RosBaseBase.linear() = lie::rotationFromRpy(0, 0, kPi);
 
   std::ifstream in(kSeriesCCsv);
   std::string line;
@@ -195,7 +195,7 @@ TEST(IpaImport, TrafoFileIsTheFlangeInTheTcpFrame) {
       const Pose commanded = X_RosBaseBase * tipPose(ws) * X_FlangeTcp[d];
       max_mm[d] = std::max(max_mm[d], (commanded.translation() - goal.translation()).norm() * 1e3);
       max_deg[d] =
-          std::max(max_deg[d], lie::angleBetween(commanded.linear(), goal.linear()) / kDeg);
+          std::max(max_deg[d], lie::angleBetween(commanded.linear(), goal.linear()) / kRadPerDeg);
     }
   }
   std::cout << "Series C, " << rows << " rows, Goal vs FK·X_FlangeTcp:\n"
@@ -212,7 +212,7 @@ TEST(IpaImport, TrafoFileIsTheFlangeInTheTcpFrame) {
 TEST(IpaImport, MeasuredOrientationMatchesTheTmacLink) {
   const Campaign& c = seriesC();
   const KinematicChain chain = chainFromUrdf(c.urdf_xml, "base_link", "tmac");
-  const Mat3 R_TmacTcp = lie::rotationFromRpy(0, 0, M_PI);  // the turn is its own inverse
+  const Mat3 R_TmacTcp = lie::rotationFromRpy(0, 0, kPi);  // the turn is its own inverse
   ChainWorkspace ws;
   Mat3 R_first[2];
   double spread_deg[2] = {0, 0};
@@ -223,7 +223,7 @@ TEST(IpaImport, MeasuredOrientationMatchesTheTmacLink) {
     for (int f = 0; f < 2; ++f) {
       const Mat3 R_TrackerBase = c.rows[i].X_TrackerTip().linear() * R_BaseFrame[f].transpose();
       if (i == 0) R_first[f] = R_TrackerBase;
-      spread_deg[f] = std::max(spread_deg[f], lie::angleBetween(R_first[f], R_TrackerBase) / kDeg);
+      spread_deg[f] = std::max(spread_deg[f], lie::angleBetween(R_first[f], R_TrackerBase) / kRadPerDeg);
     }
   }
   std::cout << "Series C, spread of R_TrackerBase: tmac axes " << spread_deg[0] << " deg, TCP axes "

@@ -30,6 +30,8 @@
 #include <sys/socket.h>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/pose_quaternion.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/ftsim/simulator.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/can_feed.hpp"
@@ -53,7 +55,6 @@ using runtime::Status;
 using stepcal_lcm::correction_reply_t;
 using stepcal_lcm::correction_request_t;
 
-constexpr double kDeg = M_PI / 180.0;
 constexpr uint64_t kFirstModelId = 0x5EED2;
 constexpr uint64_t kSecondModelId = 0x5EED3;
 
@@ -114,9 +115,9 @@ correction_request_t inverseRequest(const Measurement& row, int64_t id,
                                     std::optional<Pose> X_TrackerTip_desired = std::nullopt) {
   correction_request_t msg = forwardRequest(row, id);
   msg.mode = correction_request_t::MODE_INVERSE;
-  writePose(X_TrackerTip_desired.value_or(row.X_TrackerTip()), msg.desired_position_m,
+  toPositionQuaternion(X_TrackerTip_desired.value_or(row.X_TrackerTip()), msg.desired_position_m,
             msg.desired_quaternion_wxyz);
-  for (int j = 0; j < 6; ++j) msg.seed_q_rad[j] = row.q_rad[j] + (j % 2 ? -2 : 2) * kDeg;
+  for (int j = 0; j < 6; ++j) msg.seed_q_rad[j] = row.q_rad[j] + (j % 2 ? -2 : 2) * kRadPerDeg;
   return msg;
 }
 
@@ -219,7 +220,7 @@ TEST(LcmService, DecodeRequestKeepsEveryField) {
   EXPECT_TRUE(request.terms.X_Tool.isApprox(Pose::Identity(), 0.0));
   EXPECT_LT(poseDifference(request.X_FrameTcp_desired, row.X_TrackerTip()), 1e-15);
   EXPECT_EQ(request.seed_q_rad.size(), 6);
-  EXPECT_DOUBLE_EQ(request.seed_q_rad[0], row.q_rad[0] + 2 * kDeg);
+  EXPECT_DOUBLE_EQ(request.seed_q_rad[0], row.q_rad[0] + 2 * kRadPerDeg);
 
   // Not measured (NaN) is a valid temperature; so are both ends of the range.
   for (const double temp_c : {std::nan(""), -50.0, 150.0}) {

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/units.hpp"
 
 namespace stepcal::lie {
 namespace {
@@ -17,23 +18,23 @@ std::vector<Vec3> rotationVectors() {
                            Vec3(1e-8, -2e-8, 3e-9),
                            Vec3(2e-5, 1e-5, -3e-5),  // inside the Taylor branch
                            Vec3(0.3, -0.2, 0.1),
-                           Vec3(0, 0, M_PI - 1e-9),
-                           Vec3(M_PI - 1e-6, 0, 0),
-                           Vec3(1, 1, 1).normalized() * (M_PI - 1e-7),
-                           Vec3(0.2, -0.9, 0.4).normalized() * (M_PI - 1e-3),
-                           Vec3(0, M_PI, 0)};
+                           Vec3(0, 0, kPi - 1e-9),
+                           Vec3(kPi - 1e-6, 0, 0),
+                           Vec3(1, 1, 1).normalized() * (kPi - 1e-7),
+                           Vec3(0.2, -0.9, 0.4).normalized() * (kPi - 1e-3),
+                           Vec3(0, kPi, 0)};
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (int i = 0; i < 200; ++i) {
     const Vec3 axis = Vec3(u(rng), u(rng), u(rng)).normalized();
-    out.push_back(axis * (M_PI * std::abs(u(rng))));
+    out.push_back(axis * (kPi * std::abs(u(rng))));
   }
   return out;
 }
 
 // log returns the principal value; at exactly π the sign of the axis is arbitrary.
 void expectSameRotationVector(const Vec3& expected, const Vec3& actual, double tol) {
-  if (std::abs(expected.norm() - M_PI) < 1e-12) {
+  if (std::abs(expected.norm() - kPi) < 1e-12) {
     EXPECT_TRUE((expected - actual).norm() < tol || (expected + actual).norm() < tol)
         << expected.transpose() << " vs " << actual.transpose();
   } else {
@@ -66,7 +67,7 @@ TEST(Lie, ExpSO3IsARotationAndMatchesEigen) {
 TEST(Lie, LogInvertsExpSO3EverywhereIncludingNearPi) {
   for (const Vec3& w : rotationVectors()) {
     // Near π the axis is conditioned as 1/sqrt(1+cos θ); 1e-9 from π loses ~8 digits.
-    const double tol = w.norm() > M_PI - 1e-6 ? 1e-7 : 1e-13;
+    const double tol = w.norm() > kPi - 1e-6 ? 1e-7 : 1e-13;
     expectSameRotationVector(w, logSO3(expSO3(w)), tol);
   }
 }
@@ -84,7 +85,7 @@ TEST(Lie, ExpLogSE3RoundTrip) {
     Vec6 xi;
     xi << u(rng), u(rng), u(rng), w;
     const Vec6 back = logSE3(expSE3(xi));
-    if (w.norm() > M_PI - 1e-6) {
+    if (w.norm() > kPi - 1e-6) {
       // Only the group element is defined up to the axis sign at π: compare the poses.
       EXPECT_LT((expSE3(back).matrix() - expSE3(xi).matrix()).norm(), 1e-7);
     } else {
@@ -179,7 +180,7 @@ TEST(Lie, RpyRoundTripAndConvention) {
   EXPECT_LT((R - R_ref).norm(), 1e-15);
   const Vec3 rpy = rpyFromRotation(R);
   EXPECT_LT((rpy - Vec3(0.1, -0.4, 2.5)).norm(), 1e-14);
-  for (double pitch : {M_PI / 2, -M_PI / 2}) {
+  for (double pitch : {kPi / 2, -kPi / 2}) {
     const Mat3 G = rotationFromRpy(0.3, pitch, 0.0);
     const Vec3 back = rpyFromRotation(G);
     EXPECT_LT((rotationFromRpy(back.x(), back.y(), back.z()) - G).norm(), 1e-12);
@@ -190,7 +191,7 @@ TEST(Lie, RpyGivesTheRotationBackToRoundingNearGimbalLock) {
   // Where cos(pitch) is tiny, yaw and roll each come from small entries; the rotation they give
   // back must not lose what rounding there costs (1e-16 / cos(pitch) rad).
   for (const double from_lock : {1e-4, 1e-7, 1e-9, 1e-11, 0.0}) {
-    for (const double pitch : {M_PI / 2 - from_lock, -M_PI / 2 + from_lock}) {
+    for (const double pitch : {kPi / 2 - from_lock, -kPi / 2 + from_lock}) {
       const Mat3 R = rotationFromRpy(0.3, pitch, -1.2);
       const Vec3 back = rpyFromRotation(R);
       EXPECT_LT((rotationFromRpy(back.x(), back.y(), back.z()) - R).norm(), 1e-15)

@@ -10,12 +10,12 @@
 #include "../trainer/src/diagnose/profiles.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/mechanisms.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 
 namespace stepcal {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 AngleCoverage arcs(std::vector<double> pairs, double fade) { return {std::move(pairs), fade}; }
 
@@ -331,7 +331,7 @@ TEST(UrdfMasses, Ur10HasItsPublishedLinkMasses) {
 // when nothing is missing.
 TEST(ProfileCoverage, ArcsBetweenWideGapsAcrossZero) {
   using trainer::diagnosis::coverageOfAngles;
-  const double deg = kPi / 180.0;
+  const double deg = kRadPerDeg;
   std::vector<double> angles;
   for (double a = -30.0; a <= 40.0; a += 1.0) angles.push_back(a * deg);   // across 0
   for (double a = 100.0; a <= 160.0; a += 2.0) angles.push_back(a * deg);  // 60° later

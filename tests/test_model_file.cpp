@@ -20,6 +20,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "support/mechanisms.hpp"
 
@@ -31,7 +32,7 @@ namespace fs = std::filesystem;
 const std::string kIrb = std::string(STEPCAL_ROBOTS_DIR) + "/irb4400.urdf";
 constexpr size_t kHeaderBytes = 24;
 
-/// Squared-exponential ARD kernel (METHOD.md eq. 27), written independently of the loader's.
+/// Squared-exponential ARD kernel (docs/method.md eq. 27), written independently of the loader's.
 Eigen::MatrixXd kernel(const Eigen::MatrixXd& X, const Eigen::VectorXd& length_scales,
                        double signal_sigma) {
   const Eigen::Index m = X.rows();
@@ -105,11 +106,10 @@ CalibratedModel realisticModel(int m = 300) {
   p.created_utc = "2024-05-01T12:34:56Z";
   p.trainer_version = "stepcal 0.1.0";
   p.campaign_path = "/data/campaigns/irb4400-2024-05";
-  const double kMm = 1e-3, kDeg = M_PI / 180;
-  p.validation = {{"POE", 20, 30, 0.5712 * kMm, 1.41 * kMm, 0.0286 * kDeg},
-                  {"POE + stiffness", 20, 30, 0.3952 * kMm, 0.97 * kMm, 0.0176 * kDeg},
-                  {"POE + stiffness + GPR", 20, 30, 0.1032 * kMm, 0.31 * kMm, 0.0104 * kDeg},
-                  {"POE + stiffness + GPR", 40, 30, 0.1129 * kMm, 0.35 * kMm, 0.0122 * kDeg}};
+  p.validation = {{"POE", 20, 30, 0.5712 * kMPerMm, 1.41 * kMPerMm, 0.0286 * kRadPerDeg},
+                  {"POE + stiffness", 20, 30, 0.3952 * kMPerMm, 0.97 * kMPerMm, 0.0176 * kRadPerDeg},
+                  {"POE + stiffness + GPR", 20, 30, 0.1032 * kMPerMm, 0.31 * kMPerMm, 0.0104 * kRadPerDeg},
+                  {"POE + stiffness + GPR", 40, 30, 0.1129 * kMPerMm, 0.35 * kMPerMm, 0.0122 * kRadPerDeg}};
   return model;
 }
 

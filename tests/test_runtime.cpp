@@ -21,6 +21,7 @@
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
@@ -32,7 +33,6 @@
 namespace stepcal::runtime {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
 const Clock::time_point kNoDeadline = Clock::time_point::max();
 
 struct Calibrated {
@@ -88,7 +88,7 @@ Pose nominalTip(const KinematicChain& chain, const JointVector& q_rad) {
 
 // Commanded joints moved by 1.5–2.5° in a random direction per joint.
 JointVector perturbed(const JointVector& q_rad, std::mt19937_64& rng) {
-  std::uniform_real_distribution<double> size(1.5 * kDeg, 2.5 * kDeg);
+  std::uniform_real_distribution<double> size(1.5 * kRadPerDeg, 2.5 * kRadPerDeg);
   std::bernoulli_distribution sign(0.5);
   JointVector q = q_rad;
   for (int i = 0; i < q.size(); ++i) q(i) += sign(rng) ? size(rng) : -size(rng);
@@ -1090,8 +1090,8 @@ TEST(Runtime, AnswerAtTheWristSingularityIsFlagged) {
   const Pose X_desired =
       correctForward(model, ws, q_rad, row.wrenchOrZero(), kUnknownTemperature_c).X_TrackerTip;
   JointVector seed = q_rad;
-  seed(0) += 0.5 * kDeg;
-  seed(4) += 0.5 * kDeg;
+  seed(0) += 0.5 * kRadPerDeg;
+  seed(4) += 0.5 * kRadPerDeg;
   InverseOptions options;
   options.max_iterations = 50;
   const InverseResult r = solveInverse(model, ws, X_desired, row.wrenchOrZero(),

@@ -7,6 +7,7 @@
 #include <map>
 
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
@@ -27,7 +28,7 @@ TEST(RuntimeAccuracy, InvertedValidationPosesLandOnTheTruth) {
   std::map<double, std::pair<double, int>> landed_by_load;  // sum of errors, rows
   for (const Measurement* row : campaign.rowsIn(RowSet::kValidation)) {
     JointVector seed = row->q_rad;
-    for (Eigen::Index j = 0; j < seed.size(); ++j) seed(j) += (j % 2 ? 2.0 : -2.0) * M_PI / 180;
+    for (Eigen::Index j = 0; j < seed.size(); ++j) seed(j) += (j % 2 ? 2.0 : -2.0) * kRadPerDeg;
     const runtime::InverseResult r = runtime::solveInverse(
         *model, ws, row->X_TrackerTip(), row->wrenchOrZero(), runtime::kUnknownTemperature_c, seed,
         runtime::Clock::time_point::max());  // accuracy, not time: the step limit ends it

@@ -13,6 +13,7 @@
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/report/report.hpp"
 #include "stepcal/report/session_report.hpp"
 #include "stepcal/trainer/pipeline.hpp"
@@ -92,7 +93,7 @@ TEST(Sessions, TwoTrackerStationsAreOneRobotSeenFromBoth) {
   // and 0.0022°).
   const Pose X_Tool0Tool1 = chain0.initialPose(n).inverse() * chain1.initialPose(n);
   EXPECT_LT(X_Tool0Tool1.translation().norm(), 0.02e-3);
-  EXPECT_LT(lie::logSO3(X_Tool0Tool1.linear()).norm(), 0.005 * M_PI / 180.0);
+  EXPECT_LT(lie::logSO3(X_Tool0Tool1.linear()).norm(), 0.005 * kRadPerDeg);
 
   // The joint frames between are one: every session's chain has them alike.
   for (int k = 1; k < n; ++k) {

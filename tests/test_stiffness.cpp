@@ -9,6 +9,7 @@
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/trainer/gpr.hpp"
 #include "stepcal/trainer/stiffness.hpp"
@@ -98,10 +99,10 @@ TEST(Stiffness, NoiselessPairsRecoverTheComplianceAndSkipTheVerticalJoint) {
 }
 
 TEST(Stiffness, NoisyPairsStayWithinTheirUncertainty) {
-  const LoadedCampaign s = makeCampaign(2, 10e-6, 0.005 * M_PI / 180);
+  const LoadedCampaign s = makeCampaign(2, 10e-6, 0.005 * kRadPerDeg);
   const StiffnessResult r = identifyCompliance(s.chain_Tracker, s.sensor,
                                                deflectionPairs(pointers(s.rows)),
-                                               noise(10e-6, 0.005 * M_PI / 180));
+                                               noise(10e-6, 0.005 * kRadPerDeg));
   for (int j = 1; j < 6; ++j) {
     const JointCompliance& jc = r.joints[static_cast<size_t>(j)];
     if (!jc.excited) continue;

@@ -20,6 +20,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/mechanisms.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/twin/twin.hpp"
 #include "support/campaign_rows.hpp"
@@ -149,7 +150,7 @@ TEST(Twin, PaperProtocolRows) {
   EXPECT_EQ(distinct_q.size(), by_pose.size());
 
   // Every commanded pose keeps away from the wrist singularity.
-  for (const Measurement& m : c.rows) EXPECT_GE(std::abs(m.q_rad(4)), 15.0 * kDegToRad);
+  for (const Measurement& m : c.rows) EXPECT_GE(std::abs(m.q_rad(4)), 15.0 * kRadPerDeg);
 
   TwinOptions geometry = paperOptions();
   geometry.protocol = "geometry";
@@ -216,7 +217,7 @@ TEST(Twin, SmallLoadDeflectionMatchesLinearisedStiffnessModel) {
   for (const Measurement* m : c.rowsIn(RowSet::kGeometry)) {
     const JointVector& q = m->q_rad;
     const Jacobian J = spatialJacobianAt(robot, q);
-    // METHOD.md eq. 17: ΔX = J K⁻¹ Jᵀ F.
+    // docs/method.md eq. 17: ΔX = J K⁻¹ Jᵀ F.
     const Vec6 predicted =
         J * (compliance.asDiagonal() * (J.transpose() * payloadWrench(robot, q, load_kg)));
     const Vec6 simulated = spatialDifference(robot.X_BaseTip(q, 0.0), robot.X_BaseTip(q, load_kg));
@@ -268,7 +269,7 @@ TEST(Twin, TipDeflectionUnderPayload) {
       const double d = (X.translation() - X0.translation()).norm();
       sum += d;
       worst = std::max(worst, d);
-      sum_deg += lie::angleBetween(X0.linear(), X.linear()) / kDegToRad;
+      sum_deg += lie::angleBetween(X0.linear(), X.linear()) / kRadPerDeg;
     }
     const double mean = sum / static_cast<double>(seen.size());
     if (load_kg == 40.0) mean_40 = mean;
@@ -398,10 +399,10 @@ std::pair<double, double> uncalibratedErrors(uint64_t seed, double* max_mm, bool
     std::printf("[twin] seed %2llu nominal vs true, %zu unloaded poses: position mean %.2f mm, "
                 "max %.2f mm; orientation mean %.3f deg, max %.3f deg\n",
                 static_cast<unsigned long long>(seed), c.rows.size(), 1e3 * sum_p / n,
-                1e3 * worst_p, sum_r / n / kDegToRad, worst_r / kDegToRad);
+                1e3 * worst_p, sum_r / n / kRadPerDeg, worst_r / kRadPerDeg);
   }
   if (max_mm) *max_mm = 1e3 * worst_p;
-  return {1e3 * sum_p / n, sum_r / n / kDegToRad};
+  return {1e3 * sum_p / n, sum_r / n / kRadPerDeg};
 }
 
 TEST(Twin, UncalibratedErrorsLookLikeThePaper) {
@@ -1183,12 +1184,12 @@ TEST(Twin, AnotherStationIsTheSameRobotSeenFromElsewhere) {
     const double distance_m = std::hypot(p.x(), p.y());
     EXPECT_GE(distance_m, o.tracker_distance_min_m);
     EXPECT_LE(distance_m, o.tracker_distance_max_m);
-    EXPECT_LE(std::abs(std::atan2(p.y(), p.x())), 60.0 * kDegToRad);
+    EXPECT_LE(std::abs(std::atan2(p.y(), p.x())), 60.0 * kRadPerDeg);
     EXPECT_GE(p.z(), 0.8);
     EXPECT_LE(p.z(), 1.6);
     // Levelled: ±2° about x and y tilt its z axis by at most acos(cos² 2°) < √2 · 2°.
     const Vec3 z_TrackerInBase = robot.X_TrackerBase().linear().transpose().col(2);
-    EXPECT_LE(std::acos(z_TrackerInBase.z()), std::sqrt(2.0) * 2.0 * kDegToRad);
+    EXPECT_LE(std::acos(z_TrackerInBase.z()), std::sqrt(2.0) * 2.0 * kRadPerDeg);
 
     // truth.json rebuilds the station's tracker.
     const TwinRobot copy = TwinRobot::fromTruthJson(nlohmann::json::parse(truth.dump()));

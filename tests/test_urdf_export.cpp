@@ -15,6 +15,7 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/common/urdf_export.hpp"
 #include "support/command.hpp"
@@ -64,14 +65,14 @@ Pose trackerPose(const Vec3& rpy_rad, const Vec3& p_m) {
 // angles over two turns.
 std::vector<JointVector> testPoses(int dof, uint64_t seed) {
   std::vector<JointVector> poses;
-  for (const double q : {0.0, M_PI, -M_PI, M_PI - 1e-7, -(M_PI - 1e-9)}) {
+  for (const double q : {0.0, kPi, -kPi, kPi - 1e-7, -(kPi - 1e-9)}) {
     poses.push_back(JointVector::Constant(dof, q));
   }
   JointVector alternating(dof);
-  for (int j = 0; j < dof; ++j) alternating(j) = (j % 2 ? -1.0 : 1.0) * (M_PI - 1e-6);
+  for (int j = 0; j < dof; ++j) alternating(j) = (j % 2 ? -1.0 : 1.0) * (kPi - 1e-6);
   poses.push_back(alternating);
   std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(-2 * M_PI, 2 * M_PI);
+  std::uniform_real_distribution<double> u(-2 * kPi, 2 * kPi);
   for (int i = 0; i < 500; ++i) {
     JointVector q(dof);
     for (int j = 0; j < dof; ++j) q(j) = u(rng);
@@ -163,7 +164,7 @@ TEST(UrdfExport, Ur10KeepsItsInertialsAndLimitsWithATrackerNearGimbalLock) {
   // The base tilted to 1e-8 rad short of pitch π/2 in the tracker: rpy must still be exact.
   const RobotDescription robot = shippedRobot("ur10", "tool0");
   const CalibratedModel model = calibratedLike(
-      nominalChain(robot), trackerPose({0.3, M_PI / 2 - 1e-8, -1.2}, {-2.0, 3.0, 0.7}), 2);
+      nominalChain(robot), trackerPose({0.3, kPi / 2 - 1e-8, -1.2}, {-2.0, 3.0, 0.7}), 2);
   const std::string urdf_xml = calibratedUrdf(model, "model.stepcal", robot).urdf_xml;
   expectSameKinematics(model, urdf_xml, "ur10");
   const urdf::ModelInterfaceSharedPtr original = urdf::parseURDF(robot.urdf_xml);

@@ -23,8 +23,11 @@
 #include <optional>
 #include <string_view>
 
+#include "stepcal/common/csv.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/common/text_number.hpp"
+#include "stepcal/common/units.hpp"
 
 namespace stepcal {
 namespace {
@@ -32,9 +35,6 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr const char* kFormat = "stepcal-campaign/1";
-constexpr long double kRadPerDeg = 3.141592653589793238462643383279502884L / 180.0L;
-/// A read quaternion may differ from unit norm by this much; it is then normalised.
-constexpr double kQuaternionNormTolerance = 1e-6;
 
 constexpr std::array<const char*, 6> kWrenchColumns = {"fx_n",  "fy_n",  "fz_n",
                                                        "mx_nm", "my_nm", "mz_nm"};
@@ -58,7 +58,7 @@ std::optional<double> parseDegreesAsRadians(std::string_view s) {
   const char* end = s.data() + s.size();
   const auto [ptr, ec] = std::from_chars(s.data(), end, deg);
   if (ec != std::errc() || ptr != end || !std::isfinite(deg)) return std::nullopt;
-  const double rad = static_cast<double>(deg * kRadPerDeg);
+  const double rad = static_cast<double>(deg * kRadPerDegExtended);
   if (!std::isfinite(rad)) return std::nullopt;
   return rad;
 }
@@ -99,11 +99,11 @@ std::string formatMetresAsMillimetres(double m) {
 /// form of the degree double when that works (almost always), else the fewest digits of the
 /// extended-precision degree value that do.
 std::string formatRadiansAsDegrees(double rad) {
-  const long double deg = static_cast<long double>(rad) / kRadPerDeg;
+  const long double deg = static_cast<long double>(rad) / kRadPerDegExtended;
   std::string text = formatShortest(static_cast<double>(deg));
   if (parseDegreesAsRadians(text) == rad) return text;
   // Longer forms of the extended-precision value; the longest reads back to deg itself,
-  // whose product with kRadPerDeg rounds to rad.
+  // whose product with kRadPerDegExtended rounds to rad.
   for (int digits = std::numeric_limits<double>::max_digits10;
        digits <= std::numeric_limits<long double>::max_digits10; ++digits) {
     std::array<char, 96> buf{};
@@ -319,34 +319,6 @@ class YamlReader {
 // ---------------------------------------------------------------------------------------------
 // measurements.csv
 
-std::vector<std::string_view> splitFields(std::string_view line) {
-  std::vector<std::string_view> fields;
-  size_t start = 0;
-  while (true) {
-    const size_t comma = line.find(',', start);
-    fields.push_back(line.substr(start, comma - start));
-    if (comma == std::string_view::npos) break;
-    start = comma + 1;
-  }
-  return fields;
-}
-
-/// Lines without their terminators; one final newline is allowed, CRLF is accepted.
-std::vector<std::string_view> splitLines(std::string_view text) {
-  std::vector<std::string_view> lines;
-  size_t start = 0;
-  while (start < text.size()) {
-    size_t end = text.find('\n', start);
-    const size_t next = end == std::string_view::npos ? text.size() : end + 1;
-    if (end == std::string_view::npos) end = text.size();
-    std::string_view line = text.substr(start, end - start);
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    lines.push_back(line);
-    start = next;
-  }
-  return lines;
-}
-
 /// Column positions of one measurements.csv header.
 struct CsvLayout {
   int field_count = 0;
@@ -465,15 +437,52 @@ class CsvReader {
     return layout;
   }
 
+  /// One data row's fields, with the header layout and the line its messages name.
+  struct Row {
+    const CsvLayout& layout;
+    std::vector<std::string_view> fields;
+    int line = 0;
+
+    std::string_view field(int i) const { return fields[static_cast<size_t>(i)]; }
+    const std::string& name(int i) const { return layout.names[static_cast<size_t>(i)]; }
+  };
+
   /// Parses one data row; seq_lines maps every seq seen so far to its line.
   Measurement parseRow(const CsvLayout& layout, std::string_view text, int line,
                        std::map<int64_t, int>& seq_lines) const {
+    const Row row{layout, splitRow(layout, text, line), line};
+    Measurement m;
+    m.source_line = line;
+    m.seq = parseSeq(row, seq_lines);
+    parsePoseSetAndLoad(row, m);
+    m.q_rad.resize(static_cast<Eigen::Index>(layout.joints.size()));
+    for (size_t j = 0; j < layout.joints.size(); ++j) {
+      m.q_rad[static_cast<Eigen::Index>(j)] =
+          number(row, layout.joints[j], "degrees", parseDegreesAsRadians);
+    }
+    for (int a = 0; a < 3; ++a) {
+      m.p_TipInTracker_m[a] = number(row, layout.position[static_cast<size_t>(a)], "millimetres",
+                                     parseMillimetresAsMetres);
+    }
+    parseWrench(row, m);
+    parseOrientation(row, m);
+    if (layout.temp >= 0 && !row.field(layout.temp).empty()) {
+      m.temp_c = number(row, layout.temp, "degrees Celsius", parseFinite);
+    }
+    for (const int i : layout.extra) m.extra.emplace_back(row.field(i));
+    return m;
+  }
+
+ private:
+  /// A data row's fields; fails on an empty line or a field count unlike the header's.
+  std::vector<std::string_view> splitRow(const CsvLayout& layout, std::string_view text,
+                                         int line) const {
     if (text.empty()) {
       fail(line, "",
            "empty line; expected a measurement row (empty lines are only allowed "
            "as the file's final newline)");
     }
-    const std::vector<std::string_view> fields = splitFields(text);
+    std::vector<std::string_view> fields = splitFields(text);
     const int n = static_cast<int>(fields.size());
     if (n != layout.field_count) {
       std::string hint;
@@ -486,132 +495,129 @@ class CsvReader {
            "row has " + std::to_string(n) + " fields; expected " +
                std::to_string(layout.field_count) + " as in the header" + hint);
     }
-    auto field = [&](int i) { return fields[static_cast<size_t>(i)]; };
-    auto name = [&](int i) { return layout.names[static_cast<size_t>(i)]; };
-    auto number = [&](int i, const char* unit, auto convert) {
-      const std::optional<double> v = convert(field(i));
-      if (!v) {
-        fail(line, name(i),
-             "expected a number (" + std::string(unit) + "), got " + inQuotes(field(i)) +
-                 numberHint(field(i)));
-      }
-      return *v;
-    };
+    return fields;
+  }
 
-    Measurement m;
-    m.source_line = line;
-    {
-      const std::string_view s = field(layout.seq);
-      const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), m.seq);
-      if (ec != std::errc() || ptr != s.data() + s.size()) {
-        fail(line, "seq", "expected an integer, got " + inQuotes(s) + numberHint(s));
-      }
-      const auto [it, inserted] = seq_lines.emplace(m.seq, line);
-      if (!inserted) {
-        fail(line, "seq",
-             "seq " + inQuotes(s) + " already appears on line " + std::to_string(it->second) +
-                 "; expected unique values");
-      }
+  /// Field i through a text-to-number conversion; fails naming the unit when it does not parse.
+  template <typename Convert>
+  double number(const Row& row, int i, const char* unit, Convert convert) const {
+    const std::optional<double> v = convert(row.field(i));
+    if (!v) {
+      fail(row.line, row.name(i),
+           "expected a number (" + std::string(unit) + "), got " + inQuotes(row.field(i)) +
+               numberHint(row.field(i)));
     }
-    m.pose_id = std::string(field(layout.pose_id));
+    return *v;
+  }
+
+  /// The row's seq: an integer no earlier row has.
+  int64_t parseSeq(const Row& row, std::map<int64_t, int>& seq_lines) const {
+    const std::string_view s = row.field(row.layout.seq);
+    int64_t seq = 0;
+    const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), seq);
+    if (ec != std::errc() || ptr != s.data() + s.size()) {
+      fail(row.line, "seq", "expected an integer, got " + inQuotes(s) + numberHint(s));
+    }
+    const auto [it, inserted] = seq_lines.emplace(seq, row.line);
+    if (!inserted) {
+      fail(row.line, "seq",
+           "seq " + inQuotes(s) + " already appears on line " + std::to_string(it->second) +
+               "; expected unique values");
+    }
+    return seq;
+  }
+
+  /// pose_id, set and load_kg.
+  void parsePoseSetAndLoad(const Row& row, Measurement& m) const {
+    const CsvLayout& layout = row.layout;
+    m.pose_id = std::string(row.field(layout.pose_id));
     if (m.pose_id.empty() || m.pose_id.find('"') != std::string::npos) {
-      fail(line, "pose_id",
+      fail(row.line, "pose_id",
            "expected a pose id (non-empty text without quotes), got " + inQuotes(m.pose_id));
     }
-    const std::optional<RowSet> set = parseSet(field(layout.set));
+    const std::optional<RowSet> set = parseSet(row.field(layout.set));
     if (!set) {
-      fail(line, "set",
+      fail(row.line, "set",
            "expected geometry, stiffness, residual or validation, got " +
-               inQuotes(field(layout.set)));
+               inQuotes(row.field(layout.set)));
     }
     m.set = *set;
-    m.load_kg = number(layout.load, "kilograms", parseFinite);
+    m.load_kg = number(row, layout.load, "kilograms", parseFinite);
     if (m.load_kg < 0.0) {
-      fail(line, "load_kg",
-           "expected a mass >= 0 (kilograms), got " + inQuotes(field(layout.load)));
+      fail(row.line, "load_kg",
+           "expected a mass >= 0 (kilograms), got " + inQuotes(row.field(layout.load)));
     }
-    m.q_rad.resize(static_cast<Eigen::Index>(layout.joints.size()));
-    for (size_t j = 0; j < layout.joints.size(); ++j) {
-      m.q_rad[static_cast<Eigen::Index>(j)] =
-          number(layout.joints[j], "degrees", parseDegreesAsRadians);
-    }
-    for (int a = 0; a < 3; ++a) {
-      m.p_TipInTracker_m[a] =
-          number(layout.position[static_cast<size_t>(a)], "millimetres", parseMillimetresAsMetres);
-    }
+  }
 
+  /// The F/T reading: all six values or none, and none only on an unloaded row.
+  void parseWrench(const Row& row, Measurement& m) const {
+    const CsvLayout& layout = row.layout;
     if (layout.wrench[0] >= 0) {
-      if (allEmpty(fields, layout.wrench)) {
+      if (allEmpty(row, layout.wrench)) {
         if (m.load_kg > 0.0) {
-          fail(line, "fx_n",
-               "empty on a row with load_kg " + inQuotes(field(layout.load)) +
+          fail(row.line, "fx_n",
+               "empty on a row with load_kg " + inQuotes(row.field(layout.load)) +
                    "; expected the F/T reading fx_n … mz_nm (a wrench may only "
                    "be missing where load_kg is 0)");
         }
       } else {
-        requireComplete(fields, layout, layout.wrench, line, "all six wrench values");
+        requireComplete(row, layout.wrench, "all six wrench values");
         for (int a = 0; a < 6; ++a) {
-          m.wrench_Sensor[a] = number(layout.wrench[static_cast<size_t>(a)],
+          m.wrench_Sensor[a] = number(row, layout.wrench[static_cast<size_t>(a)],
                                       a < 3 ? "newtons" : "newton metres", parseFinite);
         }
         m.has_wrench = true;
       }
     } else if (m.load_kg > 0.0) {
-      fail(line, "load_kg",
-           "load_kg is " + inQuotes(field(layout.load)) +
+      fail(row.line, "load_kg",
+           "load_kg is " + inQuotes(row.field(layout.load)) +
                " but the file has no "
                "wrench columns; expected fx_n … mz_nm on loaded rows");
     }
-
-    if (layout.quaternion[0] >= 0 && !allEmpty(fields, layout.quaternion)) {
-      requireComplete(fields, layout, layout.quaternion, line, "all four quaternion values");
-      Eigen::Vector4d wxyz;
-      for (int a = 0; a < 4; ++a) {
-        wxyz[a] =
-            number(layout.quaternion[static_cast<size_t>(a)], "quaternion component", parseFinite);
-      }
-      const double norm = wxyz.norm();
-      if (!(std::abs(norm - 1.0) <= kQuaternionNormTolerance)) {
-        fail(line, "qw",
-             "quaternion (qw, qx, qy, qz) = (" + std::string(field(layout.quaternion[0])) + ", " +
-                 std::string(field(layout.quaternion[1])) + ", " +
-                 std::string(field(layout.quaternion[2])) + ", " +
-                 std::string(field(layout.quaternion[3])) + ") has norm " + formatShortest(norm) +
-                 "; expected a unit quaternion (norm within "
-                 "1e-6 of 1)");
-      }
-      // Already unit to round-off: kept as is, so a written quaternion reads back bit-exactly.
-      if (std::abs(norm - 1.0) > 8.0 * std::numeric_limits<double>::epsilon()) wxyz /= norm;
-      m.q_TrackerTip = Eigen::Quaterniond(wxyz[0], wxyz[1], wxyz[2], wxyz[3]);
-      m.has_orientation = true;
-    }
-
-    if (layout.temp >= 0 && !field(layout.temp).empty()) {
-      m.temp_c = number(layout.temp, "degrees Celsius", parseFinite);
-    }
-    for (const int i : layout.extra) m.extra.emplace_back(field(i));
-    return m;
   }
 
- private:
+  /// The measured orientation, when the row has its quaternion: unit norm within the tolerance.
+  void parseOrientation(const Row& row, Measurement& m) const {
+    const CsvLayout& layout = row.layout;
+    if (layout.quaternion[0] < 0 || allEmpty(row, layout.quaternion)) return;
+    requireComplete(row, layout.quaternion, "all four quaternion values");
+    Eigen::Vector4d wxyz;
+    for (int a = 0; a < 4; ++a) {
+      wxyz[a] = number(row, layout.quaternion[static_cast<size_t>(a)], "quaternion component",
+                       parseFinite);
+    }
+    const double norm = wxyz.norm();
+    if (!(std::abs(norm - 1.0) <= kQuaternionNormTolerance)) {
+      fail(row.line, "qw",
+           "quaternion (qw, qx, qy, qz) = (" + std::string(row.field(layout.quaternion[0])) +
+               ", " + std::string(row.field(layout.quaternion[1])) + ", " +
+               std::string(row.field(layout.quaternion[2])) + ", " +
+               std::string(row.field(layout.quaternion[3])) + ") has norm " +
+               formatShortest(norm) +
+               "; expected a unit quaternion (norm within "
+               "1e-6 of 1)");
+    }
+    // Already unit to round-off: kept as is, so a written quaternion reads back bit-exactly.
+    if (std::abs(norm - 1.0) > 8.0 * std::numeric_limits<double>::epsilon()) wxyz /= norm;
+    m.q_TrackerTip = Eigen::Quaterniond(wxyz[0], wxyz[1], wxyz[2], wxyz[3]);
+    m.has_orientation = true;
+  }
+
   template <size_t N>
-  static bool allEmpty(const std::vector<std::string_view>& fields, const std::array<int, N>& at) {
-    return std::all_of(at.begin(), at.end(),
-                       [&](int i) { return fields[static_cast<size_t>(i)].empty(); });
+  static bool allEmpty(const Row& row, const std::array<int, N>& at) {
+    return std::all_of(at.begin(), at.end(), [&](int i) { return row.field(i).empty(); });
   }
 
   /// Some fields of a group are set: every one must be.
   template <size_t N>
-  void requireComplete(const std::vector<std::string_view>& fields, const CsvLayout& layout,
-                       const std::array<int, N>& at, int line, const std::string& what) const {
-    const auto set = std::find_if(at.begin(), at.end(),
-                                  [&](int i) { return !fields[static_cast<size_t>(i)].empty(); });
+  void requireComplete(const Row& row, const std::array<int, N>& at,
+                       const std::string& what) const {
+    const auto set = std::find_if(at.begin(), at.end(), [&](int i) { return !row.field(i).empty(); });
     for (const int i : at) {
-      if (fields[static_cast<size_t>(i)].empty()) {
-        fail(line, layout.names[static_cast<size_t>(i)],
-             "got '' but " + layout.names[static_cast<size_t>(*set)] + " is " +
-                 inQuotes(fields[static_cast<size_t>(*set)]) + "; expected " + what +
-                 " or none on a row");
+      if (row.field(i).empty()) {
+        fail(row.line, row.name(i),
+             "got '' but " + row.name(*set) + " is " + inQuotes(row.field(*set)) + "; expected " +
+                 what + " or none on a row");
       }
     }
   }
@@ -806,6 +812,127 @@ std::string yamlText(const Campaign& c, const std::string& file) {
   return std::string(out.c_str()) + "\n";
 }
 
+// ---------------------------------------------------------------------------------------------
+// Reading, step by step
+
+YAML::Node parseYaml(const std::string& text, const std::string& file) {
+  try {
+    return YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw InputError("not valid YAML: " + e.msg, file, e.mark.line >= 0 ? e.mark.line + 1 : 0);
+  }
+}
+
+/// Where campaign.yaml names the robot description and the measurements (for their errors).
+struct ReferredFileLines {
+  int robot = 0;
+  int measurements = 0;
+};
+
+/// The keys format, robot, base_link, tip_link, measurements (required), sensor_link and
+/// flange_link (optional).
+ReferredFileLines readNamesAndLinks(const YamlReader& yaml,
+                                    const std::map<std::string, YamlEntry>& keys, Campaign& c) {
+  auto required = [&](const char* key) -> const YamlEntry& {
+    const auto it = keys.find(key);
+    if (it == keys.end()) {
+      yaml.fail(0, "required key " + inQuotes(key) +
+                       " is missing; expected the keys format, "
+                       "robot, base_link, tip_link and measurements");
+    }
+    return it->second;
+  };
+  const YamlEntry& format = required("format");
+  if (!format.value.IsScalar() || format.value.Scalar() != kFormat) {
+    yaml.fail(format.line, "key 'format': expected " + inQuotes(kFormat) + ", got " +
+                               YamlReader::shape(format.value) +
+                               " (this reader knows version 1 only)");
+  }
+  const YamlEntry& robot = required("robot");
+  c.robot_file = yaml.text(robot, "the robot description's file name");
+  c.base_link = yaml.text(required("base_link"), "a link name");
+  c.tip_link = yaml.text(required("tip_link"), "a link name");
+  const YamlEntry& measurements = required("measurements");
+  c.measurements_file = yaml.text(measurements, "the measurements file's name");
+  if (const auto it = keys.find("sensor_link"); it != keys.end()) {
+    c.sensor_link = yaml.text(it->second, "a link name (omit the key if there is no F/T sensor)");
+  }
+  if (const auto it = keys.find("flange_link"); it != keys.end()) {
+    c.flange_link = yaml.text(it->second, "a link name (the robot's mounting flange; omit the "
+                                          "key if it is not in the robot description)");
+  }
+  return {robot.line, measurements.line};
+}
+
+/// The key tracker: the instrument's stated noise, both values.
+void readTracker(const YamlReader& yaml, const YamlEntry& tracker, Campaign& c) {
+  if (!tracker.value.IsMap()) {
+    yaml.fail(tracker.line,
+              "key 'tracker': expected a mapping with position_sigma_mm and "
+              "orientation_sigma_deg, got " +
+                  YamlReader::shape(tracker.value));
+  }
+  const auto tracker_keys = yaml.keysOf(tracker.value, kTrackerKeys, "tracker");
+  for (const char* key : kTrackerKeys) {
+    if (tracker_keys.count(key) == 0) {
+      yaml.fail(tracker.line, "tracker: key " + inQuotes(key) +
+                                  " is missing; expected both "
+                                  "position_sigma_mm and orientation_sigma_deg");
+    }
+  }
+  c.tracker.position_sigma_m = yaml.positive(tracker_keys.at("position_sigma_mm"), "millimetres",
+                                             parseMillimetresAsMetres);
+  c.tracker.orientation_sigma_rad =
+      yaml.positive(tracker_keys.at("orientation_sigma_deg"), "degrees", parseDegreesAsRadians);
+  c.tracker.stated = true;
+}
+
+/// The key gravity_in_base: 3 numbers, m/s², base axes.
+Vec3 readGravity(const YamlReader& yaml, const YamlEntry& entry) {
+  const YAML::Node& g = entry.value;
+  if (!g.IsSequence() || g.size() != 3) {
+    yaml.fail(entry.line,
+              "key 'gravity_in_base': expected a list of 3 numbers (m/s^2, "
+              "base_link axes), got " +
+                  YamlReader::shape(g));
+  }
+  Vec3 gravity = Vec3::Zero();
+  for (size_t a = 0; a < 3; ++a) {
+    const std::optional<double> v = g[a].IsScalar() ? parseFinite(g[a].Scalar()) : std::nullopt;
+    if (!v) {
+      yaml.fail(lineOf(g[a]), "key 'gravity_in_base': expected a number (m/s^2), got " +
+                                  YamlReader::shape(g[a]));
+    }
+    gravity[static_cast<Eigen::Index>(a)] = *v;
+  }
+  return gravity;
+}
+
+/// measurements.csv (named on yaml_line of yaml_file): its header, then every row.
+void readMeasurements(const fs::path& csv_path, const std::string& yaml_file, int yaml_line,
+                      Campaign& c) {
+  const std::string csv_text = readReferredFile(csv_path, "measurements file", yaml_file, yaml_line);
+  const CsvReader csv(csv_path.string());
+  const std::vector<std::string_view> lines = splitLines(csv_text);
+  if (lines.empty()) {
+    csv.fail(1, "", "the file is empty; expected a header line and at least one row");
+  }
+  if (lines[0].empty()) csv.fail(1, "", "the header line is empty; expected the column names");
+  const CsvLayout layout = csv.parseHeader(lines[0]);
+  if (lines.size() == 1) {
+    csv.fail(1, "",
+             "the file has a header but no rows; expected at least one measurement "
+             "(an empty campaign is usually a failed export)");
+  }
+  c.joint_count = static_cast<int>(layout.joints.size());
+  for (const int i : layout.extra) c.extra_columns.push_back(layout.names[static_cast<size_t>(i)]);
+  std::map<int64_t, int> seq_lines;
+  c.rows.reserve(lines.size() - 1);
+  for (size_t i = 1; i < lines.size(); ++i) {
+    c.rows.push_back(csv.parseRow(layout, lines[i], static_cast<int>(i) + 1, seq_lines));
+  }
+}
+
 }  // namespace
 
 const char* toString(RowSet set) noexcept {
@@ -848,118 +975,27 @@ Campaign readCampaign(const std::string& path) {
         "or the path of its campaign.yaml",
         yaml_file);
   }
-  const std::string yaml_text = readReferredFile(yaml_path, "campaign file", yaml_file, 0);
-
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw InputError("not valid YAML: " + e.msg, yaml_file, e.mark.line >= 0 ? e.mark.line + 1 : 0);
-  }
+  const YAML::Node root =
+      parseYaml(readReferredFile(yaml_path, "campaign file", yaml_file, 0), yaml_file);
   const YamlReader yaml(yaml_file);
   if (!root.IsMap()) {
     yaml.fail(1, "expected a YAML mapping with the keys " + joined(kYamlKeys) + ", got " +
                      (root.IsNull() ? std::string("an empty file") : YamlReader::shape(root)));
   }
   const auto keys = yaml.keysOf(root, kYamlKeys, "campaign");
-  auto required = [&](const char* key) -> const YamlEntry& {
-    const auto it = keys.find(key);
-    if (it == keys.end()) {
-      yaml.fail(0, "required key " + inQuotes(key) +
-                       " is missing; expected the keys format, "
-                       "robot, base_link, tip_link and measurements");
-    }
-    return it->second;
-  };
 
   Campaign c;
   c.directory = yaml_path.parent_path().empty() ? "." : yaml_path.parent_path().string();
-  const YamlEntry& format = required("format");
-  if (!format.value.IsScalar() || format.value.Scalar() != kFormat) {
-    yaml.fail(format.line, "key 'format': expected " + inQuotes(kFormat) + ", got " +
-                               YamlReader::shape(format.value) +
-                               " (this reader knows version 1 only)");
-  }
-  const YamlEntry& robot = required("robot");
-  c.robot_file = yaml.text(robot, "the robot description's file name");
-  c.base_link = yaml.text(required("base_link"), "a link name");
-  c.tip_link = yaml.text(required("tip_link"), "a link name");
-  const YamlEntry& measurements = required("measurements");
-  c.measurements_file = yaml.text(measurements, "the measurements file's name");
-  if (const auto it = keys.find("sensor_link"); it != keys.end()) {
-    c.sensor_link = yaml.text(it->second, "a link name (omit the key if there is no F/T sensor)");
-  }
-  if (const auto it = keys.find("flange_link"); it != keys.end()) {
-    c.flange_link = yaml.text(it->second, "a link name (the robot's mounting flange; omit the "
-                                          "key if it is not in the robot description)");
-  }
-  if (const auto it = keys.find("tracker"); it != keys.end()) {
-    const YamlEntry& tracker = it->second;
-    if (!tracker.value.IsMap()) {
-      yaml.fail(tracker.line,
-                "key 'tracker': expected a mapping with position_sigma_mm and "
-                "orientation_sigma_deg, got " +
-                    YamlReader::shape(tracker.value));
-    }
-    const auto tracker_keys = yaml.keysOf(tracker.value, kTrackerKeys, "tracker");
-    for (const char* key : kTrackerKeys) {
-      if (tracker_keys.count(key) == 0) {
-        yaml.fail(tracker.line, "tracker: key " + inQuotes(key) +
-                                    " is missing; expected both "
-                                    "position_sigma_mm and orientation_sigma_deg");
-      }
-    }
-    c.tracker.position_sigma_m = yaml.positive(tracker_keys.at("position_sigma_mm"), "millimetres",
-                                               parseMillimetresAsMetres);
-    c.tracker.orientation_sigma_rad =
-        yaml.positive(tracker_keys.at("orientation_sigma_deg"), "degrees", parseDegreesAsRadians);
-    c.tracker.stated = true;
-  }
+  const ReferredFileLines lines = readNamesAndLinks(yaml, keys, c);
+  if (const auto it = keys.find("tracker"); it != keys.end()) readTracker(yaml, it->second, c);
   if (const auto it = keys.find("gravity_in_base"); it != keys.end()) {
-    const YAML::Node& g = it->second.value;
-    if (!g.IsSequence() || g.size() != 3) {
-      yaml.fail(it->second.line,
-                "key 'gravity_in_base': expected a list of 3 numbers (m/s^2, "
-                "base_link axes), got " +
-                    YamlReader::shape(g));
-    }
-    Vec3 gravity = Vec3::Zero();
-    for (size_t a = 0; a < 3; ++a) {
-      const std::optional<double> v = g[a].IsScalar() ? parseFinite(g[a].Scalar()) : std::nullopt;
-      if (!v) {
-        yaml.fail(lineOf(g[a]), "key 'gravity_in_base': expected a number (m/s^2), got " +
-                                    YamlReader::shape(g[a]));
-      }
-      gravity[static_cast<Eigen::Index>(a)] = *v;
-    }
-    c.gravity_in_base = gravity;
+    c.gravity_in_base = readGravity(yaml, it->second);
   }
 
   c.urdf_xml = readReferredFile(yaml_path.parent_path() / c.robot_file, "robot description",
-                                yaml_file, robot.line);
-  const fs::path csv_path = yaml_path.parent_path() / c.measurements_file;
-  const std::string csv_text =
-      readReferredFile(csv_path, "measurements file", yaml_file, measurements.line);
-
-  const CsvReader csv(csv_path.string());
-  const std::vector<std::string_view> lines = splitLines(csv_text);
-  if (lines.empty()) {
-    csv.fail(1, "", "the file is empty; expected a header line and at least one row");
-  }
-  if (lines[0].empty()) csv.fail(1, "", "the header line is empty; expected the column names");
-  const CsvLayout layout = csv.parseHeader(lines[0]);
-  if (lines.size() == 1) {
-    csv.fail(1, "",
-             "the file has a header but no rows; expected at least one measurement "
-             "(an empty campaign is usually a failed export)");
-  }
-  c.joint_count = static_cast<int>(layout.joints.size());
-  for (const int i : layout.extra) c.extra_columns.push_back(layout.names[static_cast<size_t>(i)]);
-  std::map<int64_t, int> seq_lines;
-  c.rows.reserve(lines.size() - 1);
-  for (size_t i = 1; i < lines.size(); ++i) {
-    c.rows.push_back(csv.parseRow(layout, lines[i], static_cast<int>(i) + 1, seq_lines));
-  }
+                                yaml_file, lines.robot);
+  readMeasurements(yaml_path.parent_path() / c.measurements_file, yaml_file, lines.measurements,
+                   c);
   return c;
 }
 

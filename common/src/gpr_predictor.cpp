@@ -1,4 +1,4 @@
-// The residual GP's predictive side (METHOD.md eq. 27, 30, 31); interface in gpr_predictor.hpp.
+// The residual GP's predictive side (docs/method.md eq. 27, 30, 31); interface in gpr_predictor.hpp.
 #include "stepcal/common/gpr_predictor.hpp"
 
 #include <algorithm>
@@ -38,7 +38,7 @@ void requirePositive(const Eigen::VectorXd& scales, const std::string& field) {
   }
 }
 
-/// The kernel between every training input and one point (METHOD.md eq. 27):
+/// The kernel between every training input and one point (docs/method.md eq. 27):
 /// k_i = σ_f² exp(−½ ‖z_i − z‖²), z_i the rows of Z; inputs normalised and divided by ℓ.
 template <typename Inputs, typename Point, typename Column>
 void kernelColumnOf(const Inputs& Z, const Point& z, double signal_variance, Column&& k) {

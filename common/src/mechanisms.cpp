@@ -8,6 +8,7 @@
 
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/units.hpp"
 
 namespace stepcal {
 namespace {
@@ -21,7 +22,7 @@ constexpr MechanismKind kAllKinds[] = {
     MechanismKind::kRegistrationDrift,  MechanismKind::kSessionFrames,
     MechanismKind::kCampaignJointZero};
 
-constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
+constexpr double kTwoPi = 2.0 * kPi;
 
 bool usesJoint(MechanismKind kind) {
   return kind == MechanismKind::kBacklash || kind == MechanismKind::kTransmissionError ||

@@ -5,7 +5,7 @@
 #include <string>
 
 #include "bindings.hpp"
-#include "stepcal/service/request.hpp"
+#include "stepcal/common/pose_quaternion.hpp"
 
 namespace stepcal::python {
 namespace {
@@ -28,10 +28,11 @@ const char* nameOf(runtime::PoseFrame f) {
 }
 
 std::string poseText(const Pose& X) {
-  const Eigen::Quaterniond q(X.linear());
+  double p[3], q[4];
+  toPositionQuaternion(X, p, q);
   char text[160];
-  std::snprintf(text, sizeof text, "[%.6g, %.6g, %.6g, %.6g, %.6g, %.6g, %.6g]", X.translation()(0),
-                X.translation()(1), X.translation()(2), q.w(), q.x(), q.y(), q.z());
+  std::snprintf(text, sizeof text, "[%.6g, %.6g, %.6g, %.6g, %.6g, %.6g, %.6g]", p[0], p[1], p[2],
+                q[0], q[1], q[2], q[3]);
   return text;
 }
 
@@ -63,12 +64,11 @@ Pose poseOf(const py::handle& value, const char* what) {
     X.matrix() = M;
   } else {
     const Eigen::Quaterniond q(d[3], d[4], d[5], d[6]);
-    if (std::abs(q.norm() - 1.0) > service::kQuaternionNormTolerance) {
+    if (!isUnitQuaternion(q)) {
       throw py::value_error(std::string(what) + ": quaternion of norm " + std::to_string(q.norm()) +
                             ", expected a unit quaternion (within 1e-6)");
     }
-    X.linear() = q.normalized().toRotationMatrix();
-    X.translation() = Vec3(d[0], d[1], d[2]);
+    X = poseFromPositionQuaternion(Vec3(d[0], d[1], d[2]), q);
   }
   return X;
 }

@@ -15,6 +15,8 @@
 
 #include "bindings.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/pose_quaternion.hpp"
+#include "stepcal/service/auth.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/auth.hpp"
 #include "stepcal/service/channels.hpp"
@@ -94,10 +96,10 @@ class Client {
     request.temp_c = temp_c;
     request.deadline_us = deadline_us;
     request.frame = int8_t(terms.frame);
-    service::writePose(terms.X_BaseUser, request.user_frame_position_m,
-                       request.user_frame_quaternion_wxyz);
+    toPositionQuaternion(terms.X_BaseUser, request.user_frame_position_m,
+                         request.user_frame_quaternion_wxyz);
     request.tool_from = int8_t(terms.tool_from);
-    service::writePose(terms.X_Tool, request.tool_position_m, request.tool_quaternion_wxyz);
+    toPositionQuaternion(terms.X_Tool, request.tool_position_m, request.tool_quaternion_wxyz);
     if (terms.load_from == runtime::LoadFrom::kPayload) {
       if (!wrench.is_none()) throw py::value_error("wrench and terms.payload_kg: give one load, not both");
       request.wrench_source = correction_request_t::WRENCH_PAYLOAD;

@@ -7,6 +7,7 @@
 #include "bindings.hpp"
 #include "model_handle.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/report/report.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/request.hpp"
@@ -56,12 +57,7 @@ Broadcast broadcastOf(const py::object& value, ssize_t columns, ssize_t rows, co
 }
 
 void writePose(const Pose& X, double* position_m, double* quaternion_wxyz, double* matrix) {
-  const Eigen::Quaterniond q(X.linear());
-  for (int k = 0; k < 3; ++k) position_m[k] = X.translation()(k);
-  quaternion_wxyz[0] = q.w();
-  quaternion_wxyz[1] = q.x();
-  quaternion_wxyz[2] = q.y();
-  quaternion_wxyz[3] = q.z();
+  toPositionQuaternion(X, position_m, quaternion_wxyz);
   for (int r = 0; r < 4; ++r) {
     for (int c = 0; c < 4; ++c) matrix[4 * r + c] = X.matrix()(r, c);
   }
@@ -99,9 +95,9 @@ DesiredPoses desiredPosesOf(const py::handle& value) {
     } else {
       const double* r = data + 7 * i;
       const Eigen::Quaterniond q(r[3], r[4], r[5], r[6]);
-      valid = std::abs(q.norm() - 1.0) <= service::kQuaternionNormTolerance;
-      if (valid) X.linear() = q.normalized().toRotationMatrix();
-      X.translation() = Vec3(r[0], r[1], r[2]);
+      valid = isUnitQuaternion(q);
+      if (valid) X = poseFromPositionQuaternion(Vec3(r[0], r[1], r[2]), q);
+      else X.translation() = Vec3(r[0], r[1], r[2]);
     }
     out.poses.push_back(X);
     out.valid.push_back(valid);

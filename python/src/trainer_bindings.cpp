@@ -11,6 +11,7 @@
 #include "model_handle.hpp"
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/report/diagnosis_report.hpp"
 #include "stepcal/report/report.hpp"
 #include "stepcal/trainer/diagnose.hpp"
@@ -130,7 +131,7 @@ py::object calibrate(const CampaignPtr& campaign, int gpr_points) {
   py::dict row_errors;
   for (const auto& [method, errors] : outcome->row_errors) {
     py::array_t<double> mm(ssize_t(errors.size()));
-    for (size_t i = 0; i < errors.size(); ++i) mm.mutable_data()[i] = 1e3 * errors[i].position_m;
+    for (size_t i = 0; i < errors.size(); ++i) mm.mutable_data()[i] = kMmPerM * errors[i].position_m;
     row_errors[py::str(method)] = mm;
   }
   py::dict fields;

@@ -214,7 +214,7 @@ const Vec6& residualTwist(const RuntimeModel& model, Workspace& ws, const JointV
   return ws.gpr_mean;
 }
 
-/// The corrected tip T_C2 at q (METHOD.md eq. 32): the physical tip, then exp(ξ̂) of the GPR mean
+/// The corrected tip T_C2 at q (docs/method.md eq. 32): the physical tip, then exp(ξ̂) of the GPR mean
 /// at (q, measured wrench), with its std bound in ws.gpr_std; the wrench used in *reading.
 Pose correctedTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
                   const Prepared& call, const Vec6& wrench_Sensor, double temp_c,
@@ -317,7 +317,7 @@ bool torqueCompliance(const PhysicalModel& model, const JointVector& tau_nm,
 /// Derivative of the link angles by the commanded ones, dθ/dq ≈ (I + M) dθ₀/dq with
 /// M = diag(∂θ/∂τ) ∂τ/∂θ (the fixed point of physicalLinkAngles, linearised to first order), at
 /// the link angles in ws.chain, the torques in ws.torque_nm and the profile slopes in
-/// ws.profile_slope, all of the last physicalTip (METHOD.md eq. 13, 15). ∂τ/∂θ is
+/// ws.profile_slope, all of the last physicalTip (docs/method.md eq. 13, 15). ∂τ/∂θ is
 /// that of the measured wrench less the sensor bias, held in sensor axes: τ_k = ξ_kᵀ w with ξ_k
 /// joint k's twist in sensor axes, so ∂τ_k/∂θ_j = ([j ≤ k] − [j ≤ p]) wᵀ [ξ_j, ξ_k], p the
 /// sensor's parent joint. The self_weight torques' derivative is left out (solveInverse).

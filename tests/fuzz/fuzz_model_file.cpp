@@ -61,6 +61,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
 #include "../support/random_gpr.hpp"
 #include "seed_file.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/units.hpp"
 
 namespace {
 
@@ -75,7 +76,7 @@ stepcal::KinematicChain seedChain() {
   for (int i = 0; i < 6; ++i) {
     joints[size_t(i)].name = "joint_" + std::to_string(i + 1);
     joints[size_t(i)].twist_Local << 0, 0, 0, 0, 0, 1;
-    initial[size_t(i)].linear() = stepcal::lie::rotationFromRpy(i % 2 ? M_PI / 2 : 0, 0, 0.1 * i);
+    initial[size_t(i)].linear() = stepcal::lie::rotationFromRpy(i % 2 ? stepcal::kPi / 2 : 0, 0, 0.1 * i);
   }
   for (int k = 0; k < 7; ++k) initial[size_t(k)].translation() = offsets[k];
   Pose X_SixSensor = Pose::Identity();

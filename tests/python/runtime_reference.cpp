@@ -9,6 +9,7 @@
 #include <cstdio>
 
 #include "stepcal/common/campaign.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/runtime/corrector.hpp"
 
 int main(int argc, char** argv) {
@@ -31,7 +32,7 @@ int main(int argc, char** argv) {
                 p.z(), q.w(), q.x(), q.y(), q.z());
     for (int k = 0; k < 6; ++k) std::printf(" %.17g", f.gpr_std(k));
     std::printf("\n");
-    const double offset_rad = (index++ % 2 == 0 ? 2.0 : -2.0) * M_PI / 180.0;
+    const double offset_rad = (index++ % 2 == 0 ? 2.0 : -2.0) * kRadPerDeg;
     const JointVector seed = row->q_rad.array() + offset_rad;
     const runtime::InverseResult r =
         runtime::solveInverse(*model, ws, row->X_TrackerTip(), row->wrenchOrZero(), temp_c, seed,

@@ -1,5 +1,5 @@
 // A consistent random GPR for tests and fuzz seeds: random normalised inputs and targets, α
-// solved from the same kernel the model-file loader checks (METHOD.md eq. 27, 30).
+// solved from the same kernel the model-file loader checks (docs/method.md eq. 27, 30).
 #pragma once
 
 #include <cmath>

@@ -53,13 +53,13 @@ case $target in
     seed_main=1
     ;;
   campaign)
-    sources=(common/src/{error,text_number,campaign}.cpp)
+    sources=(common/src/{error,text_number,csv,campaign}.cpp)
     # shellcheck disable=SC2207
     libs=($(pkg-config --libs yaml-cpp))
     cp "$root"/tests/fuzz/seeds/campaign/* "$out/seeds/"
     ;;
   pose_list)
-    sources=(common/src/{error,text_number,campaign}.cpp)
+    sources=(common/src/{error,text_number,csv,campaign}.cpp)
     # shellcheck disable=SC2207
     libs=($(pkg-config --libs yaml-cpp))
     cp "$root"/tests/fuzz/seeds/pose_list/* "$out/seeds/"
@@ -67,7 +67,7 @@ case $target in
   ipa_import)
     flags+=(-I"$root/tools/importers/include" -DSTEPCAL_ROBOTS_DIR="\"$root/robots\"")
     headers+=("$root/tools/importers/include")
-    sources=(common/src/{error,text_number,lie,chain,urdf,campaign}.cpp tools/importers/src/ipa.cpp)
+    sources=(common/src/{error,text_number,csv,lie,chain,urdf,campaign}.cpp tools/importers/src/ipa.cpp)
     # shellcheck disable=SC2207
     libs=($(pkg-config --libs urdfdom yaml-cpp))
     # The first rows of each real series, a NUL, the series' transform.

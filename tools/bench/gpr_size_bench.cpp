@@ -12,6 +12,7 @@
 #include <map>
 #include <random>
 
+#include "stepcal/common/units.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
@@ -20,7 +21,7 @@ namespace {
 
 using namespace stepcal;
 
-constexpr double kSeedOffsetRad = 2.0 * M_PI / 180.0;
+constexpr double kSeedOffsetRad = 2.0 * kRadPerDeg;
 constexpr int kPoses = 64;
 
 struct Setup {

@@ -22,6 +22,7 @@
 #include "stepcal/common/atomic_file.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/robots.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/report/html/charts.hpp"
 #include "stepcal/report/html/page.hpp"
@@ -132,9 +133,9 @@ std::pair<double, double> medianErrors_mm(twin::TwinOptions options,
     options.noiseless_validation = true;
     truth_m.push_back(validationError(twin::simulateCampaign(options, nullptr)));
     std::fprintf(stderr, "seed %llu %s: %.4f / %.4f mm\n", static_cast<unsigned long long>(seed),
-                 what.c_str(), measured_m.back() * 1e3, truth_m.back() * 1e3);
+                 what.c_str(), measured_m.back() * kMmPerM, truth_m.back() * kMmPerM);
   }
-  return {median(measured_m) * 1e3, median(truth_m) * 1e3};
+  return {median(measured_m) * kMmPerM, median(truth_m) * kMmPerM};
 }
 
 }  // namespace
@@ -201,7 +202,7 @@ int main(int argc, char** argv) {
       }
     }
 
-    const double floor_mm = trainer::noiseFloorMean(twin_options.tracker_position_sigma_m) * 1e3;
+    const double floor_mm = trainer::noiseFloorMean(twin_options.tracker_position_sigma_m) * kMmPerM;
     std::printf("poe+stiffness, mean position error on the validation rows against the "
                 "measurements / against the truth, mm, median over seeds %s (noise floor %.4f mm)\n\n",
                 seed_list.c_str(), floor_mm);

@@ -48,6 +48,7 @@
 #include <stepcal_lcm/correction_reply_t.hpp>
 #include <stepcal_lcm/correction_request_t.hpp>
 
+#include "stepcal/common/units.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/auth.hpp"
 #include "stepcal/service/latency.hpp"
@@ -62,7 +63,7 @@ namespace {
 
 using namespace stepcal;
 
-constexpr double kSeedOffsetRad = 2.0 * M_PI / 180.0;
+constexpr double kSeedOffsetRad = 2.0 * kRadPerDeg;
 constexpr int kWarmupCalls = 1000;
 constexpr int kStatusCount = 7;
 /// Calls of one series in a row before the next series' (every series sees the same stretches).

@@ -22,6 +22,7 @@
 #include <nlohmann/json.hpp>
 
 #include "child_process.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/twin/twin.hpp"
 
 namespace fs = std::filesystem;
@@ -55,8 +56,8 @@ void writePath(const fs::path& file, long rows) {
       double lower = ranges[j].lower_rad, upper = ranges[j].upper_rad;
       if (ranges[j].min_abs_rad > 0.0) lower = std::max(lower, ranges[j].min_abs_rad);
       const double mid = 0.5 * (lower + upper), half = 0.45 * (upper - lower);
-      const double q = mid + half * std::sin(2.0 * M_PI * frequency_hz[j % 6] * t_s + 0.7 * j);
-      out << "," << q / stepcal::twin::kDegToRad;
+      const double q = mid + half * std::sin(2.0 * stepcal::kPi * frequency_hz[j % 6] * t_s + 0.7 * j);
+      out << "," << q / stepcal::kRadPerDeg;
     }
     out << "\n";
   }

@@ -18,9 +18,12 @@
 #include <nlohmann/json.hpp>
 
 #include "stepcal/common/atomic_file.hpp"
+#include "stepcal/common/csv.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/common/text_number.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/report/text_format.hpp"
 #include "stepcal/runtime/corrector.hpp"
@@ -30,8 +33,6 @@
 namespace stepcal::cli {
 namespace {
 
-constexpr double kDegToRad = M_PI / 180.0;
-constexpr double kQuaternionNormTolerance = 1e-6;
 constexpr int kStatusCount = 7;
 
 struct CorrectArgs {
@@ -64,7 +65,8 @@ struct ProgramLine {
 class ProgramFile {
  public:
   ProgramFile(std::string path, std::string_view header) : path_(std::move(path)) {
-    names_ = split(header);
+    const std::vector<std::string_view> names = splitFields(header);
+    names_.assign(names.begin(), names.end());
     for (size_t i = 0; i < names_.size(); ++i) {
       if (names_[i].empty()) {
         fail(1, "", "column " + std::to_string(i + 1) + " has an empty name");
@@ -84,7 +86,8 @@ class ProgramFile {
 
   /// Splits a line into its fields; fails unless it has one per column.
   void read(int line, std::string_view text) {
-    fields_ = split(text);
+    const std::vector<std::string_view> fields = splitFields(text);
+    fields_.assign(fields.begin(), fields.end());
     line_ = line;
     if (fields_.size() != names_.size()) {
       fail(line, "", std::to_string(fields_.size()) + " fields; expected " +
@@ -124,19 +127,18 @@ class ProgramFile {
   /// A pose from 3 mm columns and a unit quaternion's 4.
   template <typename Names>
   Pose pose(const Names& columns) const {
-    Pose X = Pose::Identity();
-    for (int a = 0; a < 3; ++a) X.translation()[a] = number(columns[size_t(a)], "mm", -3);
+    Vec3 p_m;
+    for (int a = 0; a < 3; ++a) p_m[a] = number(columns[size_t(a)], "mm", -3);
     const Eigen::Quaterniond q(number(columns[3], "(unit quaternion)"),
                                number(columns[4], "(unit quaternion)"),
                                number(columns[5], "(unit quaternion)"),
                                number(columns[6], "(unit quaternion)"));
-    if (!(std::abs(q.norm() - 1.0) <= kQuaternionNormTolerance)) {
+    if (!isUnitQuaternion(q)) {
       fail(line_, columns[3], "the quaternion " + std::string(columns[3]) + " … " + columns[6] +
                                   " has norm " + formatShortest(q.norm()) +
                                   "; expected a unit quaternion (within 1e-6)");
     }
-    X.linear() = q.normalized().toRotationMatrix();
-    return X;
+    return poseFromPositionQuaternion(p_m, q);
   }
   /// One of `words` (its index).
   int word(const std::string& name, const std::vector<std::string>& words) const {
@@ -151,17 +153,6 @@ class ProgramFile {
   int line() const { return line_; }
 
  private:
-  static std::vector<std::string> split(std::string_view text) {
-    std::vector<std::string> out;
-    size_t start = 0;
-    for (;;) {
-      const size_t comma = text.find(',', start);
-      out.emplace_back(text.substr(start, comma - start));
-      if (comma == std::string_view::npos) return out;
-      start = comma + 1;
-    }
-  }
-
   std::string path_;
   std::vector<std::string> names_;
   std::map<std::string, int> index_;
@@ -212,17 +203,9 @@ bool headerHasGroup(const ProgramFile& file, const Names& columns, const std::st
   return present != 0;
 }
 
-std::vector<std::string_view> splitLines(std::string_view text, const std::string& path) {
-  std::vector<std::string_view> lines;
-  size_t start = 0;
-  while (start < text.size()) {
-    size_t end = text.find('\n', start);
-    if (end == std::string_view::npos) end = text.size();
-    std::string_view line = text.substr(start, end - start);
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    lines.push_back(line);
-    start = end + 1;
-  }
+/// The program's lines (csv.hpp's end-of-file rule); fails on a NUL byte.
+std::vector<std::string_view> programLines(std::string_view text, const std::string& path) {
+  const std::vector<std::string_view> lines = splitLines(text);
   for (size_t i = 0; i < lines.size(); ++i) {
     if (lines[i].find('\0') != std::string_view::npos) {
       throw InputError("holds a NUL byte; expected text", path, int(i + 1));
@@ -235,7 +218,7 @@ std::vector<std::string_view> splitLines(std::string_view text, const std::strin
 std::vector<ProgramLine> readProgram(const std::string& path, int dof,
                                      const runtime::CallTerms& frame_terms, bool have_seed_option) {
   const std::string text = readTextFile(path);
-  const std::vector<std::string_view> lines = splitLines(text, path);
+  const std::vector<std::string_view> lines = programLines(text, path);
   if (lines.empty() || lines[0].empty()) {
     throw InputError("the header line is empty; expected the column names (x_mm,…,qz or "
                      "q1_deg,… and the optional ones, docs/runtime.md)",
@@ -313,13 +296,13 @@ std::vector<ProgramLine> readProgram(const std::string& path, int dof,
     }
     if (has_seed && !file.allEmpty(seeds, "seed")) {
       JointVector seed(dof);
-      for (int j = 0; j < dof; ++j) seed[j] = file.number(seeds[size_t(j)], "degrees") * kDegToRad;
+      for (int j = 0; j < dof; ++j) seed[j] = file.number(seeds[size_t(j)], "degrees") * kRadPerDeg;
       p.seed_rad = seed;
     }
     p.joint_target = pose_empty;
     if (p.joint_target) {
       p.q_rad.resize(dof);
-      for (int j = 0; j < dof; ++j) p.q_rad[j] = file.number(joints[size_t(j)], "degrees") * kDegToRad;
+      for (int j = 0; j < dof; ++j) p.q_rad[j] = file.number(joints[size_t(j)], "degrees") * kRadPerDeg;
     } else {
       p.X_FrameTcp = file.pose(kPoseColumns);
       if (!p.seed_rad && program.empty() && !have_seed_option) {
@@ -378,18 +361,19 @@ struct ErrorStats {
   }
   nlohmann::json toJson() const {
     return {{"targets", count},
-            {"mean_position_mm", count ? sum_m / count * 1e3 : 0.0},
-            {"max_position_mm", max_m * 1e3},
-            {"mean_orientation_deg", count ? sum_rad / count / kDegToRad : 0.0}};
+            {"mean_position_mm", count ? sum_m / count * kMmPerM : 0.0},
+            {"max_position_mm", max_m * kMmPerM},
+            {"mean_orientation_deg", count ? sum_rad / count / kRadPerDeg : 0.0}};
   }
 };
 
 std::string number(double v, const char* fmt = "%.6f") { return format(fmt, v); }
 
 void appendPose(std::string& out, const Pose& X) {
-  const Eigen::Quaterniond q(X.linear());
-  for (int a = 0; a < 3; ++a) out += "," + number(X.translation()[a] * 1e3, "%.6f");
-  for (const double c : {q.w(), q.x(), q.y(), q.z()}) out += "," + number(c, "%.9f");
+  double p_m[3], q_wxyz[4];
+  toPositionQuaternion(X, p_m, q_wxyz);
+  for (const double p : p_m) out += "," + number(p * kMmPerM, "%.6f");
+  for (const double c : q_wxyz) out += "," + number(c, "%.9f");
 }
 
 runtime::PoseFrame parseFrame(const std::string& frame) {
@@ -413,7 +397,7 @@ runtime::CallTerms frameTerms(const CorrectArgs& args) {
                        "; expected a unit quaternion (within 1e-6)");
     }
     frame_terms.X_BaseUser.linear() = q.normalized().toRotationMatrix();
-    frame_terms.X_BaseUser.translation() = Vec3(u[0], u[1], u[2]) * 1e-3;
+    frame_terms.X_BaseUser.translation() = Vec3(u[0], u[1], u[2]) * kMPerMm;
   }
   return frame_terms;
 }
@@ -427,7 +411,7 @@ std::optional<JointVector> seedOption(const CorrectArgs& args, int dof) {
                        " angles; the model has " + std::to_string(dof) + " joints");
     }
     seed_option = JointVector(dof);
-    for (int j = 0; j < dof; ++j) (*seed_option)[j] = args.seed_deg[size_t(j)] * kDegToRad;
+    for (int j = 0; j < dof; ++j) (*seed_option)[j] = args.seed_deg[size_t(j)] * kRadPerDeg;
   }
   return seed_option;
 }
@@ -511,9 +495,9 @@ void appendTwinErrors(std::string& out, TwinTruth& truth, const runtime::Runtime
                                          X_TrackerTcp_desired);
   tally.before.add(e_before);
   tally.after.add(e_after);
-  out += "," + number(e_before.position_m * 1e3) + "," +
-         number(e_before.orientation_rad / kDegToRad) + "," +
-         number(e_after.position_m * 1e3) + "," + number(e_after.orientation_rad / kDegToRad);
+  out += "," + number(e_before.position_m * kMmPerM) + "," +
+         number(e_before.orientation_rad / kRadPerDeg) + "," +
+         number(e_after.position_m * kMmPerM) + "," + number(e_after.orientation_rad / kRadPerDeg);
 }
 
 /// Corrects every line (each pose target's search starting where the previous line's ended):
@@ -540,7 +524,7 @@ std::string correctProgram(const runtime::RuntimeModel& model, runtime::Workspac
       out += std::string(size_t(dof + 13 + (truth ? 4 : 0)), ',') + "\n";
       continue;
     }
-    for (int j = 0; j < dof; ++j) out += "," + number(r.q_target_rad[j] / kDegToRad, "%.8f");
+    for (int j = 0; j < dof; ++j) out += "," + number(r.q_target_rad[j] / kRadPerDeg, "%.8f");
     appendPose(out, r.X_ControllerTcp_commanded);
     const bool covered = runtime::withinDomain(model, r.gpr_std) && r.uncovered_joints == 0;
     tally.in_coverage += covered;
@@ -548,9 +532,9 @@ std::string correctProgram(const runtime::RuntimeModel& model, runtime::Workspac
     for (int j = 0; j < dof; ++j) {
       if ((r.uncovered_joints >> j) & 1u) uncovered += (uncovered.empty() ? "" : ";") + std::to_string(j + 1);
     }
-    out += "," + number(r.residual_position_m * 1e3, "%.6f") + "," +
-           number(r.residual_orientation_rad / kDegToRad, "%.6f") + "," +
-           number(r.gpr_std.head<3>().norm() * 1e3, "%.6f") + "," + (covered ? "yes" : "no") +
+    out += "," + number(r.residual_position_m * kMmPerM, "%.6f") + "," +
+           number(r.residual_orientation_rad / kRadPerDeg, "%.6f") + "," +
+           number(r.gpr_std.head<3>().norm() * kMmPerM, "%.6f") + "," + (covered ? "yes" : "no") +
            "," + uncovered + "," + std::to_string(r.iterations);
     if (truth) appendTwinErrors(out, *truth, model, p, X_FrameTcp_desired, seed, r.q_target_rad, tally);
     out += "\n";
@@ -574,8 +558,8 @@ nlohmann::json summaryJson(const CorrectArgs& args, size_t lines, const Tally& t
       summary["model_validation"].push_back({{"method", v.method},
                                              {"load_kg", v.load_kg},
                                              {"rows", v.rows},
-                                             {"mean_position_mm", v.mean_position_m * 1e3},
-                                             {"max_position_mm", v.max_position_m * 1e3}});
+                                             {"mean_position_mm", v.mean_position_m * kMmPerM},
+                                             {"max_position_mm", v.max_position_m * kMmPerM}});
     }
   }
   return summary;

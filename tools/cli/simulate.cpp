@@ -10,6 +10,7 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/twin/model_twin.hpp"
 #include "stepcal/twin/twin.hpp"
@@ -18,17 +19,15 @@
 namespace stepcal::cli {
 namespace {
 
-constexpr double kDegToRad = M_PI / 180.0;
-
 // The twin of a calibrated robot (model_twin.hpp): the model's physics on a campaign's rows.
 void runSimulateModel(const SimulateArgs& a) {
   twin::ModelTwinOptions options;
   options.model_path = a.model;
   options.campaign_dir = a.campaign;
   options.seed = a.seed;
-  if (a.position_sigma_given) options.tracker_position_sigma_m = a.position_sigma_mm * 1e-3;
+  if (a.position_sigma_given) options.tracker_position_sigma_m = a.position_sigma_mm * kMPerMm;
   if (a.orientation_sigma_given) {
-    options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kDegToRad;
+    options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kRadPerDeg;
   }
   if (!a.payload_cog_m.empty()) options.p_CoGInSensor_m = payloadCoG(a.payload_cog_m);
   if (!a.poses.empty()) {
@@ -51,8 +50,8 @@ void runSimulate(const SimulateArgs& a) {
   if (!a.protocol.empty()) options.protocol = a.protocol;
   options.seed = a.seed;
   options.station = a.station;
-  options.tracker_position_sigma_m = a.position_sigma_mm * 1e-3;
-  options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kDegToRad;
+  options.tracker_position_sigma_m = a.position_sigma_mm * kMPerMm;
+  options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kRadPerDeg;
   if (!a.stiffness_nm_per_rad.empty()) options.stiffness_nm_per_rad = a.stiffness_nm_per_rad;
   if (!a.payload_cog_m.empty()) options.p_CoGInSensor_m = payloadCoG(a.payload_cog_m);
   for (const std::string& spec : a.effects) {

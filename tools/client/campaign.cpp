@@ -25,7 +25,7 @@ namespace {
 // ---- the requests ------------------------------------------------------------------------------
 
 void setDesiredPose(correction_request_t& msg, const Pose& X_TrackerTip) {
-  service::writePose(X_TrackerTip, msg.desired_position_m, msg.desired_quaternion_wxyz);
+  toPositionQuaternion(X_TrackerTip, msg.desired_position_m, msg.desired_quaternion_wxyz);
 }
 
 /// The requests for a campaign's rows (cycled up to count), and the rows they came from.
@@ -200,10 +200,10 @@ struct Accuracy {
   nlohmann::json toJson(const std::string& against) const {
     return {{"against", against},
             {"poses", poses},
-            {"mean_position_mm", poses ? sum_position_m / poses * 1e3 : 0.0},
-            {"max_position_mm", max_position_m * 1e3},
+            {"mean_position_mm", poses ? sum_position_m / poses * kMmPerM : 0.0},
+            {"max_position_mm", max_position_m * kMmPerM},
             {"mean_orientation_deg",
-             orientations ? sum_orientation_rad / orientations * kRadToDeg : 0.0}};
+             orientations ? sum_orientation_rad / orientations * kDegPerRad : 0.0}};
   }
 };
 
@@ -224,7 +224,7 @@ struct CampaignTally {
 void addAccuracy(const correction_reply_t& r, const Measurement& row, bool inverse,
                  const std::optional<twin::TwinRobot>& truth, CampaignTally& tally) {
   if (!inverse) {
-    const Pose X = poseOf(r.predicted_position_m, r.predicted_quaternion_wxyz);
+    const Pose X = poseFromPositionQuaternion(r.predicted_position_m, r.predicted_quaternion_wxyz);
     tally.accuracy.add((X.translation() - row.p_TipInTracker_m).norm(),
                        row.has_orientation ? std::optional<double>(lie::angleBetween(
                                                  row.q_TrackerTip.toRotationMatrix(), X.linear()))

@@ -18,7 +18,9 @@
 #include <stepcal_lcm/correction_request_t.hpp>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/common/types.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/auth.hpp"
 #include "stepcal/service/channels.hpp"
@@ -32,8 +34,7 @@ using stepcal_lcm::correction_request_t;
 using Clock = std::chrono::steady_clock;
 using service::unixMicroseconds;
 
-constexpr double kRadToDeg = 180.0 / M_PI;
-constexpr double kSeedOffsetRad = 2.0 / kRadToDeg;
+constexpr double kSeedOffsetRad = 2.0 * kRadPerDeg;
 constexpr int kStatusCount = 7;
 
 struct Args {
@@ -145,7 +146,6 @@ std::string latencyText(const nlohmann::json& j);
 
 // ---- replies as text and JSON (replies.cpp) ------------------------------------------------------
 
-Pose poseOf(const double* position_m, const double* quaternion_wxyz);
 JointVector jointsOf(const double* q_rad);
 /// A model id as printed by stepcal-runtime: 16 hex digits.
 std::string modelIdText(int64_t model_id);

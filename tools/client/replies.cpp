@@ -28,16 +28,6 @@ nlohmann::json uncoveredJoints(int32_t bits) {
 
 }  // namespace
 
-Pose poseOf(const double* position_m, const double* quaternion_wxyz) {
-  Pose X = Pose::Identity();
-  X.translation() = Vec3(position_m[0], position_m[1], position_m[2]);
-  X.linear() = Eigen::Quaterniond(quaternion_wxyz[0], quaternion_wxyz[1], quaternion_wxyz[2],
-                                  quaternion_wxyz[3])
-                   .normalized()
-                   .toRotationMatrix();
-  return X;
-}
-
 JointVector jointsOf(const double* q_rad) {
   JointVector q(service::kMessageJoints);
   for (int i = 0; i < service::kMessageJoints; ++i) q[i] = q_rad[i];
@@ -84,7 +74,7 @@ void printReply(const correction_reply_t& r, double round_trip_us, bool inverse,
   if (inverse) {
     std::printf("q_target_rad              %s\n", vectorText(r.q_target_rad, 6).c_str());
     std::printf("q_target_deg              %s\n",
-                vectorText(r.q_target_rad, 6, kRadToDeg).c_str());
+                vectorText(r.q_target_rad, 6, kDegPerRad).c_str());
     std::printf("commanded (%s) p_m %s  q_wxyz %s\n", frame == "user" ? "user   " : "base   ",
                 vectorText(r.commanded_position_m, 3).c_str(),
                 vectorText(r.commanded_quaternion_wxyz, 4).c_str());
@@ -100,7 +90,7 @@ void printReply(const correction_reply_t& r, double round_trip_us, bool inverse,
   }
   if (inverse) {
     std::printf("iterations %d, residual %.4f mm, %.5f deg\n", r.iterations,
-                r.residual_position_m * 1e3, r.residual_orientation_rad * kRadToDeg);
+                r.residual_position_m * kMmPerM, r.residual_orientation_rad * kDegPerRad);
   }
 }
 

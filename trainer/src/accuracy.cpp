@@ -1,3 +1,4 @@
+#include "stepcal/common/units.hpp"
 #include "stepcal/trainer/accuracy.hpp"
 
 #include <algorithm>
@@ -78,7 +79,7 @@ double pooledMeanPosition(const std::vector<AccuracySummary>& summaries, const s
 }
 
 double noiseFloorMean(double sigma_per_axis) {
-  return sigma_per_axis * 2.0 * std::sqrt(2.0 / M_PI);
+  return sigma_per_axis * 2.0 * std::sqrt(2.0 / kPi);
 }
 
 }  // namespace stepcal::trainer

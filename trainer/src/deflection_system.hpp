@@ -11,7 +11,7 @@
 
 namespace stepcal::trainer {
 
-// The deflections of every pair, sessions in order, linear in C_θ: B C_θ ≈ y (METHOD.md eq. 19–20),
+// The deflections of every pair, sessions in order, linear in C_θ: B C_θ ≈ y (docs/method.md eq. 19–20),
 // each equation divided by the deflection's 1-σ (σ√2, a difference of two measurements).
 struct DeflectionSystem {
   Eigen::MatrixXd B;               // equations × n

@@ -91,7 +91,7 @@ void inverseFromCholesky(const Eigen::MatrixXd& L, Eigen::MatrixXd& inverse_fact
   }
 }
 
-/// −½ Σ_o y_oᵀ α_o − P Σ_i log L_ii − P (m/2) log 2π (METHOD.md eq. 26, summed over outputs).
+/// −½ Σ_o y_oᵀ α_o − P Σ_i log L_ii − P (m/2) log 2π (docs/method.md eq. 26, summed over outputs).
 double logMarginalLikelihoodFromFactor(const Eigen::MatrixXd& L, const Eigen::MatrixXd& Yn,
                                        const Eigen::MatrixXd& alpha) {
   const double outputs = static_cast<double>(Yn.cols());
@@ -135,7 +135,7 @@ class LikelihoodEvaluator {
   }
 
  private:
-  // ∂L/∂θ_j = ½ tr(W ∂K/∂θ_j), W = Σ_o α_o α_oᵀ − P K⁻¹ (METHOD.md eq. 26–27), with
+  // ∂L/∂θ_j = ½ tr(W ∂K/∂θ_j), W = Σ_o α_o α_oᵀ − P K⁻¹ (docs/method.md eq. 26–27), with
   // ∂K/∂log ℓ_d = σ_f² E ⊙ Δ_d²/ℓ_d², ∂K/∂log σ_f = 2 σ_f² (E + ε I), ∂K/∂log σ_n = 2 σ_n² I.
   void fillGradient(double signal_variance, double noise_variance, Eigen::VectorXd& gradient) {
     const Eigen::Index m = Xn_.rows(), D = Xn_.cols();

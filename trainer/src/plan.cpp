@@ -1,3 +1,4 @@
+#include "stepcal/common/units.hpp"
 #include "stepcal/trainer/plan.hpp"
 
 #include <algorithm>
@@ -39,7 +40,7 @@ std::pair<double, double> jointRange(const ChainJoint& joint) {
   if (std::isfinite(joint.lower_rad) && std::isfinite(joint.upper_rad)) {
     return {joint.lower_rad, joint.upper_rad};
   }
-  return {-M_PI, M_PI};
+  return {-kPi, kPi};
 }
 
 /// Shortest distance between segments [a0, a1] and [b0, b1], m.

@@ -40,9 +40,8 @@ bool allFinite(const correction_request_t& msg) noexcept {
 bool readPose(const double* position_m, const double* quaternion_wxyz, Pose& X) noexcept {
   const Eigen::Quaterniond q(quaternion_wxyz[0], quaternion_wxyz[1], quaternion_wxyz[2],
                              quaternion_wxyz[3]);
-  if (!(std::abs(q.norm() - 1.0) <= kQuaternionNormTolerance)) return false;
-  X.linear() = q.normalized().toRotationMatrix();
-  X.translation() = Vec3(position_m[0], position_m[1], position_m[2]);
+  if (!isUnitQuaternion(q)) return false;
+  X = poseFromPositionQuaternion(Vec3(position_m[0], position_m[1], position_m[2]), q);
   return true;
 }
 
@@ -124,15 +123,6 @@ correction_request_t blankRequest() noexcept {
   request.tool_quaternion_wxyz[0] = 1.0;
   request.temp_c = runtime::kUnknownTemperature_c;
   return request;
-}
-
-void writePose(const Pose& X, double* position_m, double* quaternion_wxyz) noexcept {
-  const Eigen::Quaterniond q(X.linear());
-  for (int i = 0; i < 3; ++i) position_m[i] = X.translation()[i];
-  quaternion_wxyz[0] = q.w();
-  quaternion_wxyz[1] = q.x();
-  quaternion_wxyz[2] = q.y();
-  quaternion_wxyz[3] = q.z();
 }
 
 int requestBytes() noexcept {

@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/service/latency.hpp"
 #include "stepcal/service/reply.hpp"
 
@@ -33,7 +34,7 @@ bool carriesAnswer(Status status) noexcept {
 
 void writeAnswer(const runtime::ForwardResult& r, stepcal_lcm::correction_reply_t& reply) noexcept {
   if (!carriesAnswer(r.status)) return;
-  writePose(r.X_FrameTcp, reply.predicted_position_m, reply.predicted_quaternion_wxyz);
+  toPositionQuaternion(r.X_FrameTcp, reply.predicted_position_m, reply.predicted_quaternion_wxyz);
   writeVector(r.gpr_std, reply.gpr_std);
   writeVector(r.wrench_Sensor, reply.wrench);
   reply.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);
@@ -42,9 +43,10 @@ void writeAnswer(const runtime::ForwardResult& r, stepcal_lcm::correction_reply_
 void writeAnswer(const runtime::InverseResult& r, stepcal_lcm::correction_reply_t& reply) noexcept {
   if (!carriesAnswer(r.status)) return;
   for (int i = 0; i < kMessageJoints; ++i) reply.q_target_rad[i] = r.q_target_rad[i];
-  writePose(r.X_ControllerTcp_commanded, reply.commanded_position_m,
-            reply.commanded_quaternion_wxyz);
-  writePose(r.X_FrameTcp_predicted, reply.predicted_position_m, reply.predicted_quaternion_wxyz);
+  toPositionQuaternion(r.X_ControllerTcp_commanded, reply.commanded_position_m,
+                       reply.commanded_quaternion_wxyz);
+  toPositionQuaternion(r.X_FrameTcp_predicted, reply.predicted_position_m,
+                       reply.predicted_quaternion_wxyz);
   writeVector(r.gpr_std, reply.gpr_std);
   writeVector(r.wrench_Sensor, reply.wrench);
   reply.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);

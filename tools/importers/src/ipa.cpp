@@ -29,9 +29,11 @@
 #include <string_view>
 #include <vector>
 
+#include "stepcal/common/csv.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/text_number.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 
 namespace stepcal::importers {
@@ -62,32 +64,11 @@ constexpr const char* kTrafoFile = "Trafo_TM_F_init.txt";
 constexpr double kStandardGravity = 9.80665;
 /// Stated 1-σ noise of the Leica laser tracker with T-Mac (manufacturer's specification).
 constexpr double kTrackerPositionSigma_m = 0.015e-3;
-constexpr double kTrackerOrientationSigma_rad = 0.01 * M_PI / 180.0;
+constexpr double kTrackerOrientationSigma_rad = 0.01 * kRadPerDeg;
 
 template <typename Names>
 bool contains(const Names& names, std::string_view name) {
   return std::find(names.begin(), names.end(), name) != names.end();
-}
-
-std::vector<std::string_view> split(std::string_view line, char separator) {
-  std::vector<std::string_view> parts;
-  size_t start = 0;
-  while (true) {
-    const size_t at = line.find(separator, start);
-    parts.push_back(line.substr(start, at - start));
-    if (at == std::string_view::npos) return parts;
-    start = at + 1;
-  }
-}
-
-/// Lines without terminators (CRLF accepted; the last line may lack its newline).
-std::vector<std::string_view> splitLines(std::string_view text) {
-  std::vector<std::string_view> lines = split(text, '\n');
-  if (!lines.empty() && lines.back().empty()) lines.pop_back();
-  for (std::string_view& line : lines) {
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-  }
-  return lines;
 }
 
 std::string readExistingFile(const fs::path& path, const std::string& what) {
@@ -117,8 +98,8 @@ Pose readTcpFlange(const fs::path& path) {
   Eigen::Matrix4d M;
   for (int r = 0; r < 4; ++r) {
     std::vector<std::string_view> entries;
-    for (std::string_view token : split(lines[static_cast<size_t>(r)], ' ')) {
-      for (std::string_view part : split(token, '\t')) {
+    for (std::string_view token : splitFields(lines[static_cast<size_t>(r)], ' ')) {
+      for (std::string_view part : splitFields(token, '\t')) {
         if (!part.empty()) entries.push_back(part);
       }
     }
@@ -150,7 +131,7 @@ Pose readTcpFlange(const fs::path& path) {
   }
   Pose X = Pose::Identity();
   X.linear() = lie::projectToSO3(R);  // the file has 8 decimals
-  X.translation() = M.topRightCorner<3, 1>() * 1e-3;
+  X.translation() = M.topRightCorner<3, 1>() * kMPerMm;
   return X;
 }
 
@@ -211,7 +192,7 @@ struct SeriesLayout {
 SeriesLayout parseHeader(std::string_view header, const std::string& file) {
   SeriesLayout layout;
   std::map<std::string, int> at;
-  for (std::string_view name_view : split(header, ';')) {
+  for (std::string_view name_view : splitFields(header, ';')) {
     const std::string name(name_view);
     const int i = static_cast<int>(layout.names.size());
     layout.names.push_back(name);
@@ -279,7 +260,7 @@ Campaign importIpaSeries(const std::string& series_csv, int validation_from_row,
   const std::string text = readExistingFile(csv_path, "IPA series file");
   const Pose X_TcpFlange = readTcpFlange(csv_path.parent_path() / kTrafoFile);
   Pose Z_pi = Pose::Identity();
-  Z_pi.linear() = lie::rotationFromRpy(0.0, 0.0, M_PI);
+  Z_pi.linear() = lie::rotationFromRpy(0.0, 0.0, kPi);
   const Pose X_FlangeTmac = X_TcpFlange.inverse() * Z_pi;
 
   Campaign c;
@@ -315,7 +296,7 @@ Campaign importIpaSeries(const std::string& series_csv, int validation_from_row,
   c.rows.reserve(static_cast<size_t>(row_count));
   for (int row = 0; row < row_count; ++row) {
     const int line = row + 2;
-    const std::vector<std::string_view> fields = split(lines[static_cast<size_t>(row) + 1], ';');
+    const std::vector<std::string_view> fields = splitFields(lines[static_cast<size_t>(row) + 1], ';');
     if (static_cast<int>(fields.size()) != layout.field_count) {
       throw InputError("row has " + std::to_string(fields.size()) + " fields; expected " +
                            std::to_string(layout.field_count) + " as in the header",
@@ -347,10 +328,10 @@ Campaign importIpaSeries(const std::string& series_csv, int validation_from_row,
       }
       m.p_TipInTracker_m[static_cast<Eigen::Index>(a)] = *p_m;
     }
-    Vec3 angles_rad;
+    Vec3 angles_rad;  // (deg·π)/180 rather than deg·kRadPerDeg: the imported rows stay bit-exact
     for (size_t a = 0; a < 3; ++a) {
       angles_rad[static_cast<Eigen::Index>(a)] =
-          *parseFinite(number(layout.angles[a], "degrees")) * M_PI / 180.0;
+          *parseFinite(number(layout.angles[a], "degrees")) * kPi / 180.0;
     }
     const Mat3 R_TrackerTmac = (Eigen::AngleAxisd(angles_rad.x(), Vec3::UnitX()) *
                                 Eigen::AngleAxisd(angles_rad.y(), Vec3::UnitY()) *

@@ -4,12 +4,11 @@
 #include <cmath>
 #include <cstdio>
 
+#include "stepcal/common/units.hpp"
 #include "stepcal/report/text_format.hpp"
 
 namespace stepcal::cli {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
 std::vector<std::string> parameterNames(const Mechanism& m) {
   // self_weight's layout has 4 entries per joint: the count gives the dof.
@@ -35,7 +34,7 @@ std::vector<int> strongestHarmonics(const Mechanism& m, size_t count) {
 nlohmann::json coverageJson(const AngleCoverage& c) {
   nlohmann::json arcs = nlohmann::json::array();
   for (size_t i = 0; i + 1 < c.arcs_rad.size(); i += 2) {
-    arcs.push_back({kRadToDeg * c.arcs_rad[i], kRadToDeg * (c.arcs_rad[i] + c.arcs_rad[i + 1])});
+    arcs.push_back({kDegPerRad * c.arcs_rad[i], kDegPerRad * (c.arcs_rad[i] + c.arcs_rad[i + 1])});
   }
   return arcs;
 }
@@ -89,8 +88,8 @@ std::string statisticsText(const char* title, const trainer::ResidualStatistics&
   std::string out = format(
       "%s: %d fit rows, position error mean %.4f mm, RMS %.4f mm, max %.4f mm; orientation RMS "
       "%.5f deg; %.2f times the stated tracker noise\n",
-      title, s.rows, 1e3 * s.mean_position_m, 1e3 * s.rms_position_m, 1e3 * s.max_position_m,
-      kRadToDeg * s.rms_orientation_rad, s.noise_ratio);
+      title, s.rows, kMmPerM * s.mean_position_m, kMmPerM * s.rms_position_m, kMmPerM * s.max_position_m,
+      kDegPerRad * s.rms_orientation_rad, s.noise_ratio);
   int shown = 0;
   for (const trainer::TrendScore& t : s.trends) {
     if (shown == 6) break;
@@ -211,8 +210,8 @@ std::string registrationDriftText(const trainer::FoundEffect& e) {
   }
   return format("seq %.0f .. %.0f; the tracker's frame turns by up to %.0f urad, the measured "
                 "tip moves by %.4f mm RMS, %.4f mm at most",
-                first, last, 1e6 * largest_turn_rad, 1e3 * e.tip_motion_rms_m,
-                1e3 * e.tip_motion_max_m);
+                first, last, 1e6 * largest_turn_rad, kMmPerM * e.tip_motion_rms_m,
+                kMmPerM * e.tip_motion_max_m);
 }
 
 std::string effectParameterText(const trainer::FoundEffect& e) {
@@ -270,9 +269,9 @@ std::string coverageText(const Mechanism& m) {
   std::string out = "covers";
   if (m.coverage.arcs_rad.empty()) return out + " every angle";
   for (size_t i = 0; i + 1 < m.coverage.arcs_rad.size(); i += 2) {
-    const double from = kRadToDeg * m.coverage.arcs_rad[i];
+    const double from = kDegPerRad * m.coverage.arcs_rad[i];
     out += format("%s %.0f..%.0f", i == 0 ? "" : ",", from,
-                  from + kRadToDeg * m.coverage.arcs_rad[i + 1]);
+                  from + kDegPerRad * m.coverage.arcs_rad[i + 1]);
   }
   return out + " deg";
 }
@@ -292,11 +291,11 @@ std::string campaignFrameText(const Mechanism& m, bool tool) {
   // A value that rounds to zero at the digits printed is printed as 0, not -0.
   const auto shown = [](double value, double unit) { return std::abs(value) < 0.5 * unit ? 0.0 : value; };
   const std::vector<double>& p = m.parameters;
-  const auto mm = [&](size_t i) { return shown(1e3 * p[i], 1e-3); };
-  const auto deg = [&](size_t i) { return shown(kRadToDeg * p[i], 1e-4); };
+  const auto mm = [&](size_t i) { return shown(kMmPerM * p[i], 1e-3); };
+  const auto deg = [&](size_t i) { return shown(kDegPerRad * p[i], 1e-4); };
   return format("t (%.3f, %.3f, %.3f) mm ± %.2g, r (%.4f, %.4f, %.4f) deg ± %.2g", mm(first),
-                mm(first + 1), mm(first + 2), 1e3 * largest(first), deg(first + 3), deg(first + 4),
-                deg(first + 5), kRadToDeg * largest(first + 3));
+                mm(first + 1), mm(first + 2), kMmPerM * largest(first), deg(first + 3), deg(first + 4),
+                deg(first + 5), kDegPerRad * largest(first + 3));
 }
 
 namespace {
@@ -317,7 +316,7 @@ std::string campaignsText(const trainer::Diagnosis& d) {
   for (size_t k = 0; k < d.campaigns.size(); ++k) {
     const trainer::DiagnosedCampaign& c = d.campaigns[k];
     out += format("  %zu %s: %d fit rows, %.4f -> %.4f mm", k + 1, c.directory.c_str(), c.fit_rows,
-                  1e3 * c.before_mean_m, 1e3 * c.after_mean_m);
+                  kMmPerM * c.before_mean_m, kMmPerM * c.after_mean_m);
     if (c.frames.parameters.empty()) {
       out += "; the extended model's tracker, tool and joint zeros\n";
       continue;
@@ -342,12 +341,12 @@ std::string campaignsText(const trainer::Diagnosis& d) {
 nlohmann::json frameJson(const Mechanism& m, size_t first) {
   const std::vector<double>& p = m.parameters;
   const std::vector<double>& s = m.sigma;
-  return {{"translation_mm", {1e3 * p[first], 1e3 * p[first + 1], 1e3 * p[first + 2]}},
-          {"translation_sigma_mm", {1e3 * s[first], 1e3 * s[first + 1], 1e3 * s[first + 2]}},
+  return {{"translation_mm", {kMmPerM * p[first], kMmPerM * p[first + 1], kMmPerM * p[first + 2]}},
+          {"translation_sigma_mm", {kMmPerM * s[first], kMmPerM * s[first + 1], kMmPerM * s[first + 2]}},
           {"rotation_deg",
-           {kRadToDeg * p[first + 3], kRadToDeg * p[first + 4], kRadToDeg * p[first + 5]}},
+           {kDegPerRad * p[first + 3], kDegPerRad * p[first + 4], kDegPerRad * p[first + 5]}},
           {"rotation_sigma_deg",
-           {kRadToDeg * s[first + 3], kRadToDeg * s[first + 4], kRadToDeg * s[first + 5]}}};
+           {kDegPerRad * s[first + 3], kDegPerRad * s[first + 4], kDegPerRad * s[first + 5]}}};
 }
 
 }  // namespace
@@ -410,14 +409,14 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
     out += format(
         "\nGain on validation rows (position mean / max mm, orientation mean deg; noise floor "
         "%.4f mm)\n",
-        1e3 * d.floor_position_m);
+        kMmPerM * d.floor_position_m);
     out += format("  %7s %5s  %-22s  %-22s  %-22s  %-22s\n", "load", "rows", "before (physical)",
                   "after (extended)",
                   d.gpr_method.empty() ? "(no GPR)" : d.gpr_method.c_str(), "extended+gpr");
     auto cell = [](const trainer::AccuracySummary& s) {
       if (s.rows == 0) return format("%-22s", "-");
-      return format("%7.4f %7.4f %6.4f", 1e3 * s.mean_position_m, 1e3 * s.max_position_m,
-                    kRadToDeg * s.mean_orientation_rad);
+      return format("%7.4f %7.4f %6.4f", kMmPerM * s.mean_position_m, kMmPerM * s.max_position_m,
+                    kDegPerRad * s.mean_orientation_rad);
     };
     for (const trainer::GainRow& g : d.gain) {
       out += format("  %4.0f kg %5d  %s  %s  %s  %s\n", g.load_kg, g.rows, cell(g.before).c_str(),
@@ -462,8 +461,8 @@ nlohmann::json effectJson(const trainer::FoundEffect& e, const trainer::Diagnosi
   x["size_dof"] = e.size_dof;
   if (e.mechanism.kind == MechanismKind::kRegistrationDrift ||
       e.mechanism.kind == MechanismKind::kJointZeroDrift) {
-    x["tip_motion_rms_mm"] = 1e3 * e.tip_motion_rms_m;
-    x["tip_motion_max_mm"] = 1e3 * e.tip_motion_max_m;
+    x["tip_motion_rms_mm"] = kMmPerM * e.tip_motion_rms_m;
+    x["tip_motion_max_mm"] = kMmPerM * e.tip_motion_max_m;
     x["applied_to_corrections"] = !isMeasurementOnly(e.mechanism.kind);
   }
   if (isTorqueDeflection(e.mechanism.kind)) {
@@ -505,10 +504,10 @@ nlohmann::json driftJson(const trainer::DriftVerdict& drift) {
 
 nlohmann::json residualStatisticsJson(const trainer::ResidualStatistics& s) {
   nlohmann::json x = {{"rows", s.rows},
-                      {"mean_position_mm", 1e3 * s.mean_position_m},
-                      {"rms_position_mm", 1e3 * s.rms_position_m},
-                      {"max_position_mm", 1e3 * s.max_position_m},
-                      {"rms_orientation_deg", kRadToDeg * s.rms_orientation_rad},
+                      {"mean_position_mm", kMmPerM * s.mean_position_m},
+                      {"rms_position_mm", kMmPerM * s.rms_position_m},
+                      {"max_position_mm", kMmPerM * s.max_position_m},
+                      {"rms_orientation_deg", kDegPerRad * s.rms_orientation_rad},
                       {"noise_ratio", s.noise_ratio}};
   x["trends"] = nlohmann::json::array();
   for (const trainer::TrendScore& t : s.trends) {
@@ -524,8 +523,8 @@ nlohmann::json residualStatisticsJson(const trainer::ResidualStatistics& s) {
 nlohmann::json campaignJson(const trainer::DiagnosedCampaign& c) {
   nlohmann::json x = {{"directory", c.directory},
                       {"fit_rows", c.fit_rows},
-                      {"before_mean_position_mm", 1e3 * c.before_mean_m},
-                      {"after_mean_position_mm", 1e3 * c.after_mean_m}};
+                      {"before_mean_position_mm", kMmPerM * c.before_mean_m},
+                      {"after_mean_position_mm", kMmPerM * c.after_mean_m}};
   if (!c.frames.parameters.empty()) {
     x["station"] = frameJson(c.frames, 0);
     x["tool"] = frameJson(c.frames, 6);
@@ -549,10 +548,10 @@ nlohmann::json campaignJson(const trainer::DiagnosedCampaign& c) {
 /// A validation load's row of the gain table; null where a model has no rows there.
 nlohmann::json gainRowJson(const trainer::GainRow& g) {
   auto optional_mm = [](const trainer::AccuracySummary& s, double v) {
-    return s.rows > 0 ? nlohmann::json(1e3 * v) : nlohmann::json(nullptr);
+    return s.rows > 0 ? nlohmann::json(kMmPerM * v) : nlohmann::json(nullptr);
   };
   auto optional_deg = [](const trainer::AccuracySummary& s, double v) {
-    return s.rows > 0 ? nlohmann::json(kRadToDeg * v) : nlohmann::json(nullptr);
+    return s.rows > 0 ? nlohmann::json(kDegPerRad * v) : nlohmann::json(nullptr);
   };
   return {
       {"load_kg", g.load_kg},
@@ -593,7 +592,7 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
   j["campaigns"] = nlohmann::json::array();
   for (const trainer::DiagnosedCampaign& c : d.campaigns) j["campaigns"].push_back(campaignJson(c));
   j["gpr_method"] = d.gpr_method;
-  j["noise_floor_position_mm"] = 1e3 * d.floor_position_m;
+  j["noise_floor_position_mm"] = kMmPerM * d.floor_position_m;
   j["gain"] = nlohmann::json::array();
   for (const trainer::GainRow& g : d.gain) j["gain"].push_back(gainRowJson(g));
   j["timing_s"] = {{"calibration", seconds_calibrate},     {"refit", d.seconds_refit},

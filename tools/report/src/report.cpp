@@ -7,15 +7,13 @@
 #include <sstream>
 
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/report/diagnosis_report.hpp"
 #include "stepcal/report/session_report.hpp"
 #include "stepcal/report/text_format.hpp"
 
 namespace stepcal::cli {
 namespace {
-
-constexpr double kMm = 1e3;
-constexpr double kDeg = 180.0 / M_PI;
 
 // NaN (no orientation measured) becomes null in JSON.
 nlohmann::json numberOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
@@ -25,10 +23,10 @@ nlohmann::json summaryJson(const trainer::AccuracySummary& s) {
           {"set", toString(s.set)},
           {"load_kg", s.load_kg},
           {"rows", s.rows},
-          {"mean_position_mm", s.mean_position_m * kMm},
-          {"rms_position_mm", s.rms_position_m * kMm},
-          {"max_position_mm", s.max_position_m * kMm},
-          {"mean_orientation_deg", numberOrNull(s.mean_orientation_rad * kDeg)}};
+          {"mean_position_mm", s.mean_position_m * kMmPerM},
+          {"rms_position_mm", s.rms_position_m * kMmPerM},
+          {"max_position_mm", s.max_position_m * kMmPerM},
+          {"mean_orientation_deg", numberOrNull(s.mean_orientation_rad * kDegPerRad)}};
 }
 
 std::vector<std::string> methodsOf(const std::vector<trainer::AccuracySummary>& summaries) {
@@ -68,18 +66,18 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
   }
   out << "), " << outcome.nominal_Base.dof() << " joints, tip " << campaign.tip_link << "\n";
   out << format("tracker noise %.4f mm, %.4f deg per axis%s -> noise floor (mean) %.4f mm, %.4f deg\n",
-                       campaign.tracker.position_sigma_m * kMm,
-                       campaign.tracker.orientation_sigma_rad * kDeg,
+                       campaign.tracker.position_sigma_m * kMmPerM,
+                       campaign.tracker.orientation_sigma_rad * kDegPerRad,
                        campaign.tracker.stated ? "" : " (not stated in campaign.yaml; assumed)",
-                       outcome.floor_position_m * kMm, outcome.floor_orientation_rad * kDeg);
+                       outcome.floor_position_m * kMmPerM, outcome.floor_orientation_rad * kDegPerRad);
   out << format(
       "step 1, geometry (local POE): %d rows, %s after %d iterations; rank %d of %d, condition %.3g\n",
       poe.fit_rows, poe.converged ? "converged" : "NOT converged", poe.iterations,
       poe.observability.rank, poe.observability.parameter_count, poe.observability.condition_number);
   out << "  convergence (rms position mm, rms orientation deg):";
   for (const auto& h : poe.history) {
-    out << format(" [%d] %.4f %.5f", h.iteration, h.rms_position_m * kMm,
-                         h.rms_orientation_rad * kDeg);
+    out << format(" [%d] %.4f %.5f", h.iteration, h.rms_position_m * kMmPerM,
+                         h.rms_orientation_rad * kDegPerRad);
   }
   out << "\n  unobservable combinations, kept at their nominal values ("
       << poe.observability.unobservable.size() << "):\n";
@@ -92,15 +90,15 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
       const trainer::SessionFrames& frames = poe.sessions[k];
       const SessionSummary summary = sessionSummary(outcome, k);
       const Vec3 p = summary.X_TrackerBase.translation();
-      const Vec3 rpy = lie::rpyFromRotation(summary.X_TrackerBase.linear()) * kDeg;
+      const Vec3 rpy = lie::rpyFromRotation(summary.X_TrackerBase.linear()) * kDegPerRad;
       out << format("  %zu %s: %zu rows, %d fit, rms %.4f mm; base in its tracker (%.4f, %.4f, "
                     "%.4f) m, rpy (%.3f, %.3f, %.3f) deg",
                     k + 1, campaign.sessions[k].directory.c_str(), campaign.sessions[k].row_count,
-                    frames.fit_rows, frames.rms_position_m * kMm, p.x(), p.y(), p.z(), rpy.x(),
+                    frames.fit_rows, frames.rms_position_m * kMmPerM, p.x(), p.y(), p.z(), rpy.x(),
                     rpy.y(), rpy.z());
       if (k > 0) {
-        out << format("; tool %.3f mm, %.4f deg from campaign 1's", summary.tool_offset_m * kMm,
-                      summary.tool_angle_rad * kDeg);
+        out << format("; tool %.3f mm, %.4f deg from campaign 1's", summary.tool_offset_m * kMmPerM,
+                      summary.tool_angle_rad * kDegPerRad);
       }
       out << "\n";
     }
@@ -109,7 +107,7 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
 
   if (outcome.has_stiffness) {
     out << format("step 2, joint compliance: %d loaded/unloaded pairs, rms fit residual %.4f mm\n",
-                         outcome.stiffness.pairs, outcome.stiffness.rms_position_residual_m * kMm);
+                         outcome.stiffness.pairs, outcome.stiffness.rms_position_residual_m * kMmPerM);
     out << format("  %-14s %14s %12s %8s %14s\n", "joint", "K (Nm/rad)", "1-sigma", "rel.", "max |tau| Nm");
     for (const auto& j : outcome.stiffness.joints) {
       if (j.excited) {
@@ -124,7 +122,7 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
     out << "  check on validation pairs, modelled vs measured deflection (paper: 11.9 / 11.3 / 11.4 % mean):\n";
     for (const auto& v : outcome.stiffness_validation) {
       out << format("    %5.1f kg: %3d pairs, deflection %.3f mm, deviation mean %.1f %%, max %.1f %%\n",
-                           v.load_kg, v.pairs, v.mean_deflection_m * kMm, v.mean_deviation_pct,
+                           v.load_kg, v.pairs, v.mean_deflection_m * kMmPerM, v.mean_deviation_pct,
                            v.max_deviation_pct);
     }
   } else {
@@ -143,7 +141,7 @@ std::string formatReport(const Campaign& campaign, const trainer::CalibrationOut
     for (Eigen::Index d = 0; d < h.length_scales.size(); ++d) out << format(" %.3g", h.length_scales(d));
     out << "\n  10-fold CV mean squared error per output (mm^2 / deg^2 -> rms):";
     for (Eigen::Index o = 0; o < r.report.cv_mse.size(); ++o) {
-      const double unit = o < 3 ? kMm : kDeg;
+      const double unit = o < 3 ? kMmPerM : kDegPerRad;
       out << format(" %.4f", std::sqrt(r.report.cv_mse(o)) * unit);
     }
     out << format("\n  held out, it leaves %.2f of the %.2f uncorrected (per row, squared over "
@@ -170,8 +168,8 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
   std::ostringstream out;
   const KinematicChain& chain = model.chain_Tracker;
   const auto pose = [](const Pose& X) {
-    const Vec3 rpy = lie::rpyFromRotation(X.linear()) * kDeg;
-    const Vec3 p = X.translation() * kMm;
+    const Vec3 rpy = lie::rpyFromRotation(X.linear()) * kDegPerRad;
+    const Vec3 p = X.translation() * kMmPerM;
     return format("xyz (%.4f, %.4f, %.4f) mm, rpy (%.5f, %.5f, %.5f) deg", p.x(), p.y(), p.z(),
                          rpy.x(), rpy.y(), rpy.z());
   };
@@ -187,7 +185,7 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
   for (const ChainJoint& j : chain.joints()) {
     const Vec6& s = j.twist_Local;
     out << format("  twist %-14s (%.3g, %.3g, %.3g, %.3g, %.3g, %.3g), limits [%.2f, %.2f] deg\n", j.name.c_str(),
-                         s(0), s(1), s(2), s(3), s(4), s(5), j.lower_rad * kDeg, j.upper_rad * kDeg);
+                         s(0), s(1), s(2), s(3), s(4), s(5), j.lower_rad * kDegPerRad, j.upper_rad * kDegPerRad);
   }
   const KinematicChain& nominal = model.nominal_Base;
   out << format("nominal chain: %d revolute joints, rooted at the robot base, tool T_{%d,%d}(0) %s\n",
@@ -250,7 +248,7 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
 
 std::string formatValidationFigure(const ValidationFigure& v) {
   return format("  %-20s %5.1f kg %4d rows  %8.4f / %8.4f  %.4f\n", v.method.c_str(), v.load_kg, v.rows,
-                v.mean_position_m * kMm, v.max_position_m * kMm, v.mean_orientation_rad * kDeg);
+                v.mean_position_m * kMmPerM, v.max_position_m * kMmPerM, v.mean_orientation_rad * kDegPerRad);
 }
 
 std::string formatAccuracyTable(const std::vector<trainer::AccuracySummary>& summaries) {
@@ -272,8 +270,8 @@ std::string formatAccuracyTable(const std::vector<trainer::AccuracySummary>& sum
         continue;
       }
       const auto& s = *it->second;
-      out << format("   %7.4f / %7.4f %7.4f", s.mean_position_m * kMm, s.max_position_m * kMm,
-                           s.mean_orientation_rad * kDeg);
+      out << format("   %7.4f / %7.4f %7.4f", s.mean_position_m * kMmPerM, s.max_position_m * kMmPerM,
+                           s.mean_orientation_rad * kDegPerRad);
     }
     out << "\n";
   }
@@ -301,8 +299,8 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
   nlohmann::json history = nlohmann::json::array();
   for (const auto& h : poe.history) {
     history.push_back({{"iteration", h.iteration},
-                       {"rms_position_mm", h.rms_position_m * kMm},
-                       {"rms_orientation_deg", h.rms_orientation_rad * kDeg}});
+                       {"rms_position_mm", h.rms_position_m * kMmPerM},
+                       {"rms_orientation_deg", h.rms_orientation_rad * kDegPerRad}});
   }
   nlohmann::json unobservable = nlohmann::json::array();
   for (const auto& u : poe.observability.unobservable) {
@@ -319,7 +317,7 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
   for (const auto& v : outcome.stiffness_validation) {
     stiffness_validation.push_back({{"load_kg", v.load_kg},
                                     {"pairs", v.pairs},
-                                    {"mean_deflection_mm", v.mean_deflection_m * kMm},
+                                    {"mean_deflection_mm", v.mean_deflection_m * kMmPerM},
                                     {"mean_deviation_pct", v.mean_deviation_pct},
                                     {"max_deviation_pct", v.max_deviation_pct}});
   }
@@ -329,7 +327,7 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
     const auto& r = **residual;
     const auto& h = r.gp.hyperparameters();
     nlohmann::json cv = nlohmann::json::array();
-    for (Eigen::Index o = 0; o < r.report.cv_mse.size(); ++o) cv.push_back(std::sqrt(r.report.cv_mse(o)) * (o < 3 ? kMm : kDeg));
+    for (Eigen::Index o = 0; o < r.report.cv_mse.size(); ++o) cv.push_back(std::sqrt(r.report.cv_mse(o)) * (o < 3 ? kMmPerM : kDegPerRad));
     gpr.push_back({{"method", residual == &outcome.gpr
                                   ? (outcome.has_stiffness ? trainer::kMethodPoeStiffnessGpr : trainer::kMethodPoeGpr)
                                   : trainer::kMethodPoeGpr},
@@ -350,17 +348,17 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
     const SessionSummary summary = sessionSummary(outcome, k);
     const trainer::SessionFrames& frames = poe.sessions[k];
     const Vec3 p = summary.X_TrackerBase.translation();
-    const Vec3 rpy = lie::rpyFromRotation(summary.X_TrackerBase.linear()) * kDeg;
+    const Vec3 rpy = lie::rpyFromRotation(summary.X_TrackerBase.linear()) * kDegPerRad;
     nlohmann::json accuracy = nlohmann::json::array();
     for (const auto& a : outcome.session_accuracy[k]) accuracy.push_back(summaryJson(a));
     sessions.push_back({{"campaign", campaign.sessions[k].directory},
                         {"rows", campaign.sessions[k].row_count},
                         {"fit_rows", frames.fit_rows},
-                        {"fit_rms_position_mm", frames.rms_position_m * kMm},
+                        {"fit_rms_position_mm", frames.rms_position_m * kMmPerM},
                         {"base_in_tracker_m", {p.x(), p.y(), p.z()}},
                         {"base_in_tracker_rpy_deg", {rpy.x(), rpy.y(), rpy.z()}},
-                        {"tool_from_first_mm", summary.tool_offset_m * kMm},
-                        {"tool_from_first_deg", summary.tool_angle_rad * kDeg},
+                        {"tool_from_first_mm", summary.tool_offset_m * kMmPerM},
+                        {"tool_from_first_deg", summary.tool_angle_rad * kDegPerRad},
                         {"accuracy", accuracy}});
   }
   nlohmann::json report = {{"campaign", campaign.directory},
@@ -372,8 +370,8 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
           {"seconds", {{"geometry", outcome.seconds_geometry}, {"stiffness", outcome.seconds_stiffness}, {"gpr", outcome.seconds_gpr}}},
           {"rows", campaign.rows.size()},
           {"noise_floor",
-           {{"mean_position_mm", outcome.floor_position_m * kMm},
-            {"mean_orientation_deg", outcome.floor_orientation_rad * kDeg},
+           {{"mean_position_mm", outcome.floor_position_m * kMmPerM},
+            {"mean_orientation_deg", outcome.floor_orientation_rad * kDegPerRad},
             {"tracker_stated", campaign.tracker.stated}}},
           {"geometry",
            {{"fit_rows", poe.fit_rows},

@@ -3,12 +3,12 @@
 #include <algorithm>
 #include <cmath>
 
+#include "stepcal/common/units.hpp"
 #include "stepcal/report/text_format.hpp"
 
 namespace stepcal::cli {
 namespace {
 
-constexpr double kMm = 1e3;
 constexpr double kMicro = 1e6;
 
 std::string nameOf(const Campaign& campaign, size_t s) { return campaign.sessions[s].directory; }
@@ -114,7 +114,7 @@ std::string formatCampaignDifferences(const Campaign& campaign, const trainer::C
   }
   for (const trainer::SessionDifference& d : outcome.session_differences) {
     out += format("    %-24s own frames remove %.4f mm of %.4f held out, z = %.1f: %s\n", d.name.c_str(),
-                  d.held_out_gain_m * kMm, d.shared_held_out_m * kMm, d.z_statistic,
+                  d.held_out_gain_m * kMmPerM, d.shared_held_out_m * kMmPerM, d.z_statistic,
                   frameVerdictText(d).c_str());
     for (size_t s = 1; s < d.against_first.size(); ++s) {
       out += "      " + frameDifferenceText(campaign, d, s) + "\n";
@@ -131,7 +131,7 @@ std::string formatCampaignDifferences(const Campaign& campaign, const trainer::C
   for (const std::string& line : untestedComplianceLines(campaign, compliance)) out += "    " + line + "\n";
   for (const trainer::ComplianceDifference& d : compliance.joints) {
     out += format("    %-14s %s: own compliances remove %.4f mm, z = %.1f\n", d.joint.c_str(),
-                  d.significant ? "differs" : "one serves all", d.held_out_gain_m * kMm, d.z_statistic);
+                  d.significant ? "differs" : "one serves all", d.held_out_gain_m * kMmPerM, d.z_statistic);
     for (size_t s = 1; s < d.difference_rad_per_nm.size(); ++s) {
       out += "      " + complianceDifferenceText(campaign, compliance, d, s) + "\n";
     }
@@ -163,8 +163,8 @@ nlohmann::json sessionDifferencesJson(const Campaign& campaign, const trainer::C
     }
     differences.push_back({{"frame", d.name},
                            {"joint", d.joint},
-                           {"held_out_gain_mm", d.held_out_gain_m * kMm},
-                           {"shared_held_out_mm", d.shared_held_out_m * kMm},
+                           {"held_out_gain_mm", d.held_out_gain_m * kMmPerM},
+                           {"shared_held_out_mm", d.shared_held_out_m * kMmPerM},
                            {"held_out_share", trainer::heldOutShare(d)},
                            {"z_statistic", d.z_statistic},
                            {"differs", d.significant},
@@ -195,7 +195,7 @@ void addCampaignDifferencesJson(const Campaign& campaign, const trainer::Calibra
     }
     joints.push_back({{"joint", d.joint},
                       {"shared_rad_per_nm", d.shared_rad_per_nm},
-                      {"held_out_gain_mm", d.held_out_gain_m * kMm},
+                      {"held_out_gain_mm", d.held_out_gain_m * kMmPerM},
                       {"z_statistic", d.z_statistic},
                       {"differs", d.significant},
                       {"against_first", against_first}});

@@ -7,10 +7,10 @@
 
 #include <Eigen/Core>
 
+#include "stepcal/common/units.hpp"
+
 namespace stepcal::twin {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 double uniform(std::mt19937_64& rng, double lo, double hi) {
   return std::uniform_real_distribution<double>(lo, hi)(rng);

@@ -34,7 +34,7 @@ void requireNonNegative(double v, const std::string& name, const std::string& hi
 }  // namespace
 
 std::vector<JointSampleRange> defaultIrb4400PoseRanges() {
-  const double d = kDegToRad;
+  const double d = kRadPerDeg;
   return {{-60 * d, 60 * d, 0.0},   {-30 * d, 60 * d, 0.0},   {-50 * d, 40 * d, 0.0},
           {-150 * d, 150 * d, 0.0}, {-110 * d, 110 * d, 15 * d}, {-180 * d, 180 * d, 0.0}};
 }

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <vector>
 
+#include "stepcal/common/units.hpp"
+
 namespace stepcal::twin {
 
 Rng::Rng(uint64_t seed, Stream stream, uint32_t station) {
@@ -22,7 +24,7 @@ double Rng::normal() {
   // 1 − u lies in (0, 1], so the logarithm is finite.
   const double u1 = 1.0 - canonical();
   const double u2 = canonical();
-  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * 3.14159265358979323846 * u2);
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
 }
 
 Vec3 Rng::normal3(double sigma) {

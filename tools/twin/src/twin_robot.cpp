@@ -43,11 +43,11 @@ double limitFromJson(const nlohmann::json& j, double if_null) {
 // Where the tracker stands: see TwinOptions::tracker_distance_min_m.
 Pose drawTrackerBase(Rng& rng, const TwinOptions& o) {
   const double distance = rng.uniform(o.tracker_distance_min_m, o.tracker_distance_max_m);
-  const double azimuth = rng.uniform(-60.0 * kDegToRad, 60.0 * kDegToRad);
+  const double azimuth = rng.uniform(-60.0 * kRadPerDeg, 60.0 * kRadPerDeg);
   const double height = rng.uniform(0.8, 1.6);
   const double yaw = rng.uniform(-kPi, kPi);
-  const double tilt_x = rng.uniform(-2.0 * kDegToRad, 2.0 * kDegToRad);
-  const double tilt_y = rng.uniform(-2.0 * kDegToRad, 2.0 * kDegToRad);
+  const double tilt_x = rng.uniform(-2.0 * kRadPerDeg, 2.0 * kRadPerDeg);
+  const double tilt_y = rng.uniform(-2.0 * kRadPerDeg, 2.0 * kRadPerDeg);
   Pose X_BaseTracker = Pose::Identity();
   X_BaseTracker.translation() =
       Vec3(distance * std::cos(azimuth), distance * std::sin(azimuth), height);

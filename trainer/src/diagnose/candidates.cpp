@@ -7,12 +7,12 @@
 #include <utility>
 
 #include "profiles.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 
 namespace stepcal::trainer::diagnosis {
 namespace {
 
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 // A candidate whose largest column moves the weighted residual by less than this, for a
 // parameter step of typical size, has no effect on these rows and is not tried.
 constexpr double kNegligibleEffect = 1e-3;
@@ -744,8 +744,8 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
     Family f;
     f.stage = Stage::kProfile;
     f.mechanism = blank(MechanismKind::kTransmissionError, n, j, -1, max_order);
-    f.mechanism.coverage = coverageOfAngles(angles, options.coverage_gap_deg * kDegToRad,
-                                            options.coverage_fade_deg * kDegToRad);
+    f.mechanism.coverage = coverageOfAngles(angles, options.coverage_gap_deg * kRadPerDeg,
+                                            options.coverage_fade_deg * kRadPerDeg);
     f.columns = sink.profile(j, f.mechanism.coverage, max_order);
     s.families.push_back(std::move(f));
   }

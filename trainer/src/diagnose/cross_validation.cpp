@@ -11,6 +11,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/units.hpp"
 
 namespace stepcal::trainer::diagnosis {
 namespace {
@@ -328,7 +329,7 @@ Eigen::VectorXd CrossValidation::trainingRhs(int f, const std::vector<Eigen::Ind
 }
 
 // Least squares on column-normalised normal equations with the ridges, truncated
-// eigen-decomposition (the geometry is rank deficient by construction: METHOD.md, rank 30 of 42).
+// eigen-decomposition (the geometry is rank deficient by construction: docs/method.md, rank 30 of 42).
 Eigen::VectorXd CrossValidation::solveRidged(int f, const std::vector<Eigen::Index>& columns,
                                              Eigen::VectorXd* unit_variance) const {
   const Eigen::Index m = static_cast<Eigen::Index>(columns.size());
@@ -550,7 +551,7 @@ Comparison compare(const CrossValidation::Outcome& base, const CrossValidation::
   c.relative_reduction = total > 0.0 ? reduction / total : 0.0;
   c.z = signedRankZ(base.pose_sse, with.pose_sse);
   c.p = upperTailP(c.z);
-  c.gain_mm = 1e3 * (base.position_sum_m - with.position_sum_m) /
+  c.gain_mm = kMmPerM * (base.position_sum_m - with.position_sum_m) /
               static_cast<double>(std::max<size_t>(1, base.rows));
   return c;
 }

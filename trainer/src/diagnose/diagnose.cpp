@@ -1,5 +1,6 @@
 // stepcal::trainer::diagnose (diagnose.hpp): the starting model, the phases of search.hpp in
 // order, and the verdict.
+#include "stepcal/common/units.hpp"
 #include "stepcal/trainer/diagnose.hpp"
 
 #include <chrono>
@@ -16,8 +17,6 @@ namespace stepcal::trainer {
 namespace {
 
 using namespace diagnosis;
-
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -75,8 +74,8 @@ void startFromGivenModel(Search& search, const CalibratedModel& model,
     p.mechanism = m;
     std::vector<double> angles;
     for (const Measurement* row : rows) angles.push_back(row->q_rad(m.joint));
-    p.mechanism.coverage = coverageOfAngles(angles, options.coverage_gap_deg * kDegToRad,
-                                            options.coverage_fade_deg * kDegToRad);
+    p.mechanism.coverage = coverageOfAngles(angles, options.coverage_gap_deg * kRadPerDeg,
+                                            options.coverage_fade_deg * kRadPerDeg);
     dm.profiles.push_back(std::move(p));
   }
 }

@@ -7,6 +7,8 @@
 
 #include "search.hpp"
 
+#include "stepcal/common/units.hpp"
+
 namespace stepcal::trainer::diagnosis {
 namespace {
 
@@ -76,14 +78,14 @@ void judgeDrift(Search& search) {
                       printed("): the measured tip moves by %.4f mm RMS, %.4f mm at most; the "
                               "measurement's, not the robot's, so it is left out of the model "
                               "file and never applied to corrections",
-                              1e3 * e.tip_motion_rms_m, 1e3 * e.tip_motion_max_m));
+                              kMmPerM * e.tip_motion_rms_m, kMmPerM * e.tip_motion_max_m));
     } else if (m.kind == MechanismKind::kJointZeroDrift) {
       v.zero_drift_joints.push_back(m.joint);
       parts.push_back("joint " + std::to_string(m.joint + 1) +
                       printed("'s zero drifts with temperature by %.1f ± %.1f urad/K (the tip "
                               "moves by %.4f mm RMS over the rows' temperatures); the runtime "
                               "applies it where a request gives temp_c",
-                              1e6 * m.parameters[0], 1e6 * m.sigma[0], 1e3 * e.tip_motion_rms_m));
+                              1e6 * m.parameters[0], 1e6 * m.sigma[0], kMmPerM * e.tip_motion_rms_m));
     }
     for (const Mechanism& alt : e.alternatives) {
       if (alt.kind == MechanismKind::kRegistrationDrift || alt.kind == MechanismKind::kJointZeroDrift) {

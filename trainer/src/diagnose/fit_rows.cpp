@@ -198,7 +198,7 @@ struct RowLinearisation {
       p_Tip = (own->X_Station * tipPose(ws) * own->X_Tool).translation();
     }
     const Mat3 p_hat = lie::hat(p_Tip);
-    // Spatial twists (v, ω) → tip position ṗ = v − p̂ ω and rotation ω (METHOD.md, weighting).
+    // Spatial twists (v, ω) → tip position ṗ = v − p̂ ω and rotation ω (docs/method.md, weighting).
     lin.geometry.middleRows<3>(e) = fit.w_p * (P.topRows<3>() - p_hat * P.bottomRows<3>());
     lin.link_angle.middleRows<3>(e) = fit.w_p * (J.topRows<3>() - p_hat * J.bottomRows<3>());
     if (fit.rows[i]->has_orientation) {

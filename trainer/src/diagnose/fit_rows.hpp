@@ -81,7 +81,7 @@ Eigen::VectorXd residuals(const PhysicalModel& model, const FitRows& fit);
 Eigen::VectorXd residuals(const PhysicalModel& model, const FitRows& fit, size_t begin, size_t end);
 
 /// d(modelled)/d(parameter) in the residual's weighting (r(x + dx) ≈ r − A dx): the 6(n+1)
-/// initial-pose corrections (METHOD.md eq. 7) and each link angle θ_j (the tip's motion per
+/// initial-pose corrections (docs/method.md eq. 7) and each link angle θ_j (the tip's motion per
 /// radian of joint j at the model's link angles; the torques' change with θ is left out).
 struct Linearisation {
   Eigen::MatrixXd geometry;    ///< count × 6(n+1)

@@ -91,7 +91,7 @@ Eigen::MatrixXd parameterColumns(const PhysicalModel& model, const std::vector<P
                                  const Eigen::VectorXd& r0);
 
 /// Ridge of the geometry's columns in the profiles' fit, relative to their squared norm: only
-/// keeps the geometry's unobservable combinations (METHOD.md: rank 30 of 42) at zero.
+/// keeps the geometry's unobservable combinations (docs/method.md, step 1: rank 30 of 42) at zero.
 inline constexpr double kProfileGeometryRidge = 1e-9;
 
 /// 1-σ of the weak prior on lumped link masses (kg and kg·m per parameter) when the URDF gives

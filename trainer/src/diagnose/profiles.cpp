@@ -8,11 +8,12 @@
 
 #include "chunked_gram.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/units.hpp"
 
 namespace stepcal::trainer::diagnosis {
 namespace {
 
-constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
+constexpr double kTwoPi = 2.0 * kPi;
 
 double wrap(double angle_rad) {
   const double a = std::fmod(angle_rad, kTwoPi);

@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "cross_validation.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -93,9 +94,8 @@ Variables trendVariables(const FitRows& eq, const std::vector<JointVector>& tau,
     v.names.push_back(name);
     v.values.push_back(std::move(column));
   };
-  constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
   for (int j = 0; j < n; ++j) {
-    add("q" + std::to_string(j + 1) + "_deg", [&](size_t i) { return kRadToDeg * eq.rows[i]->q_rad(j); });
+    add("q" + std::to_string(j + 1) + "_deg", [&](size_t i) { return kDegPerRad * eq.rows[i]->q_rad(j); });
   }
   for (int j = 0; j < n; ++j) {
     add("tau" + std::to_string(j + 1) + "_nm", [&](size_t i) { return tau[i](j); });

@@ -10,7 +10,7 @@
 
 namespace stepcal::trainer::diagnosis {
 
-/// The model with its tracker and tool frames (METHOD.md eq. 7, blocks 0 and n) fitted on these
+/// The model with its tracker and tool frames (docs/method.md eq. 7, blocks 0 and n) fitted on these
 /// rows, the joint frames kept: the tracker registered in closed form to the model's tips
 /// (gravity turns with it), then Gauss–Newton on those 12 parameters.
 PhysicalModel refitFrames(PhysicalModel model, const FitRows& fit);

@@ -13,7 +13,7 @@ namespace stepcal::trainer::diagnosis {
 namespace {
 
 // Eigenvalues of an information matrix normalised to a unit diagonal below this are numerically
-// zero (the geometry's gauge directions, METHOD.md: rank 30 of 42).
+// zero (the geometry's gauge directions, docs/method.md, step 1: rank 30 of 42).
 constexpr double kRelativeEigenTolerance = 1e-12;
 
 Eigen::MatrixXd pseudoInverse(const Eigen::MatrixXd& symmetric, int* rank = nullptr) {

@@ -2,7 +2,7 @@
 //
 // Frames along the chain: frame 0 is the chain's root (the robot base, or the tracker once
 // registered), frame i (1..n) is joint i's frame after its motion, frame n+1 is the tip:
-//   X_0,i(q) = X_0,i-1(q) · T_{i-1,i}(0) · exp(ŝ_i q_i)          (METHOD.md eq. 1, 5)
+//   X_0,i(q) = X_0,i-1(q) · T_{i-1,i}(0) · exp(ŝ_i q_i)          (docs/method.md eq. 1, 5)
 //   X_0,n+1  = X_0,n(q) · T_{n,n+1}
 // Lengths are metres, angles radians. The model is immutable after construction; all scratch
 // space lives in ChainWorkspace, whose buffers are fixed-size, so evaluation never allocates.
@@ -54,7 +54,7 @@ class KinematicChain {
 
   /// Replaces initial pose k (0..n); used by calibration.
   void setInitialPose(int k, const Pose& X);
-  /// Returns a copy with T_{k,k+1}(0) ← T_{k,k+1}(0)·exp(δt_k) for every k (METHOD.md eq. 9).
+  /// Returns a copy with T_{k,k+1}(0) ← T_{k,k+1}(0)·exp(δt_k) for every k (docs/method.md eq. 9).
   /// delta has 6(n+1) entries ordered (δt_0 … δt_n), each (v, ω).
   KinematicChain corrected(const Eigen::VectorXd& delta) const;
   /// Returns a copy whose root frame is moved: T_{0,1}(0) ← X_NewRootOldRoot · T_{0,1}(0).
@@ -88,7 +88,7 @@ bool forwardKinematics(const KinematicChain& chain, const JointVector& q, ChainW
 using InitialPoses = std::array<Pose, kMaxJoints + 1>;
 /// The chain's initial poses with the translations scaled as forwardKinematics scales them, then
 /// each moved to T_{k,k+1}(0) · exp(δ̂_k) when delta is given (6(n+1) entries: δ_0 … δ_n, each
-/// (v m, ω rad); METHOD.md eq. 9). Allocation-free.
+/// (v m, ω rad); docs/method.md eq. 9). Allocation-free.
 void evaluateInitialPoses(const KinematicChain& chain, double link_length_scale,
                           const double* delta, InitialPoses& initial) noexcept;
 /// As evaluateInitialPoses with exp(δ̂_k) given instead of δ (k = 0..n; null: none), the same
@@ -130,7 +130,7 @@ void bodyJacobian(const KinematicChain& chain, const ChainWorkspace& ws, Jacobia
 /// rows 0..2 are ṗ_Tip (m/s), rows 3..5 are ω (rad/s).
 void tipPointJacobian(const KinematicChain& chain, const ChainWorkspace& ws, Jacobian& J) noexcept;
 
-/// Identification matrix of the geometric error model (METHOD.md eq. 7), 6 × 6(n+1):
+/// Identification matrix of the geometric error model (docs/method.md eq. 7), 6 × 6(n+1):
 /// block k = Ad_{X_0,k · T_{k,k+1}(0)}, the spatial twist of the tip per right-perturbation
 /// δt_k of initial pose k. J must be 6 × 6(dof+1).
 void parameterJacobian(const KinematicChain& chain, const ChainWorkspace& ws,

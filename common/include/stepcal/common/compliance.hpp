@@ -1,6 +1,6 @@
 // Joint compliance (virtual joint method): how the payload's wrench deflects the joints.
 //
-//   τ = J_sᵀ W_s                     (METHOD.md eq. 13; spatial Jacobian and wrench, root frame)
+//   τ = J_sᵀ W_s                     (docs/method.md eq. 13; spatial Jacobian and wrench, root frame)
 //   Δθ = C_θ τ,  C_θ = K_θ⁻¹          (eq. 15)
 //   T_C1 = T_C(q) · T_STIF = T_C(q + Δθ)   (eq. 24, in its exact form: the link angles move,
 //                                           not a linearised tip twist)

@@ -1,4 +1,4 @@
-// The predictive side of the residual Gaussian process (METHOD.md eq. 30–31), shared by the
+// The predictive side of the residual Gaussian process (docs/method.md eq. 30–31), shared by the
 // trainer (after fitting) and the runtime (after loading a model file).
 //
 // Built once from GprParameters (it refactors K + σ_n² I by Cholesky); predictions then run on
@@ -69,7 +69,7 @@ class GprPredictor {
   /// and equals it when r = m. Costs an r × r matrix–vector product with L_S⁻¹ (computed at
   /// construction) instead of an m × m triangular solve; the subset's kernel values are taken
   /// from the full column the mean uses. std_bound_out (outputDim() entries, may be null) = output_scale · √max(0, σ_f² − v_Sᵀv_S), v_S = L_S⁻¹ k(X_S, x*),
-  /// L_S L_Sᵀ = K_SS + σ_n² I (METHOD.md eq. 31 on the subset).
+  /// L_S L_Sᵀ = K_SS + σ_n² I (docs/method.md eq. 31 on the subset).
   void predictMeanAndBoundInto(const double* x_raw, double* mean_out, double* std_bound_out,
                                Workspace& workspace) const noexcept;
   /// relativeStd with the subset bound of predictMeanAndBoundInto: ≥ relativeStd, ∈ [0, 1].

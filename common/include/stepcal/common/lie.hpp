@@ -1,6 +1,6 @@
 // Lie-group maps on SO(3) and SE(3).
 //
-// Twists are ordered ξ = (v, ω) ∈ R^6 as in METHOD.md eq. (3): translation first, rotation last.
+// Twists are ordered ξ = (v, ω) ∈ R^6 as in docs/method.md eq. (3): translation first, rotation last.
 // Wrenches pair with twists as W = (f, m). Every map is exact to round-off on its whole domain:
 // small angles use Taylor series, rotations near π use the symmetric part of R.
 #pragma once
@@ -9,11 +9,11 @@
 
 namespace stepcal::lie {
 
-/// Skew-symmetric matrix ŵ with ŵ x = w × x. (METHOD.md eq. 4)
+/// Skew-symmetric matrix ŵ with ŵ x = w × x. (docs/method.md eq. 4)
 Mat3 hat(const Vec3& w) noexcept;
 /// Inverse of hat: the vector of a skew-symmetric matrix (antisymmetric part only).
 Vec3 vee(const Mat3& W) noexcept;
-/// 4×4 matrix ξ̂ = [ŵ v; 0 0] of a twist ξ = (v, ω). (METHOD.md eq. 3)
+/// 4×4 matrix ξ̂ = [ŵ v; 0 0] of a twist ξ = (v, ω). (docs/method.md eq. 3)
 Eigen::Matrix4d hat6(const Vec6& xi) noexcept;
 /// Inverse of hat6.
 Vec6 vee6(const Eigen::Matrix4d& Xi) noexcept;
@@ -47,7 +47,7 @@ Mat3 rightJacobianSO3(const Vec3& w) noexcept;
 /// Inverse of the right Jacobian of SO(3).
 Mat3 rightJacobianInverseSO3(const Vec3& w) noexcept;
 
-/// Rotation angle between two rotations, rad: ‖log(R_aᵀ R_b)^∨‖ (METHOD.md eq. 11 summand).
+/// Rotation angle between two rotations, rad: ‖log(R_aᵀ R_b)^∨‖ (docs/method.md eq. 11 summand).
 double angleBetween(const Mat3& R_a, const Mat3& R_b) noexcept;
 
 /// Projects a near-rotation matrix onto SO(3) (closest in Frobenius norm).

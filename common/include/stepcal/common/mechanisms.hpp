@@ -229,7 +229,7 @@ struct PhysicalConstants {
 PhysicalConstants physicalConstants(const PhysicalModel& model) noexcept;
 
 /// Passes of the fixed point θ = θ₀ + Δθ(τ(θ)) that define the model: from θ₀, each contracts
-/// the error by ~C ∂τ/∂θ ≈ 1e-3, so three leave it far below a nanoradian (METHOD.md eq. 24
+/// the error by ~C ∂τ/∂θ ≈ 1e-3, so three leave it far below a nanoradian (docs/method.md eq. 24
 /// uses two for compliance alone).
 inline constexpr int kFixedPointPasses = 3;
 

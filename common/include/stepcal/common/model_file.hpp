@@ -1,4 +1,4 @@
-// The calibrated model file: everything the runtime needs to correct poses (METHOD.md eq. 32,
+// The calibrated model file: everything the runtime needs to correct poses (docs/method.md eq. 32,
 // T_C2 = T_C(q) · T_STIF(q, F) · T_GPR(q, F)), written once by the offline trainer.
 //
 // Layout (format version 4). Integers and doubles are little-endian, doubles IEEE-754 binary64:
@@ -54,7 +54,7 @@ inline constexpr uint32_t kModelFormatVersion = 4;
 inline constexpr uint32_t kMaxMechanisms = 64;
 
 /// Gaussian-process residual model: shared squared-exponential ARD kernel over normalised
-/// inputs, standardised outputs (METHOD.md eq. 27, 30).
+/// inputs, standardised outputs (docs/method.md eq. 27, 30).
 struct GprParameters {
   Eigen::MatrixXd inputs_normalised;          ///< m × D training inputs after normalisation
   Eigen::VectorXd input_offset, input_scale;  ///< D: x_norm = (x_raw − offset) / scale

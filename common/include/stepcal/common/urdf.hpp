@@ -2,7 +2,7 @@
 //
 // The chain runs from base_link to tip_link: revolute (and continuous) joints become axes,
 // fixed joints fold into the initial pose matrices. A joint's <origin> is its initial pose,
-// its <axis> gives the twist s = (0, axis) (METHOD.md eq. 1). Any link whose path from
+// its <axis> gives the twist s = (0, axis) (docs/method.md eq. 1). Any link whose path from
 // base_link crosses only chain joints and fixed joints can be attached as a named frame.
 #pragma once
 

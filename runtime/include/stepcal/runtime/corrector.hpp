@@ -3,7 +3,7 @@
 //
 // The model applied is the file's physical model (mechanisms.hpp: geometry, joint compliance and
 // every identified mechanism, at the measured wrench and temperature) followed by the GPR's
-// residual twist (METHOD.md eq. 32), whose input stays (q, measured wrench) as in training.
+// residual twist (docs/method.md eq. 32), whose input stays (q, measured wrench) as in training.
 //
 // RuntimeModel is immutable after load; Workspace holds every buffer, sized once. The two
 // calls allocate nothing, lock nothing, throw nothing and return a status.
@@ -169,7 +169,7 @@ inline constexpr const char* kFlangeFrame = kFlangeFrameName;
 
 struct ForwardResult {
   Status status = Status::kBadRequest;
-  Pose X_TrackerTip = Pose::Identity();  ///< corrected pose, T_C2 (METHOD.md eq. 32), m
+  Pose X_TrackerTip = Pose::Identity();  ///< corrected pose, T_C2 (docs/method.md eq. 32), m
   /// The TCP (the target with CallTerms' defaults) in the call's frame, m.
   Pose X_FrameTcp = Pose::Identity();
   /// The wrench the answer used, as a sensor tared unloaded reads it (sensor axes, N and N·m):
@@ -185,7 +185,7 @@ struct ForwardResult {
 /// Pose the robot reaches at commanded joints q [rad] under the measured wrench_Sensor [N, N·m]
 /// at structure temperature temp_c [°C; NaN: not measured, the model's reference temperature]:
 /// T_C2 = FK_T(θ) · exp(ξ̂_GPR(q, F)), θ the link angles of the physical model with every
-/// mechanism (physicalLinkAngles; with compliance alone θ = q + C τ(θ), METHOD.md eq. 24, 32).
+/// mechanism (physicalLinkAngles; with compliance alone θ = q + C τ(θ), docs/method.md eq. 24, 32).
 /// Status OK, OUT_OF_DOMAIN (pose still returned) or BAD_REQUEST (wrong size, NaN/inf, a
 /// temperature validTemperature refuses, workspace of another shape). Allocation-free; never
 /// throws.

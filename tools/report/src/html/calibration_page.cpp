@@ -121,8 +121,8 @@ class PageWriter {
       for (size_t k = 0; k < rows.size(); ++k) {
         const trainer::RowError& e = (*errors)[rows[k]];
         s.x.push_back(static_cast<double>(k + 1));
-        s.y.push_back(orientation ? (campaign_.rows[rows[k]].has_orientation ? e.orientation_rad * kDeg : NAN)
-                                  : e.position_m * kMm);
+        s.y.push_back(orientation ? (campaign_.rows[rows[k]].has_orientation ? e.orientation_rad * kDegPerRad : NAN)
+                                  : e.position_m * kMmPerM);
       }
       series.push_back(std::move(s));
     }
@@ -130,11 +130,11 @@ class PageWriter {
   }
 
   std::vector<ReferenceLine> positionFloor() const {
-    return {{format("noise floor %.4f mm", outcome_.floor_position_m * kMm), outcome_.floor_position_m * kMm}};
+    return {{format("noise floor %.4f mm", outcome_.floor_position_m * kMmPerM), outcome_.floor_position_m * kMmPerM}};
   }
   std::vector<ReferenceLine> orientationFloor() const {
-    return {{format("noise floor %.4f°", outcome_.floor_orientation_rad * kDeg),
-             outcome_.floor_orientation_rad * kDeg}};
+    return {{format("noise floor %.4f°", outcome_.floor_orientation_rad * kDegPerRad),
+             outcome_.floor_orientation_rad * kDegPerRad}};
   }
 
   /// A figure of the two per-point panels (position, orientation) of some methods on some rows.
@@ -163,8 +163,8 @@ class PageWriter {
       const trainer::AccuracySummary* s = summaryOf(method, RowSet::kValidation, load_kg);
       if (!s) continue;
       text += (text.empty() ? "<span class=\"item\">" : ", <span class=\"item\">") + swatch(method) + "<b>" +
-              escape(method) + "</b> " + format("%.4f mm", s->mean_position_m * kMm);
-      if (s->rows_with_orientation > 0) text += format(" / %.4f°", s->mean_orientation_rad * kDeg);
+              escape(method) + "</b> " + format("%.4f mm", s->mean_position_m * kMmPerM);
+      if (s->rows_with_orientation > 0) text += format(" / %.4f°", s->mean_orientation_rad * kDegPerRad);
       text += "</span>";
     }
     return text;
@@ -196,12 +196,12 @@ class PageWriter {
          << escape(campaign_.tip_link) << ", F/T sensor "
          << (campaign_.sensor_link.empty() ? "none" : escape(campaign_.sensor_link)) << "</td></tr>\n";
     out_ << "<tr><th class=\"l\">tracker noise</th><td class=\"l\">"
-         << format("%.4f mm, %.4f° per axis (1&#963;)", campaign_.tracker.position_sigma_m * kMm,
-                   campaign_.tracker.orientation_sigma_rad * kDeg)
+         << format("%.4f mm, %.4f° per axis (1&#963;)", campaign_.tracker.position_sigma_m * kMmPerM,
+                   campaign_.tracker.orientation_sigma_rad * kDegPerRad)
          << (campaign_.tracker.stated ? "" : ", not stated in campaign.yaml: assumed") << "</td></tr>\n";
     out_ << "<tr><th class=\"l\">noise floor</th><td class=\"l\">"
-         << format("mean %.4f mm, %.4f°", outcome_.floor_position_m * kMm,
-                   outcome_.floor_orientation_rad * kDeg)
+         << format("mean %.4f mm, %.4f°", outcome_.floor_position_m * kMmPerM,
+                   outcome_.floor_orientation_rad * kDegPerRad)
          << ": the mean error the tracker noise alone gives (dashed line in the figures)</td></tr>\n";
     out_ << "<tr><th class=\"l\">fit time</th><td class=\"l\">"
          << format("geometry %.3f s, stiffness %.3f s, GPR %.3f s", outcome_.seconds_geometry,
@@ -258,15 +258,15 @@ class PageWriter {
       out_ << "<tr><td class=\"l\">" << k + 1 << " " << escape(campaign_.sessions[k].directory)
            << "</td><td>" << campaign_.sessions[k].row_count << "</td><td>"
            << outcome_.poe.sessions[k].fit_rows << "</td><td>"
-           << cell("%.4f", outcome_.poe.sessions[k].rms_position_m * kMm) << "</td><td class=\"l\">"
+           << cell("%.4f", outcome_.poe.sessions[k].rms_position_m * kMmPerM) << "</td><td class=\"l\">"
            << format("(%.4f, %.4f, %.4f)", p.x(), p.y(), p.z()) << "</td><td>"
            << (k == 0 ? std::string("&#8211;")
-                      : format("%.3f / %.4f", summary.tool_offset_m * kMm, summary.tool_angle_rad * kDeg))
+                      : format("%.3f / %.4f", summary.tool_offset_m * kMmPerM, summary.tool_angle_rad * kDegPerRad))
            << "</td>";
       for (const std::string& m : methods) {
         const double mean =
             trainer::pooledMeanPosition(outcome_.session_accuracy[k], m, RowSet::kValidation);
-        out_ << "<td>" << cell("%.4f", mean * kMm) << "</td>";
+        out_ << "<td>" << cell("%.4f", mean * kMmPerM) << "</td>";
       }
       out_ << "</tr>\n";
     }
@@ -317,7 +317,7 @@ class PageWriter {
   // the verdict and each campaign against the first.
   void writeDifferenceRow(const std::string& name, double gain_m, double z, const std::string& verdict,
                           const std::vector<std::string>& against_first) {
-    out_ << "<tr><td class=\"l\">" << escape(name) << "</td><td>" << cell("%.4f", gain_m * kMm)
+    out_ << "<tr><td class=\"l\">" << escape(name) << "</td><td>" << cell("%.4f", gain_m * kMmPerM)
          << "</td><td>" << format("%.1f", z) << "</td><td class=\"l\">" << escape(verdict)
          << "</td><td class=\"l\">";
     for (size_t s = 0; s < against_first.size(); ++s) {
@@ -338,9 +338,9 @@ class PageWriter {
     Series orientation{"rms orientation error (fit rows)", styles_.of(trainer::kMethodPoe), {}, {}};
     for (const trainer::IterationRecord& h : poe.history) {
       position.x.push_back(h.iteration);
-      position.y.push_back(h.rms_position_m * kMm);
+      position.y.push_back(h.rms_position_m * kMmPerM);
       orientation.x.push_back(h.iteration);
-      orientation.y.push_back(h.rms_orientation_rad * kDeg);
+      orientation.y.push_back(h.rms_orientation_rad * kDegPerRad);
     }
     const Panel position_panel{"Step 1: rms position error per iteration", "iteration",
                                "rms position error (mm)", Scale::kLog, true, {position}, {}};
@@ -417,9 +417,9 @@ class PageWriter {
         const trainer::AccuracySummary* s = summaryOf(method, RowSet::kValidation, load);
         if (!s) continue;
         p.x.push_back(load);
-        p.y.push_back(s->mean_position_m * kMm);
+        p.y.push_back(s->mean_position_m * kMmPerM);
         o.x.push_back(load);
-        o.y.push_back(s->rows_with_orientation > 0 ? s->mean_orientation_rad * kDeg : NAN);
+        o.y.push_back(s->rows_with_orientation > 0 ? s->mean_orientation_rad * kDegPerRad : NAN);
       }
       position.push_back(std::move(p));
       orientation.push_back(std::move(o));
@@ -484,12 +484,12 @@ class PageWriter {
     ChainWorkspace ws;
     for (const size_t i : rows) {
       forwardKinematics(outcome_.nominal_Base, campaign_.rows[i].q_rad, ws);
-      const Vec3 p = tipPose(ws).translation() * kMm;
+      const Vec3 p = tipPose(ws).translation() * kMmPerM;
       x_mm.push_back(p.x());
       y_mm.push_back(p.y());
       z_mm.push_back(p.z());
       radius_mm.push_back(std::hypot(p.x(), p.y()));
-      error_mm.push_back((*errors)[i].position_m * kMm);
+      error_mm.push_back((*errors)[i].position_m * kMmPerM);
     }
     // The colour scale tops out at the 95th percentile, so that a few large errors do not wash out
     // where the rest lie.
@@ -547,13 +547,13 @@ class PageWriter {
       StripSeries fit{"fit rows", "#7f7f7f", 0, {}}, inside{"validation rows", "#1f77b4", 1, {}},
           outside{format("validation rows farther than %g° from every fit row", kCoveredWithinDeg), "#d62728", 1, {}};
       for (const Measurement& m : campaign_.rows) {
-        if (m.set != RowSet::kValidation) fit.values.push_back(m.q_rad(j) * kDeg);
+        if (m.set != RowSet::kValidation) fit.values.push_back(m.q_rad(j) * kDegPerRad);
       }
       std::sort(fit.values.begin(), fit.values.end());
       for (size_t i = 0; i < campaign_.rows.size(); ++i) {
         const Measurement& m = campaign_.rows[i];
         if (m.set != RowSet::kValidation) continue;
-        const double q_deg = m.q_rad(j) * kDeg;
+        const double q_deg = m.q_rad(j) * kDegPerRad;
         const auto above = std::lower_bound(fit.values.begin(), fit.values.end(), q_deg);
         const bool covered = (above != fit.values.end() && *above - q_deg <= kCoveredWithinDeg) ||
                              (above != fit.values.begin() && q_deg - *std::prev(above) <= kCoveredWithinDeg);
@@ -590,7 +590,7 @@ class PageWriter {
     }
     const trainer::StiffnessResult& k = outcome_.stiffness;
     out_ << format("<p>Identified on %d loaded/unloaded pairs; rms residual of the fitted deflections "
-                   "%.4f mm.</p>\n", k.pairs, k.rms_position_residual_m * kMm);
+                   "%.4f mm.</p>\n", k.pairs, k.rms_position_residual_m * kMmPerM);
     out_ << "<table>\n<tr><th class=\"l\">joint</th><th>K<sub>&#952;</sub> (N&#183;m/rad)</th>"
             "<th>&#177;1&#963;</th><th>&#963;/K</th><th>max |&#964;| (N&#183;m)</th>"
             "<th class=\"l\">status</th></tr>\n";
@@ -624,7 +624,7 @@ class PageWriter {
       chart.bars[0].values.push_back(v.mean_deviation_pct);
       chart.bars[1].values.push_back(v.max_deviation_pct);
       out_ << "<tr><td>" << loadLabel(v.load_kg) << "</td><td>" << v.pairs << "</td>"
-           << format("<td>%.3f</td><td>%.1f %%</td><td>%.1f %%</td></tr>\n", v.mean_deflection_m * kMm,
+           << format("<td>%.3f</td><td>%.1f %%</td><td>%.1f %%</td></tr>\n", v.mean_deflection_m * kMmPerM,
                      v.mean_deviation_pct, v.max_deviation_pct);
     }
     out_ << "</table>\n<figure class=\"bars\">" << renderBars(chart)
@@ -689,7 +689,7 @@ class PageWriter {
       const Eigen::VectorXd& mse = f.model->report.cv_mse;
       out_ << "<tr><td class=\"l\">" << swatch(f.method) << escape(f.method) << "</td>";
       for (Eigen::Index o = 0; o < 6; ++o) {
-        out_ << "<td>" << (o < mse.size() ? cell("%.4f", std::sqrt(mse(o)) * (o < 3 ? kMm : kDeg)) : "&#8211;")
+        out_ << "<td>" << (o < mse.size() ? cell("%.4f", std::sqrt(mse(o)) * (o < 3 ? kMmPerM : kDegPerRad)) : "&#8211;")
              << "</td>";
       }
       out_ << "</tr>\n";
@@ -728,9 +728,9 @@ class PageWriter {
           continue;
         }
         const trainer::AccuracySummary& s = *it->second;
-        out_ << "<td class=\"g\">" << cell("%.4f", s.mean_position_m * kMm) << "</td><td>"
-             << cell("%.4f", s.max_position_m * kMm) << "</td><td>"
-             << cell("%.4f", s.mean_orientation_rad * kDeg) << "</td>";
+        out_ << "<td class=\"g\">" << cell("%.4f", s.mean_position_m * kMmPerM) << "</td><td>"
+             << cell("%.4f", s.max_position_m * kMmPerM) << "</td><td>"
+             << cell("%.4f", s.mean_orientation_rad * kDegPerRad) << "</td>";
       }
       out_ << "</tr>\n";
     }

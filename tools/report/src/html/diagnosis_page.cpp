@@ -49,7 +49,7 @@ std::string signatureXLabel(const trainer::EffectSignature& s) {
 
 /// The variable in the plot's unit: deg for an angle, else as it is.
 double signatureX(const trainer::EffectSignature& s, double x) {
-  return s.variable == trainer::SignatureVariable::kJointAngle ? x * kDeg : x;
+  return s.variable == trainer::SignatureVariable::kJointAngle ? x * kDegPerRad : x;
 }
 
 std::string signatureYLabel(const trainer::EffectSignature& s) {
@@ -186,7 +186,7 @@ class DiagnosisPage {
             "the residual trends with most (cross-validated).</p>\n<div class=\"panels\">";
     auto mm = [](const std::vector<double>& v) {
       std::vector<double> out;
-      for (double e : v) out.push_back(e * kMm);
+      for (double e : v) out.push_back(e * kMmPerM);
       return out;
     };
     for (const std::string& variable : telling) {
@@ -199,7 +199,7 @@ class DiagnosisPage {
       panel.y_label = "position error (mm)";
       panel.series.push_back({"physical model", kBefore, x, mm(d_.before.position_error_m), false});
       if (!d_.effects.empty()) panel.series.push_back({"extended", kAfter, x, mm(d_.after.position_error_m), false});
-      panel.references.push_back({"noise floor", d_.floor_position_m * kMm});
+      panel.references.push_back({"noise floor", d_.floor_position_m * kMmPerM});
       out_ << "<figure>" << renderPanel(panel, marker_ids_.next()) << "</figure>";
     }
     out_ << "</div>\n";
@@ -260,8 +260,8 @@ class DiagnosisPage {
     for (const trainer::DiagnosedCampaign& c : d_.campaigns) {
       const bool own = !c.frames.parameters.empty();
       out_ << "<tr><td>" << escape(c.directory) << "</td><td>" << c.fit_rows << "</td><td>"
-           << cell("%.4f", c.before_mean_m * kMm) << "</td><td>"
-           << cell("%.4f", c.after_mean_m * kMm) << "</td><td>"
+           << cell("%.4f", c.before_mean_m * kMmPerM) << "</td><td>"
+           << cell("%.4f", c.after_mean_m * kMmPerM) << "</td><td>"
            << (own ? escape(campaignFrameText(c.frames, false)) : "the model's") << "</td><td>"
            << (own ? escape(campaignFrameText(c.frames, true)) : "the model's") << "</td><td>"
            << escape(differingProfiles(c)) << "</td></tr>\n";
@@ -277,10 +277,10 @@ class DiagnosisPage {
          << " mean mm</th><th>extended+gpr mean mm</th></tr>\n";
     for (const trainer::GainRow& g : d_.gain) {
       out_ << "<tr><td>" << loadLabel(g.load_kg) << "</td><td>" << g.rows << "</td><td>"
-           << cell("%.4f", g.before.mean_position_m * kMm) << "</td><td>"
-           << cell("%.4f", g.after.mean_position_m * kMm) << "</td><td>"
-           << (g.gpr.rows > 0 ? cell("%.4f", g.gpr.mean_position_m * kMm) : "&#8211;") << "</td><td>"
-           << cell("%.4f", g.after_gpr.mean_position_m * kMm) << "</td></tr>\n";
+           << cell("%.4f", g.before.mean_position_m * kMmPerM) << "</td><td>"
+           << cell("%.4f", g.after.mean_position_m * kMmPerM) << "</td><td>"
+           << (g.gpr.rows > 0 ? cell("%.4f", g.gpr.mean_position_m * kMmPerM) : "&#8211;") << "</td><td>"
+           << cell("%.4f", g.after_gpr.mean_position_m * kMmPerM) << "</td></tr>\n";
     }
     out_ << "</table>\n";
   }

@@ -1,4 +1,4 @@
-// Accuracy of a pose model against measured rows (METHOD.md eq. 11–12).
+// Accuracy of a pose model against measured rows (docs/method.md eq. 11–12).
 #pragma once
 
 #include <functional>

@@ -1,11 +1,12 @@
 // Step 1: geometric calibration with the local product-of-exponentials error model.
 //
-// All geometric error is put into the n+1 initial pose matrices (METHOD.md eq. 7–9):
+// All geometric error is put into the n+1 initial pose matrices (docs/method.md eq. 7–9):
 // T_{k,k+1}(0) ← T_{k,k+1}(0)·exp(δt_k). Each measured row contributes its tip position
 // error (3 rows) and, when measured, its rotation error (3 rows), each weighted by the
 // tracker's stated 1-σ noise, so the lever arm to a distant tracker does not leak rotation
-// noise into position (METHOD.md, "Weighting matters"). Gauss–Newton with a truncated-SVD
-// pseudo-inverse: unobservable parameter combinations get no update and are reported.
+// noise into position (docs/method.md, step 1, "Weight by the instrument"). Gauss–Newton with
+// a truncated-SVD pseudo-inverse: unobservable parameter combinations get no update and are
+// reported.
 #pragma once
 
 #include <string>
@@ -19,7 +20,7 @@ namespace stepcal::trainer {
 /// Which initial poses are identified.
 enum class GeometricScope {
   kFramesOnly,  ///< tracker (T_{0,1}) and tool (T_{n,n+1}) only: registration of both frames
-  kFullPoe,     ///< every initial pose: the full local-POE model (METHOD.md eq. 7)
+  kFullPoe,     ///< every initial pose: the full local-POE model (docs/method.md eq. 7)
 };
 
 struct GeometricOptions {

@@ -1,17 +1,17 @@
-// Step 3: multi-output Gaussian process regression of the residual twist (METHOD.md eq. 25–31).
+// Step 3: multi-output Gaussian process regression of the residual twist (docs/method.md eq. 25–31).
 //
 // Inputs x ∈ R^D (in stepcal x = (q [rad], wrench [N, N·m]), D = 12, but D is a runtime value)
 // are normalised per input, x_n = (x − offset) / scale (offset = mean, scale = std, 1 for a
 // constant input). Outputs y ∈ R^P (the residual twist ξ, P = 6) are standardised per output,
 // y_s = (y − mean) / scale. All outputs share one squared-exponential ARD kernel on the
-// normalised inputs (METHOD.md eq. 27) plus white noise:
+// normalised inputs (docs/method.md eq. 27) plus white noise:
 //
 //   K = σ_f² E + σ_n² I,   E_ij = exp(−½ Σ_d (x_id − x_jd)² / ℓ_d²)
 //
 // so one Cholesky factor serves every output. The hyperparameters θ = (log ℓ_1..log ℓ_D,
 // log σ_f, log σ_n), in normalised input and standardised output units, maximise the summed
 // log marginal likelihood (analytic gradient, L-BFGS-B from several deterministic starts) —
-// METHOD.md "where this project goes further": gradients instead of Bayesian optimisation.
+// docs/method.md, step 3, "How stepcal does it": gradients instead of Bayesian optimisation.
 // While fitting, K carries a jitter ε σ_f² on its diagonal; the fitted σ_n absorbs it
 // (σ_n² ← σ_n² + ε σ_f²), so every GaussianProcess uses exactly K = σ_f² E + σ_n² I, the
 // form a model file stores.
@@ -65,9 +65,9 @@ inline constexpr double kNoiseBoundShare = 0.8;
 
 /// Kernel hyperparameters, in normalised input and standardised output units.
 struct GprHyperparameters {
-  Eigen::VectorXd length_scales;  ///< ℓ_1..ℓ_D (METHOD.md eq. 27: σ_m)
+  Eigen::VectorXd length_scales;  ///< ℓ_1..ℓ_D (docs/method.md eq. 27: σ_m)
   double signal_sigma = 1.0;      ///< σ_f
-  double noise_sigma = 0.1;       ///< σ_n (METHOD.md eq. 26: σ); after fit, includes the jitter
+  double noise_sigma = 0.1;       ///< σ_n (docs/method.md eq. 26: σ); after fit, includes the jitter
 };
 
 /// Affine maps between raw units and the model's units: x_n = (x − input_offset) / input_scale,
@@ -108,7 +108,7 @@ struct GprFitReport {
 /// Scratch for allocation-free single-point prediction (GaussianProcess::makeWorkspace).
 using GprWorkspace = GprPredictor::Workspace;
 
-/// Multi-output GP with one shared squared-exponential ARD kernel (METHOD.md eq. 26–31).
+/// Multi-output GP with one shared squared-exponential ARD kernel (docs/method.md eq. 26–31).
 /// Immutable once built: const members may run concurrently, each thread with its own workspace.
 /// Prediction is common's GprPredictor, built from parameters(): exactly what the model file
 /// carries to the runtime.
@@ -151,7 +151,7 @@ class GaussianProcess {
   const Eigen::MatrixXd& normalisedInputs() const { return parameters().inputs_normalised; }
   /// Standardised training targets, m × P.
   const Eigen::MatrixXd& standardisedTargets() const { return parameters().targets_standardised; }
-  /// α = K⁻¹ Y_s = (σ_f² E + σ_n² I)⁻¹ Y_s, m × P, standardised units (METHOD.md eq. 30).
+  /// α = K⁻¹ Y_s = (σ_f² E + σ_n² I)⁻¹ Y_s, m × P, standardised units (docs/method.md eq. 30).
   const Eigen::MatrixXd& alpha() const { return parameters().alpha; }
   const GprScaling& scaling() const { return scaling_; }
   const GprHyperparameters& hyperparameters() const { return hyperparameters_; }
@@ -159,7 +159,7 @@ class GaussianProcess {
   /// as the model file stores it.
   const GprParameters& parameters() const { return predictor_.parameters(); }
 
-  /// Log marginal likelihood summed over outputs, standardised units (METHOD.md eq. 26).
+  /// Log marginal likelihood summed over outputs, standardised units (docs/method.md eq. 26).
   double logMarginalLikelihood() const { return log_marginal_likelihood_; }
   /// Normwise backward error of α: max over outputs of ‖K α − y‖∞ / (‖K‖∞ ‖α‖∞ + ‖y‖∞).
   double alphaBackwardError() const;
@@ -172,10 +172,10 @@ class GaussianProcess {
   /// output units, as crossValidationMse averages them.
   Eigen::MatrixXd crossValidationResiduals(int folds = 10) const;
 
-  /// Predictive mean at x (D, raw input units), P raw output units (METHOD.md eq. 30).
+  /// Predictive mean at x (D, raw input units), P raw output units (docs/method.md eq. 30).
   Eigen::VectorXd predictMean(const Eigen::VectorXd& x) const;
   /// Predictive std of the latent function at x (D raw), P raw output units, without the
-  /// noise term (METHOD.md eq. 31).
+  /// noise term (docs/method.md eq. 31).
   Eigen::VectorXd predictStd(const Eigen::VectorXd& x) const;
 
   /// Scratch sized for this model, for the *Into functions.
@@ -198,7 +198,7 @@ class GaussianProcess {
 
 /// Log marginal likelihood summed over outputs, as maximised by fit (with the jitter:
 /// K = σ_f² (E + ε I) + σ_n² I), of standardised targets Yn (m × P) at normalised inputs Xn
-/// (m × D); θ = log_theta (D + 2: log ℓ, log σ_f, log σ_n) (METHOD.md eq. 26–27).
+/// (m × D); θ = log_theta (D + 2: log ℓ, log σ_f, log σ_n) (docs/method.md eq. 26–27).
 /// Fills gradient (D + 2, ∂L/∂θ) when given. Returns −∞ (gradient zero) when the Cholesky
 /// factorisation fails.
 double logMarginalLikelihood(const Eigen::MatrixXd& Xn, const Eigen::MatrixXd& Yn,

@@ -53,14 +53,14 @@ struct CalibrationOutcome {
   int sensor_frame = -1;           ///< index of sensor_link in the chain's frames, −1 = none
   Pose X_TrackerBase_nominal;      ///< tracker registered to the nominal chain (closed form)
   GeometricResult frames;          ///< tracker and tool frames fitted, joints nominal
-  GeometricResult poe;             ///< step 1: full local POE (METHOD.md eq. 7–9)
+  GeometricResult poe;             ///< step 1: full local POE (docs/method.md eq. 7–9)
   /// With several sessions: per joint frame, whether one value serves them all (where the robot
   /// changed between them). The step-1 fit (poe) gives each session its own value of the frames
   /// named here (GeometricResult::own_frames), the others shared; the first session's are the
   /// model file's.
   std::vector<SessionDifference> session_differences;
   bool has_stiffness = false;      ///< step 2 ran (stiffness pairs and a sensor exist)
-  StiffnessResult stiffness;       ///< step 2 (METHOD.md eq. 19–22)
+  StiffnessResult stiffness;       ///< step 2 (docs/method.md eq. 19–22)
   /// With several sessions: per joint, whether one compliance serves them all (step 2 keeps it
   /// shared); not tested with one session.
   ComplianceDifferences compliance_differences;
@@ -89,17 +89,17 @@ inline const char* const kMethodPoeStiffnessGpr = "poe+stiffness+gpr";
 inline const char* const kMethodExtended = "extended";
 inline const char* const kMethodExtendedGpr = "extended+gpr";
 
-/// GPR input of a row: x = (q [rad], wrench in sensor axes [N, N·m]) ∈ R^(n+6) (METHOD.md §3).
+/// GPR input of a row: x = (q [rad], wrench in sensor axes [N, N·m]) ∈ R^(n+6) (docs/method.md, step 3).
 Eigen::VectorXd gprInput(const Measurement& row);
 
 /// A row's temp_c, °C; NaN when it has none.
 double rowTemperature(const Measurement& row);
 
 /// Pose predictor of a physical model: the chain at the link angles of its compliance and
-/// mechanisms (mechanisms.hpp; METHOD.md eq. 24).
+/// mechanisms (mechanisms.hpp; docs/method.md eq. 24).
 PoseModel physicalPoseModel(PhysicalModel physical);
 
-/// The model times the GP's predicted residual twist: T · exp(ξ̂) (METHOD.md eq. 32). gp must
+/// The model times the GP's predicted residual twist: T · exp(ξ̂) (docs/method.md eq. 32). gp must
 /// outlive the predictor.
 PoseModel withResidual(PoseModel base, const GaussianProcess& gp);
 /// The model with a residual GP's correction where it was taken (ResidualModel::taken), else the

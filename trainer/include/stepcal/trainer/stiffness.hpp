@@ -1,4 +1,4 @@
-// Step 2: joint compliance from loaded/unloaded pairs (METHOD.md eq. 13–22).
+// Step 2: joint compliance from loaded/unloaded pairs (docs/method.md eq. 13–22).
 //
 // A pair is two rows with the same pose_id, one unloaded and one loaded: the tracker sees the
 // deflection Δp (tip position) and Δω (rotation), the sensor the payload's wrench. With the

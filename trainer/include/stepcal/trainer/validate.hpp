@@ -20,7 +20,7 @@ struct ValidationResult {
 };
 
 /// Every layer of the model on the campaign's rows (all sets). With refit_frames, the tracker
-/// and tool frames (12 parameters, METHOD.md eq. 7 blocks 0 and n) are fitted again on these
+/// and tool frames (12 parameters, docs/method.md eq. 7 blocks 0 and n) are fitted again on these
 /// rows, by Gauss–Newton with each physical layer's own model (chain; chain with compliance and
 /// mechanisms; the GPR layer uses its physical layer's frames), the joint frames kept: for a
 /// campaign measured with the tracker or the target moved. Throws InputError when the campaign

@@ -10,6 +10,7 @@
 
 #include <stepcal_lcm/correction_request_t.hpp>
 
+#include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/common/types.hpp"
 #include "stepcal/runtime/corrector.hpp"
 
@@ -17,8 +18,8 @@ namespace stepcal::service {
 
 /// Joints in every LCM message (fixed-size arrays); the daemon refuses models with another dof.
 inline constexpr int kMessageJoints = 6;
-/// Largest |‖quaternion‖ − 1| accepted in a request.
-inline constexpr double kQuaternionNormTolerance = 1e-6;
+/// Largest |‖quaternion‖ − 1| accepted in a request (the common one, pose_quaternion.hpp).
+using stepcal::kQuaternionNormTolerance;
 
 /// What a request asks for (correction_request_t.mode).
 enum class Mode : int8_t { kForward = 0, kInverse = 1 };
@@ -65,9 +66,6 @@ runtime::Status decodeRequest(const void* data, int size, Request& out) noexcept
 /// the quaternions (desired pose, user frame, tool) the identity, temp_c NaN (not measured),
 /// everything else zero (forward, tracker frame, tool from the target, live sensor, ids 0).
 stepcal_lcm::correction_request_t blankRequest() noexcept;
-
-/// A pose into a message's position (m) and unit quaternion (w, x, y, z) fields.
-void writePose(const Pose& X, double* position_m, double* quaternion_wxyz) noexcept;
 
 /// Bytes of one encoded correction_request_t.
 int requestBytes() noexcept;

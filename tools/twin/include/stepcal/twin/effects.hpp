@@ -48,7 +48,7 @@ class LinkAngleEffect {
   virtual nlohmann::json toJson() const = 0;
 };
 
-/// Linear joint compliance (METHOD.md eq. 15): every joint a torsion spring, Δθ = K⁻¹ τ,
+/// Linear joint compliance (docs/method.md eq. 15): every joint a torsion spring, Δθ = K⁻¹ τ,
 /// so a joint deflects in the direction of its load torque.
 class JointCompliance final : public LinkAngleEffect {
  public:

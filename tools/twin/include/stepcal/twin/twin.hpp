@@ -24,12 +24,11 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/chain.hpp"
 #include "stepcal/common/types.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/twin/effects.hpp"
 
 namespace stepcal::twin {
 
-inline constexpr double kPi = 3.14159265358979323846;
-inline constexpr double kDegToRad = kPi / 180.0;
 /// Temperature argument of TwinRobot's pose functions meaning "no thermal expansion": the links
 /// at their reference length (scale 1), whatever thermal_expansion the robot has.
 inline constexpr double kNoThermalExpansion = std::numeric_limits<double>::quiet_NaN();
@@ -96,7 +95,7 @@ struct TwinOptions {
   /// Tracker position noise per axis, 1-σ, m.
   double tracker_position_sigma_m = 10e-6;
   /// Tracker orientation noise per axis (rotation vector in tracker axes), 1-σ, rad.
-  double tracker_orientation_sigma_rad = 0.005 * kDegToRad;
+  double tracker_orientation_sigma_rad = 0.005 * kRadPerDeg;
   /// F/T force noise per axis, 1-σ, N.
   double ft_force_sigma_n = 0.2;
   /// F/T moment noise per axis, 1-σ, N·m.
@@ -125,11 +124,11 @@ struct TwinOptions {
   /// Joint frames T_{k,k+1}(0), k < n: translation error per axis, 1-σ, m.
   double joint_frame_translation_sigma_m = 0.3e-3;
   /// Joint frames: rotation error per axis, 1-σ, rad.
-  double joint_frame_rotation_sigma_rad = 0.03 * kDegToRad;
+  double joint_frame_rotation_sigma_rad = 0.03 * kRadPerDeg;
   /// Tool frame T_{n,n+1}: length of the translation error (direction uniform), m.
   double tool_translation_error_m = 4.5e-3;
   /// Tool frame: angle of the rotation error (axis uniform), rad.
-  double tool_rotation_error_rad = 1.25 * kDegToRad;
+  double tool_rotation_error_rad = 1.25 * kRadPerDeg;
 
   /// Joints deflect under the payload (JointCompliance).
   bool compliance = true;

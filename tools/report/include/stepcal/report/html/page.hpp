@@ -5,10 +5,10 @@
 #include <string>
 #include <string_view>
 
+#include "stepcal/common/units.hpp"
+
 namespace stepcal::cli::html {
 
-inline constexpr double kMm = 1e3;
-inline constexpr double kDeg = 180.0 / 3.14159265358979323846;
 inline constexpr double kMicro = 1e6;  ///< rad → µrad, 1 → ppm
 
 /// Text made safe for HTML element content and attribute values.

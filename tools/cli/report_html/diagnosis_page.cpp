@@ -8,6 +8,8 @@
 #include "diagnosis_report.hpp"
 #include "page.hpp"
 #include "report_html.hpp"
+#include "stepcal/common/mechanisms/nonlinear_stiffness.hpp"
+#include "stepcal/common/mechanisms/torsion_curve.hpp"
 #include "text_format.hpp"
 
 namespace stepcal::cli {
@@ -87,11 +89,13 @@ Panel signaturePanel(const trainer::EffectSignature& s) {
 /// A candidate's name, with what tells apart the families of one mechanism on one joint.
 std::string candidateLabel(const Mechanism& m) {
   if (m.kind == MechanismKind::kNonlinearStiffness) {
-    return describe(m) + format(", τ₀ %.0f N·m", m.parameters[1]);
+    return describe(m) +
+           format(", τ₀ %.0f N·m", view<mechanism::NonlinearStiffness>(m).saturationTorque_nm());
   }
   if (m.kind != MechanismKind::kTorsionCurve) return describe(m);
-  std::string label = describe(m) + (m.parameters[1] > 0.0 ? ", lost motion" : "");
-  for (int k = 0; k < m.order; ++k) label += format(", T%d %.0f N·m", k + 1, m.parameters[3 + 2 * size_t(k)]);
+  const mechanism::TorsionCurve<const double> curve = view<mechanism::TorsionCurve>(m);
+  std::string label = describe(m) + (curve.smoothingTorque_nm() > 0.0 ? ", lost motion" : "");
+  for (int k = 1; k <= m.order; ++k) label += format(", T%d %.0f N·m", k, curve.kneeTorque_nm(k));
   return label;
 }
 

@@ -9,6 +9,7 @@
 #include "random.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/mechanisms/sensor_bias.hpp"
 #include "stepcal/common/urdf.hpp"
 
 namespace stepcal::twin {
@@ -22,7 +23,7 @@ constexpr int kMaxReadingPasses = 20;
 
 Vec6 sensorBias(const PhysicalModel& model) {
   for (const Mechanism& m : model.mechanisms) {
-    if (m.kind == MechanismKind::kSensorBias) return Eigen::Map<const Vec6>(m.parameters.data());
+    if (m.kind == MechanismKind::kSensorBias) return view<mechanism::SensorBias>(m).wrench();
   }
   return Vec6::Zero();
 }

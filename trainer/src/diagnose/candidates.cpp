@@ -7,6 +7,12 @@
 #include <utility>
 
 #include "profiles.hpp"
+#include "stepcal/common/mechanisms/backlash.hpp"
+#include "stepcal/common/mechanisms/joint_zero_drift.hpp"
+#include "stepcal/common/mechanisms/nonlinear_stiffness.hpp"
+#include "stepcal/common/mechanisms/registration_drift.hpp"
+#include "stepcal/common/mechanisms/thermal_expansion.hpp"
+#include "stepcal/common/mechanisms/torsion_curve.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -331,7 +337,7 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
     stage1_values.push_back(
         p.mechanism < 0
             ? global.compliance_rad_per_nm(p.index)
-            : global.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)]);
+            : global.mechanisms[static_cast<size_t>(p.mechanism)].parameter(p.index));
   }
   // Stage 2: the geometry's change that goes with the profiles (every fit row lies inside every
   // profile's gate, so its columns are the geometry's; their ridges come with the Grams,
@@ -398,10 +404,15 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
     // The link-angle column of one part of a curve at unit size (torqueDeflection's shapes).
     const auto partColumn = [&](MechanismKind kind, double scale_nm) {
       Mechanism unit = blank(kind, n, j, -1, kind == MechanismKind::kTorsionCurve ? 1 : 0);
-      unit.parameters[0] = 1.0;
-      unit.parameters[1] = scale_nm;
-      if (kind == MechanismKind::kTorsionCurve) {  // a knee alone: c = 1 at T = scale
-        unit.parameters = {0.0, 0.0, 1.0, scale_nm, 0.0};
+      if (kind == MechanismKind::kBacklash) {
+        view<mechanism::Backlash>(unit).lostMotion_rad() = 1.0;
+        view<mechanism::Backlash>(unit).smoothingTorque_nm() = scale_nm;
+      } else if (kind == MechanismKind::kNonlinearStiffness) {
+        view<mechanism::NonlinearStiffness>(unit).extraCompliance_rad_per_nm() = 1.0;
+        view<mechanism::NonlinearStiffness>(unit).saturationTorque_nm() = scale_nm;
+      } else {  // a knee alone: c = 1 at T = scale
+        view<mechanism::TorsionCurve>(unit).extraCompliance_rad_per_nm(1) = 1.0;
+        view<mechanism::TorsionCurve>(unit).kneeTorque_nm(1) = scale_nm;
       }
       ScaledSource source;
       source.unit = std::move(unit);
@@ -413,13 +424,14 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
     const auto curve = [&](double b, double lost_smoothing,
                            const std::vector<std::pair<double, double>>& knees) {
       Mechanism m = blank(MechanismKind::kTorsionCurve, n, j, -1, static_cast<int>(knees.size()));
-      m.parameters[0] = b;
-      m.parameters[1] = lost_smoothing;
-      for (size_t k = 0; k < knees.size(); ++k) {
-        m.parameters[2 + 2 * k] = knees[k].first;
-        m.parameters[3 + 2 * k] = knees[k].second;
+      const mechanism::TorsionCurve<double> c = view<mechanism::TorsionCurve>(m);
+      c.lostMotion_rad() = b;
+      c.smoothingTorque_nm() = lost_smoothing;
+      for (int term = 1; term <= m.order; ++term) {
+        c.extraCompliance_rad_per_nm(term) = knees[static_cast<size_t>(term - 1)].first;
+        c.kneeTorque_nm(term) = knees[static_cast<size_t>(term - 1)].second;
       }
-      m.parameters.back() = largest;
+      c.linearAbove_nm() = largest;
       return m;
     };
     int existing = -1, count = 0;
@@ -433,8 +445,8 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
     const auto addBacklash = [&] {
       Family f;
       f.mechanism = blank(MechanismKind::kBacklash, n, j);
-      f.mechanism.parameters[1] = smoothing;
-      f.free = {0};
+      view<mechanism::Backlash>(f.mechanism).smoothingTorque_nm() = smoothing;
+      f.free = {mechanism::Backlash<double>::kLostMotion};
       addGlobal(std::move(f), {lostColumn()}, {typicalStep(blank(MechanismKind::kBacklash, n, j), 0)});
     };
     if (existing < 0) {
@@ -443,9 +455,9 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
         Family f;
         f.mechanism = blank(MechanismKind::kNonlinearStiffness, n, j);
         const double t0 = factor * typical;
-        f.mechanism.parameters[1] = t0;
-        f.mechanism.parameters[2] = largest;
-        f.free = {0};
+        view<mechanism::NonlinearStiffness>(f.mechanism).saturationTorque_nm() = t0;
+        view<mechanism::NonlinearStiffness>(f.mechanism).linearAbove_nm() = largest;
+        f.free = {mechanism::NonlinearStiffness<double>::kExtraCompliance};
         f.chosen = 1;
         addGlobal(std::move(f), {partColumn(MechanismKind::kNonlinearStiffness, t0)}, {1e-4 / t0});
       }
@@ -481,15 +493,16 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
       continue;
     }
     // A backlash or a torsion curve, extended by one part at a time.
-    const bool lost = m.parameters[1] > 0.0;
+    const mechanism::TorsionCurve<const double> c = view<mechanism::TorsionCurve>(m);
+    const bool lost = c.smoothingTorque_nm() > 0.0;
     std::vector<std::pair<double, double>> knees;
-    for (int k = 0; k < m.order; ++k) {
-      knees.push_back({m.parameters[2 + 2 * size_t(k)], m.parameters[3 + 2 * size_t(k)]});
+    for (int term = 1; term <= m.order; ++term) {
+      knees.push_back({c.extraCompliance_rad_per_nm(term), c.kneeTorque_nm(term)});
     }
     if (!lost) {
       Family f;
       f.mechanism = curve(0.0, smoothing, knees);
-      f.free = {0};
+      f.free = {mechanism::TorsionCurve<double>::kLostMotion};
       f.extends = existing;
       addGlobal(std::move(f), {lostColumn()}, {1e-4});
     }
@@ -506,8 +519,8 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
                 [](const auto& x, const auto& y) { return x.second < y.second; });
       const auto at = std::find_if(more.begin(), more.end(), [&](const auto& x) { return x.second == knee; });
       Family f;
-      f.mechanism = curve(m.parameters[0], m.parameters[1], more);
-      f.free = {2 + 2 * static_cast<int>(at - more.begin())};
+      f.mechanism = curve(c.lostMotion_rad(), c.smoothingTorque_nm(), more);
+      f.free = {mechanism::TorsionCurve<double>::complianceIndex(1 + static_cast<int>(at - more.begin()))};
       f.chosen = 1;
       f.extends = existing;
       addGlobal(std::move(f), {kneeColumn(knee)}, {1e-4 / knee});
@@ -618,8 +631,8 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
     } else {
       Family f;
       f.mechanism = blank(MechanismKind::kThermalExpansion, n);
-      f.mechanism.parameters[1] = mean_temp;
-      f.free = {0};
+      view<mechanism::ThermalExpansion>(f.mechanism).referenceTemp_c() = mean_temp;
+      f.free = {mechanism::ThermalExpansion<double>::kExpansion};
       PhysicalModel with = whole;
       with.mechanisms.push_back(f.mechanism);
       const Parameter p{static_cast<int>(with.mechanisms.size()) - 1, 0, 1e-5};
@@ -653,8 +666,8 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
       for (const int degree : kDriftDegrees) {
         Family f;
         f.mechanism = blank(MechanismKind::kRegistrationDrift, n, -1, -1, degree);
-        f.mechanism.parameters[0] = first_seq;
-        f.mechanism.parameters[1] = last_seq;
+        view<mechanism::RegistrationDrift>(f.mechanism).firstSeq() = first_seq;
+        view<mechanism::RegistrationDrift>(f.mechanism).lastSeq() = last_seq;
         std::vector<Eigen::Index> columns;
         for (int d = 1; d <= degree; ++d) {
           for (Eigen::Index c = 0; c < 6; ++c) {
@@ -687,8 +700,8 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
     }
     Family f;
     f.mechanism = blank(MechanismKind::kJointZeroDrift, n, j);
-    f.mechanism.parameters[1] = mean_temp;
-    f.free = {0};
+    view<mechanism::JointZeroDrift>(f.mechanism).referenceTemp_c() = mean_temp;
+    f.free = {mechanism::JointZeroDrift<double>::kDriftRate};
     ScaledSource source;
     source.kind = ScaledSource::Kind::kTemperature;
     source.reference_c = mean_temp;
@@ -808,7 +821,7 @@ void setStage2(Screening& s, const DiagnosisModel& model, Eigen::Index geometry)
     for (size_t c = 0; c < family.columns.size(); ++c) {
       const Eigen::Index column = family.columns[c];
       const bool fitted = c < static_cast<size_t>(2 * p.mechanism.order);
-      s.current(column) = fitted ? p.mechanism.parameters[c] : 0.0;
+      s.current(column) = fitted ? p.mechanism.parameter(static_cast<int>(c)) : 0.0;
       if (!fitted) continue;
       s.stage2.push_back(column);
       s.ridge(column) = p.ridge;

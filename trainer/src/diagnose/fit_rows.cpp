@@ -9,6 +9,8 @@
 #include "parallel.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/mechanisms/campaign_joint_zero.hpp"
+#include "stepcal/common/mechanisms/registration_drift.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -37,7 +39,8 @@ void forEachBlock(const FitRows& fit, const Body& body) {
 Pose X_FittedLast(const Mechanism& drift) {
   constexpr double kLastShare = 0.1;
   constexpr int kSamples = 50;
-  const double first = drift.parameters[0], last = drift.parameters[1];
+  const mechanism::RegistrationDrift<const double> span = view<mechanism::RegistrationDrift>(drift);
+  const double first = span.firstSeq(), last = span.lastSeq();
   Vec6 mean = Vec6::Zero();
   for (int i = 0; i <= kSamples; ++i) {
     mean += registrationDrift(drift, last - kLastShare * (last - first) * i / kSamples);
@@ -60,8 +63,9 @@ MeasurementFrames measurementFramesOf(const PhysicalModel& model) {
         if (frames.zero_offset_rad.size() <= campaign) {
           frames.zero_offset_rad.resize(campaign + 1, JointVector::Zero(n));
         }
-        for (size_t k = 1; k <= campaign; ++k) {
-          frames.zero_offset_rad[k](m.joint) += m.parameters[k - 1];
+        for (int k = 1; k <= m.order; ++k) {
+          frames.zero_offset_rad[static_cast<size_t>(k)](m.joint) +=
+              view<mechanism::CampaignJointZero>(m).offset_rad(k);
         }
         break;
       default: break;

@@ -5,8 +5,17 @@
 #include "../least_squares.hpp"
 #include "chunked_gram.hpp"
 #include "model.hpp"
+#include "stepcal/common/mechanisms/backlash.hpp"
+#include "stepcal/common/mechanisms/joint_zero_drift.hpp"
+#include "stepcal/common/mechanisms/nonlinear_stiffness.hpp"
+#include "stepcal/common/mechanisms/registration_drift.hpp"
+#include "stepcal/common/mechanisms/thermal_expansion.hpp"
+#include "stepcal/common/mechanisms/torsion_curve.hpp"
 
 namespace stepcal::trainer::diagnosis {
+
+using Curve = mechanism::TorsionCurve<const double>;
+using Stiffness = mechanism::NonlinearStiffness<const double>;
 namespace {
 
 // Singular values below this fraction of the largest are unobservable (as in step 1).
@@ -37,7 +46,7 @@ bool boundedAtZero(const PhysicalModel& model, const Parameter& p) {
 double valueOf(const PhysicalModel& model, const Parameter& p) {
   return p.mechanism < 0
              ? model.compliance_rad_per_nm(p.index)
-             : model.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)];
+             : model.mechanisms[static_cast<size_t>(p.mechanism)].parameter(p.index);
 }
 
 // Lower bounds of a step of the geometry and params: a bounded parameter may fall to zero.
@@ -89,7 +98,7 @@ TallQr linearSystem(const DiagnosisModel& model, const PhysicalModel& global, co
       continue;
     }
     const double value =
-        global.mechanisms[static_cast<size_t>(q.mechanism)].parameters[static_cast<size_t>(q.index)];
+        global.mechanisms[static_cast<size_t>(q.mechanism)].parameter(q.index);
     Eigen::MatrixXd prior = Eigen::MatrixXd::Zero(1, p);
     prior(0, geometry + static_cast<Eigen::Index>(c)) = 1.0 / kSelfWeightPriorSigma;
     system.add(prior, Eigen::VectorXd::Constant(1, -value / kSelfWeightPriorSigma));
@@ -118,19 +127,24 @@ void shift(PhysicalModel& model, const Parameter& p, double delta) {
   if (p.mechanism < 0) {
     model.compliance_rad_per_nm(p.index) += delta;
   } else {
-    model.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)] +=
-        delta;
+    model.mechanisms[static_cast<size_t>(p.mechanism)].parameter(p.index) += delta;
   }
 }
 
 double typicalStep(const Mechanism& m, int index) {
   switch (m.kind) {
-    case MechanismKind::kNonlinearStiffness:
-      return index == 0 ? 1e-4 / m.parameters[1] : 0.01 * m.parameters[1];
-    case MechanismKind::kTorsionCurve:  // lost motion; a knee's compliance, its torque
-      return index == 0 ? 1e-4
-             : index % 2 == 0 ? 1e-4 / m.parameters[static_cast<size_t>(index) + 1]
-                              : 0.01 * m.parameters[static_cast<size_t>(index)];
+    case MechanismKind::kNonlinearStiffness: {
+      const double t0 = view<mechanism::NonlinearStiffness>(m).saturationTorque_nm();
+      return index == Stiffness::kExtraCompliance ? 1e-4 / t0 : 0.01 * t0;
+    }
+    case MechanismKind::kTorsionCurve: {  // lost motion; a knee's compliance, its torque
+      const Curve curve = view<mechanism::TorsionCurve>(m);
+      if (index == Curve::kLostMotion) return 1e-4;
+      if (index == Curve::kSmoothingTorque) return 0.01 * curve.smoothingTorque_nm();
+      const int term = index / 2;
+      return index == Curve::complianceIndex(term) ? 1e-4 / curve.kneeTorque_nm(term)
+                                                   : 0.01 * curve.kneeTorque_nm(term);
+    }
     case MechanismKind::kThermalExpansion: return 1e-5;
     case MechanismKind::kJointZeroDrift: return 1e-5;  // rad/K
     case MechanismKind::kRegistrationDrift: return 1e-5;  // m or rad of a degree's twist
@@ -144,18 +158,21 @@ double typicalStep(const Mechanism& m, int index) {
 bool isShape(const PhysicalModel& model, const Parameter& p) {
   if (p.mechanism < 0) return false;
   const MechanismKind kind = model.mechanisms[static_cast<size_t>(p.mechanism)].kind;
-  return (kind == MechanismKind::kNonlinearStiffness && p.index == 1) ||
-         (kind == MechanismKind::kTorsionCurve && p.index >= 3 && p.index % 2 == 1);
+  return (kind == MechanismKind::kNonlinearStiffness && p.index == Stiffness::kSaturationTorque) ||
+         (kind == MechanismKind::kTorsionCurve && p.index > Curve::kSmoothingTorque &&
+          p.index == Curve::kneeIndex(p.index / 2));
 }
 
 std::vector<int> signConstrained(const Mechanism& m) {
   switch (m.kind) {
-    case MechanismKind::kBacklash:
-    case MechanismKind::kNonlinearStiffness: return {0};
+    case MechanismKind::kBacklash: return {mechanism::Backlash<double>::kLostMotion};
+    case MechanismKind::kNonlinearStiffness: return {Stiffness::kExtraCompliance};
     case MechanismKind::kTorsionCurve: {
       std::vector<int> constrained;
-      if (m.parameters[1] > 0.0) constrained.push_back(0);
-      for (int k = 0; k < m.order; ++k) constrained.push_back(2 + 2 * k);
+      if (view<mechanism::TorsionCurve>(m).smoothingTorque_nm() > 0.0) {
+        constrained.push_back(Curve::kLostMotion);
+      }
+      for (int term = 1; term <= m.order; ++term) constrained.push_back(Curve::complianceIndex(term));
       return constrained;
     }
     default: return {};
@@ -164,7 +181,8 @@ std::vector<int> signConstrained(const Mechanism& m) {
 
 Mechanism simplestTorqueDeflection(Mechanism m) {
   if (m.kind != MechanismKind::kTorsionCurve || m.order > 0) return m;
-  m.kind = MechanismKind::kBacklash;  // lost motion alone, which saturates: no τ_lin
+  // Lost motion alone, which saturates: a backlash (the curve's first two parameters), no τ_lin.
+  m.kind = MechanismKind::kBacklash;
   m.parameters.pop_back();
   m.sigma.pop_back();
   return m;
@@ -175,22 +193,33 @@ std::vector<int> freeParameters(const Mechanism& m, bool masses_from_urdf) {
   if (m.kind == MechanismKind::kSelfWeight && masses_from_urdf) return free;
   if (m.kind == MechanismKind::kTorsionCurve) {
     free = signConstrained(m);
-    for (int k = 0; k < m.order; ++k) {
-      if (m.parameters[2 + 2 * size_t(k)] != 0.0) free.push_back(3 + 2 * k);
+    const Curve curve = view<mechanism::TorsionCurve>(m);
+    for (int term = 1; term <= m.order; ++term) {
+      if (curve.extraCompliance_rad_per_nm(term) != 0.0) free.push_back(Curve::kneeIndex(term));
     }
     return free;
   }
-  for (size_t i = 0; i < m.parameters.size(); ++i) {
-    if ((m.kind == MechanismKind::kThermalExpansion || m.kind == MechanismKind::kBacklash ||
-         m.kind == MechanismKind::kJointZeroDrift) &&
-        i == 1) {
-      continue;  // a reference temperature, a smoothing torque: chosen
+  for (int i = 0; i < static_cast<int>(m.parameters.size()); ++i) {
+    // A reference temperature, a smoothing torque: chosen.
+    if ((m.kind == MechanismKind::kThermalExpansion &&
+         i == mechanism::ThermalExpansion<double>::kReferenceTemp) ||
+        (m.kind == MechanismKind::kBacklash && i == mechanism::Backlash<double>::kSmoothingTorque) ||
+        (m.kind == MechanismKind::kJointZeroDrift &&
+         i == mechanism::JointZeroDrift<double>::kReferenceTemp)) {
+      continue;
     }
-    if (m.kind == MechanismKind::kRegistrationDrift && i < 2) continue;  // the time span
-    if (m.kind == MechanismKind::kNonlinearStiffness && (i == 2 || (i == 1 && m.parameters[0] == 0.0))) {
+    if (m.kind == MechanismKind::kRegistrationDrift &&
+        (i == mechanism::RegistrationDrift<double>::kFirstSeq ||
+         i == mechanism::RegistrationDrift<double>::kLastSeq)) {
+      continue;  // the time span
+    }
+    if (m.kind == MechanismKind::kNonlinearStiffness &&
+        (i == Stiffness::kLinearAbove ||
+         (i == Stiffness::kSaturationTorque &&
+          view<mechanism::NonlinearStiffness>(m).extraCompliance_rad_per_nm() == 0.0))) {
       continue;  // τ_lin is the rows', τ₀ is free once the curve has a size
     }
-    free.push_back(static_cast<int>(i));
+    free.push_back(i);
   }
   return free;
 }

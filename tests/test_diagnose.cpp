@@ -288,7 +288,7 @@ TEST_P(HiddenTorqueCurve, IsTheJointsCurve) {
   int rows = 0;
   for (const Measurement& row : campaign.rows) {
     if (row.set == RowSet::kValidation) continue;
-    physicalLinkAngles(fitted, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta, tau);
+    physicalLinkAngles(fitted, row.q_rad, row.wrenchOrZero(), rowTemperature(row), {ws, theta, tau});
     const double t = tau(joint);
     double model_curve = fitted.compliance_rad_per_nm(joint) * t;
     for (const Mechanism& m : fitted.mechanisms) {

@@ -99,15 +99,15 @@ TEST(JointZeroDrift, MovesItsJointByTheTemperatureWhereItIsKnown) {
   JointVector theta, theta_rigid, tau;
   const JointVector q = campaign.rows[5].q_rad;
   for (const double temp_c : {12.5, 20.0, 24.0, 31.0}) {
-    ASSERT_TRUE(physicalLinkAngles(model, q, Vec6::Zero(), temp_c, ws, theta, tau));
-    ASSERT_TRUE(physicalLinkAngles(rigid, q, Vec6::Zero(), temp_c, ws, theta_rigid, tau));
+    ASSERT_TRUE(physicalLinkAngles(model, q, Vec6::Zero(), temp_c, {ws, theta, tau}));
+    ASSERT_TRUE(physicalLinkAngles(rigid, q, Vec6::Zero(), temp_c, {ws, theta_rigid, tau}));
     JointVector expected = theta_rigid;
     expected(1) += 3e-5 * (temp_c - 20.0);
     EXPECT_LT((theta - expected).cwiseAbs().maxCoeff(), 1e-15) << temp_c << " °C";
   }
   const double unknown = std::numeric_limits<double>::quiet_NaN();
-  ASSERT_TRUE(physicalLinkAngles(model, q, Vec6::Zero(), unknown, ws, theta, tau));
-  ASSERT_TRUE(physicalLinkAngles(rigid, q, Vec6::Zero(), unknown, ws, theta_rigid, tau));
+  ASSERT_TRUE(physicalLinkAngles(model, q, Vec6::Zero(), unknown, {ws, theta, tau}));
+  ASSERT_TRUE(physicalLinkAngles(rigid, q, Vec6::Zero(), unknown, {ws, theta_rigid, tau}));
   EXPECT_EQ(theta, theta_rigid) << "no temperature, no drift";
 }
 

@@ -379,14 +379,14 @@ TEST(Runtime, FixedPointStartHoldsOrPassesFromTheGivenDeflection) {
     start.passes = 0;
     start.deflection_rad = &d;
     start.deflection_out_rad = &d_out;
-    ASSERT_TRUE(physicalLinkAngles(model->physical, q, Vec6::Zero(), kUnknownTemperature_c, ws,
-                                   theta, tau, nullptr, &model->physical_constants, &start));
+    ASSERT_TRUE(physicalLinkAngles(model->physical, q, Vec6::Zero(), kUnknownTemperature_c,
+                                   {ws, theta, tau}, {&model->physical_constants, &start}));
     EXPECT_EQ(theta, JointVector(q + d));
     EXPECT_EQ(tau, JointVector::Zero(q.size()));
     worst_held = std::max(worst_held, (d_out - d).cwiseAbs().maxCoeff());
     start.passes = 1;
-    ASSERT_TRUE(physicalLinkAngles(model->physical, q, Vec6::Zero(), kUnknownTemperature_c, ws,
-                                   theta, tau, nullptr, &model->physical_constants, &start));
+    ASSERT_TRUE(physicalLinkAngles(model->physical, q, Vec6::Zero(), kUnknownTemperature_c,
+                                   {ws, theta, tau}, {&model->physical_constants, &start}));
     const JointVector by_hand =
         q + C.cwiseProduct(gravityTorquesByHand(chain, q + d, gravity_Tracker,
                                                 selfWeightParameters()));
@@ -425,13 +425,13 @@ TEST(Runtime, ASharedFirstPassGivesEachModelItsOwnValues) {
       for (size_t k = 0; k < models.size(); ++k) {
         ChainWorkspace alone_ws, shared_ws;
         JointVector alone_theta, alone_tau, shared_theta, shared_tau;
-        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c, alone_ws,
-                                       alone_theta, alone_tau, nullptr, &constants[k]));
+        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c,
+                                       {alone_ws, alone_theta, alone_tau}, {&constants[k]}));
         FixedPointStart start;
         start.first_pass = &first;
         ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c,
-                                       shared_ws, shared_theta, shared_tau, nullptr, &constants[k],
-                                       &start));
+                                       {shared_ws, shared_theta, shared_tau},
+                                       {&constants[k], &start}));
         EXPECT_EQ(shared_theta, alone_theta) << "model " << k;
         EXPECT_EQ(shared_tau, alone_tau) << "model " << k;
         EXPECT_EQ(tipPose(shared_ws).matrix(), tipPose(alone_ws).matrix()) << "model " << k;
@@ -446,12 +446,12 @@ TEST(Runtime, ASharedFirstPassGivesEachModelItsOwnValues) {
       for (const size_t k : {size_t{1}, size_t{5}}) {
         ChainWorkspace ws;
         JointVector alone_theta, alone_tau, theta, tau;
-        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c, ws,
-                                       alone_theta, alone_tau, nullptr, &constants[k]));
+        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c,
+                                       {ws, alone_theta, alone_tau}, {&constants[k]}));
         FixedPointStart start;
         start.first_pass = &wrong;
-        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c, ws,
-                                       theta, tau, nullptr, &constants[k], &start));
+        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c,
+                                       {ws, theta, tau}, {&constants[k], &start}));
         if (k == 1) {
           EXPECT_NE(tau, alone_tau) << "the compliance's variant takes the frames kept";
         } else {

@@ -272,35 +272,27 @@ PhysicalConstants physicalConstants(const PhysicalModel& model) noexcept {
   return constants;
 }
 
-bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
-                        const Vec6& wrench_Sensor, double temp_c, ChainWorkspace& ws,
-                        JointVector& theta_rad, JointVector& tau_nm,
-                        JointVector* profile_slope, const PhysicalConstants* constants,
-                        const FixedPointStart* start, const PointPayload* payload) noexcept {
-  const KinematicChain& chain = model.chain_Tracker;
-  const int n = chain.dof();
-  // The wrench's torques: a measured wrench needs the sensor's frame, a payload none.
-  const bool has_sensor = payload == nullptr && model.sensor_frame >= 0 &&
-                          model.sensor_frame < static_cast<int>(chain.frames().size());
-  const bool has_payload = payload != nullptr && payload->mass_kg != 0.0;
-  if (q_rad.size() != n || model.compliance_rad_per_nm.size() != n) return false;
+namespace {
 
-  JointVector theta0 = q_rad;
-  if (profile_slope) profile_slope->setZero(n);
-  FirstPass* const first = start != nullptr ? start->first_pass : nullptr;
-  const bool keep = first != nullptr && !first->kept;
-  // sin and cos of q serve the profiles and, shifted by θ₀ − q (~1e-4 rad), θ₀'s own.
-  JointTrig trig_q;
-  if (first != nullptr && first->kept && first->q_rad == q_rad) {
-    trig_q = first->trig_q;
-  } else {
-    jointTrig(q_rad, trig_q);
-  }
-  Vec6 wrench = wrench_Sensor;
-  const Mechanism* self_weight = nullptr;
-  // Each profile's gate once: it switches the profile and its share of the geometry.
-  std::array<double, kMaxJoints> gate{};
-  bool gates_open = true;  // every transmission_error's gate is 1
+/// What the fixed point takes from the mechanisms that act before it (physicalLinkAngles).
+struct CommandedSide {
+  JointVector theta0_rad;                  ///< θ₀: q and the commanded-angle mechanisms
+  std::array<double, kMaxJoints> gate{};   ///< each profile's gate (0: no profile)
+  bool gates_open = true;                  ///< every transmission_error's gate is 1
+  Vec6 wrench_Sensor;                      ///< the measured wrench less the sensor's bias
+  const Mechanism* self_weight = nullptr;  ///< the model's self_weight, if any
+};
+
+/// θ₀ = q plus the commanded-angle mechanisms (joint_coupling, joint_zero_drift where temp_c is
+/// known, the transmission profiles), each profile's gate once (it switches the profile and its
+/// share of the geometry), and the wrench less the sensor's bias. profile_slope, when given, gets
+/// each profile's derivative by its commanded angle (zeroed before).
+void commandedSide(const PhysicalModel& model, const JointVector& q_rad, const JointTrig& trig_q,
+                   double temp_c, const Vec6& wrench_Sensor, JointVector* profile_slope,
+                   CommandedSide& side) noexcept {
+  side.theta0_rad = q_rad;
+  side.wrench_Sensor = wrench_Sensor;
+  JointVector& theta0 = side.theta0_rad;
   for (const Mechanism& m : model.mechanisms) {
     if (m.kind == MechanismKind::kJointCoupling) {
       theta0(m.joint) += view<mechanism::JointCoupling>(m).ratio() * q_rad(m.source_joint);
@@ -310,135 +302,204 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
         theta0(m.joint) += drift.driftRate_rad_per_k() * (temp_c - drift.referenceTemp_c());
       }
     } else if (m.kind == MechanismKind::kTransmissionError) {
-      const double q = q_rad(m.joint);
+      const size_t j = static_cast<size_t>(m.joint);
       double gate_slope = 0.0, slope = 0.0;
-      gate[static_cast<size_t>(m.joint)] =
-          coverageGate(m.coverage, q, profile_slope ? &gate_slope : nullptr);
-      gates_open = gates_open && gate[static_cast<size_t>(m.joint)] == 1.0;
+      side.gate[j] = coverageGate(m.coverage, q_rad(m.joint), profile_slope ? &gate_slope : nullptr);
+      side.gates_open = side.gates_open && side.gate[j] == 1.0;
       theta0(m.joint) += mechanism::gatedOffset(m, trig_q.sin(m.joint), trig_q.cos(m.joint),
-                                     gate[static_cast<size_t>(m.joint)], gate_slope,
-                                     profile_slope ? &slope : nullptr);
+                                                side.gate[j], gate_slope,
+                                                profile_slope ? &slope : nullptr);
       if (profile_slope) (*profile_slope)(m.joint) += slope;
     } else if (m.kind == MechanismKind::kSensorBias) {
       const mechanism::SensorBias<const double> bias = view<mechanism::SensorBias>(m);
-      for (int i = 0; i < 6; ++i) wrench(i) -= bias.wrench(i);
+      for (int i = 0; i < 6; ++i) side.wrench_Sensor(i) -= bias.wrench(i);
     } else if (m.kind == MechanismKind::kSelfWeight) {
-      self_weight = &m;
+      side.self_weight = &m;
     }
   }
-  // The initial poses once per call: the thermal scale and the profiles' geometry hold for
-  // every pass of the fixed point. With every gate open, from the constants.
+}
+
+/// The initial poses of every pass (the thermal scale and the profiles' geometry hold for the
+/// whole fixed point): with every gate open from the constants, else evaluated into scratch.
+const InitialPoses& initialPosesOf(const PhysicalModel& model, double temp_c,
+                                   const PhysicalConstants* constants, const CommandedSide& side,
+                                   InitialPoses& scratch) noexcept {
   const double link_length_scale = model.linkLengthScale(temp_c);
-  InitialPoses initial_here;
-  const InitialPoses* initial = &initial_here;
-  if (constants != nullptr && gates_open) {
-    if (link_length_scale == 1.0) {
-      initial = &constants->initial_open;
+  if (constants != nullptr && side.gates_open) {
+    if (link_length_scale == 1.0) return constants->initial_open;
+    evaluateInitialPoses(model.chain_Tracker, link_length_scale,
+                         constants->has_open_geometry ? &constants->exp_open_geometry : nullptr,
+                         scratch);
+    return scratch;
+  }
+  std::array<double, 6 * (kMaxJoints + 1)> delta;
+  const bool corrected = profileGeometryDelta(model, side.gate, delta);
+  evaluateInitialPoses(model.chain_Tracker, link_length_scale, corrected ? delta.data() : nullptr,
+                       scratch);
+  return scratch;
+}
+
+/// The fixed point θ = θ₀ + Δθ(τ(θ)) from θ as out holds it, and its frames, with what it
+/// reuses from or keeps for another evaluation at the same commanded angles (FirstPass). The
+/// passes move θ by the deflection only (~1e-3 rad): sin and cos of θ₀ once, then by the angle
+/// sum.
+class FixedPoint {
+ public:
+  FixedPoint(const PhysicalModel& model, const JointVector& q_rad, const CommandedSide& side,
+             const InitialPoses& initial, const JointTrig& trig_q, FirstPass* first,
+             const PhysicalLinkAnglesOut& out) noexcept
+      : model_(model), chain_(model.chain_Tracker), n_(chain_.dof()), q_rad_(q_rad), side_(side),
+        theta0_(side.theta0_rad), initial_(initial), trig_q_(trig_q), first_(first),
+        keep_(first != nullptr && !first->kept), out_(out) {
+    // The frames at θ₀ another evaluation kept, where they are this one's.
+    reuse_ = first_ != nullptr && first_->kept && first_->q_rad == q_rad_ &&
+             first_->theta0_rad == theta0_ &&
+             std::equal(initial_.begin(), initial_.begin() + n_ + 1, first_->initial.begin(),
+                        [](const Pose& a, const Pose& b) { return a.matrix() == b.matrix(); });
+    if (reuse_) {
+      trig0_ = first_->trig0;
     } else {
-      evaluateInitialPoses(chain, link_length_scale,
-                           constants->has_open_geometry ? &constants->exp_open_geometry : nullptr,
-                           initial_here);
+      shiftedJointTrig(trig_q_, q_rad_, theta0_ - q_rad_, trig0_);
     }
-  } else {
-    std::array<double, 6 * (kMaxJoints + 1)> delta;
-    const bool corrected = profileGeometryDelta(model, gate, delta);
-    evaluateInitialPoses(chain, link_length_scale, corrected ? delta.data() : nullptr,
-                         initial_here);
   }
-  Jacobian J;
-  JointVector tau_self;
-  // θ = θ₀ + Δθ(τ): the compliance, plus each joint's torque-deflection mechanism.
-  const auto deflect = [&](const JointVector& tau) {
-    theta_rad = theta0 + model.compliance_rad_per_nm.cwiseProduct(tau);
-    for (const Mechanism& m : model.mechanisms) {
-      if (isTorqueDeflection(m.kind)) theta_rad(m.joint) += torqueDeflection(m, tau(m.joint));
-    }
-  };
-  // Without a wrench or self weight every torque is zero and θ = θ₀: no passes. The passes move
-  // θ by the deflection only (~1e-3 rad): sin and cos of θ₀ once, then by the angle sum.
-  const bool loaded = has_sensor || has_payload || self_weight != nullptr;
-  const int passes = !loaded ? 0 : start != nullptr ? start->passes : kFixedPointPasses;
-  theta_rad = theta0;
-  if (loaded && start != nullptr && start->deflection_rad != nullptr) {
-    theta_rad += *start->deflection_rad;
-  }
-  tau_nm.setZero(n);
-  // The frames at θ₀ another evaluation kept, where they are this one's.
-  const bool reuse = first != nullptr && first->kept && first->q_rad == q_rad &&
-                     first->theta0_rad == theta0 &&
-                     std::equal(initial->begin(), initial->begin() + n + 1, first->initial.begin(),
-                                [](const Pose& a, const Pose& b) { return a.matrix() == b.matrix(); });
-  JointTrig trig0, trig;
-  if (reuse) {
-    trig0 = first->trig0;
-  } else {
-    shiftedJointTrig(trig_q, q_rad, theta0 - q_rad, trig0);
-  }
-  bool at_theta0 = false;      // ws holds the frames at θ₀
-  bool kept_frames = false;    // and first keeps them
-  const auto evaluate = [&] {
-    at_theta0 = theta_rad == theta0;
-    if (!at_theta0) {
-      shiftedJointTrig(trig0, theta0, theta_rad - theta0, trig);
-      forwardKinematics(chain, theta_rad, ws, *initial, &trig);
-    } else if (reuse) {
-      ws = first->ws;
-    } else {
-      forwardKinematics(chain, theta_rad, ws, *initial, &trig0);
-      if (keep && !kept_frames) {
-        first->ws = ws;
-        kept_frames = true;
-      }
-    }
-  };
-  const auto jacobian = [&] {
-    if (at_theta0 && reuse && first->has_J) {
-      J = first->J;
-      return;
-    }
-    spatialJacobian(chain, ws, J);
-    if (at_theta0 && keep) {
-      first->J = J;
-      first->has_J = true;
-    }
-  };
-  // The passes, with a payload's torques or without (a loop of its own each, so that the usual
-  // one, a measured wrench or none, is compiled as it was).
-  const auto runPasses = [&](auto with_payload) {
+
+  /// The passes, with a payload's torques or without (a loop of its own each, so that the usual
+  /// one, a measured wrench or none, is compiled as it was).
+  template <bool kWithPayload>
+  void run(int passes, bool has_sensor, const PointPayload* payload) noexcept {
     for (int pass = 0; pass < passes; ++pass) {
       evaluate();
-      tau_nm.setZero(n);
+      out_.tau_nm.setZero(n_);
       if (has_sensor) {
         jacobian();
-        tau_nm = jointTorques(J, wrenchInRoot(framePose(chain, ws, model.sensor_frame), wrench));
+        out_.tau_nm = jointTorques(
+            J_, wrenchInRoot(framePose(chain_, out_.ws, model_.sensor_frame), side_.wrench_Sensor));
       }
-      if constexpr (decltype(with_payload)::value) {
-        payloadTorques(chain, ws, model.gravity_Tracker, *payload, tau_nm);
+      if constexpr (kWithPayload) {
+        payloadTorques(chain_, out_.ws, model_.gravity_Tracker, *payload, out_.tau_nm);
       }
-      if (self_weight != nullptr) {
-        selfWeightTorques(chain, ws, model.gravity_Tracker, self_weight->parameters, tau_self);
-        tau_nm += tau_self;
+      if (side_.self_weight != nullptr) {
+        selfWeightTorques(chain_, out_.ws, model_.gravity_Tracker, side_.self_weight->parameters,
+                          tau_self_);
+        out_.tau_nm += tau_self_;
       }
-      deflect(tau_nm);
+      deflect(out_.tau_nm);
     }
-  };
-  if (has_payload) {
-    runPasses(std::true_type{});
+  }
+
+  /// The frames at θ into out.ws: reused or kept at θ₀.
+  void evaluate() noexcept {
+    at_theta0_ = out_.theta_rad == theta0_;
+    if (!at_theta0_) {
+      shiftedJointTrig(trig0_, theta0_, out_.theta_rad - theta0_, trig_);
+      forwardKinematics(chain_, out_.theta_rad, out_.ws, initial_, &trig_);
+    } else if (reuse_) {
+      out_.ws = first_->ws;
+    } else {
+      forwardKinematics(chain_, out_.theta_rad, out_.ws, initial_, &trig0_);
+      if (keep_ && !kept_frames_) {
+        first_->ws = out_.ws;
+        kept_frames_ = true;
+      }
+    }
+  }
+
+  /// Keeps this evaluation's frames at θ₀ for the next ones, when it evaluated them.
+  void keepFirstPass() noexcept {
+    if (!kept_frames_) return;
+    first_->q_rad = q_rad_;
+    first_->theta0_rad = theta0_;
+    std::copy(initial_.begin(), initial_.begin() + n_ + 1, first_->initial.begin());
+    first_->trig_q = trig_q_;
+    first_->trig0 = trig0_;
+    first_->kept = true;
+  }
+
+ private:
+  void jacobian() noexcept {
+    if (at_theta0_ && reuse_ && first_->has_J) {
+      J_ = first_->J;
+      return;
+    }
+    spatialJacobian(chain_, out_.ws, J_);
+    if (at_theta0_ && keep_) {
+      first_->J = J_;
+      first_->has_J = true;
+    }
+  }
+
+  /// θ = θ₀ + Δθ(τ): the compliance, plus each joint's torque-deflection mechanism.
+  void deflect(const JointVector& tau) noexcept {
+    out_.theta_rad = theta0_ + model_.compliance_rad_per_nm.cwiseProduct(tau);
+    for (const Mechanism& m : model_.mechanisms) {
+      if (isTorqueDeflection(m.kind)) out_.theta_rad(m.joint) += torqueDeflection(m, tau(m.joint));
+    }
+  }
+
+  const PhysicalModel& model_;
+  const KinematicChain& chain_;
+  const int n_;
+  const JointVector& q_rad_;
+  const CommandedSide& side_;
+  const JointVector& theta0_;
+  const InitialPoses& initial_;
+  const JointTrig& trig_q_;
+  FirstPass* const first_;
+  const bool keep_;  ///< first_ keeps this evaluation's frames at θ₀
+  const PhysicalLinkAnglesOut& out_;
+  bool reuse_ = false;        ///< the frames at θ₀ are first_'s
+  bool at_theta0_ = false;    ///< out_.ws holds the frames at θ₀
+  bool kept_frames_ = false;  ///< and first_ keeps them
+  JointTrig trig0_, trig_;    ///< sin and cos of θ₀ and of the pass's θ
+  Jacobian J_;
+  JointVector tau_self_;
+};
+
+}  // namespace
+
+bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
+                        const Vec6& wrench_Sensor, double temp_c,
+                        const PhysicalLinkAnglesOut& out, const PhysicalEvaluation& how) noexcept {
+  const KinematicChain& chain = model.chain_Tracker;
+  const int n = chain.dof();
+  // The wrench's torques: a measured wrench needs the sensor's frame, a payload none.
+  const bool has_sensor = how.payload == nullptr && model.sensor_frame >= 0 &&
+                          model.sensor_frame < static_cast<int>(chain.frames().size());
+  const bool has_payload = how.payload != nullptr && how.payload->mass_kg != 0.0;
+  if (q_rad.size() != n || model.compliance_rad_per_nm.size() != n) return false;
+
+  if (out.profile_slope) out.profile_slope->setZero(n);
+  FirstPass* const first = how.start != nullptr ? how.start->first_pass : nullptr;
+  // sin and cos of q serve the profiles and, shifted by θ₀ − q (~1e-4 rad), θ₀'s own.
+  JointTrig trig_q;
+  if (first != nullptr && first->kept && first->q_rad == q_rad) {
+    trig_q = first->trig_q;
   } else {
-    runPasses(std::false_type{});
+    jointTrig(q_rad, trig_q);
   }
-  evaluate();
-  if (start != nullptr && start->deflection_out_rad != nullptr) {
-    *start->deflection_out_rad = theta_rad - theta0;
+  CommandedSide side;
+  commandedSide(model, q_rad, trig_q, temp_c, wrench_Sensor, out.profile_slope, side);
+  InitialPoses initial_here;
+  const InitialPoses& initial = initialPosesOf(model, temp_c, how.constants, side, initial_here);
+  // Without a wrench or self weight every torque is zero and θ = θ₀: no passes.
+  const bool loaded = has_sensor || has_payload || side.self_weight != nullptr;
+  const int passes = !loaded ? 0 : how.start != nullptr ? how.start->passes : kFixedPointPasses;
+  out.theta_rad = side.theta0_rad;
+  if (loaded && how.start != nullptr && how.start->deflection_rad != nullptr) {
+    out.theta_rad += *how.start->deflection_rad;
   }
-  if (kept_frames) {
-    first->q_rad = q_rad;
-    first->theta0_rad = theta0;
-    std::copy(initial->begin(), initial->begin() + n + 1, first->initial.begin());
-    first->trig_q = trig_q;
-    first->trig0 = trig0;
-    first->kept = true;
+  out.tau_nm.setZero(n);
+  FixedPoint fixed_point(model, q_rad, side, initial, trig_q, first, out);
+  if (has_payload) {
+    fixed_point.run<true>(passes, has_sensor, how.payload);
+  } else {
+    fixed_point.run<false>(passes, has_sensor, how.payload);
   }
+  fixed_point.evaluate();
+  if (how.start != nullptr && how.start->deflection_out_rad != nullptr) {
+    *how.start->deflection_out_rad = out.theta_rad - side.theta0_rad;
+  }
+  fixed_point.keepFirstPass();
   return true;
 }
 

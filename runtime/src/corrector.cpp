@@ -191,11 +191,10 @@ Pose physicalTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_
     start.passes = deflection == Deflection::kOnePass ? 1 : 0;
     start.deflection_rad = &ws.deflection_rad;
   }
-  const bool sized = physicalLinkAngles(model.physical, q_rad, wrench_Sensor, temp_c,
-                                        ws.chain, ws.link_rad, ws.torque_nm,
-                                        with_slopes ? &ws.profile_slope : nullptr,
-                                        &model.physical_constants, &start,
-                                        call.payload ? &call.point : nullptr);
+  const bool sized = physicalLinkAngles(
+      model.physical, q_rad, wrench_Sensor, temp_c,
+      {ws.chain, ws.link_rad, ws.torque_nm, with_slopes ? &ws.profile_slope : nullptr},
+      {&model.physical_constants, &start, call.payload ? &call.point : nullptr});
   STEPCAL_INVARIANT(sized, "the physical model and q were checked to have the chain's size");
   return tipPose(ws.chain);
 }

@@ -164,8 +164,8 @@ void evaluateRows(const PhysicalModel& model, const FitRows& fit, size_t begin, 
   const MeasurementFrames frames = measurementFramesOf(model);
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
-    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), rowTemperature(row), ws,
-                       out.theta_rad[i - offset], out.tau_nm[i - offset], nullptr, &constants);
+    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), rowTemperature(row),
+                       {ws, out.theta_rad[i - offset], out.tau_nm[i - offset]}, {&constants});
     rowResidual(fit, i, frames, tipPose(ws), fit.start[i] - first, out.r);
   }
 }
@@ -177,8 +177,8 @@ void residualRows(const PhysicalModel& model, const FitRows& fit, size_t begin, 
   JointVector theta, tau;
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
-    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), rowTemperature(row), ws,
-                       theta, tau, nullptr, &constants);
+    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), rowTemperature(row),
+                       {ws, theta, tau}, {&constants});
     rowResidual(fit, i, frames, tipPose(ws), fit.start[i] - first, r);
   }
 }
@@ -225,8 +225,8 @@ void lineariseRows(const PhysicalModel& model, const FitRows& fit, size_t begin,
   JointVector theta, tau;
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
-    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), kUnscaledLinks, ws, theta,
-                       tau, nullptr, &constants);
+    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), kUnscaledLinks,
+                       {ws, theta, tau}, {&constants});
     row_linearisation(model.chain_Tracker, ws, frames, fit, i, fit.start[i] - first, r, lin);
   }
 }
@@ -312,7 +312,7 @@ Eigen::MatrixXd differenceColumns(const std::vector<const PhysicalModel*>& model
     for (size_t m = 0; m < models.size(); ++m) {
       if (!needed[m]) continue;
       physicalLinkAngles(*models[m], frames[m].commanded(row), row.wrenchOrZero(),
-                         rowTemperature(row), ws, theta, tau, nullptr, &constants[m], &start);
+                         rowTemperature(row), {ws, theta, tau}, {&constants[m], &start});
       rowResidual(fit, i, frames[m], tipPose(ws), 0, r);
       out.block(e, static_cast<Eigen::Index>(m), k, 1) = (r0.segment(e, k) - r.head(k)) / steps[m];
     }
@@ -336,15 +336,15 @@ void evaluateAndLinearise(const PhysicalModel& model, const FitRows& fit, size_t
     const Measurement& row = *fit.rows[i];
     const double temp_c = rowTemperature(row);
     const JointVector q = frames.commanded(row);
-    physicalLinkAngles(model, q, row.wrenchOrZero(), temp_c, ws,
-                       evaluation.theta_rad[i - begin], evaluation.tau_nm[i - begin], nullptr,
-                       &constants);
+    physicalLinkAngles(model, q, row.wrenchOrZero(), temp_c,
+                       {ws, evaluation.theta_rad[i - begin], evaluation.tau_nm[i - begin]},
+                       {&constants});
     const Eigen::Index e = fit.start[i] - first;
     rowResidual(fit, i, frames, tipPose(ws), e, evaluation.r);
     // Where the model scales no link at the row's temperature, its frames are the unscaled ones.
     if (model.linkLengthScale(temp_c) != 1.0) {
-      physicalLinkAngles(model, q, row.wrenchOrZero(), kUnscaledLinks, ws, theta, tau, nullptr,
-                         &constants);
+      physicalLinkAngles(model, q, row.wrenchOrZero(), kUnscaledLinks, {ws, theta, tau},
+                         {&constants});
     }
     row_linearisation(model.chain_Tracker, ws, frames, fit, i, e, evaluation.r, lin);
   }

@@ -284,23 +284,36 @@ struct PointPayload {
   Vec3 p_CoGInLast_m = Vec3::Zero();  ///< centre of gravity in frame n (after joint n's motion), m
 };
 
-/// Link angles θ [rad] and joint torques τ [N·m] of the physical model at commanded angles q,
-/// a measured wrench (sensor axes; zero when unloaded or no sensor) and a temperature (NaN:
-/// unknown). Leaves ws evaluated at θ (with the thermal length scale). profile_slope, when
-/// given, gets per joint the derivative of its transmission profile's offset (gate included) by
-/// its commanded angle, 0 without one. constants, when given, must be physicalConstants(model).
-/// start, when given, changes the fixed point's start and passes (FixedPointStart). payload,
-/// when given, loads the joints by its weight (model.gravity_Tracker) at each pass instead of the
-/// measured wrench (wrench_Sensor and the sensor bias are then unused): τ_k = ξ_kᵀ (m g, p × m g),
+/// Where physicalLinkAngles writes, in the caller's storage: the frames at θ (with the thermal
+/// length scale), the link angles θ [rad], the joint torques τ [N·m], and, when profile_slope is
+/// given, per joint the derivative of its transmission profile's offset (gate included) by its
+/// commanded angle, 0 without one.
+struct PhysicalLinkAnglesOut {
+  ChainWorkspace& ws;
+  JointVector& theta_rad;
+  JointVector& tau_nm;
+  JointVector* profile_slope = nullptr;
+};
+
+/// How physicalLinkAngles evaluates, each optional: constants, when given, must be
+/// physicalConstants(model); start changes the fixed point's start and passes (FixedPointStart);
+/// payload loads the joints by its weight (model.gravity_Tracker) at each pass instead of the
+/// measured wrench (the wrench and the sensor bias are then unused): τ_k = ξ_kᵀ (m g, p × m g),
 /// p its centre of gravity in the root at the pass's θ.
+struct PhysicalEvaluation {
+  const PhysicalConstants* constants = nullptr;
+  const FixedPointStart* start = nullptr;
+  const PointPayload* payload = nullptr;
+};
+
+/// Link angles θ and joint torques τ of the physical model at commanded angles q, a measured
+/// wrench (sensor axes; zero when unloaded or no sensor) and a temperature (NaN: unknown), into
+/// out: θ₀ from the commanded-angle mechanisms, then the fixed point θ = θ₀ + Δθ(τ(θ)).
 /// Allocation-free; false when sizes disagree.
 bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
-                        const Vec6& wrench_Sensor, double temp_c, ChainWorkspace& ws,
-                        JointVector& theta_rad, JointVector& tau_nm,
-                        JointVector* profile_slope = nullptr,
-                        const PhysicalConstants* constants = nullptr,
-                        const FixedPointStart* start = nullptr,
-                        const PointPayload* payload = nullptr) noexcept;
+                        const Vec6& wrench_Sensor, double temp_c,
+                        const PhysicalLinkAnglesOut& out,
+                        const PhysicalEvaluation& how = {}) noexcept;
 
 /// Joints whose commanded angle lies (partly, within the fade) outside the coverage of their
 /// transmission profile: bit j set for joint j (0-based). There the profile's correction is

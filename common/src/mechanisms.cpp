@@ -136,8 +136,8 @@ std::vector<std::string> mechanismParameterNames(MechanismKind kind, int dof, in
 std::string mechanismProblem(const Mechanism& m, int dof) {
   const MechanismTraits* traits = findMechanismTraits(m.kind);
   if (traits == nullptr) {
-    return "mechanism kind " + std::to_string(static_cast<uint32_t>(m.kind)) +
-           "; expected 1 to " + std::to_string(mechanismRegistry().size()) + " (mechanisms.hpp)";
+    return "mechanism kind " + std::to_string(static_cast<uint32_t>(m.kind)) + "; expected 1 to " +
+           std::to_string(mechanismRegistry().size()) + " (mechanisms.hpp)";
   }
   const std::string what = traits->name;
   if (!traits->order_fits(m.order)) {
@@ -156,8 +156,8 @@ std::string mechanismProblem(const Mechanism& m, int dof) {
   for (int i = 0; i < static_cast<int>(count); ++i) {
     const double value = m.parameter(i), sigma = m.sigma[static_cast<size_t>(i)];
     if (!std::isfinite(value) || !std::isfinite(sigma) || sigma < 0.0) {
-      return what + " parameter " + std::to_string(i) + " = " + std::to_string(value) +
-             " (σ " + std::to_string(sigma) + "); expected finite values, σ ≥ 0";
+      return what + " parameter " + std::to_string(i) + " = " + std::to_string(value) + " (σ " +
+             std::to_string(sigma) + "); expected finite values, σ ≥ 0";
     }
   }
   if (traits->uses_joint != (m.joint >= 0) || m.joint >= dof) {
@@ -191,7 +191,8 @@ double PhysicalModel::linkLengthScale(double temp_c) const noexcept {
   double scale = 1.0;
   for (const Mechanism& m : mechanisms) {
     if (m.kind == MechanismKind::kThermalExpansion) {
-      const mechanism::ThermalExpansion<const double> expansion = view<mechanism::ThermalExpansion>(m);
+      const mechanism::ThermalExpansion<const double> expansion =
+          view<mechanism::ThermalExpansion>(m);
       scale *= 1.0 + expansion.expansion_per_k() * (temp_c - expansion.referenceTemp_c());
     }
   }
@@ -245,7 +246,9 @@ bool profileGeometryDelta(const PhysicalModel& model, const std::array<double, k
   for (const Mechanism& m : model.mechanisms) {
     const double g = m.kind == MechanismKind::kProfileGeometry ? gate[static_cast<size_t>(m.joint)] : 0.0;
     if (g == 0.0) continue;
-    for (size_t i = 0; i < m.parameters.size(); ++i) delta[i] += g * m.parameter(static_cast<int>(i));
+    for (size_t i = 0; i < m.parameters.size(); ++i) {
+      delta[i] += g * m.parameter(static_cast<int>(i));
+    }
     corrected = true;
   }
   return corrected;
@@ -304,11 +307,12 @@ void commandedSide(const PhysicalModel& model, const JointVector& q_rad, const J
     } else if (m.kind == MechanismKind::kTransmissionError) {
       const size_t j = static_cast<size_t>(m.joint);
       double gate_slope = 0.0, slope = 0.0;
-      side.gate[j] = coverageGate(m.coverage, q_rad(m.joint), profile_slope ? &gate_slope : nullptr);
+      side.gate[j] =
+          coverageGate(m.coverage, q_rad(m.joint), profile_slope ? &gate_slope : nullptr);
       side.gates_open = side.gates_open && side.gate[j] == 1.0;
-      theta0(m.joint) += mechanism::gatedOffset(m, trig_q.sin(m.joint), trig_q.cos(m.joint),
-                                                side.gate[j], gate_slope,
-                                                profile_slope ? &slope : nullptr);
+      theta0(m.joint) +=
+          mechanism::gatedOffset(m, trig_q.sin(m.joint), trig_q.cos(m.joint), side.gate[j],
+                                 gate_slope, profile_slope ? &slope : nullptr);
       if (profile_slope) (*profile_slope)(m.joint) += slope;
     } else if (m.kind == MechanismKind::kSensorBias) {
       const mechanism::SensorBias<const double> bias = view<mechanism::SensorBias>(m);
@@ -348,9 +352,17 @@ class FixedPoint {
   FixedPoint(const PhysicalModel& model, const JointVector& q_rad, const CommandedSide& side,
              const InitialPoses& initial, const JointTrig& trig_q, FirstPass* first,
              const PhysicalLinkAnglesOut& out) noexcept
-      : model_(model), chain_(model.chain_Tracker), n_(chain_.dof()), q_rad_(q_rad), side_(side),
-        theta0_(side.theta0_rad), initial_(initial), trig_q_(trig_q), first_(first),
-        keep_(first != nullptr && !first->kept), out_(out) {
+      : model_(model),
+        chain_(model.chain_Tracker),
+        n_(chain_.dof()),
+        q_rad_(q_rad),
+        side_(side),
+        theta0_(side.theta0_rad),
+        initial_(initial),
+        trig_q_(trig_q),
+        first_(first),
+        keep_(first != nullptr && !first->kept),
+        out_(out) {
     // The frames at θ₀ another evaluation kept, where they are this one's.
     reuse_ = first_ != nullptr && first_->kept && first_->q_rad == q_rad_ &&
              first_->theta0_rad == theta0_ &&
@@ -458,8 +470,8 @@ class FixedPoint {
 }  // namespace
 
 bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
-                        const Vec6& wrench_Sensor, double temp_c,
-                        const PhysicalLinkAnglesOut& out, const PhysicalEvaluation& how) noexcept {
+                        const Vec6& wrench_Sensor, double temp_c, const PhysicalLinkAnglesOut& out,
+                        const PhysicalEvaluation& how) noexcept {
   const KinematicChain& chain = model.chain_Tracker;
   const int n = chain.dof();
   // The wrench's torques: a measured wrench needs the sensor's frame, a payload none.

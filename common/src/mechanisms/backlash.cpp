@@ -12,8 +12,8 @@ std::vector<std::string> names(int, int) { return {"lost_motion_rad", "smoothing
 std::string problem(const Mechanism& m, int) {
   const View b = view<Backlash>(m);
   if (!(b.smoothingTorque_nm() > 0.0)) {
-    return std::string(toString(m.kind)) + " smoothing_torque_nm = " +
-           std::to_string(b.smoothingTorque_nm()) + "; expected > 0";
+    return std::string(toString(m.kind)) +
+           " smoothing_torque_nm = " + std::to_string(b.smoothingTorque_nm()) + "; expected > 0";
   }
   return {};
 }

@@ -38,7 +38,8 @@ inline void addLostMotion(double b, double smoothing, double tau_nm, double& def
   slope += b * (1.0 - t * t) / smoothing;
 }
 /// Nonlinear stiffness c τ τ₀/(τ₀ + |τ|), slope c τ₀²/(τ₀ + |τ|)².
-inline void addFade(double c, double t0, double tau_nm, double& deflection, double& slope) noexcept {
+inline void addFade(double c, double t0, double tau_nm, double& deflection,
+                    double& slope) noexcept {
   const double d = t0 + std::abs(tau_nm);
   deflection += c * tau_nm * t0 / d;
   slope += c * t0 * t0 / (d * d);
@@ -48,7 +49,9 @@ inline void addFade(double c, double t0, double tau_nm, double& deflection, doub
 inline void addKnee(double c, double corner, double tau_nm, double& deflection,
                     double& slope) noexcept {
   const double w = kTorsionKneeWidth * corner, x = std::abs(tau_nm);
-  const auto softplus = [](double z) { return std::max(z, 0.0) + std::log1p(std::exp(-std::abs(z))); };
+  const auto softplus = [](double z) {
+    return std::max(z, 0.0) + std::log1p(std::exp(-std::abs(z)));
+  };
   const double z = (x - corner) / w;
   const double bent = x - w * softplus(z) + w * softplus(-corner / w);
   deflection += c * std::copysign(bent, tau_nm);

@@ -33,7 +33,9 @@ double deflection(const Mechanism& m, double tau_nm, double* derivative) noexcep
   return deflection;
 }
 
-double linearAbove(const Mechanism& m) noexcept { return view<NonlinearStiffness>(m).linearAbove_nm(); }
+double linearAbove(const Mechanism& m) noexcept {
+  return view<NonlinearStiffness>(m).linearAbove_nm();
+}
 
 }  // namespace
 

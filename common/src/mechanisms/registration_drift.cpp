@@ -26,7 +26,8 @@ std::string problem(const Mechanism& m, int) {
 
 std::string describeSuffix(const Mechanism& m) {
   static const char* const kDegrees[] = {"", "linear", "quadratic", "cubic"};
-  return " (" + (m.order < 4 ? std::string(kDegrees[m.order]) : "degree " + std::to_string(m.order)) +
+  return " (" +
+         (m.order < 4 ? std::string(kDegrees[m.order]) : "degree " + std::to_string(m.order)) +
          " in time order)";
 }
 

@@ -6,10 +6,10 @@ namespace stepcal {
 const std::vector<const MechanismTraits*>& mechanismRegistry() {
   using namespace mechanism;
   static const std::vector<const MechanismTraits*> registry = {
-      &backlashTraits(),          &selfWeightTraits(),        &transmissionErrorTraits(),
-      &nonlinearStiffnessTraits(), &thermalExpansionTraits(), &sensorBiasTraits(),
-      &jointCouplingTraits(),     &profileGeometryTraits(),   &torsionCurveTraits(),
-      &jointZeroDriftTraits(),    &registrationDriftTraits(), &sessionFramesTraits(),
+      &backlashTraits(),           &selfWeightTraits(),        &transmissionErrorTraits(),
+      &nonlinearStiffnessTraits(), &thermalExpansionTraits(),  &sensorBiasTraits(),
+      &jointCouplingTraits(),      &profileGeometryTraits(),   &torsionCurveTraits(),
+      &jointZeroDriftTraits(),     &registrationDriftTraits(), &sessionFramesTraits(),
       &campaignJointZeroTraits(),
   };
   return registry;
@@ -26,6 +26,8 @@ const MechanismTraits* findMechanismTraits(MechanismKind kind) noexcept {
 
 namespace stepcal::mechanism {
 
-std::string jointSuffix(const Mechanism& m) { return " (joint " + std::to_string(m.joint + 1) + ")"; }
+std::string jointSuffix(const Mechanism& m) {
+  return " (joint " + std::to_string(m.joint + 1) + ")";
+}
 
 }  // namespace stepcal::mechanism

@@ -9,8 +9,8 @@ std::vector<std::string> names(int dof, int) {
   std::vector<std::string> names;
   for (int k = 1; k <= dof; ++k) {
     const std::string link = "link" + std::to_string(k) + "_";
-    for (const char* p : {"mass_kg", "first_moment_x_kgm", "first_moment_y_kgm",
-                          "first_moment_z_kgm"}) {
+    for (const char* p :
+         {"mass_kg", "first_moment_x_kgm", "first_moment_y_kgm", "first_moment_z_kgm"}) {
       names.push_back(link + p);
     }
   }

@@ -11,9 +11,9 @@ const MechanismTraits& sessionFramesTraits() {
     t.measurement_only = true;
     t.order_fits = [](int order) { return order >= 1; };
     t.parameter_names = [](int, int) -> std::vector<std::string> {
-      return {"station_x_m",  "station_y_m",  "station_z_m",  "station_rx_rad",
-              "station_ry_rad", "station_rz_rad", "tool_x_m",     "tool_y_m",
-              "tool_z_m",     "tool_rx_rad",  "tool_ry_rad",  "tool_rz_rad"};
+      return {"station_x_m",    "station_y_m",    "station_z_m", "station_rx_rad",
+              "station_ry_rad", "station_rz_rad", "tool_x_m",    "tool_y_m",
+              "tool_z_m",       "tool_rx_rad",    "tool_ry_rad", "tool_rz_rad"};
     };
     t.describe_suffix = [](const Mechanism& m) {
       return " (campaign " + std::to_string(m.order + 1) + ")";

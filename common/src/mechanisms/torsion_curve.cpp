@@ -24,7 +24,8 @@ std::string problem(const Mechanism& m, int) {
     return what + " linear_above_nm = " + std::to_string(c.linearAbove_nm()) +
            "; expected ≥ 0 (0: the curve's formula at every torque)";
   }
-  if (c.smoothingTorque_nm() < 0.0 || (c.smoothingTorque_nm() == 0.0 && c.lostMotion_rad() != 0.0)) {
+  if (c.smoothingTorque_nm() < 0.0 ||
+      (c.smoothingTorque_nm() == 0.0 && c.lostMotion_rad() != 0.0)) {
     return what + " smoothing_torque_nm = " + std::to_string(c.smoothingTorque_nm()) +
            " with lost_motion_rad = " + std::to_string(c.lostMotion_rad()) +
            "; expected > 0, or 0 with no lost motion";

@@ -152,9 +152,8 @@ std::vector<double> stage1Columns(const DiagnosisModel& model, const PhysicalMod
     s.stage1.push_back(sink.difference(
         whole, p, lumped_mass ? 1.0 / (kSelfWeightPriorSigma * kSelfWeightPriorSigma) : 0.0));
     stage1_values.push_back(
-        p.mechanism < 0
-            ? global.compliance_rad_per_nm(p.index)
-            : global.mechanisms[static_cast<size_t>(p.mechanism)].parameter(p.index));
+        p.mechanism < 0 ? global.compliance_rad_per_nm(p.index)
+                        : global.mechanisms[static_cast<size_t>(p.mechanism)].parameter(p.index));
   }
   return stage1_values;
 }
@@ -194,11 +193,12 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
   ColumnSink sink(s.columns.layout, *recipe, geometry, n);
 
   const std::vector<double> stage1_values = stage1Columns(model, whole, geometry, sink, s);
-  const int max_order = *std::max_element(options.profile_orders.begin(), options.profile_orders.end());
+  const int max_order =
+      *std::max_element(options.profile_orders.begin(), options.profile_orders.end());
   stage2Columns(model, geometry, max_order, sink, s);
   // Every kind's families, in the registry's order (families/).
-  const FamilyContext context{model, model.global, whole, fit,       start,     options, body_masses,
-                              scope, n,            max_order, s, sink, *recipe};
+  const FamilyContext context{model, model.global, whole, fit,  start,  options, body_masses, scope,
+                              n,     max_order,    s,     sink, *recipe};
   for (const FamilyBuilder build : familyBuilders()) build(context);
 
   const Eigen::Index total = s.columns.layout.size();

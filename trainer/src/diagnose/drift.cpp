@@ -85,7 +85,8 @@ void judgeDrift(Search& search) {
                               "moves by %.4f mm RMS over the rows' temperatures); the runtime "
                               "applies it where a request gives temp_c",
                               1e6 * view<mechanism::JointZeroDrift>(m).driftRate_rad_per_k(),
-                              1e6 * m.sigma[mechanism::JointZeroDrift<double>::kDriftRate], 1e3 * e.tip_motion_rms_m));
+                              1e6 * m.sigma[mechanism::JointZeroDrift<double>::kDriftRate],
+                              1e3 * e.tip_motion_rms_m));
     }
     for (const Mechanism& alt : e.alternatives) {
       if (alt.kind == MechanismKind::kRegistrationDrift || alt.kind == MechanismKind::kJointZeroDrift) {

@@ -30,7 +30,9 @@ std::vector<FoundEffect::StiffnessSegment> stiffnessSegments(const Mechanism& m,
                                                              double compliance,
                                                              double max_torque_nm) {
   Mechanism stiffening = m;  // lost motion is apart in a catalogue
-  if (m.kind == MechanismKind::kBacklash) view<mechanism::Backlash>(stiffening).lostMotion_rad() = 0.0;
+  if (m.kind == MechanismKind::kBacklash) {
+    view<mechanism::Backlash>(stiffening).lostMotion_rad() = 0.0;
+  }
   if (m.kind == MechanismKind::kTorsionCurve) {
     view<mechanism::TorsionCurve>(stiffening).lostMotion_rad() = 0.0;
   }

@@ -4,18 +4,10 @@
 
 #include "../least_squares.hpp"
 #include "chunked_gram.hpp"
+#include "families/families.hpp"
 #include "model.hpp"
-#include "stepcal/common/mechanisms/backlash.hpp"
-#include "stepcal/common/mechanisms/joint_zero_drift.hpp"
-#include "stepcal/common/mechanisms/nonlinear_stiffness.hpp"
-#include "stepcal/common/mechanisms/registration_drift.hpp"
-#include "stepcal/common/mechanisms/thermal_expansion.hpp"
-#include "stepcal/common/mechanisms/torsion_curve.hpp"
 
 namespace stepcal::trainer::diagnosis {
-
-using Curve = mechanism::TorsionCurve<const double>;
-using Stiffness = mechanism::NonlinearStiffness<const double>;
 namespace {
 
 // Singular values below this fraction of the largest are unobservable (as in step 1).
@@ -44,9 +36,8 @@ bool boundedAtZero(const PhysicalModel& model, const Parameter& p) {
 }
 
 double valueOf(const PhysicalModel& model, const Parameter& p) {
-  return p.mechanism < 0
-             ? model.compliance_rad_per_nm(p.index)
-             : model.mechanisms[static_cast<size_t>(p.mechanism)].parameter(p.index);
+  return p.mechanism < 0 ? model.compliance_rad_per_nm(p.index)
+                         : model.mechanisms[static_cast<size_t>(p.mechanism)].parameter(p.index);
 }
 
 // Lower bounds of a step of the geometry and params: a bounded parameter may fall to zero.
@@ -97,8 +88,7 @@ TallQr linearSystem(const DiagnosisModel& model, const PhysicalModel& global, co
         global.mechanisms[static_cast<size_t>(q.mechanism)].kind != MechanismKind::kSelfWeight) {
       continue;
     }
-    const double value =
-        global.mechanisms[static_cast<size_t>(q.mechanism)].parameter(q.index);
+    const double value = global.mechanisms[static_cast<size_t>(q.mechanism)].parameter(q.index);
     Eigen::MatrixXd prior = Eigen::MatrixXd::Zero(1, p);
     prior(0, geometry + static_cast<Eigen::Index>(c)) = 1.0 / kSelfWeightPriorSigma;
     system.add(prior, Eigen::VectorXd::Constant(1, -value / kSelfWeightPriorSigma));
@@ -132,51 +122,20 @@ void shift(PhysicalModel& model, const Parameter& p, double delta) {
 }
 
 double typicalStep(const Mechanism& m, int index) {
-  switch (m.kind) {
-    case MechanismKind::kNonlinearStiffness: {
-      const double t0 = view<mechanism::NonlinearStiffness>(m).saturationTorque_nm();
-      return index == Stiffness::kExtraCompliance ? 1e-4 / t0 : 0.01 * t0;
-    }
-    case MechanismKind::kTorsionCurve: {  // lost motion; a knee's compliance, its torque
-      const Curve curve = view<mechanism::TorsionCurve>(m);
-      if (index == Curve::kLostMotion) return 1e-4;
-      if (index == Curve::kSmoothingTorque) return 0.01 * curve.smoothingTorque_nm();
-      const int term = index / 2;
-      return index == Curve::complianceIndex(term) ? 1e-4 / curve.kneeTorque_nm(term)
-                                                   : 0.01 * curve.kneeTorque_nm(term);
-    }
-    case MechanismKind::kThermalExpansion: return 1e-5;
-    case MechanismKind::kJointZeroDrift: return 1e-5;  // rad/K
-    case MechanismKind::kRegistrationDrift: return 1e-5;  // m or rad of a degree's twist
-    case MechanismKind::kSessionFrames: return 1e-5;      // m or rad of a station or a tool
-    case MechanismKind::kSensorBias: return index < 3 ? 1.0 : 0.1;
-    case MechanismKind::kSelfWeight: return index % 4 == 0 ? 1.0 : 0.5;
-    default: return 1e-4;
-  }
+  const KindFit* fit = findKindFit(m.kind);
+  return fit != nullptr && fit->typical_step != nullptr ? fit->typical_step(m, index) : 1e-4;
 }
 
 bool isShape(const PhysicalModel& model, const Parameter& p) {
   if (p.mechanism < 0) return false;
-  const MechanismKind kind = model.mechanisms[static_cast<size_t>(p.mechanism)].kind;
-  return (kind == MechanismKind::kNonlinearStiffness && p.index == Stiffness::kSaturationTorque) ||
-         (kind == MechanismKind::kTorsionCurve && p.index > Curve::kSmoothingTorque &&
-          p.index == Curve::kneeIndex(p.index / 2));
+  const KindFit* fit = findKindFit(model.mechanisms[static_cast<size_t>(p.mechanism)].kind);
+  return fit != nullptr && fit->is_shape != nullptr && fit->is_shape(p.index);
 }
 
 std::vector<int> signConstrained(const Mechanism& m) {
-  switch (m.kind) {
-    case MechanismKind::kBacklash: return {mechanism::Backlash<double>::kLostMotion};
-    case MechanismKind::kNonlinearStiffness: return {Stiffness::kExtraCompliance};
-    case MechanismKind::kTorsionCurve: {
-      std::vector<int> constrained;
-      if (view<mechanism::TorsionCurve>(m).smoothingTorque_nm() > 0.0) {
-        constrained.push_back(Curve::kLostMotion);
-      }
-      for (int term = 1; term <= m.order; ++term) constrained.push_back(Curve::complianceIndex(term));
-      return constrained;
-    }
-    default: return {};
-  }
+  const KindFit* fit = findKindFit(m.kind);
+  return fit != nullptr && fit->sign_constrained != nullptr ? fit->sign_constrained(m)
+                                                            : std::vector<int>{};
 }
 
 Mechanism simplestTorqueDeflection(Mechanism m) {
@@ -189,38 +148,11 @@ Mechanism simplestTorqueDeflection(Mechanism m) {
 }
 
 std::vector<int> freeParameters(const Mechanism& m, bool masses_from_urdf) {
+  if (m.kind == MechanismKind::kSelfWeight && masses_from_urdf) return {};
+  const KindFit* fit = findKindFit(m.kind);
+  if (fit != nullptr && fit->free_parameters != nullptr) return fit->free_parameters(m);
   std::vector<int> free;
-  if (m.kind == MechanismKind::kSelfWeight && masses_from_urdf) return free;
-  if (m.kind == MechanismKind::kTorsionCurve) {
-    free = signConstrained(m);
-    const Curve curve = view<mechanism::TorsionCurve>(m);
-    for (int term = 1; term <= m.order; ++term) {
-      if (curve.extraCompliance_rad_per_nm(term) != 0.0) free.push_back(Curve::kneeIndex(term));
-    }
-    return free;
-  }
-  for (int i = 0; i < static_cast<int>(m.parameters.size()); ++i) {
-    // A reference temperature, a smoothing torque: chosen.
-    if ((m.kind == MechanismKind::kThermalExpansion &&
-         i == mechanism::ThermalExpansion<double>::kReferenceTemp) ||
-        (m.kind == MechanismKind::kBacklash && i == mechanism::Backlash<double>::kSmoothingTorque) ||
-        (m.kind == MechanismKind::kJointZeroDrift &&
-         i == mechanism::JointZeroDrift<double>::kReferenceTemp)) {
-      continue;
-    }
-    if (m.kind == MechanismKind::kRegistrationDrift &&
-        (i == mechanism::RegistrationDrift<double>::kFirstSeq ||
-         i == mechanism::RegistrationDrift<double>::kLastSeq)) {
-      continue;  // the time span
-    }
-    if (m.kind == MechanismKind::kNonlinearStiffness &&
-        (i == Stiffness::kLinearAbove ||
-         (i == Stiffness::kSaturationTorque &&
-          view<mechanism::NonlinearStiffness>(m).extraCompliance_rad_per_nm() == 0.0))) {
-      continue;  // τ_lin is the rows', τ₀ is free once the curve has a size
-    }
-    free.push_back(i);
-  }
+  for (int i = 0; i < static_cast<int>(m.parameters.size()); ++i) free.push_back(i);
   return free;
 }
 

@@ -181,7 +181,8 @@ double profileRms(const Mechanism& profile, const FitRows& fit) {
 
 double largestAmplitude(const Mechanism& profile) {
   double largest = 0.0;
-  const mechanism::TransmissionError<const double> harmonics = view<mechanism::TransmissionError>(profile);
+  const mechanism::TransmissionError<const double> harmonics =
+      view<mechanism::TransmissionError>(profile);
   for (int k = 1; k <= profile.order; ++k) {
     largest = std::max(largest, std::hypot(harmonics.sin_rad(k), harmonics.cos_rad(k)));
   }

@@ -33,8 +33,7 @@ struct ScaledSource {
   bool sameColumn(const ScaledSource& other) const {
     return kind == other.kind && kind != Kind::kProfile && source_joint == other.source_joint &&
            reference_c == other.reference_c && campaign == other.campaign &&
-           unit.kind == other.unit.kind &&
-           unit.parameters == other.unit.parameters;
+           unit.kind == other.unit.kind && unit.parameters == other.unit.parameters;
   }
 };
 
@@ -58,7 +57,7 @@ struct ColumnRecipe {
   std::vector<double> step;
   std::vector<Eigen::Index> moved_dense;  // per finite-difference column, its dense place
   std::vector<TimeScaled> time_scaled;
-  Eigen::Index dense = 0;  // dense columns of a chunk
+  Eigen::Index dense = 0;                         // dense columns of a chunk
   std::vector<std::vector<ScaledSource>> scaled;  // per joint
   std::vector<double> masses;                     // the URDF's, for kGravityTorque
 };

@@ -202,7 +202,8 @@ std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Di
         if (!(alpha != 0.0)) break;
         constexpr double kScaleStep = 1e-6;
         PhysicalModel shifted = model;
-        view<mechanism::ThermalExpansion>(shifted.mechanisms[k]).referenceTemp_c() -= kScaleStep / alpha;
+        view<mechanism::ThermalExpansion>(shifted.mechanisms[k]).referenceTemp_c() -=
+            kScaleStep / alpha;
         const Eigen::VectorXd direction = (with.r - diagnosis::residuals(shifted, fit)) / kScaleStep;
         EffectSignature s;
         s.mechanism = m;

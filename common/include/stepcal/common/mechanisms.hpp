@@ -126,12 +126,12 @@ struct MechanismTraits {
   enum class Multiplicity { kAny, kOnePerModel, kOnePerJoint };
 
   MechanismKind kind;
-  const char* name;                     ///< snake case, as in model files and reports
-  bool measurement_only = false;        ///< isMeasurementOnly
-  bool uses_joint = false;              ///< Mechanism::joint is a joint (else −1)
-  bool uses_source_joint = false;       ///< Mechanism::source_joint is a joint (else −1)
-  bool has_coverage = false;            ///< Mechanism::coverage may hold arcs
-  bool torque_deflection = false;       ///< isTorqueDeflection
+  const char* name;                ///< snake case, as in model files and reports
+  bool measurement_only = false;   ///< isMeasurementOnly
+  bool uses_joint = false;         ///< Mechanism::joint is a joint (else −1)
+  bool uses_source_joint = false;  ///< Mechanism::source_joint is a joint (else −1)
+  bool has_coverage = false;       ///< Mechanism::coverage may hold arcs
+  bool torque_deflection = false;  ///< isTorqueDeflection
   Multiplicity multiplicity = Multiplicity::kAny;
   /// Whether Mechanism::order fits the kind (its meaning: Mechanism::order).
   bool (*order_fits)(int order) = nullptr;
@@ -311,8 +311,7 @@ struct PhysicalEvaluation {
 /// out: θ₀ from the commanded-angle mechanisms, then the fixed point θ = θ₀ + Δθ(τ(θ)).
 /// Allocation-free; false when sizes disagree.
 bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
-                        const Vec6& wrench_Sensor, double temp_c,
-                        const PhysicalLinkAnglesOut& out,
+                        const Vec6& wrench_Sensor, double temp_c, const PhysicalLinkAnglesOut& out,
                         const PhysicalEvaluation& how = {}) noexcept;
 
 /// Joints whose commanded angle lies (partly, within the fade) outside the coverage of their

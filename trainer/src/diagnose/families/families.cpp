@@ -8,17 +8,29 @@ namespace stepcal::trainer::diagnosis {
 
 const std::vector<FamilyBuilder>& familyBuilders() {
   static const std::vector<FamilyBuilder> builders = {
-      torqueDeflectionFamilies,  jointCouplingFamilies,     selfWeightFamilies,
-      sensorBiasFamilies,        thermalExpansionFamilies,  registrationDriftFamilies,
-      jointZeroDriftFamilies,    campaignJointZeroFamilies, transmissionErrorFamilies,
+      torqueDeflectionFamilies, jointCouplingFamilies,     selfWeightFamilies,
+      sensorBiasFamilies,       thermalExpansionFamilies,  registrationDriftFamilies,
+      jointZeroDriftFamilies,   campaignJointZeroFamilies, transmissionErrorFamilies,
   };
   return builders;
 }
 
+const KindFit* findKindFit(MechanismKind kind) {
+  static const std::vector<const KindFit*> fits = {
+      &backlashFit(),         &nonlinearStiffnessFit(), &torsionCurveFit(),
+      &selfWeightFit(),       &sensorBiasFit(),         &thermalExpansionFit(),
+      &registrationDriftFit(), &jointZeroDriftFit(),    &sessionFramesFit(),
+  };
+  for (const KindFit* fit : fits) {
+    if (fit->kind == kind) return fit;
+  }
+  return nullptr;
+}
+
 bool FamilyContext::wanted(MechanismKind kind, int joint, int source) const {
   return scope.families &&
-         (scope.only == nullptr ||
-          (scope.only->kind == kind && scope.only->joint == joint && scope.only->source_joint == source));
+         (scope.only == nullptr || (scope.only->kind == kind && scope.only->joint == joint &&
+                                    scope.only->source_joint == source));
 }
 
 void FamilyContext::addGlobal(Family family, std::vector<Eigen::Index> columns,
@@ -61,10 +73,9 @@ double stdOf(const std::vector<double>& v) {
 bool present(const PhysicalModel& model, MechanismKind kind, int joint, int source) {
   for (const Mechanism& m : model.mechanisms) {
     if (m.kind != kind) continue;
-    const bool one_per_model = kind == MechanismKind::kSelfWeight ||
-                               kind == MechanismKind::kSensorBias ||
-                               kind == MechanismKind::kThermalExpansion ||
-                               kind == MechanismKind::kRegistrationDrift;
+    const bool one_per_model =
+        kind == MechanismKind::kSelfWeight || kind == MechanismKind::kSensorBias ||
+        kind == MechanismKind::kThermalExpansion || kind == MechanismKind::kRegistrationDrift;
     if (one_per_model || (m.joint == joint && m.source_joint == source)) return true;
   }
   return false;

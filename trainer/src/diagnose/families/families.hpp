@@ -44,7 +44,8 @@ using FamilyBuilder = void (*)(const FamilyContext& context);
 const std::vector<FamilyBuilder>& familyBuilders();
 
 // One per file (families/<kind>.cpp).
-void torqueDeflectionFamilies(const FamilyContext& c);  // backlash, nonlinear_stiffness, torsion_curve
+void torqueDeflectionFamilies(
+    const FamilyContext& c);  // backlash, nonlinear_stiffness, torsion_curve
 void jointCouplingFamilies(const FamilyContext& c);
 void selfWeightFamilies(const FamilyContext& c);
 void sensorBiasFamilies(const FamilyContext& c);
@@ -53,6 +54,35 @@ void registrationDriftFamilies(const FamilyContext& c);
 void jointZeroDriftFamilies(const FamilyContext& c);
 void campaignJointZeroFamilies(const FamilyContext& c);
 void transmissionErrorFamilies(const FamilyContext& c);
+
+/// How the diagnosis fits a kind's parameters, beyond its physics (MechanismTraits). One per
+/// kind that needs one, in families/<kind>.cpp, listed in findKindFit (families.cpp); a kind
+/// without one takes the defaults (model.hpp: typicalStep, signConstrained, freeParameters,
+/// isShape).
+struct KindFit {
+  MechanismKind kind;
+  /// Typical step of a parameter, SI; null: 1e-4.
+  double (*typical_step)(const Mechanism& m, int index) = nullptr;
+  /// The parameters that are sizes and stay ≥ 0; null: none.
+  std::vector<int> (*sign_constrained)(const Mechanism& m) = nullptr;
+  /// The fitted parameters, in the fit's order; null: every one.
+  std::vector<int> (*free_parameters)(const Mechanism& m) = nullptr;
+  /// Whether a parameter is a shape (a torque scale), not a size; null: none is.
+  bool (*is_shape)(int index) = nullptr;
+};
+/// A kind's fit; null: the defaults.
+const KindFit* findKindFit(MechanismKind kind);
+
+// One per file (families/<kind>.cpp), for the kinds that differ from the defaults.
+const KindFit& backlashFit();
+const KindFit& nonlinearStiffnessFit();
+const KindFit& torsionCurveFit();
+const KindFit& selfWeightFit();
+const KindFit& sensorBiasFit();
+const KindFit& thermalExpansionFit();
+const KindFit& registrationDriftFit();
+const KindFit& jointZeroDriftFit();
+const KindFit& sessionFramesFit();
 
 /// A mechanism of a kind at zero, sized for an n-joint chain.
 Mechanism blank(MechanismKind kind, int dof, int joint = -1, int source = -1, int order = 0);

@@ -45,4 +45,17 @@ void jointZeroDriftFamilies(const FamilyContext& c) {
   }
 }
 
+const KindFit& jointZeroDriftFit() {
+  static const KindFit fit = [] {
+    KindFit f{MechanismKind::kJointZeroDrift};
+    f.typical_step = [](const Mechanism&, int) { return 1e-5; };  // rad/K
+    // The reference temperature is chosen: the rows' mean.
+    f.free_parameters = [](const Mechanism&) {
+      return std::vector<int>{mechanism::JointZeroDrift<double>::kDriftRate};
+    };
+    return f;
+  }();
+  return fit;
+}
+
 }  // namespace stepcal::trainer::diagnosis

@@ -29,8 +29,9 @@ void registrationDriftFamilies(const FamilyContext& c) {
     first_seq = i == 0 ? seq : std::min(first_seq, seq);
     last_seq = i == 0 ? seq : std::max(last_seq, seq);
   }
-  const bool several_campaigns = std::any_of(c.fit.rows.begin(), c.fit.rows.end(),
-                                             [](const Measurement* row) { return row->session > 0; });
+  const bool several_campaigns =
+      std::any_of(c.fit.rows.begin(), c.fit.rows.end(),
+                  [](const Measurement* row) { return row->session > 0; });
   // A campaign's seq is unique (the reader refuses repeats); one built in memory may not be.
   if (several_campaigns) {
     c.s.untestable.push_back({"registration_drift",
@@ -58,6 +59,23 @@ void registrationDriftFamilies(const FamilyContext& c) {
     std::vector<double> steps(columns.size(), typicalStep(f.mechanism, Drift::termIndex(1)));
     c.addGlobal(std::move(f), std::move(columns), std::move(steps));
   }
+}
+
+const KindFit& registrationDriftFit() {
+  static const KindFit fit = [] {
+    KindFit f{MechanismKind::kRegistrationDrift};
+    f.typical_step = [](const Mechanism&, int) { return 1e-5; };  // m or rad of a degree's twist
+    f.free_parameters = [](const Mechanism& m) {  // the twists, not the time span
+      std::vector<int> free;
+      for (int i = mechanism::RegistrationDrift<double>::termIndex(1);
+           i < static_cast<int>(m.parameters.size()); ++i) {
+        free.push_back(i);
+      }
+      return free;
+    };
+    return f;
+  }();
+  return fit;
 }
 
 }  // namespace stepcal::trainer::diagnosis

@@ -3,6 +3,7 @@
 // payload needed); without them, the lumped masses act through a compliance the loads
 // identified.
 #include "families.hpp"
+#include "stepcal/common/mechanisms/self_weight.hpp"
 
 namespace stepcal::trainer::diagnosis {
 namespace {
@@ -53,7 +54,8 @@ void lumpedMasses(const FamilyContext& c) {
 void selfWeightFamilies(const FamilyContext& c) {
   const bool compliant = c.global.compliance_rad_per_nm.size() == c.n &&
                          c.global.compliance_rad_per_nm.maxCoeff() > 0.0;
-  if (present(c.global, MechanismKind::kSelfWeight, -1, -1) || !c.wanted(MechanismKind::kSelfWeight)) {
+  if (present(c.global, MechanismKind::kSelfWeight, -1, -1) ||
+      !c.wanted(MechanismKind::kSelfWeight)) {
   } else if (c.global.gravity_Tracker.norm() == 0.0) {
     c.s.untestable.push_back({"self_weight", "gravity is unknown (campaign.yaml gravity_in_base)"});
   } else if (c.body_masses) {
@@ -65,6 +67,17 @@ void selfWeightFamilies(const FamilyContext& c) {
   } else {
     lumpedMasses(c);
   }
+}
+
+const KindFit& selfWeightFit() {
+  static const KindFit fit = [] {
+    KindFit f{MechanismKind::kSelfWeight};
+    f.typical_step = [](const Mechanism&, int index) {  // kg; kg·m
+      return index % mechanism::SelfWeight<double>::kPerLink == 0 ? 1.0 : 0.5;
+    };
+    return f;
+  }();
+  return fit;
 }
 
 }  // namespace stepcal::trainer::diagnosis

@@ -6,7 +6,8 @@ namespace stepcal::trainer::diagnosis {
 void sensorBiasFamilies(const FamilyContext& c) {
   const bool compliant = c.global.compliance_rad_per_nm.size() == c.n &&
                          c.global.compliance_rad_per_nm.maxCoeff() > 0.0;
-  if (present(c.global, MechanismKind::kSensorBias, -1, -1) || !c.wanted(MechanismKind::kSensorBias)) {
+  if (present(c.global, MechanismKind::kSensorBias, -1, -1) ||
+      !c.wanted(MechanismKind::kSensorBias)) {
     return;
   }
   if (c.global.sensor_frame < 0 || !compliant) {
@@ -27,6 +28,15 @@ void sensorBiasFamilies(const FamilyContext& c) {
     steps.push_back(p.step);
   }
   c.addGlobal(std::move(f), std::move(columns), std::move(steps));
+}
+
+const KindFit& sensorBiasFit() {
+  static const KindFit fit = [] {
+    KindFit f{MechanismKind::kSensorBias};
+    f.typical_step = [](const Mechanism&, int index) { return index < 3 ? 1.0 : 0.1; };  // N; N·m
+    return f;
+  }();
+  return fit;
 }
 
 }  // namespace stepcal::trainer::diagnosis

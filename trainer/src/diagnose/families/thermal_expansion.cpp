@@ -32,4 +32,17 @@ void thermalExpansionFamilies(const FamilyContext& c) {
   }
 }
 
+const KindFit& thermalExpansionFit() {
+  static const KindFit fit = [] {
+    KindFit f{MechanismKind::kThermalExpansion};
+    f.typical_step = [](const Mechanism&, int) { return 1e-5; };
+    // The reference temperature is chosen: the rows' mean.
+    f.free_parameters = [](const Mechanism&) {
+      return std::vector<int>{mechanism::ThermalExpansion<double>::kExpansion};
+    };
+    return f;
+  }();
+  return fit;
+}
+
 }  // namespace stepcal::trainer::diagnosis

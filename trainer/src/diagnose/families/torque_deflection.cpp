@@ -51,7 +51,8 @@ class JointCurves {
         for (size_t b = a; b < std::size(kTorqueFactors); ++b) {
           Knees knees = {{0.0, kTorqueFactors[a] * typical_}};
           if (b > a) knees.push_back({0.0, kTorqueFactors[b] * typical_});
-          if (!with_lost && knees.size() == 1) continue;  // a single knee: nonlinear stiffness's part
+          // A single knee without lost motion: nonlinear stiffness's part.
+          if (!with_lost && knees.size() == 1) continue;
           Family f;
           f.mechanism = curve(0.0, with_lost ? smoothing_ : 0.0, knees);
           f.free = signConstrained(f.mechanism);
@@ -100,10 +101,12 @@ class JointCurves {
       more.push_back({0.0, knee});
       std::sort(more.begin(), more.end(),
                 [](const auto& x, const auto& y) { return x.second < y.second; });
-      const auto at = std::find_if(more.begin(), more.end(), [&](const auto& x) { return x.second == knee; });
+      const auto at =
+          std::find_if(more.begin(), more.end(), [&](const auto& x) { return x.second == knee; });
       Family f;
       f.mechanism = curve(have.lostMotion_rad(), have.smoothingTorque_nm(), more);
-      f.free = {mechanism::TorsionCurve<double>::complianceIndex(1 + static_cast<int>(at - more.begin()))};
+      f.free = {mechanism::TorsionCurve<double>::complianceIndex(
+          1 + static_cast<int>(at - more.begin()))};
       f.chosen = 1;
       f.extends = existing;
       c_.addGlobal(std::move(f), {kneeColumn(knee)}, {1e-4 / knee});
@@ -138,7 +141,9 @@ class JointCurves {
     return c_.sink.feature(j_, std::move(source));
   }
   Eigen::Index lostColumn() const { return partColumn(MechanismKind::kBacklash, smoothing_); }
-  Eigen::Index kneeColumn(double knee) const { return partColumn(MechanismKind::kTorsionCurve, knee); }
+  Eigen::Index kneeColumn(double knee) const {
+    return partColumn(MechanismKind::kTorsionCurve, knee);
+  }
 
   // A curve of lost motion (b, smoothing; 0: none) and knees (compliance, torque).
   Mechanism curve(double b, double lost_smoothing, const Knees& knees) const {
@@ -161,12 +166,24 @@ class JointCurves {
   const double smoothing_;
 };
 
+// A torsion curve's sizes: its lost motion (when it has one) and each term's compliance.
+std::vector<int> curveSizes(const Mechanism& m) {
+  using Curve = mechanism::TorsionCurve<const double>;
+  std::vector<int> constrained;
+  if (view<mechanism::TorsionCurve>(m).smoothingTorque_nm() > 0.0) {
+    constrained.push_back(Curve::kLostMotion);
+  }
+  for (int term = 1; term <= m.order; ++term) constrained.push_back(Curve::complianceIndex(term));
+  return constrained;
+}
+
 }  // namespace
 
 void torqueDeflectionFamilies(const FamilyContext& c) {
   const auto wantedTorque = [&](int joint) {
     return c.scope.families &&
-           (c.scope.only == nullptr || (isTorqueDeflection(c.scope.only->kind) && c.scope.only->joint == joint));
+           (c.scope.only == nullptr ||
+            (isTorqueDeflection(c.scope.only->kind) && c.scope.only->joint == joint));
   };
   for (int j = 0; j < c.n; ++j) {
     std::vector<double> loaded;
@@ -188,7 +205,9 @@ void torqueDeflectionFamilies(const FamilyContext& c) {
     for (size_t k = 0; k < c.global.mechanisms.size(); ++k) {
       const Mechanism& m = c.global.mechanisms[k];
       if (!isTorqueDeflection(m.kind) || m.joint != j) continue;
-      if (existing < 0 || m.kind == MechanismKind::kNonlinearStiffness) existing = static_cast<int>(k);
+      if (existing < 0 || m.kind == MechanismKind::kNonlinearStiffness) {
+        existing = static_cast<int>(k);
+      }
       ++count;
     }
     if (count > 1) continue;  // a nonlinear stiffness and a backlash beside it: the whole curve
@@ -202,6 +221,73 @@ void torqueDeflectionFamilies(const FamilyContext& c) {
       curves.extend(existing);
     }
   }
+}
+
+const KindFit& backlashFit() {
+  static const KindFit fit = [] {
+    using Backlash = mechanism::Backlash<double>;
+    KindFit f{MechanismKind::kBacklash};
+    f.sign_constrained = [](const Mechanism&) { return std::vector<int>{Backlash::kLostMotion}; };
+    // The smoothing torque is chosen from the loads.
+    f.free_parameters = [](const Mechanism&) { return std::vector<int>{Backlash::kLostMotion}; };
+    return f;
+  }();
+  return fit;
+}
+
+const KindFit& nonlinearStiffnessFit() {
+  static const KindFit fit = [] {
+    using Stiffness = mechanism::NonlinearStiffness<const double>;
+    KindFit f{MechanismKind::kNonlinearStiffness};
+    f.typical_step = [](const Mechanism& m, int index) {
+      const double t0 = view<mechanism::NonlinearStiffness>(m).saturationTorque_nm();
+      return index == Stiffness::kExtraCompliance ? 1e-4 / t0 : 0.01 * t0;
+    };
+    f.sign_constrained = [](const Mechanism&) {
+      return std::vector<int>{Stiffness::kExtraCompliance};
+    };
+    // τ_lin is the rows', τ₀ is free once the curve has a size.
+    f.free_parameters = [](const Mechanism& m) {
+      std::vector<int> free = {Stiffness::kExtraCompliance};
+      if (view<mechanism::NonlinearStiffness>(m).extraCompliance_rad_per_nm() != 0.0) {
+        free.push_back(Stiffness::kSaturationTorque);
+      }
+      return free;
+    };
+    f.is_shape = [](int index) { return index == Stiffness::kSaturationTorque; };
+    return f;
+  }();
+  return fit;
+}
+
+const KindFit& torsionCurveFit() {
+  using Curve = mechanism::TorsionCurve<const double>;
+  static const KindFit fit = [] {
+    KindFit f{MechanismKind::kTorsionCurve};
+    f.typical_step = [](const Mechanism& m, int index) {  // lost motion; a knee's compliance, torque
+      const Curve curve = view<mechanism::TorsionCurve>(m);
+      if (index == Curve::kLostMotion) return 1e-4;
+      if (index == Curve::kSmoothingTorque) return 0.01 * curve.smoothingTorque_nm();
+      const int term = index / 2;
+      return index == Curve::complianceIndex(term) ? 1e-4 / curve.kneeTorque_nm(term)
+                                                   : 0.01 * curve.kneeTorque_nm(term);
+    };
+    f.sign_constrained = curveSizes;
+    // The sizes, then each knee's torque once its compliance is not zero.
+    f.free_parameters = [](const Mechanism& m) {
+      std::vector<int> free = curveSizes(m);
+      const Curve curve = view<mechanism::TorsionCurve>(m);
+      for (int term = 1; term <= m.order; ++term) {
+        if (curve.extraCompliance_rad_per_nm(term) != 0.0) free.push_back(Curve::kneeIndex(term));
+      }
+      return free;
+    };
+    f.is_shape = [](int index) {
+      return index > Curve::kSmoothingTorque && index == Curve::kneeIndex(index / 2);
+    };
+    return f;
+  }();
+  return fit;
 }
 
 }  // namespace stepcal::trainer::diagnosis

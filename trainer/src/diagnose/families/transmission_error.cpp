@@ -17,9 +17,11 @@ void transmissionErrorFamilies(const FamilyContext& c) {
     Family f;
     f.stage = Stage::kProfile;
     f.campaign = c.scope.campaign_profiles;
-    f.mechanism = blank(MechanismKind::kTransmissionError, c.n, p.mechanism.joint, -1, p.mechanism.order);
+    f.mechanism =
+        blank(MechanismKind::kTransmissionError, c.n, p.mechanism.joint, -1, p.mechanism.order);
     f.mechanism.coverage = p.mechanism.coverage;
-    f.columns = c.sink.profile(f.mechanism.joint, f.mechanism.coverage, f.mechanism.order, f.campaign);
+    f.columns =
+        c.sink.profile(f.mechanism.joint, f.mechanism.coverage, f.mechanism.order, f.campaign);
     c.s.families.push_back(std::move(f));
   }
   // One profile per joint not yet profiled, over the angles the fit rows cover.

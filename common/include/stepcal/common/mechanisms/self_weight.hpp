@@ -17,7 +17,9 @@ struct SelfWeight {
   int order;
   Double& mass_kg(int link) const noexcept { return p[massIndex(link)]; }
   /// Axis 0, 1, 2: x, y, z in frame k.
-  Double& firstMoment_kgm(int link, int axis) const noexcept { return p[massIndex(link) + 1 + axis]; }
+  Double& firstMoment_kgm(int link, int axis) const noexcept {
+    return p[massIndex(link) + 1 + axis];
+  }
 };
 
 }  // namespace stepcal::mechanism

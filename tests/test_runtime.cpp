@@ -21,6 +21,10 @@
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/mechanisms/backlash.hpp"
+#include "stepcal/common/mechanisms/joint_coupling.hpp"
+#include "stepcal/common/mechanisms/self_weight.hpp"
+#include "stepcal/common/mechanisms/sensor_bias.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
@@ -412,10 +416,10 @@ TEST(Runtime, ASharedFirstPassGivesEachModelItsOwnValues) {
   const PhysicalModel base = physicalModelOf(file);
   std::vector<PhysicalModel> models(6, base);
   models[1].compliance_rad_per_nm(2) *= 1.01;
-  models[2].mechanisms[1].parameters[3] += 1.0;   // the bias's force along z
-  models[3].mechanisms[0].parameters[4] += 1.0;   // link 2's mass
-  models[4].mechanisms[2].parameters[0] += 1e-4;  // the backlash's lost motion
-  models[5].mechanisms[3].parameters[0] += 1e-4;  // the coupling: θ₀ moves
+  view<mechanism::SensorBias>(models[2].mechanisms[1]).wrench(3) += 1.0;  // the bias's moment x
+  view<mechanism::SelfWeight>(models[3].mechanisms[0]).mass_kg(2) += 1.0;  // link 2's mass
+  view<mechanism::Backlash>(models[4].mechanisms[2]).lostMotion_rad() += 1e-4;
+  view<mechanism::JointCoupling>(models[5].mechanisms[3]).ratio() += 1e-4;  // θ₀ moves
   std::vector<PhysicalConstants> constants;
   for (const PhysicalModel& m : models) constants.push_back(physicalConstants(m));
   int rows = 0;

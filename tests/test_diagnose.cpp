@@ -16,6 +16,9 @@
 #include <nlohmann/json.hpp>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/mechanisms/backlash.hpp"
+#include "stepcal/common/mechanisms/joint_coupling.hpp"
+#include "stepcal/common/mechanisms/nonlinear_stiffness.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/pipeline.hpp"
@@ -120,11 +123,13 @@ TEST(Diagnose, TwoMechanismsAreBothFound) {
   ASSERT_NE(fb, nullptr) << effectsText(d);
   ASSERT_NE(fc, nullptr) << effectsText(d);
   EXPECT_EQ(d.effects.size(), 2u) << effectsText(d);
-  EXPECT_NEAR(fb->mechanism.parameters[0], 2.5e-4, 0.2 * 2.5e-4);
-  EXPECT_NEAR(fc->mechanism.parameters[0], 1e-3, 0.2 * 1e-3);
+  const double lost_motion_rad = view<mechanism::Backlash>(fb->mechanism).lostMotion_rad();
+  const double ratio = view<mechanism::JointCoupling>(fc->mechanism).ratio();
+  EXPECT_NEAR(lost_motion_rad, 2.5e-4, 0.2 * 2.5e-4);
+  EXPECT_NEAR(ratio, 1e-3, 0.2 * 1e-3);
   // Each effect's 1-σ is honest: the truth lies within 4σ.
-  EXPECT_LT(std::abs(fb->mechanism.parameters[0] - 2.5e-4), 4 * fb->mechanism.sigma[0]);
-  EXPECT_LT(std::abs(fc->mechanism.parameters[0] - 1e-3), 4 * fc->mechanism.sigma[0]);
+  EXPECT_LT(std::abs(lost_motion_rad - 2.5e-4), 4 * fb->mechanism.sigma[0]);
+  EXPECT_LT(std::abs(ratio - 1e-3), 4 * fc->mechanism.sigma[0]);
   for (const GainRow& g : d.gain) EXPECT_LT(g.after.mean_position_m, 1.5 * d.floor_position_m);
 }
 
@@ -153,7 +158,7 @@ TEST(Diagnose, SmallSelfWeightBesideASensorBiasIsJudgedOnItsTorques) {
   ASSERT_NE(sb, nullptr) << effectsText(d);
   bool within_one_sigma = true;  // the old rule's condition: every parameter within 1σ
   for (size_t i = 0; i < sw->mechanism.parameters.size(); ++i) {
-    within_one_sigma = within_one_sigma && std::abs(sw->mechanism.parameters[i]) <= sw->mechanism.sigma[i];
+    within_one_sigma = within_one_sigma && std::abs(sw->mechanism.parameter(static_cast<int>(i))) <= sw->mechanism.sigma[i];
   }
   EXPECT_TRUE(within_one_sigma) << "this campaign no longer shows the case the old rule refused";
   for (const FoundEffect* e : {sw, sb}) {
@@ -193,8 +198,10 @@ TEST(Diagnose, ATrialWithoutACauseKeepsTheCurvePhysical) {
   EXPECT_EQ(d.effects.size(), 3u) << effectsText(d);
   EXPECT_TRUE(coupled && weight) << effectsText(d);
   ASSERT_NE(nonlinear, nullptr) << effectsText(d);
-  EXPECT_NEAR(nonlinear->mechanism.parameters[0], 1.159e-6, 0.2 * 1.159e-6);
-  EXPECT_NEAR(nonlinear->mechanism.parameters[1], 208.3, 0.5 * 208.3);
+  const mechanism::NonlinearStiffness<const double> found =
+      view<mechanism::NonlinearStiffness>(nonlinear->mechanism);
+  EXPECT_NEAR(found.extraCompliance_rad_per_nm(), 1.159e-6, 0.2 * 1.159e-6);
+  EXPECT_NEAR(found.saturationTorque_nm(), 208.3, 0.5 * 208.3);
   EXPECT_GT(physicalModelOf(d.extended_model).compliance_rad_per_nm(2), 1e-6);
   for (const GainRow& g : d.gain) EXPECT_LT(g.after.mean_position_m, 1.5 * d.floor_position_m);
 }
@@ -207,7 +214,7 @@ TEST(Diagnose, AOneParameterCauseHasTheSizeOfItsSquaredZ) {
   ASSERT_EQ(d.effects.size(), 1u) << effectsText(d);
   const Mechanism& m = d.effects[0].mechanism;
   ASSERT_EQ(m.kind, MechanismKind::kBacklash);
-  const double z = m.parameters[0] / m.sigma[0];
+  const double z = view<mechanism::Backlash>(m).lostMotion_rad() / m.sigma[0];
   EXPECT_EQ(d.effects[0].size_dof, 1);
   EXPECT_NEAR(d.effects[0].size_chi2, z * z, 0.15 * z * z);
 }
@@ -289,7 +296,7 @@ TEST_P(HiddenTorqueCurve, IsTheJointsCurve) {
   int rows = 0;
   for (const Measurement& row : campaign.rows) {
     if (row.set == RowSet::kValidation) continue;
-    physicalLinkAngles(fitted, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta, tau);
+    physicalLinkAngles(fitted, row.q_rad, row.wrenchOrZero(), rowTemperature(row), {ws, theta, tau});
     const double t = tau(joint);
     double model_curve = fitted.compliance_rad_per_nm(joint) * t;
     for (const Mechanism& m : fitted.mechanisms) {

@@ -100,8 +100,8 @@ void expectJointDeflectionFound(const Diagnosis& d, const Campaign& campaign,
   for (const Measurement& row : campaign.rows) {
     if (row.set == RowSet::kValidation) continue;
     const double temp_c = rowTemperature(row);
-    physicalLinkAngles(fitted, row.q_rad, row.wrenchOrZero(), temp_c, ws, theta_fit, tau);
-    physicalLinkAngles(truth, row.q_rad, row.wrenchOrZero(), temp_c, ws, theta_true, tau);
+    physicalLinkAngles(fitted, row.q_rad, row.wrenchOrZero(), temp_c, {ws, theta_fit, tau});
+    physicalLinkAngles(truth, row.q_rad, row.wrenchOrZero(), temp_c, {ws, theta_true, tau});
     difference.push_back(theta_fit(h.joint) - theta_true(h.joint));
     own.push_back(c * tau(h.joint) * t0 / (t0 + std::abs(tau(h.joint))));
   }

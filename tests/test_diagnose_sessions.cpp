@@ -13,6 +13,8 @@
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/mechanisms/backlash.hpp"
+#include "stepcal/common/mechanisms/campaign_joint_zero.hpp"
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/report/diagnosis_report.hpp"
@@ -90,16 +92,16 @@ TEST(DiagnoseSessions, OneBacklashForBothAndTheMovedZeroAreNamed) {
   const Mechanism& b = backlash->mechanism;
   EXPECT_EQ(b.joint, 1);
   // Measured 0.3008 ± 0.0008 mrad for a truth of 0.3.
-  EXPECT_NEAR(b.parameters[0], kLostMotionRad, 0.1 * kLostMotionRad);
-  EXPECT_NEAR(b.parameters[0], kLostMotionRad, 4.0 * b.sigma[0] + 1e-6);
+  EXPECT_NEAR(view<mechanism::Backlash>(b).lostMotion_rad(), kLostMotionRad, 0.1 * kLostMotionRad);
+  EXPECT_NEAR(view<mechanism::Backlash>(b).lostMotion_rad(), kLostMotionRad, 4.0 * b.sigma[0] + 1e-6);
   const trainer::FoundEffect* zero = effectOf(d, MechanismKind::kCampaignJointZero);
   ASSERT_NE(zero, nullptr);
   const Mechanism& z = zero->mechanism;
   EXPECT_EQ(z.joint, 2);
   ASSERT_EQ(z.order, 1);
   // Measured +302.3 ± 1.4 µrad.
-  EXPECT_NEAR(z.parameters[0], kMovedZeroRad, 0.05 * kMovedZeroRad);
-  EXPECT_NEAR(z.parameters[0], kMovedZeroRad, 4.0 * z.sigma[0] + 1e-6);
+  EXPECT_NEAR(view<mechanism::CampaignJointZero>(z).offset_rad(1), kMovedZeroRad, 0.05 * kMovedZeroRad);
+  EXPECT_NEAR(view<mechanism::CampaignJointZero>(z).offset_rad(1), kMovedZeroRad, 4.0 * z.sigma[0] + 1e-6);
   const std::string text = cli::formatDiagnosis(d, 0.0);
   EXPECT_NE(text.find("joint 3's zero differs from the first campaign's by +30"), std::string::npos)
       << text;

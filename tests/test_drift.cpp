@@ -11,6 +11,7 @@
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/mechanisms.hpp"
+#include "stepcal/common/mechanisms/joint_zero_drift.hpp"
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/trainer/diagnose.hpp"
@@ -99,15 +100,15 @@ TEST(JointZeroDrift, MovesItsJointByTheTemperatureWhereItIsKnown) {
   JointVector theta, theta_rigid, tau;
   const JointVector q = campaign.rows[5].q_rad;
   for (const double temp_c : {12.5, 20.0, 24.0, 31.0}) {
-    ASSERT_TRUE(physicalLinkAngles(model, q, Vec6::Zero(), temp_c, ws, theta, tau));
-    ASSERT_TRUE(physicalLinkAngles(rigid, q, Vec6::Zero(), temp_c, ws, theta_rigid, tau));
+    ASSERT_TRUE(physicalLinkAngles(model, q, Vec6::Zero(), temp_c, {ws, theta, tau}));
+    ASSERT_TRUE(physicalLinkAngles(rigid, q, Vec6::Zero(), temp_c, {ws, theta_rigid, tau}));
     JointVector expected = theta_rigid;
     expected(1) += 3e-5 * (temp_c - 20.0);
     EXPECT_LT((theta - expected).cwiseAbs().maxCoeff(), 1e-15) << temp_c << " °C";
   }
   const double unknown = std::numeric_limits<double>::quiet_NaN();
-  ASSERT_TRUE(physicalLinkAngles(model, q, Vec6::Zero(), unknown, ws, theta, tau));
-  ASSERT_TRUE(physicalLinkAngles(rigid, q, Vec6::Zero(), unknown, ws, theta_rigid, tau));
+  ASSERT_TRUE(physicalLinkAngles(model, q, Vec6::Zero(), unknown, {ws, theta, tau}));
+  ASSERT_TRUE(physicalLinkAngles(rigid, q, Vec6::Zero(), unknown, {ws, theta_rigid, tau}));
   EXPECT_EQ(theta, theta_rigid) << "no temperature, no drift";
 }
 
@@ -217,7 +218,7 @@ TEST(DriftDiagnosis, TimeAndTemperatureAreToldApart) {
   EXPECT_EQ(d.effects.size(), 2u);
   const FoundEffect* e = effectOf(d, MechanismKind::kJointZeroDrift);
   ASSERT_NE(e, nullptr);
-  EXPECT_NEAR(e->mechanism.parameters[0], -2.5e-5, 0.1 * 2.5e-5);
+  EXPECT_NEAR(view<mechanism::JointZeroDrift>(e->mechanism).driftRate_rad_per_k(), -2.5e-5, 0.1 * 2.5e-5);
   EXPECT_LT(d.after.noise_ratio, 1.15);
   for (const trainer::GainRow& g : d.gain) {
     SCOPED_TRACE("load " + std::to_string(g.load_kg) + " kg");
@@ -242,7 +243,7 @@ TEST(DriftDiagnosis, AJointZeroThatFollowsTheTemperatureIsTheRobots) {
   EXPECT_EQ(e->mechanism.joint, 1);
   EXPECT_FALSE(d.drift.registration);
   EXPECT_EQ(d.effects.size(), 1u);
-  const double k = e->mechanism.parameters[0];
+  const double k = view<mechanism::JointZeroDrift>(e->mechanism).driftRate_rad_per_k();
   EXPECT_NEAR(k, 3e-5, 0.1 * 3e-5);
   EXPECT_LT(std::abs(k - 3e-5), 4.0 * e->mechanism.sigma[0]);
   bool applied = false;

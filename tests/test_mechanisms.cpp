@@ -6,10 +6,12 @@
 
 #include <cmath>
 #include <random>
+#include <utility>
 
 #include "../trainer/src/diagnose/profiles.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/mechanisms.hpp"
+#include "stepcal/common/mechanisms/torsion_curve.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 
@@ -28,6 +30,40 @@ Mechanism profile(std::vector<double> coefficients, AngleCoverage coverage = {})
   m.sigma.assign(m.parameters.size(), 0.0);
   m.coverage = std::move(coverage);
   return m;
+}
+
+TEST(MechanismRegistry, EveryKindOnceInTheOrderOfItsValueWithItsName) {
+  const std::vector<const MechanismTraits*>& registry = mechanismRegistry();
+  ASSERT_EQ(registry.size(), 13u);
+  for (size_t i = 0; i < registry.size(); ++i) {
+    const MechanismTraits& traits = *registry[i];
+    EXPECT_EQ(static_cast<size_t>(traits.kind), i + 1);
+    EXPECT_EQ(findMechanismTraits(traits.kind), &traits);
+    EXPECT_EQ(mechanismKindFromString(traits.name), traits.kind);
+    EXPECT_STREQ(toString(traits.kind), traits.name);
+    EXPECT_TRUE(traits.order_fits != nullptr && traits.parameter_names != nullptr) << traits.name;
+    EXPECT_EQ(traits.torque_deflection, traits.deflection != nullptr) << traits.name;
+  }
+  EXPECT_EQ(findMechanismTraits(static_cast<MechanismKind>(0)), nullptr);
+  EXPECT_EQ(findMechanismTraits(static_cast<MechanismKind>(14)), nullptr);
+  EXPECT_STREQ(toString(static_cast<MechanismKind>(14)), "unknown");
+  EXPECT_FALSE(mechanismKindFromString("no_such_kind").has_value());
+}
+
+TEST(MechanismView, NamedAccessorsFollowTheParameterNames) {
+  Mechanism m;
+  m.kind = MechanismKind::kTorsionCurve;
+  m.order = 2;
+  const std::vector<std::string> names = mechanismParameterNames(m.kind, 6, m.order);
+  m.parameters.resize(names.size());
+  for (size_t i = 0; i < names.size(); ++i) m.parameters[i] = static_cast<double>(i);
+  const mechanism::TorsionCurve<const double> curve = view<mechanism::TorsionCurve>(std::as_const(m));
+  EXPECT_EQ(names[static_cast<size_t>(curve.smoothingTorque_nm())], "smoothing_torque_nm");
+  EXPECT_EQ(names[static_cast<size_t>(curve.extraCompliance_rad_per_nm(2))], "extra_compliance2_rad_per_nm");
+  EXPECT_EQ(names[static_cast<size_t>(curve.kneeTorque_nm(1))], "knee_torque1_nm");
+  EXPECT_EQ(names[static_cast<size_t>(curve.linearAbove_nm())], "linear_above_nm");
+  view<mechanism::TorsionCurve>(m).kneeTorque_nm(2) = -1.0;
+  EXPECT_EQ(m.parameter(mechanism::TorsionCurve<double>::kneeIndex(2)), -1.0);
 }
 
 TEST(CoverageGate, ClosedFormInsideOnTheRampAndOutside) {

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "stepcal/common/mechanisms/backlash.hpp"
 #include "stepcal/report/report_html.hpp"
 #include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/pipeline.hpp"
@@ -365,7 +366,7 @@ TEST(EffectSignatures, PartialResidualsRecoverTheBacklash) {
 
   trainer::Diagnosis halved = r.diagnosis;
   for (Mechanism& m : halved.extended_model.mechanisms) {
-    if (m.kind == MechanismKind::kBacklash) m.parameters[0] *= 0.5;
+    if (m.kind == MechanismKind::kBacklash) view<mechanism::Backlash>(m).lostMotion_rad() *= 0.5;
   }
   const auto halved_signatures = trainer::effectSignatures(r.campaign, halved);
   const trainer::EffectSignature* h = findSignature(halved_signatures, MechanismKind::kBacklash, 1);

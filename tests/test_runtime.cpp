@@ -21,6 +21,10 @@
 
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/mechanisms/backlash.hpp"
+#include "stepcal/common/mechanisms/joint_coupling.hpp"
+#include "stepcal/common/mechanisms/self_weight.hpp"
+#include "stepcal/common/mechanisms/sensor_bias.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/trainer/pipeline.hpp"
@@ -379,14 +383,14 @@ TEST(Runtime, FixedPointStartHoldsOrPassesFromTheGivenDeflection) {
     start.passes = 0;
     start.deflection_rad = &d;
     start.deflection_out_rad = &d_out;
-    ASSERT_TRUE(physicalLinkAngles(model->physical, q, Vec6::Zero(), kUnknownTemperature_c, ws,
-                                   theta, tau, nullptr, &model->physical_constants, &start));
+    ASSERT_TRUE(physicalLinkAngles(model->physical, q, Vec6::Zero(), kUnknownTemperature_c,
+                                   {ws, theta, tau}, {&model->physical_constants, &start}));
     EXPECT_EQ(theta, JointVector(q + d));
     EXPECT_EQ(tau, JointVector::Zero(q.size()));
     worst_held = std::max(worst_held, (d_out - d).cwiseAbs().maxCoeff());
     start.passes = 1;
-    ASSERT_TRUE(physicalLinkAngles(model->physical, q, Vec6::Zero(), kUnknownTemperature_c, ws,
-                                   theta, tau, nullptr, &model->physical_constants, &start));
+    ASSERT_TRUE(physicalLinkAngles(model->physical, q, Vec6::Zero(), kUnknownTemperature_c,
+                                   {ws, theta, tau}, {&model->physical_constants, &start}));
     const JointVector by_hand =
         q + C.cwiseProduct(gravityTorquesByHand(chain, q + d, gravity_Tracker,
                                                 selfWeightParameters()));
@@ -412,10 +416,10 @@ TEST(Runtime, ASharedFirstPassGivesEachModelItsOwnValues) {
   const PhysicalModel base = physicalModelOf(file);
   std::vector<PhysicalModel> models(6, base);
   models[1].compliance_rad_per_nm(2) *= 1.01;
-  models[2].mechanisms[1].parameters[3] += 1.0;   // the bias's force along z
-  models[3].mechanisms[0].parameters[4] += 1.0;   // link 2's mass
-  models[4].mechanisms[2].parameters[0] += 1e-4;  // the backlash's lost motion
-  models[5].mechanisms[3].parameters[0] += 1e-4;  // the coupling: θ₀ moves
+  view<mechanism::SensorBias>(models[2].mechanisms[1]).wrench(3) += 1.0;  // the bias's moment x
+  view<mechanism::SelfWeight>(models[3].mechanisms[0]).mass_kg(2) += 1.0;  // link 2's mass
+  view<mechanism::Backlash>(models[4].mechanisms[2]).lostMotion_rad() += 1e-4;
+  view<mechanism::JointCoupling>(models[5].mechanisms[3]).ratio() += 1e-4;  // θ₀ moves
   std::vector<PhysicalConstants> constants;
   for (const PhysicalModel& m : models) constants.push_back(physicalConstants(m));
   int rows = 0;
@@ -425,13 +429,13 @@ TEST(Runtime, ASharedFirstPassGivesEachModelItsOwnValues) {
       for (size_t k = 0; k < models.size(); ++k) {
         ChainWorkspace alone_ws, shared_ws;
         JointVector alone_theta, alone_tau, shared_theta, shared_tau;
-        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c, alone_ws,
-                                       alone_theta, alone_tau, nullptr, &constants[k]));
+        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c,
+                                       {alone_ws, alone_theta, alone_tau}, {&constants[k]}));
         FixedPointStart start;
         start.first_pass = &first;
         ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c,
-                                       shared_ws, shared_theta, shared_tau, nullptr, &constants[k],
-                                       &start));
+                                       {shared_ws, shared_theta, shared_tau},
+                                       {&constants[k], &start}));
         EXPECT_EQ(shared_theta, alone_theta) << "model " << k;
         EXPECT_EQ(shared_tau, alone_tau) << "model " << k;
         EXPECT_EQ(tipPose(shared_ws).matrix(), tipPose(alone_ws).matrix()) << "model " << k;
@@ -446,12 +450,12 @@ TEST(Runtime, ASharedFirstPassGivesEachModelItsOwnValues) {
       for (const size_t k : {size_t{1}, size_t{5}}) {
         ChainWorkspace ws;
         JointVector alone_theta, alone_tau, theta, tau;
-        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c, ws,
-                                       alone_theta, alone_tau, nullptr, &constants[k]));
+        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c,
+                                       {ws, alone_theta, alone_tau}, {&constants[k]}));
         FixedPointStart start;
         start.first_pass = &wrong;
-        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c, ws,
-                                       theta, tau, nullptr, &constants[k], &start));
+        ASSERT_TRUE(physicalLinkAngles(models[k], row->q_rad, row->wrenchOrZero(), temp_c,
+                                       {ws, theta, tau}, {&constants[k], &start}));
         if (k == 1) {
           EXPECT_NE(tau, alone_tau) << "the compliance's variant takes the frames kept";
         } else {

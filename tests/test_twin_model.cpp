@@ -138,7 +138,7 @@ TEST(ModelTwin, PlannedPayloadsReadTheirWeightAtTheDeflectedPose) {
     ChainWorkspace ws;
     JointVector theta, tau;
     const PhysicalModel& physical = robot.physical();
-    physicalLinkAngles(physical, m.q_rad, m.wrench_Sensor, *m.temp_c, ws, theta, tau);
+    physicalLinkAngles(physical, m.q_rad, m.wrench_Sensor, *m.temp_c, {ws, theta, tau});
     const Vec3 g_Sensor = framePose(physical.chain_Tracker, ws, physical.sensor_frame).linear().transpose() *
                           physical.gravity_Tracker;
     EXPECT_LT((m.wrench_Sensor.head<3>() - load_kg * g_Sensor).norm(), 1e-9 * (1 + load_kg));

@@ -968,14 +968,11 @@ std::string mechanismInModelProblem(const CalibratedModel& model, size_t index) 
            " describes a campaign's measurement (its tracker, its tool, its readings), not the "
            "robot as it is now; expected none in a model file (hint: the diagnosis leaves it out of the model it writes)";
   }
-  const bool single = m.kind == MechanismKind::kSelfWeight ||
-                      m.kind == MechanismKind::kSensorBias ||
-                      m.kind == MechanismKind::kThermalExpansion;
-  // A joint has at most one profile, one profile geometry and one torsion curve.
-  const bool per_joint = m.kind == MechanismKind::kTransmissionError ||
-                         m.kind == MechanismKind::kProfileGeometry ||
-                         m.kind == MechanismKind::kTorsionCurve ||
-                         m.kind == MechanismKind::kJointZeroDrift;
+  // How many of its kind a model holds (MechanismTraits): e.g. one self weight, and per joint
+  // one profile, one profile geometry, one torsion curve.
+  const MechanismTraits::Multiplicity multiplicity = findMechanismTraits(m.kind)->multiplicity;
+  const bool single = multiplicity == MechanismTraits::Multiplicity::kOnePerModel;
+  const bool per_joint = multiplicity == MechanismTraits::Multiplicity::kOnePerJoint;
   for (size_t i = 0; i < index; ++i) {
     const Mechanism& earlier = model.mechanisms[i];
     if (earlier.kind != m.kind) continue;

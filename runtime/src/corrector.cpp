@@ -11,6 +11,8 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/mechanisms.hpp"
+#include "stepcal/common/mechanisms/joint_coupling.hpp"
+#include "stepcal/common/mechanisms/sensor_bias.hpp"
 #include "damped_step.hpp"
 
 namespace stepcal::runtime {
@@ -138,7 +140,7 @@ Vec6 sensorBias(const PhysicalModel& model) noexcept {
   Vec6 bias = Vec6::Zero();
   for (const Mechanism& m : model.mechanisms) {
     if (m.kind == MechanismKind::kSensorBias) {
-      for (int i = 0; i < 6; ++i) bias(i) += m.parameters[static_cast<size_t>(i)];
+      for (int i = 0; i < 6; ++i) bias(i) += view<mechanism::SensorBias>(m).wrench(i);
     }
   }
   return bias;
@@ -189,11 +191,10 @@ Pose physicalTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_
     start.passes = deflection == Deflection::kOnePass ? 1 : 0;
     start.deflection_rad = &ws.deflection_rad;
   }
-  const bool sized = physicalLinkAngles(model.physical, q_rad, wrench_Sensor, temp_c,
-                                        ws.chain, ws.link_rad, ws.torque_nm,
-                                        with_slopes ? &ws.profile_slope : nullptr,
-                                        &model.physical_constants, &start,
-                                        call.payload ? &call.point : nullptr);
+  const bool sized = physicalLinkAngles(
+      model.physical, q_rad, wrench_Sensor, temp_c,
+      {ws.chain, ws.link_rad, ws.torque_nm, with_slopes ? &ws.profile_slope : nullptr},
+      {&model.physical_constants, &start, call.payload ? &call.point : nullptr});
   STEPCAL_INVARIANT(sized, "the physical model and q were checked to have the chain's size");
   return tipPose(ws.chain);
 }
@@ -272,7 +273,7 @@ Vec6 unbiasedWrench(const PhysicalModel& model, const Vec6& wrench_Sensor) noexc
   Vec6 wrench = wrench_Sensor;
   for (const Mechanism& m : model.mechanisms) {
     if (m.kind == MechanismKind::kSensorBias) {
-      for (int i = 0; i < 6; ++i) wrench(i) -= m.parameters[static_cast<size_t>(i)];
+      for (int i = 0; i < 6; ++i) wrench(i) -= view<mechanism::SensorBias>(m).wrench(i);
     }
   }
   return wrench;
@@ -289,7 +290,7 @@ bool commandedAngleDerivative(const PhysicalModel& model, const JointVector& pro
   bool changed = false;
   for (const Mechanism& m : model.mechanisms) {
     if (m.kind == MechanismKind::kJointCoupling) {
-      dtheta0_dq(m.joint, m.source_joint) += m.parameters[0];
+      dtheta0_dq(m.joint, m.source_joint) += view<mechanism::JointCoupling>(m).ratio();
       changed = true;
     } else if (m.kind == MechanismKind::kTransmissionError) {
       changed = true;

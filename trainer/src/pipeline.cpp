@@ -99,8 +99,8 @@ PoseModel physicalPoseModel(PhysicalModel physical) {
   return [physical = std::move(physical)](const Measurement& row) {
     ChainWorkspace ws;
     JointVector theta, tau;
-    physicalLinkAngles(physical, row.q_rad, row.wrenchOrZero(), rowTemperature(row), ws, theta,
-                       tau);
+    physicalLinkAngles(physical, row.q_rad, row.wrenchOrZero(), rowTemperature(row),
+                       {ws, theta, tau});
     return tipPose(ws);
   };
 }

@@ -4,6 +4,13 @@
 #include <cmath>
 #include <cstdio>
 
+#include "stepcal/common/mechanisms/campaign_joint_zero.hpp"
+#include "stepcal/common/mechanisms/profile_geometry.hpp"
+#include "stepcal/common/mechanisms/registration_drift.hpp"
+#include "stepcal/common/mechanisms/self_weight.hpp"
+#include "stepcal/common/mechanisms/session_frames.hpp"
+#include "stepcal/common/mechanisms/torsion_curve.hpp"
+#include "stepcal/common/mechanisms/transmission_error.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/report/text_format.hpp"
 
@@ -17,8 +24,8 @@ std::vector<std::string> parameterNames(const Mechanism& m) {
 
 // Harmonic k's amplitude √(a² + b²), rad.
 double amplitude(const Mechanism& m, int k) {
-  return std::hypot(m.parameters[static_cast<size_t>(2 * (k - 1))],
-                    m.parameters[static_cast<size_t>(2 * (k - 1) + 1)]);
+  const mechanism::TransmissionError<const double> harmonics = view<mechanism::TransmissionError>(m);
+  return std::hypot(harmonics.sin_rad(k), harmonics.cos_rad(k));
 }
 
 // Harmonics by amplitude, largest first (1-based).
@@ -54,10 +61,10 @@ nlohmann::json mechanismJson(const Mechanism& m, const std::vector<double>& shar
   }
   j["harmonics"] = nlohmann::json::array();
   for (int k = 1; k <= m.order; ++k) {
-    const size_t a = static_cast<size_t>(2 * (k - 1));
+    const size_t a = static_cast<size_t>(mechanism::TransmissionError<double>::sinIndex(k));
     nlohmann::json h = {{"harmonic", k},
-                        {"sin_rad", m.parameters[a]},
-                        {"cos_rad", m.parameters[a + 1]},
+                        {"sin_rad", view<mechanism::TransmissionError>(m).sin_rad(k)},
+                        {"cos_rad", view<mechanism::TransmissionError>(m).cos_rad(k)},
                         {"sin_sigma_rad", m.sigma[a]},
                         {"cos_sigma_rad", m.sigma[a + 1]}};
     if (static_cast<size_t>(k) <= share.size()) h["geometry_share"] = share[static_cast<size_t>(k - 1)];
@@ -74,11 +81,13 @@ std::string parameterText(const Mechanism& m) {
   const std::vector<std::string> names = parameterNames(m);
   std::string out;
   // A torsion curve without lost motion (smoothing 0) has none to show.
-  const bool no_lost_motion = m.kind == MechanismKind::kTorsionCurve && m.parameters[1] == 0.0;
+  const bool no_lost_motion = m.kind == MechanismKind::kTorsionCurve &&
+                              view<mechanism::TorsionCurve>(m).smoothingTorque_nm() == 0.0;
   for (size_t i = 0; i < names.size(); ++i) {
-    if (m.kind == MechanismKind::kSelfWeight && m.parameters[i] == 0.0) continue;
-    if (no_lost_motion && i < 2) continue;
-    out += format("%s%s = %.4g", out.empty() ? "" : ", ", names[i].c_str(), m.parameters[i]);
+    const double value = m.parameter(static_cast<int>(i));
+    if (m.kind == MechanismKind::kSelfWeight && value == 0.0) continue;
+    if (no_lost_motion && i <= mechanism::TorsionCurve<double>::kSmoothingTorque) continue;
+    out += format("%s%s = %.4g", out.empty() ? "" : ", ", names[i].c_str(), value);
     if (m.sigma[i] > 0.0) out += format(" ± %.2g", m.sigma[i]);
   }
   return out;
@@ -201,7 +210,8 @@ std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
 // the measured tip (its 6·degree coefficients are in the JSON).
 std::string registrationDriftText(const trainer::FoundEffect& e) {
   const Mechanism& m = e.mechanism;
-  const double first = m.parameters[0], last = m.parameters[1];
+  const mechanism::RegistrationDrift<const double> span = view<mechanism::RegistrationDrift>(m);
+  const double first = span.firstSeq(), last = span.lastSeq();
   double largest_turn_rad = 0.0;
   constexpr int kSamples = 200;
   for (int i = 0; i <= kSamples; ++i) {
@@ -218,8 +228,9 @@ std::string effectParameterText(const trainer::FoundEffect& e) {
   if (e.mechanism.kind == MechanismKind::kRegistrationDrift) return registrationDriftText(e);
   if (!e.compliance_joints.empty()) {  // self weight with the URDF's masses
     std::string masses = "link masses from the URDF (kg:";
-    for (size_t k = 0; k < e.mechanism.parameters.size(); k += 4) {
-      masses += format(" %.3g", e.mechanism.parameters[k]);
+    const int links = static_cast<int>(e.mechanism.parameters.size()) / mechanism::SelfWeight<double>::kPerLink;
+    for (int k = 1; k <= links; ++k) {
+      masses += format(" %.3g", view<mechanism::SelfWeight>(e.mechanism).mass_kg(k));
     }
     return masses + ")";
   }
@@ -257,9 +268,10 @@ std::string transmissionSummary(const Mechanism& m) {
 
 std::string profileGeometrySummary(const Mechanism& m) {
   double v = 0.0, w = 0.0;
-  for (size_t k = 0; k + 6 <= m.parameters.size(); k += 6) {
-    v = std::max(v, std::hypot(m.parameters[k], m.parameters[k + 1], m.parameters[k + 2]));
-    w = std::max(w, std::hypot(m.parameters[k + 3], m.parameters[k + 4], m.parameters[k + 5]));
+  for (int k = 0; 6 * (k + 1) <= static_cast<int>(m.parameters.size()); ++k) {
+    const Eigen::Map<const Vec6> delta = view<mechanism::ProfileGeometry>(m).poseDelta(k);
+    v = std::max(v, std::hypot(delta(0), delta(1), delta(2)));
+    w = std::max(w, std::hypot(delta(3), delta(4), delta(5)));
   }
   return format("initial poses moved by up to %.0f um, %.0f urad where joint %d's profile holds",
                 1e6 * v, 1e6 * w, m.joint + 1);
@@ -284,18 +296,19 @@ nlohmann::json parametersJson(const Mechanism& mechanism, const std::vector<doub
 }
 
 std::string campaignFrameText(const Mechanism& m, bool tool) {
-  const size_t first = tool ? 6 : 0;
+  using Frames = mechanism::SessionFrames<const double>;
+  const size_t first = tool ? Frames::kTool : Frames::kStation;
   const auto largest = [&](size_t from) {
     return std::max({m.sigma[from], m.sigma[from + 1], m.sigma[from + 2]});
   };
   // A value that rounds to zero at the digits printed is printed as 0, not -0.
   const auto shown = [](double value, double unit) { return std::abs(value) < 0.5 * unit ? 0.0 : value; };
-  const std::vector<double>& p = m.parameters;
-  const auto mm = [&](size_t i) { return shown(kMmPerM * p[i], 1e-3); };
-  const auto deg = [&](size_t i) { return shown(kDegPerRad * p[i], 1e-4); };
-  return format("t (%.3f, %.3f, %.3f) mm ± %.2g, r (%.4f, %.4f, %.4f) deg ± %.2g", mm(first),
-                mm(first + 1), mm(first + 2), kMmPerM * largest(first), deg(first + 3), deg(first + 4),
-                deg(first + 5), kDegPerRad * largest(first + 3));
+  const Frames frames = view<mechanism::SessionFrames>(m);
+  const auto value = [&](int i) { return tool ? frames.tool(i) : frames.station(i); };  // t, r
+  const auto mm = [&](int i) { return shown(kMmPerM * value(i), 1e-3); };
+  const auto deg = [&](int i) { return shown(kDegPerRad * value(i), 1e-4); };
+  return format("t (%.3f, %.3f, %.3f) mm ± %.2g, r (%.4f, %.4f, %.4f) deg ± %.2g", mm(0), mm(1),
+                mm(2), kMmPerM * largest(first), deg(3), deg(4), deg(5), kDegPerRad * largest(first + 3));
 }
 
 namespace {
@@ -304,7 +317,8 @@ namespace {
 // the first campaign's by +1593.2 ± 60.1 urad".
 std::string campaignZeroText(const Mechanism& m, size_t k) {
   return format("joint %d's zero differs from the first campaign's by %+.1f ± %.1f urad", m.joint + 1,
-                1e6 * m.parameters[k - 1], 1e6 * m.sigma[k - 1]);
+                1e6 * view<mechanism::CampaignJointZero>(m).offset_rad(static_cast<int>(k)),
+                1e6 * m.sigma[static_cast<size_t>(mechanism::CampaignJointZero<double>::offsetIndex(static_cast<int>(k)))]);
 }
 
 std::string campaignsText(const trainer::Diagnosis& d) {

@@ -226,8 +226,9 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
         mechanismParameterNames(m.kind, model.chain_Tracker.dof(), m.order);
     out << "mechanism " << describe(m) << ":";
     for (size_t i = 0; i < names.size(); ++i) {
-      if (m.kind == MechanismKind::kSelfWeight && m.parameters[i] == 0.0) continue;
-      out << format(" %s %.5g+-%.2g", names[i].c_str(), m.parameters[i], m.sigma[i]);
+      const double value = m.parameter(static_cast<int>(i));
+      if (m.kind == MechanismKind::kSelfWeight && value == 0.0) continue;
+      out << format(" %s %.5g+-%.2g", names[i].c_str(), value, m.sigma[i]);
     }
     out << "\n";
   }

@@ -9,6 +9,7 @@
 #include "random.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/mechanisms/sensor_bias.hpp"
 #include "stepcal/common/urdf.hpp"
 
 namespace stepcal::twin {
@@ -22,7 +23,7 @@ constexpr int kMaxReadingPasses = 20;
 
 Vec6 sensorBias(const PhysicalModel& model) {
   for (const Mechanism& m : model.mechanisms) {
-    if (m.kind == MechanismKind::kSensorBias) return Eigen::Map<const Vec6>(m.parameters.data());
+    if (m.kind == MechanismKind::kSensorBias) return view<mechanism::SensorBias>(m).wrench();
   }
   return Vec6::Zero();
 }
@@ -83,8 +84,8 @@ Pose ModelTwin::X_TrackerTip(const JointVector& q_cmd_rad, const Vec6& wrench_Se
                              double temp_c) const {
   ChainWorkspace ws;
   JointVector theta, tau;
-  const bool sizes = physicalLinkAngles(physical_, q_cmd_rad, wrench_Sensor, temp_c, ws, theta,
-                                        tau, nullptr, &constants_);
+  const bool sizes = physicalLinkAngles(physical_, q_cmd_rad, wrench_Sensor, temp_c,
+                                        {ws, theta, tau}, {&constants_});
   STEPCAL_INVARIANT(sizes, "one commanded angle per joint of the model");
   return tipPose(ws);
 }
@@ -98,8 +99,7 @@ Vec6 ModelTwin::payloadReading(const JointVector& q_cmd_rad, double load_kg,
   ChainWorkspace ws;
   JointVector theta, tau;
   for (int pass = 0; pass < kMaxReadingPasses; ++pass) {
-    physicalLinkAngles(physical_, q_cmd_rad, wrench + bias, temp_c, ws, theta, tau, nullptr,
-                       &constants_);
+    physicalLinkAngles(physical_, q_cmd_rad, wrench + bias, temp_c, {ws, theta, tau}, {&constants_});
     const Mat3 R_TrackerSensor =
         framePose(physical_.chain_Tracker, ws, physical_.sensor_frame).linear();
     Vec6 next;

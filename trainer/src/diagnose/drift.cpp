@@ -6,6 +6,7 @@
 #include <string>
 
 #include "search.hpp"
+#include "stepcal/common/mechanisms/joint_zero_drift.hpp"
 
 #include "stepcal/common/units.hpp"
 
@@ -85,7 +86,9 @@ void judgeDrift(Search& search) {
                       printed("'s zero drifts with temperature by %.1f ± %.1f urad/K (the tip "
                               "moves by %.4f mm RMS over the rows' temperatures); the runtime "
                               "applies it where a request gives temp_c",
-                              1e6 * m.parameters[0], 1e6 * m.sigma[0], kMmPerM * e.tip_motion_rms_m));
+                              1e6 * view<mechanism::JointZeroDrift>(m).driftRate_rad_per_k(),
+                              1e6 * m.sigma[mechanism::JointZeroDrift<double>::kDriftRate],
+                              kMmPerM * e.tip_motion_rms_m));
     }
     for (const Mechanism& alt : e.alternatives) {
       if (alt.kind == MechanismKind::kRegistrationDrift || alt.kind == MechanismKind::kJointZeroDrift) {

@@ -3,6 +3,9 @@
 #include <cmath>
 
 #include "profiles.hpp"
+#include "stepcal/common/mechanisms/backlash.hpp"
+#include "stepcal/common/mechanisms/nonlinear_stiffness.hpp"
+#include "stepcal/common/mechanisms/torsion_curve.hpp"
 #include "search.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -11,10 +14,13 @@ namespace {
 // Where a torque-deflection mechanism's stiffness changes: its knees, or a nonlinear stiffness's
 // fade torque τ₀, N·m (increasing).
 std::vector<double> stiffnessChanges(const Mechanism& m) {
-  if (m.kind == MechanismKind::kNonlinearStiffness) return {m.parameters[1]};
+  if (m.kind == MechanismKind::kNonlinearStiffness) {
+    return {view<mechanism::NonlinearStiffness>(m).saturationTorque_nm()};
+  }
   std::vector<double> knees;
   if (m.kind == MechanismKind::kTorsionCurve) {
-    for (int k = 0; k < m.order; ++k) knees.push_back(m.parameters[3 + 2 * size_t(k)]);
+    const mechanism::TorsionCurve<const double> curve = view<mechanism::TorsionCurve>(m);
+    for (int term = 1; term <= m.order; ++term) knees.push_back(curve.kneeTorque_nm(term));
   }
   return knees;
 }
@@ -24,7 +30,12 @@ std::vector<FoundEffect::StiffnessSegment> stiffnessSegments(const Mechanism& m,
                                                              double compliance,
                                                              double max_torque_nm) {
   Mechanism stiffening = m;  // lost motion is apart in a catalogue
-  if (m.kind != MechanismKind::kNonlinearStiffness) stiffening.parameters[0] = 0.0;
+  if (m.kind == MechanismKind::kBacklash) {
+    view<mechanism::Backlash>(stiffening).lostMotion_rad() = 0.0;
+  }
+  if (m.kind == MechanismKind::kTorsionCurve) {
+    view<mechanism::TorsionCurve>(stiffening).lostMotion_rad() = 0.0;
+  }
   const auto deflection = [&](double tau) { return compliance * tau + torqueDeflection(stiffening, tau); };
   std::vector<double> ends;
   for (double at : stiffnessChanges(m)) {

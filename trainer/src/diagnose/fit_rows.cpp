@@ -9,6 +9,8 @@
 #include "parallel.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/mechanisms/campaign_joint_zero.hpp"
+#include "stepcal/common/mechanisms/registration_drift.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -37,7 +39,8 @@ void forEachBlock(const FitRows& fit, const Body& body) {
 Pose X_FittedLast(const Mechanism& drift) {
   constexpr double kLastShare = 0.1;
   constexpr int kSamples = 50;
-  const double first = drift.parameters[0], last = drift.parameters[1];
+  const mechanism::RegistrationDrift<const double> span = view<mechanism::RegistrationDrift>(drift);
+  const double first = span.firstSeq(), last = span.lastSeq();
   Vec6 mean = Vec6::Zero();
   for (int i = 0; i <= kSamples; ++i) {
     mean += registrationDrift(drift, last - kLastShare * (last - first) * i / kSamples);
@@ -60,8 +63,9 @@ MeasurementFrames measurementFramesOf(const PhysicalModel& model) {
         if (frames.zero_offset_rad.size() <= campaign) {
           frames.zero_offset_rad.resize(campaign + 1, JointVector::Zero(n));
         }
-        for (size_t k = 1; k <= campaign; ++k) {
-          frames.zero_offset_rad[k](m.joint) += m.parameters[k - 1];
+        for (int k = 1; k <= m.order; ++k) {
+          frames.zero_offset_rad[static_cast<size_t>(k)](m.joint) +=
+              view<mechanism::CampaignJointZero>(m).offset_rad(k);
         }
         break;
       default: break;
@@ -160,8 +164,8 @@ void evaluateRows(const PhysicalModel& model, const FitRows& fit, size_t begin, 
   const MeasurementFrames frames = measurementFramesOf(model);
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
-    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), rowTemperature(row), ws,
-                       out.theta_rad[i - offset], out.tau_nm[i - offset], nullptr, &constants);
+    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), rowTemperature(row),
+                       {ws, out.theta_rad[i - offset], out.tau_nm[i - offset]}, {&constants});
     rowResidual(fit, i, frames, tipPose(ws), fit.start[i] - first, out.r);
   }
 }
@@ -173,8 +177,8 @@ void residualRows(const PhysicalModel& model, const FitRows& fit, size_t begin, 
   JointVector theta, tau;
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
-    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), rowTemperature(row), ws,
-                       theta, tau, nullptr, &constants);
+    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), rowTemperature(row),
+                       {ws, theta, tau}, {&constants});
     rowResidual(fit, i, frames, tipPose(ws), fit.start[i] - first, r);
   }
 }
@@ -221,8 +225,8 @@ void lineariseRows(const PhysicalModel& model, const FitRows& fit, size_t begin,
   JointVector theta, tau;
   for (size_t i = begin; i < end; ++i) {
     const Measurement& row = *fit.rows[i];
-    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), kUnscaledLinks, ws, theta,
-                       tau, nullptr, &constants);
+    physicalLinkAngles(model, frames.commanded(row), row.wrenchOrZero(), kUnscaledLinks,
+                       {ws, theta, tau}, {&constants});
     row_linearisation(model.chain_Tracker, ws, frames, fit, i, fit.start[i] - first, r, lin);
   }
 }
@@ -308,7 +312,7 @@ Eigen::MatrixXd differenceColumns(const std::vector<const PhysicalModel*>& model
     for (size_t m = 0; m < models.size(); ++m) {
       if (!needed[m]) continue;
       physicalLinkAngles(*models[m], frames[m].commanded(row), row.wrenchOrZero(),
-                         rowTemperature(row), ws, theta, tau, nullptr, &constants[m], &start);
+                         rowTemperature(row), {ws, theta, tau}, {&constants[m], &start});
       rowResidual(fit, i, frames[m], tipPose(ws), 0, r);
       out.block(e, static_cast<Eigen::Index>(m), k, 1) = (r0.segment(e, k) - r.head(k)) / steps[m];
     }
@@ -332,15 +336,15 @@ void evaluateAndLinearise(const PhysicalModel& model, const FitRows& fit, size_t
     const Measurement& row = *fit.rows[i];
     const double temp_c = rowTemperature(row);
     const JointVector q = frames.commanded(row);
-    physicalLinkAngles(model, q, row.wrenchOrZero(), temp_c, ws,
-                       evaluation.theta_rad[i - begin], evaluation.tau_nm[i - begin], nullptr,
-                       &constants);
+    physicalLinkAngles(model, q, row.wrenchOrZero(), temp_c,
+                       {ws, evaluation.theta_rad[i - begin], evaluation.tau_nm[i - begin]},
+                       {&constants});
     const Eigen::Index e = fit.start[i] - first;
     rowResidual(fit, i, frames, tipPose(ws), e, evaluation.r);
     // Where the model scales no link at the row's temperature, its frames are the unscaled ones.
     if (model.linkLengthScale(temp_c) != 1.0) {
-      physicalLinkAngles(model, q, row.wrenchOrZero(), kUnscaledLinks, ws, theta, tau, nullptr,
-                         &constants);
+      physicalLinkAngles(model, q, row.wrenchOrZero(), kUnscaledLinks, {ws, theta, tau},
+                         {&constants});
     }
     row_linearisation(model.chain_Tracker, ws, frames, fit, i, e, evaluation.r, lin);
   }

@@ -4,6 +4,7 @@
 
 #include "../least_squares.hpp"
 #include "chunked_gram.hpp"
+#include "families/families.hpp"
 #include "model.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -35,9 +36,8 @@ bool boundedAtZero(const PhysicalModel& model, const Parameter& p) {
 }
 
 double valueOf(const PhysicalModel& model, const Parameter& p) {
-  return p.mechanism < 0
-             ? model.compliance_rad_per_nm(p.index)
-             : model.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)];
+  return p.mechanism < 0 ? model.compliance_rad_per_nm(p.index)
+                         : model.mechanisms[static_cast<size_t>(p.mechanism)].parameter(p.index);
 }
 
 // Lower bounds of a step of the geometry and params: a bounded parameter may fall to zero.
@@ -88,8 +88,7 @@ TallQr linearSystem(const DiagnosisModel& model, const PhysicalModel& global, co
         global.mechanisms[static_cast<size_t>(q.mechanism)].kind != MechanismKind::kSelfWeight) {
       continue;
     }
-    const double value =
-        global.mechanisms[static_cast<size_t>(q.mechanism)].parameters[static_cast<size_t>(q.index)];
+    const double value = global.mechanisms[static_cast<size_t>(q.mechanism)].parameter(q.index);
     Eigen::MatrixXd prior = Eigen::MatrixXd::Zero(1, p);
     prior(0, geometry + static_cast<Eigen::Index>(c)) = 1.0 / kSelfWeightPriorSigma;
     system.add(prior, Eigen::VectorXd::Constant(1, -value / kSelfWeightPriorSigma));
@@ -118,80 +117,42 @@ void shift(PhysicalModel& model, const Parameter& p, double delta) {
   if (p.mechanism < 0) {
     model.compliance_rad_per_nm(p.index) += delta;
   } else {
-    model.mechanisms[static_cast<size_t>(p.mechanism)].parameters[static_cast<size_t>(p.index)] +=
-        delta;
+    model.mechanisms[static_cast<size_t>(p.mechanism)].parameter(p.index) += delta;
   }
 }
 
 double typicalStep(const Mechanism& m, int index) {
-  switch (m.kind) {
-    case MechanismKind::kNonlinearStiffness:
-      return index == 0 ? 1e-4 / m.parameters[1] : 0.01 * m.parameters[1];
-    case MechanismKind::kTorsionCurve:  // lost motion; a knee's compliance, its torque
-      return index == 0 ? 1e-4
-             : index % 2 == 0 ? 1e-4 / m.parameters[static_cast<size_t>(index) + 1]
-                              : 0.01 * m.parameters[static_cast<size_t>(index)];
-    case MechanismKind::kThermalExpansion: return 1e-5;
-    case MechanismKind::kJointZeroDrift: return 1e-5;  // rad/K
-    case MechanismKind::kRegistrationDrift: return 1e-5;  // m or rad of a degree's twist
-    case MechanismKind::kSessionFrames: return 1e-5;      // m or rad of a station or a tool
-    case MechanismKind::kSensorBias: return index < 3 ? 1.0 : 0.1;
-    case MechanismKind::kSelfWeight: return index % 4 == 0 ? 1.0 : 0.5;
-    default: return 1e-4;
-  }
+  const KindFit* fit = findKindFit(m.kind);
+  return fit != nullptr && fit->typical_step != nullptr ? fit->typical_step(m, index) : 1e-4;
 }
 
 bool isShape(const PhysicalModel& model, const Parameter& p) {
   if (p.mechanism < 0) return false;
-  const MechanismKind kind = model.mechanisms[static_cast<size_t>(p.mechanism)].kind;
-  return (kind == MechanismKind::kNonlinearStiffness && p.index == 1) ||
-         (kind == MechanismKind::kTorsionCurve && p.index >= 3 && p.index % 2 == 1);
+  const KindFit* fit = findKindFit(model.mechanisms[static_cast<size_t>(p.mechanism)].kind);
+  return fit != nullptr && fit->is_shape != nullptr && fit->is_shape(p.index);
 }
 
 std::vector<int> signConstrained(const Mechanism& m) {
-  switch (m.kind) {
-    case MechanismKind::kBacklash:
-    case MechanismKind::kNonlinearStiffness: return {0};
-    case MechanismKind::kTorsionCurve: {
-      std::vector<int> constrained;
-      if (m.parameters[1] > 0.0) constrained.push_back(0);
-      for (int k = 0; k < m.order; ++k) constrained.push_back(2 + 2 * k);
-      return constrained;
-    }
-    default: return {};
-  }
+  const KindFit* fit = findKindFit(m.kind);
+  return fit != nullptr && fit->sign_constrained != nullptr ? fit->sign_constrained(m)
+                                                            : std::vector<int>{};
 }
 
 Mechanism simplestTorqueDeflection(Mechanism m) {
   if (m.kind != MechanismKind::kTorsionCurve || m.order > 0) return m;
-  m.kind = MechanismKind::kBacklash;  // lost motion alone, which saturates: no τ_lin
+  // Lost motion alone, which saturates: a backlash (the curve's first two parameters), no τ_lin.
+  m.kind = MechanismKind::kBacklash;
   m.parameters.pop_back();
   m.sigma.pop_back();
   return m;
 }
 
 std::vector<int> freeParameters(const Mechanism& m, bool masses_from_urdf) {
+  if (m.kind == MechanismKind::kSelfWeight && masses_from_urdf) return {};
+  const KindFit* fit = findKindFit(m.kind);
+  if (fit != nullptr && fit->free_parameters != nullptr) return fit->free_parameters(m);
   std::vector<int> free;
-  if (m.kind == MechanismKind::kSelfWeight && masses_from_urdf) return free;
-  if (m.kind == MechanismKind::kTorsionCurve) {
-    free = signConstrained(m);
-    for (int k = 0; k < m.order; ++k) {
-      if (m.parameters[2 + 2 * size_t(k)] != 0.0) free.push_back(3 + 2 * k);
-    }
-    return free;
-  }
-  for (size_t i = 0; i < m.parameters.size(); ++i) {
-    if ((m.kind == MechanismKind::kThermalExpansion || m.kind == MechanismKind::kBacklash ||
-         m.kind == MechanismKind::kJointZeroDrift) &&
-        i == 1) {
-      continue;  // a reference temperature, a smoothing torque: chosen
-    }
-    if (m.kind == MechanismKind::kRegistrationDrift && i < 2) continue;  // the time span
-    if (m.kind == MechanismKind::kNonlinearStiffness && (i == 2 || (i == 1 && m.parameters[0] == 0.0))) {
-      continue;  // τ_lin is the rows', τ₀ is free once the curve has a size
-    }
-    free.push_back(static_cast<int>(i));
-  }
+  for (int i = 0; i < static_cast<int>(m.parameters.size()); ++i) free.push_back(i);
   return free;
 }
 

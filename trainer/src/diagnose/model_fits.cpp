@@ -5,6 +5,7 @@
 
 #include "profiles.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/mechanisms/torsion_curve.hpp"
 
 namespace stepcal::trainer::diagnosis {
 
@@ -21,7 +22,7 @@ size_t globalEffect(const Diagnosis& d, size_t k) {
 bool wrongSign(const Mechanism& m) {
   const std::vector<int> constrained = signConstrained(m);
   return std::any_of(constrained.begin(), constrained.end(),
-                     [&m](int i) { return m.parameters[static_cast<size_t>(i)] < 0.0; });
+                     [&m](int i) { return m.parameter(i) < 0.0; });
 }
 
 void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOptions& options,
@@ -61,19 +62,21 @@ void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpti
       const auto held = [&](int index) {
         return std::find(held_parts.begin(), held_parts.end(), index) != held_parts.end();
       };
+      using Curve = mechanism::TorsionCurve<double>;
       Mechanism kept = m;
-      if (held(0)) {
-        kept.parameters[0] = kept.parameters[1] = 0.0;
-        kept.sigma[0] = kept.sigma[1] = 0.0;
+      if (held(Curve::kLostMotion)) {
+        const Curve curve = view<mechanism::TorsionCurve>(kept);
+        curve.lostMotion_rad() = curve.smoothingTorque_nm() = 0.0;
+        kept.sigma[Curve::kLostMotion] = kept.sigma[Curve::kSmoothingTorque] = 0.0;
       }
-      for (int k = kept.order; k-- > 0;) {
-        if (!held(2 + 2 * k)) continue;
-        const auto at = kept.parameters.begin() + 2 + 2 * k;
-        kept.parameters.erase(at, at + 2);
-        kept.sigma.erase(kept.sigma.begin() + 2 + 2 * k, kept.sigma.begin() + 4 + 2 * k);
+      for (int term = kept.order; term >= 1; --term) {
+        const int first = Curve::complianceIndex(term);  // the term's compliance and knee
+        if (!held(first)) continue;
+        kept.parameters.erase(kept.parameters.begin() + first, kept.parameters.begin() + first + 2);
+        kept.sigma.erase(kept.sigma.begin() + first, kept.sigma.begin() + first + 2);
         --kept.order;
       }
-      if (kept.parameters[1] > 0.0 || kept.order > 0) {
+      if (view<mechanism::TorsionCurve>(kept).smoothingTorque_nm() > 0.0 || kept.order > 0) {
         ModelChange change;
         change.kind = ModelChange::Kind::kPartDroppedWrongSign;
         change.mechanism = m;

@@ -8,6 +8,7 @@
 
 #include "chunked_gram.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/mechanisms/transmission_error.hpp"
 #include "stepcal/common/units.hpp"
 
 namespace stepcal::trainer::diagnosis {
@@ -122,7 +123,7 @@ void storeStage2(DiagnosisModel& model, const Eigen::MatrixXd& H, const Eigen::V
   for (Profile& p : model.profiles) {
     const Eigen::Index w = 2 * p.mechanism.order;
     for (Eigen::Index i = 0; i < w; ++i) {
-      p.mechanism.parameters[static_cast<size_t>(i)] = x(at + i);
+      p.mechanism.parameter(static_cast<int>(i)) = x(at + i);
       p.mechanism.sigma[static_cast<size_t>(i)] = std::sqrt(std::max(0.0, covariance(at + i, at + i)));
     }
     const Eigen::VectorXd c = x.segment(at, w);
@@ -181,9 +182,10 @@ double profileRms(const Mechanism& profile, const FitRows& fit) {
 
 double largestAmplitude(const Mechanism& profile) {
   double largest = 0.0;
-  for (int k = 0; k < profile.order; ++k) {
-    largest = std::max(largest, std::hypot(profile.parameters[static_cast<size_t>(2 * k)],
-                                           profile.parameters[static_cast<size_t>(2 * k + 1)]));
+  const mechanism::TransmissionError<const double> harmonics =
+      view<mechanism::TransmissionError>(profile);
+  for (int k = 1; k <= profile.order; ++k) {
+    largest = std::max(largest, std::hypot(harmonics.sin_rad(k), harmonics.cos_rad(k)));
   }
   return largest;
 }

@@ -142,7 +142,7 @@ void retuneProfiles(Search& search) {
     Eigen::VectorXd taken = Eigen::VectorXd::Zero(others.current.size());
     const Mechanism& m = found[i].mechanism;
     for (int c = 0; c < 2 * m.order; ++c) {
-      taken(sc.profiled[i].columns[static_cast<size_t>(c)]) = m.parameters[static_cast<size_t>(c)];
+      taken(sc.profiled[i].columns[static_cast<size_t>(c)]) = m.parameter(c);
     }
     for (Eigen::Index c = 0; c < geometry; ++c) {
       taken(sc.stage2[static_cast<size_t>(c)]) = found[i].geometry(c);

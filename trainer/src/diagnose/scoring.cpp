@@ -15,7 +15,7 @@ void storeCoefficients(const Family& family, const CrossValidation::Correction& 
                        Mechanism& m) {
   const Eigen::VectorXd& x = c.x.back();
   for (size_t k = 0; k < family.free.size(); ++k) {
-    m.parameters[static_cast<size_t>(family.free[k])] = x(static_cast<Eigen::Index>(offset + k));
+    m.parameter(family.free[k]) = x(static_cast<Eigen::Index>(offset + k));
   }
 }
 
@@ -164,7 +164,7 @@ Scored finishProfile(const Family& family, ProfileScoring& p, const CrossValidat
   m.sigma.assign(m.parameters.size(), 0.0);
   const Eigen::VectorXd& x = chosen.correction.x.back();
   for (int i = 0; i < 2 * order; ++i) {
-    m.parameters[static_cast<size_t>(i)] = x(x.size() - 2 * order + i);
+    m.parameter(i) = x(x.size() - 2 * order + i);
   }
   s.score.mechanism = std::move(m);
   s.score.ridge = chosen.rho;
@@ -196,7 +196,7 @@ Scored finishGlobal(const Family& family, const CrossValidation::Correction& c,
   s.score.p_value = cmp.p;
   s.score.physical = !family.negative_compliance;
   for (int i : signConstrained(s.score.mechanism)) {
-    s.score.physical = s.score.physical && s.score.mechanism.parameters[static_cast<size_t>(i)] >= 0.0;
+    s.score.physical = s.score.physical && s.score.mechanism.parameter(i) >= 0.0;
   }
   s.spent = static_cast<int>(family.free.size() + family.compliance.size()) + family.chosen;
   return s;

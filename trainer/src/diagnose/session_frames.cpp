@@ -23,8 +23,8 @@ PhysicalModel refitFrames(PhysicalModel model, const FitRows& fit) {
     ChainWorkspace ws;
     JointVector theta, tau;
     for (const Measurement* row : fit.rows) {
-      physicalLinkAngles(model, row->q_rad, row->wrenchOrZero(), rowTemperature(*row), ws, theta,
-                         tau);
+      physicalLinkAngles(model, row->q_rad, row->wrenchOrZero(), rowTemperature(*row),
+                         {ws, theta, tau});
       p_model.push_back(tipPose(ws).translation());
       p_measured.push_back(row->p_TipInTracker_m);
     }

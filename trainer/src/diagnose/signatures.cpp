@@ -5,6 +5,7 @@
 #include <numeric>
 
 #include "fit_rows.hpp"
+#include "stepcal/common/mechanisms/thermal_expansion.hpp"
 #include "stepcal/trainer/diagnose.hpp"
 
 namespace stepcal::trainer {
@@ -197,11 +198,12 @@ std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Di
       case MechanismKind::kThermalExpansion: {
         // The tip's motion per unit of length scale: lowering T_ref by Δ raises the scale by α Δ
         // at every row, and the residual (measured − modelled) falls by that motion times α Δ.
-        const double alpha = m.parameters[0];
+        const double alpha = view<mechanism::ThermalExpansion>(m).expansion_per_k();
         if (!(alpha != 0.0)) break;
         constexpr double kScaleStep = 1e-6;
         PhysicalModel shifted = model;
-        shifted.mechanisms[k].parameters[1] -= kScaleStep / alpha;
+        view<mechanism::ThermalExpansion>(shifted.mechanisms[k]).referenceTemp_c() -=
+            kScaleStep / alpha;
         const Eigen::VectorXd direction = (with.r - diagnosis::residuals(shifted, fit)) / kScaleStep;
         EffectSignature s;
         s.mechanism = m;

@@ -84,7 +84,7 @@ std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fi
       continue;
     }
     const Mechanism& m = model.global.mechanisms[static_cast<size_t>(p.mechanism)];
-    value(column) = m.parameters[static_cast<size_t>(p.index)];
+    value(column) = m.parameter(p.index);
     if (m.kind == MechanismKind::kSelfWeight && !model.masses_from_urdf) {
       ridge(column) = 1.0 / (kSelfWeightPriorSigma * kSelfWeightPriorSigma);
     }
@@ -95,7 +95,7 @@ std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fi
     const Eigen::Index w = 2 * m.order;
     for (Eigen::Index k = 0; k < w; ++k) {
       ridge(at + k) = p.ridge;
-      value(at + k) = m.parameters[static_cast<size_t>(k)];
+      value(at + k) = m.parameter(static_cast<int>(k));
     }
     at += w;
   }

@@ -103,53 +103,68 @@ struct Mechanism {
   /// fitted together (≥ 1; the first campaign's frames are the chain's own);
   /// campaign_joint_zero: the number of campaigns after the first (≥ 1); other kinds 0.
   int order = 0;
-  /// Layout per kind (mechanismParameterNames):
-  ///   backlash            [b rad, τ_b N·m]: b tanh(τ_j/τ_b), a sign smoothed over ±τ_b (with
-  ///                       no load the joint sits mid-play; τ_b is set from the loads, not fitted)
-  ///   self_weight         per link k = 1..n: [m_k kg, h_k kg·m (3)], h_k = m_k · centre of mass
-  ///                       in frame k (the frame after joint k's motion)
-  ///   transmission_error  [a_1 rad, b_1 rad, …, a_order rad, b_order rad]: the link angle moves
-  ///                       by g(q_j) Σ_k a_k sin(k q_j) + b_k cos(k q_j), q_j the commanded angle
-  ///   nonlinear_stiffness [c rad/(N·m), τ₀ N·m, τ_lin N·m]: c τ_j τ₀/(τ₀ + |τ_j|) up to
-  ///                       |τ_j| = τ_lin and carried on above it with its slope there (τ_lin:
-  ///                       the largest torque it was fitted over; 0: the formula at any torque)
-  ///   thermal_expansion   [α 1/K, T_ref °C]
-  ///   sensor_bias         [f N (3), m N·m (3)], sensor_link axes
-  ///   joint_coupling      [c rad/rad]
-  ///   profile_geometry    per initial pose k = 0..n: [δ_k (v m (3), ω rad (3))], applied as
-  ///                       T_k · exp(g(q_j) δ̂_k), g the gate of joint j's transmission_error
-  ///   torsion_curve       [b rad, τ_b N·m, then per term k = 1..order: c_k rad/(N·m), T_k N·m,
-  ///                       then τ_lin N·m]: b tanh(τ_j/τ_b) + Σ_k c_k sign(τ_j) min_k(|τ_j|, T_k):
-  ///                       lost motion as backlash's (τ_b = 0: none, then b = 0), and per term an
-  ///                       extra compliance c_k up to the knee T_k (T_k increasing), its min
-  ///                       smooth over kTorsionKneeWidth · T_k (torqueDeflection). With b, c_k ≥ 0
-  ///                       it is odd in τ_j, monotone and stiffening: the joint's compliance is
-  ///                       C + c_1 + … + c_order below T_1, C + c_2 + … above it, C above the last
-  ///                       knee — a gear catalogue's segments K1, K2, K3 and its lost motion. Up
-  ///                       to |τ_j| = τ_lin, carried on above it with its slope there, as
-  ///                       nonlinear_stiffness's.
-  ///   joint_zero_drift    [k rad/K, T_ref °C]: the link angle moves by k (T − T_ref) where the
-  ///                       temperature is known (warm-up, a motor's or gearbox's heat)
-  ///   registration_drift  [first_seq, last_seq, then per degree d = 1..order: ξ_d (v m (3),
-  ///                       ω rad (3))]: the tracker's frame at time order seq is exp(ξ̂(s)) times
-  ///                       the fitted one, ξ(s) = Σ_d P_d(s) ξ_d, P_d the Legendre polynomials,
-  ///                       s = 2 (seq − first_seq)/(last_seq − first_seq) − 1 (tracker axes),
-  ///                       held at ±1 outside the span it was fitted on
-  ///   session_frames      [station: t m (3), r rad (3); tool: t m (3), r rad (3)]: a row of
-  ///                       campaign `order` is measured at X_Station · X · X_Tool, X the tip in
-  ///                       the first campaign's tracker with its tool, X_Station = (exp r̂, t)
-  ///                       the first campaign's tracker axes in this campaign's tracker, X_Tool
-  ///                       = (exp r̂, t) this campaign's tool in the first campaign's (stationAndTool)
-  ///   campaign_joint_zero [δ_1 rad, …, δ_order rad]: in campaign k (from 0, the first) joint j's
-  ///                       recorded angle reads δ_k less than the first campaign's at the same
-  ///                       link angle (the joint re-mastered between them): the model of that
-  ///                       campaign's rows takes q_j + δ_k
+  /// SI, laid out per kind as mechanismParameterNames lists them: see the kind's header,
+  /// stepcal/common/mechanisms/<kind>.hpp, and read them through its typed view there, e.g.
+  /// view<mechanism::Backlash>(m).lostMotion_rad(); code generic over kinds (fits, reports)
+  /// through parameter(i).
   std::vector<double> parameters;
   std::vector<double> sigma;  ///< 1-σ of each parameter, same size (0 = not estimated)
   /// transmission_error: the angles of its joint it was fitted on (empty: everywhere); other
   /// kinds: empty.
   AngleCoverage coverage;
+
+  /// Parameter i (0-based, as mechanismParameterNames lists them), for code generic over kinds.
+  double parameter(int i) const noexcept { return parameters[static_cast<size_t>(i)]; }
+  double& parameter(int i) noexcept { return parameters[static_cast<size_t>(i)]; }
 };
+
+/// What a kind is, in one place: its name, its parameters, its checks and its description. One
+/// per kind, in the kind's own file (common/src/mechanisms/<kind>.cpp), listed in the registry
+/// (common/src/mechanisms/registry.cpp).
+struct MechanismTraits {
+  /// How many of the kind one model holds.
+  enum class Multiplicity { kAny, kOnePerModel, kOnePerJoint };
+
+  MechanismKind kind;
+  const char* name;                ///< snake case, as in model files and reports
+  bool measurement_only = false;   ///< isMeasurementOnly
+  bool uses_joint = false;         ///< Mechanism::joint is a joint (else −1)
+  bool uses_source_joint = false;  ///< Mechanism::source_joint is a joint (else −1)
+  bool has_coverage = false;       ///< Mechanism::coverage may hold arcs
+  bool torque_deflection = false;  ///< isTorqueDeflection
+  Multiplicity multiplicity = Multiplicity::kAny;
+  /// Whether Mechanism::order fits the kind (its meaning: Mechanism::order).
+  bool (*order_fits)(int order) = nullptr;
+  /// mechanismParameterNames.
+  std::vector<std::string> (*parameter_names)(int dof, int order) = nullptr;
+  /// What is wrong with the kind's own values once the checks common to all kinds (order,
+  /// sizes, finite values, joints, coverage) passed; empty when nothing. Null: nothing to check.
+  std::string (*problem)(const Mechanism& m, int dof) = nullptr;
+  /// describe's text after the name, e.g. " (joint 2)"; null: none.
+  std::string (*describe_suffix)(const Mechanism& m) = nullptr;
+  /// torque_deflection: the curve's formula at every torque, rad, and ∂/∂τ when derivative is
+  /// given; and the torque above which torqueDeflection carries it on with its slope (0: none).
+  double (*deflection)(const Mechanism& m, double tau_nm, double* derivative) noexcept = nullptr;
+  double (*linear_above_nm)(const Mechanism& m) noexcept = nullptr;
+};
+
+/// Every kind's traits, in the order of MechanismKind.
+const std::vector<const MechanismTraits*>& mechanismRegistry();
+/// A kind's traits; null when the value names no kind.
+const MechanismTraits* findMechanismTraits(MechanismKind kind) noexcept;
+
+/// A kind's typed view of a mechanism's parameters (stepcal/common/mechanisms/<kind>.hpp), e.g.
+/// view<mechanism::TorsionCurve>(m).kneeTorque_nm(k). View<Double> is an aggregate {Double* p;
+/// int order;} with its kind View<double>::kKind; a const mechanism gives a read-only view. It
+/// neither owns nor resizes the parameters: they must have the kind's size.
+template <template <class> class View>
+View<const double> view(const Mechanism& m) noexcept {
+  return {m.parameters.data(), m.order};
+}
+template <template <class> class View>
+View<double> view(Mechanism& m) noexcept {
+  return {m.parameters.data(), m.order};
+}
 
 /// Names of a kind's parameters, units in the names, for an n-joint chain (order: a
 /// transmission_error's harmonics, else unused).
@@ -269,23 +284,35 @@ struct PointPayload {
   Vec3 p_CoGInLast_m = Vec3::Zero();  ///< centre of gravity in frame n (after joint n's motion), m
 };
 
-/// Link angles θ [rad] and joint torques τ [N·m] of the physical model at commanded angles q,
-/// a measured wrench (sensor axes; zero when unloaded or no sensor) and a temperature (NaN:
-/// unknown). Leaves ws evaluated at θ (with the thermal length scale). profile_slope, when
-/// given, gets per joint the derivative of its transmission profile's offset (gate included) by
-/// its commanded angle, 0 without one. constants, when given, must be physicalConstants(model).
-/// start, when given, changes the fixed point's start and passes (FixedPointStart). payload,
-/// when given, loads the joints by its weight (model.gravity_Tracker) at each pass instead of the
-/// measured wrench (wrench_Sensor and the sensor bias are then unused): τ_k = ξ_kᵀ (m g, p × m g),
+/// Where physicalLinkAngles writes, in the caller's storage: the frames at θ (with the thermal
+/// length scale), the link angles θ [rad], the joint torques τ [N·m], and, when profile_slope is
+/// given, per joint the derivative of its transmission profile's offset (gate included) by its
+/// commanded angle, 0 without one.
+struct PhysicalLinkAnglesOut {
+  ChainWorkspace& ws;
+  JointVector& theta_rad;
+  JointVector& tau_nm;
+  JointVector* profile_slope = nullptr;
+};
+
+/// How physicalLinkAngles evaluates, each optional: constants, when given, must be
+/// physicalConstants(model); start changes the fixed point's start and passes (FixedPointStart);
+/// payload loads the joints by its weight (model.gravity_Tracker) at each pass instead of the
+/// measured wrench (the wrench and the sensor bias are then unused): τ_k = ξ_kᵀ (m g, p × m g),
 /// p its centre of gravity in the root at the pass's θ.
+struct PhysicalEvaluation {
+  const PhysicalConstants* constants = nullptr;
+  const FixedPointStart* start = nullptr;
+  const PointPayload* payload = nullptr;
+};
+
+/// Link angles θ and joint torques τ of the physical model at commanded angles q, a measured
+/// wrench (sensor axes; zero when unloaded or no sensor) and a temperature (NaN: unknown), into
+/// out: θ₀ from the commanded-angle mechanisms, then the fixed point θ = θ₀ + Δθ(τ(θ)).
 /// Allocation-free; false when sizes disagree.
 bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
-                        const Vec6& wrench_Sensor, double temp_c, ChainWorkspace& ws,
-                        JointVector& theta_rad, JointVector& tau_nm,
-                        JointVector* profile_slope = nullptr,
-                        const PhysicalConstants* constants = nullptr,
-                        const FixedPointStart* start = nullptr,
-                        const PointPayload* payload = nullptr) noexcept;
+                        const Vec6& wrench_Sensor, double temp_c, const PhysicalLinkAnglesOut& out,
+                        const PhysicalEvaluation& how = {}) noexcept;
 
 /// Joints whose commanded angle lies (partly, within the fade) outside the coverage of their
 /// transmission profile: bit j set for joint j (0-based). There the profile's correction is

@@ -4,6 +4,8 @@
 #include <sstream>
 #include <vector>
 
+#include "stepcal/common/mechanisms/nonlinear_stiffness.hpp"
+#include "stepcal/common/mechanisms/torsion_curve.hpp"
 #include "stepcal/report/diagnosis_report.hpp"
 #include "stepcal/report/html/charts.hpp"
 #include "stepcal/report/html/page.hpp"
@@ -87,11 +89,13 @@ Panel signaturePanel(const trainer::EffectSignature& s) {
 /// A candidate's name, with what tells apart the families of one mechanism on one joint.
 std::string candidateLabel(const Mechanism& m) {
   if (m.kind == MechanismKind::kNonlinearStiffness) {
-    return describe(m) + format(", τ₀ %.0f N·m", m.parameters[1]);
+    return describe(m) +
+           format(", τ₀ %.0f N·m", view<mechanism::NonlinearStiffness>(m).saturationTorque_nm());
   }
   if (m.kind != MechanismKind::kTorsionCurve) return describe(m);
-  std::string label = describe(m) + (m.parameters[1] > 0.0 ? ", lost motion" : "");
-  for (int k = 0; k < m.order; ++k) label += format(", T%d %.0f N·m", k + 1, m.parameters[3 + 2 * size_t(k)]);
+  const mechanism::TorsionCurve<const double> curve = view<mechanism::TorsionCurve>(m);
+  std::string label = describe(m) + (curve.smoothingTorque_nm() > 0.0 ? ", lost motion" : "");
+  for (int k = 1; k <= m.order; ++k) label += format(", T%d %.0f N·m", k, curve.kneeTorque_nm(k));
   return label;
 }
 

@@ -1,0 +1,23 @@
+#include "stepcal/common/mechanisms/joint_coupling.hpp"
+
+#include "kinds.hpp"
+
+namespace stepcal::mechanism {
+
+const MechanismTraits& jointCouplingTraits() {
+  static const MechanismTraits traits = [] {
+    MechanismTraits t{MechanismKind::kJointCoupling, "joint_coupling"};
+    t.uses_joint = true;
+    t.uses_source_joint = true;
+    t.order_fits = [](int order) { return order == 0; };
+    t.parameter_names = [](int, int) -> std::vector<std::string> { return {"ratio"}; };
+    t.describe_suffix = [](const Mechanism& m) {
+      return " (joint " + std::to_string(m.source_joint + 1) + " -> joint " +
+             std::to_string(m.joint + 1) + ")";
+    };
+    return t;
+  }();
+  return traits;
+}
+
+}  // namespace stepcal::mechanism

@@ -1,0 +1,22 @@
+#include "stepcal/common/mechanisms/joint_zero_drift.hpp"
+
+#include "kinds.hpp"
+
+namespace stepcal::mechanism {
+
+const MechanismTraits& jointZeroDriftTraits() {
+  static const MechanismTraits traits = [] {
+    MechanismTraits t{MechanismKind::kJointZeroDrift, "joint_zero_drift"};
+    t.uses_joint = true;
+    t.multiplicity = MechanismTraits::Multiplicity::kOnePerJoint;
+    t.order_fits = [](int order) { return order == 0; };
+    t.parameter_names = [](int, int) -> std::vector<std::string> {
+      return {"drift_rad_per_k", "reference_temp_c"};
+    };
+    t.describe_suffix = jointSuffix;
+    return t;
+  }();
+  return traits;
+}
+
+}  // namespace stepcal::mechanism

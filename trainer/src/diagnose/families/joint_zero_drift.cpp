@@ -1,0 +1,61 @@
+// joint_zero_drift: a joint's zero moving with temperature (families.hpp).
+#include <cstdio>
+
+#include "families.hpp"
+#include "stepcal/common/mechanisms/joint_zero_drift.hpp"
+
+namespace stepcal::trainer::diagnosis {
+namespace {
+
+// A joint's zero drift with temperature is tried where temp_c varies by more than a sensor's
+// step (0.1 °C): the coefficient is free, so any spread the sensor resolves can show it.
+constexpr double kMinZeroDriftSpreadC = 0.1;
+
+}  // namespace
+
+void jointZeroDriftFamilies(const FamilyContext& c) {
+  const RowTemperatures temps = rowTemperatures(c.fit);
+  for (int j = 0; j < c.n; ++j) {
+    if (present(c.global, MechanismKind::kJointZeroDrift, j, -1) ||
+        !c.wanted(MechanismKind::kJointZeroDrift, j)) {
+      continue;
+    }
+    const std::string name = "joint_zero_drift (joint " + std::to_string(j + 1) + ")";
+    if (temps.few) {
+      c.s.untestable.push_back({name, "fewer than half the fit rows have temp_c"});
+      continue;
+    }
+    if (temps.spread_c < kMinZeroDriftSpreadC) {
+      char reason[120];
+      std::snprintf(reason, sizeof reason,
+                    "temp_c varies by less than %.2f °C (standard deviation %.3f °C)",
+                    kMinZeroDriftSpreadC, temps.spread_c);
+      c.s.untestable.push_back({name, reason});
+      continue;
+    }
+    Family f;
+    f.mechanism = blank(MechanismKind::kJointZeroDrift, c.n, j);
+    view<mechanism::JointZeroDrift>(f.mechanism).referenceTemp_c() = temps.mean_c;
+    f.free = {mechanism::JointZeroDrift<double>::kDriftRate};
+    ScaledSource source;
+    source.kind = ScaledSource::Kind::kTemperature;
+    source.reference_c = temps.mean_c;
+    // A step that moves the joint by ~1e-4 rad over the rows' spread of temperature.
+    c.addGlobal(std::move(f), {c.sink.feature(j, std::move(source))}, {1e-4 / temps.spread_c});
+  }
+}
+
+const KindFit& jointZeroDriftFit() {
+  static const KindFit fit = [] {
+    KindFit f{MechanismKind::kJointZeroDrift};
+    f.typical_step = [](const Mechanism&, int) { return 1e-5; };  // rad/K
+    // The reference temperature is chosen: the rows' mean.
+    f.free_parameters = [](const Mechanism&) {
+      return std::vector<int>{mechanism::JointZeroDrift<double>::kDriftRate};
+    };
+    return f;
+  }();
+  return fit;
+}
+
+}  // namespace stepcal::trainer::diagnosis

@@ -1,0 +1,40 @@
+// transmission_error: a joint's transmission profile (families.hpp), screened at the highest
+// order (lower orders are its leading columns).
+#include "../profiles.hpp"
+#include "families.hpp"
+#include "stepcal/common/units.hpp"
+
+namespace stepcal::trainer::diagnosis {
+
+void transmissionErrorFamilies(const FamilyContext& c) {
+  // Each current profile's difference in one later campaign: whether one profile serves them.
+  for (const Profile& p : c.model.profiles) {
+    if (c.scope.campaign_profiles < 1) break;
+    Family f;
+    f.stage = Stage::kProfile;
+    f.campaign = c.scope.campaign_profiles;
+    f.mechanism =
+        blank(MechanismKind::kTransmissionError, c.n, p.mechanism.joint, -1, p.mechanism.order);
+    f.mechanism.coverage = p.mechanism.coverage;
+    f.columns =
+        c.sink.profile(f.mechanism.joint, f.mechanism.coverage, f.mechanism.order, f.campaign);
+    c.s.families.push_back(std::move(f));
+  }
+  // One profile per joint not yet profiled, over the angles the fit rows cover.
+  for (int j = 0; j < c.n && c.scope.families && c.scope.only == nullptr; ++j) {
+    bool profiled = false;
+    for (const Profile& p : c.model.profiles) profiled = profiled || p.mechanism.joint == j;
+    if (profiled) continue;
+    std::vector<double> angles;
+    for (const Measurement* row : c.fit.rows) angles.push_back(row->q_rad(j));
+    Family f;
+    f.stage = Stage::kProfile;
+    f.mechanism = blank(MechanismKind::kTransmissionError, c.n, j, -1, c.max_order);
+    f.mechanism.coverage = coverageOfAngles(angles, c.options.coverage_gap_deg * kRadPerDeg,
+                                            c.options.coverage_fade_deg * kRadPerDeg);
+    f.columns = c.sink.profile(j, f.mechanism.coverage, c.max_order);
+    c.s.families.push_back(std::move(f));
+  }
+}
+
+}  // namespace stepcal::trainer::diagnosis

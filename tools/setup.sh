@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # Installs the Debian packages stepcal needs (only those missing) and builds it into build/.
 # Safe to run again: a second run installs nothing and rebuilds only what changed.
+#
+#   tools/setup.sh                 every target (tests, fuzzers, benches), and the CAN tests' VM kernel
+#   tools/setup.sh TARGET...       only these targets and what they need (tools/quickstart.sh: stepcal)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -39,7 +42,10 @@ if ((${#missing[@]})); then
 fi
 
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build build -j"$(nproc)"
-
-# The CAN tests' VM kernel, downloaded and cached once (one line; a host with vcan0 needs none).
-tests/system/vcan_run.sh --prepare
+if (($#)); then
+  cmake --build build -j"$(nproc)" --target "$@"
+else
+  cmake --build build -j"$(nproc)"
+  # The CAN tests' VM kernel, downloaded and cached once (one line; a host with vcan0 needs none).
+  tests/system/vcan_run.sh --prepare
+fi

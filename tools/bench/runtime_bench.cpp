@@ -1,11 +1,14 @@
 // stepcal-bench: time of the runtime's two real-time calls on a model file.
 //
-//   build/bin/stepcal-bench --model MODEL [--calls N] [--temp-c T] [--compare-kdl] [--realtime]
-//                           [--json] [--answers CSV]
+//   build/bin/stepcal-bench --model MODEL [--campaign DIR] [--calls N] [--temp-c T] [--compare-kdl]
+//                           [--realtime] [--json] [--answers CSV]
 //
-// Poses: the model's GPR training inputs de-normalised (joints q and wrench), so every call lies
-// in the model's workspace; every call at the structure temperature --temp-c (°C; default NaN,
-// not measured). correctForward runs at (q, wrench); solveInverse targets the forward
+// Poses (the report says which, `pose_source`): the model's GPR training inputs de-normalised
+// (joints q and wrench), so every call lies in the model's workspace; when the model has no GPR,
+// 400 poses uniform within its joint limits (2° inside, so the seeds are too; a continuous joint
+// within ±π; unloaded; a fixed random seed); with --campaign, that campaign's rows (joints and
+// measured wrench). Only poses whose forward correction is answered plainly are kept. Every
+// call at the structure temperature --temp-c (°C; default NaN, not measured). correctForward runs at (q, wrench); solveInverse targets the forward
 // correction of the same (q, wrench) from a seed 2° off on every joint (alternating sign), with a
 // deadline far away so that the solver's own tolerances end it. Each call is timed alone with
 // std::chrono::steady_clock after a warm-up; heap allocations are counted over the timed calls.
@@ -34,16 +37,22 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <functional>
 #include <iostream>
 #include <limits>
+#include <memory>
+#include <optional>
+#include <random>
+#include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
 #include <stepcal_lcm/correction_reply_t.hpp>
 #include <stepcal_lcm/correction_request_t.hpp>
@@ -103,33 +112,120 @@ runtime::CallTerms benchTerms(const runtime::RuntimeModel& model) {
   return terms;
 }
 
-std::vector<BenchPose> workspacePoses(const runtime::RuntimeModel& model,
-                                      runtime::Workspace& ws, double temp_c,
-                                      const std::string& path) {
-  if (!model.file.gpr) {
-    throw InputError("the model has no GPR step, so no training inputs to draw poses from", path);
+/// The bench pose at (q, wrench): its inverse targets are the forward corrections there. None
+/// when the forward correction is not answered plainly (only such poses are timed).
+std::optional<BenchPose> benchPoseAt(const runtime::RuntimeModel& model, runtime::Workspace& ws,
+                                     const JointVector& q_rad, const Vec6& wrench_Sensor,
+                                     double temp_c) {
+  BenchPose pose;
+  pose.q_rad = q_rad;
+  pose.wrench_Sensor = wrench_Sensor;
+  pose.seed_q_rad = pose.q_rad;
+  for (int i = 0; i < q_rad.size(); ++i) {
+    pose.seed_q_rad[i] += (i % 2 ? -kSeedOffsetRad : kSeedOffsetRad);
   }
+  const runtime::ForwardResult forward =
+      runtime::correctForward(model, ws, pose.q_rad, pose.wrench_Sensor, temp_c);
+  if (forward.status != runtime::Status::kOk) return std::nullopt;
+  pose.X_TrackerTip_target = forward.X_TrackerTip;
+  pose.X_FrameTcp_target =
+      runtime::correctForward(model, ws, pose.q_rad, benchTerms(model), temp_c).X_FrameTcp;
+  return pose;
+}
+
+/// The bench poses and where they came from (the report's pose_source).
+struct BenchPoses {
+  std::vector<BenchPose> poses;
+  std::string source;       ///< "gpr_training_inputs", "joint_limits_uniform" or "campaign"
+  std::string description;  ///< the same in words, for the text report
+};
+
+/// The model's GPR training inputs de-normalised (joints q and wrench): the model's workspace.
+BenchPoses posesFromGpr(const runtime::RuntimeModel& model, runtime::Workspace& ws,
+                        double temp_c, const std::string& path) {
   const GprParameters& gpr = *model.file.gpr;
   const int dof = model.file.chain_Tracker.dof();
-  std::vector<BenchPose> poses;
+  BenchPoses drawn{{}, "gpr_training_inputs", "the model's GPR training inputs"};
   for (Eigen::Index r = 0; r < gpr.inputs_normalised.rows(); ++r) {
     const Eigen::VectorXd x_raw =
         gpr.input_offset + gpr.input_scale.cwiseProduct(gpr.inputs_normalised.row(r).transpose());
-    BenchPose pose;
-    pose.q_rad = x_raw.head(dof);
-    pose.wrench_Sensor = x_raw.segment<6>(dof);
-    pose.seed_q_rad = pose.q_rad;
-    for (int i = 0; i < dof; ++i) pose.seed_q_rad[i] += (i % 2 ? -kSeedOffsetRad : kSeedOffsetRad);
-    const runtime::ForwardResult forward =
-        runtime::correctForward(model, ws, pose.q_rad, pose.wrench_Sensor, temp_c);
-    if (forward.status != runtime::Status::kOk) continue;  // only poses answered plainly
-    pose.X_TrackerTip_target = forward.X_TrackerTip;
-    pose.X_FrameTcp_target =
-        runtime::correctForward(model, ws, pose.q_rad, benchTerms(model), temp_c).X_FrameTcp;
-    poses.push_back(pose);
+    const std::optional<BenchPose> pose =
+        benchPoseAt(model, ws, x_raw.head(dof), x_raw.segment<6>(dof), temp_c);
+    if (pose) drawn.poses.push_back(*pose);
   }
-  if (poses.empty()) throw InputError("no GPR training input gives a forward correction", path);
-  return poses;
+  if (drawn.poses.empty()) {
+    throw InputError("no GPR training input gives a forward correction", path);
+  }
+  return drawn;
+}
+
+/// Poses drawn when the model has no GPR: as many as the GPR's default training set.
+constexpr int kUniformPoses = 400;
+/// Draws per wanted pose before giving up on a model whose forward correction refuses them.
+constexpr int kUniformDrawsPerPose = 100;
+
+/// Joints uniform within the model's limits (a continuous joint within ±π), kept 2° inside them
+/// so that every seed is within them too; unloaded (zero wrench); a fixed random seed, so that
+/// two runs and two builds time the same poses.
+BenchPoses posesWithinJointLimits(const runtime::RuntimeModel& model, runtime::Workspace& ws,
+                                  double temp_c, const std::string& path) {
+  const std::vector<ChainJoint>& joints = model.file.chain_Tracker.joints();
+  std::vector<std::uniform_real_distribution<double>> joint_rad;
+  for (const ChainJoint& joint : joints) {
+    double lower_rad = std::max(joint.lower_rad, -M_PI), upper_rad = std::min(joint.upper_rad, M_PI);
+    if (upper_rad - lower_rad > 2.0 * kSeedOffsetRad) {
+      lower_rad += kSeedOffsetRad;
+      upper_rad -= kSeedOffsetRad;
+    }
+    joint_rad.emplace_back(lower_rad, upper_rad);
+  }
+  std::mt19937_64 random(1);
+  BenchPoses drawn{{}, "joint_limits_uniform",
+                   "uniform within the model's joint limits, unloaded (the model has no GPR "
+                   "training inputs)"};
+  JointVector q_rad(static_cast<Eigen::Index>(joints.size()));
+  for (int draw = 0; draw < kUniformPoses * kUniformDrawsPerPose &&
+                     drawn.poses.size() < size_t(kUniformPoses);
+       ++draw) {
+    for (size_t i = 0; i < joints.size(); ++i) q_rad[Eigen::Index(i)] = joint_rad[i](random);
+    const std::optional<BenchPose> pose = benchPoseAt(model, ws, q_rad, Vec6::Zero(), temp_c);
+    if (pose) drawn.poses.push_back(*pose);
+  }
+  if (drawn.poses.empty()) {
+    throw InputError("no pose within the joint limits gives a forward correction", path);
+  }
+  return drawn;
+}
+
+/// Every row of a campaign of the model's robot (its joints and measured wrench).
+BenchPoses posesFromCampaign(const runtime::RuntimeModel& model, runtime::Workspace& ws,
+                             double temp_c, const std::string& campaign_path) {
+  const Campaign campaign = readCampaign(campaign_path);
+  const int dof = model.file.chain_Tracker.dof();
+  if (campaign.joint_count != dof) {
+    throw InputError("--campaign: " + std::to_string(campaign.joint_count) +
+                         " joints, the model has " + std::to_string(dof),
+                     campaign_path);
+  }
+  BenchPoses drawn{{}, "campaign", "the rows of the campaign " + campaign_path};
+  for (const Measurement& row : campaign.rows) {
+    const std::optional<BenchPose> pose =
+        benchPoseAt(model, ws, row.q_rad, row.wrenchOrZero(), temp_c);
+    if (pose) drawn.poses.push_back(*pose);
+  }
+  if (drawn.poses.empty()) {
+    throw InputError("no campaign row gives a forward correction", campaign_path);
+  }
+  return drawn;
+}
+
+/// The campaign's rows when one is given, else the model's GPR training inputs, else poses
+/// drawn within its joint limits.
+BenchPoses benchPoses(const runtime::RuntimeModel& model, runtime::Workspace& ws, double temp_c,
+                      const std::string& model_path, const std::string& campaign_path) {
+  if (!campaign_path.empty()) return posesFromCampaign(model, ws, temp_c, campaign_path);
+  if (model.file.gpr) return posesFromGpr(model, ws, temp_c, model_path);
+  return posesWithinJointLimits(model, ws, temp_c, model_path);
 }
 
 struct CallStats {
@@ -250,227 +346,328 @@ void writeAnswers(const runtime::RuntimeModel& model, runtime::Workspace& ws,
   if (!out) throw InputError("cannot write the answers file", path);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"stepcal-bench: latency of correctForward and solveInverse on a model file"};
-  std::string model_path;
+/// The command line.
+struct BenchOptions {
+  std::string model_path, campaign_path, answers_path;
   int calls = 10000;
-  bool json = false;
   double temp_c = runtime::kUnknownTemperature_c;
-  app.add_option("--model", model_path, "model file (stepcal calibrate --out)")->required();
-  app.add_option("--temp-c", temp_c,
+  bool json = false, compare_kdl = false, realtime = false;
+};
+
+void addOptions(CLI::App& app, BenchOptions& options) {
+  app.add_option("--model", options.model_path, "model file (stepcal calibrate --out)")
+      ->required();
+  app.add_option("--campaign", options.campaign_path,
+                 "time at this campaign's rows (joints and wrench; default: the model's GPR "
+                 "training inputs, or poses uniform within its joint limits when it has no GPR)");
+  app.add_option("--temp-c", options.temp_c,
                  "structure temperature of every call, °C (default: not measured)");
-  app.add_option("--calls", calls, "timed calls of each function after the warm-up")
+  app.add_option("--calls", options.calls, "timed calls of each function after the warm-up")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  bool compare_kdl = false, realtime = false;
-  app.add_flag("--compare-kdl", compare_kdl,
+  app.add_flag("--compare-kdl", options.compare_kdl,
                "also time KDL's ChainIkSolverPos_NR_JL on the nominal chain (same poses, seeds, "
                "tolerance)");
-  app.add_flag("--realtime", realtime,
+  app.add_flag("--realtime", options.realtime,
                "time with locked memory, SCHED_FIFO priority 80 and one CPU (the daemon's "
                "--realtime; needs root or CAP_SYS_NICE and CAP_IPC_LOCK)");
-  app.add_flag("--json", json, "print JSON");
-  std::string answers_path;
-  app.add_option("--answers", answers_path,
+  app.add_flag("--json", options.json, "print JSON");
+  app.add_option("--answers", options.answers_path,
                  "also write every bench pose's answers to this CSV file (untimed)");
-  CLI11_PARSE(app, argc, argv);
+}
 
-  try {
-    if (!runtime::validTemperature(temp_c)) {
-      throw InputError("--temp-c " + std::to_string(temp_c) + ": expected " +
-                       std::to_string(int(runtime::kMinTemperature_c)) + " … " +
-                       std::to_string(int(runtime::kMaxTemperature_c)) + " °C");
+void checkTemperature(double temp_c) {
+  if (!runtime::validTemperature(temp_c)) {
+    throw InputError("--temp-c " + std::to_string(temp_c) + ": expected " +
+                     std::to_string(int(runtime::kMinTemperature_c)) + " … " +
+                     std::to_string(int(runtime::kMaxTemperature_c)) + " °C");
+  }
+}
+
+/// The daemon's real-time settings for this thread, when asked; what was taken or refused.
+nlohmann::json enterRealtimeIfAsked(bool realtime) {
+  nlohmann::json report = {{"on", false}};
+  if (!realtime) return report;
+  std::string refusal = service::enterRealtime(), pin_refusal;
+  const int cpu = refusal.empty() ? service::pinToLastAllowedCpu(pin_refusal) : -1;
+  if (!refusal.empty()) {
+    std::cerr << "stepcal-bench: --realtime: " << refusal
+              << "; timing without real-time settings\n";
+    report["refused"] = refusal;
+  } else {
+    report = {{"on", true}, {"priority", service::kRealtimePriority}, {"cpu", cpu}};
+    if (cpu < 0) {
+      std::cerr << "stepcal-bench: --realtime: " << pin_refusal << "; not pinned to a CPU\n";
+      report["pin_refused"] = pin_refusal;
     }
-    const std::unique_ptr<const runtime::RuntimeModel> model =
-        runtime::RuntimeModel::load(model_path);
-    runtime::Workspace ws = runtime::makeWorkspace(*model);
-    const std::vector<BenchPose> poses = workspacePoses(*model, ws, temp_c, model_path);
-    const auto pose = [&](int call) -> const BenchPose& {
-      return poses[static_cast<size_t>(call) % poses.size()];
-    };
+  }
+  return report;
+}
 
-    KdlSide kdl_side;
-    if (compare_kdl) kdl_side = kdlSide(*model, poses);
-
-    nlohmann::json realtime_report = {{"on", false}};
-    if (realtime) {
-      std::string refusal = service::enterRealtime(), pin_refusal;
-      const int cpu = refusal.empty() ? service::pinToLastAllowedCpu(pin_refusal) : -1;
-      if (!refusal.empty()) {
-        std::cerr << "stepcal-bench: --realtime: " << refusal
-                  << "; timing without real-time settings\n";
-        realtime_report["refused"] = refusal;
-      } else {
-        realtime_report = {{"on", true}, {"priority", service::kRealtimePriority}, {"cpu", cpu}};
-        if (cpu < 0) {
-          std::cerr << "stepcal-bench: --realtime: " << pin_refusal << "; not pinned to a CPU\n";
-          realtime_report["pin_refused"] = pin_refusal;
-        }
-      }
+/// The cell key's cost per request: a request sealed by the controller (before the timing, one
+/// per call ever made: every counter fresh), checked, and the reply sealed.
+class AuthenticationCalls {
+ public:
+  explicit AuthenticationCalls(int calls)
+      : key_(randomKey()),
+        controller_(key_),
+        daemon_(key_),
+        verifier_(key_, 3'600'000'000),  // an hour: the pool is sealed once
+        reply_bytes_(size_t(service::Service::replyBytes())),
+        reply_size_(stepcal_lcm::correction_reply_t{}.getEncodedSize()) {
+    stepcal_lcm::correction_request_t request_msg{};
+    request_msg.message_version = stepcal_lcm::correction_request_t::VERSION;
+    request_size_ = size_t(request_msg.getEncodedSize());
+    sealed_count_ =
+        size_t(calls + (calls / kRoundCalls + 1) * kRoundWarmupCalls + kWarmupCalls);
+    sealed_requests_.resize(sealed_count_ * request_size_);
+    for (size_t i = 0; i < sealed_count_; ++i) {
+      request_msg.request_id = int64_t(i);
+      uint8_t* bytes = sealed_requests_.data() + i * request_size_;
+      request_msg.encode(bytes, 0, int(request_size_));
+      controller_.seal(bytes, int(request_size_));
     }
+  }
 
-    CallStats forward, inverse, one_pose, kdl, inverse_terms, authentication;
+  /// Checks the next sealed request and seals a reply: kOk when the request was authentic.
+  runtime::Status operator()(int) {
+    const uint8_t* bytes =
+        sealed_requests_.data() + (next_sealed_++ % sealed_count_) * request_size_;
+    const service::Verdict verdict =
+        verifier_.verify(bytes, int(request_size_), service::unixMicroseconds());
+    daemon_.seal(reply_bytes_.data(), reply_size_);
+    return verdict == service::Verdict::kAuthentic ? runtime::Status::kOk
+                                                   : runtime::Status::kBadRequest;
+  }
+
+ private:
+  static service::CellKey randomKey() {
+    std::array<uint8_t, service::kKeyBytes> key_bytes{};
+    randombytes_buf(key_bytes.data(), key_bytes.size());
+    return service::CellKey::fromBytes(key_bytes);
+  }
+
+  service::CellKey key_;
+  service::MessageSigner controller_, daemon_;
+  service::MessageVerifier verifier_;
+  std::vector<uint8_t> reply_bytes_;
+  int reply_size_;
+  size_t request_size_ = 0, sealed_count_ = 0, next_sealed_ = 0;
+  std::vector<uint8_t> sealed_requests_;
+};
+
+/// The timed calls on the bench poses, call i at pose i modulo their count; an inverse leaves
+/// its Newton step count in `iterations`.
+struct BenchCalls {
+  const runtime::RuntimeModel& model;
+  runtime::Workspace& ws;
+  const std::vector<BenchPose>& poses;
+  double temp_c;
+  runtime::CallTerms terms;
+  KdlSide kdl_side;
+  AuthenticationCalls authentication;
+  int iterations = 0;
+
+  const BenchPose& pose(int call) const { return poses[static_cast<size_t>(call) % poses.size()]; }
+  runtime::Status forward(int call) {
+    const BenchPose& p = pose(call);
+    return runtime::correctForward(model, ws, p.q_rad, p.wrench_Sensor, temp_c).status;
+  }
+  runtime::Status inverse(int call) {
+    const BenchPose& p = pose(call);
+    const runtime::InverseResult r =
+        runtime::solveInverse(model, ws, p.X_TrackerTip_target, p.wrench_Sensor, temp_c,
+                              p.seed_q_rad, runtime::Clock::now() + std::chrono::seconds(1));
+    iterations = r.iterations;
+    return r.status;
+  }
+  runtime::Status inverseTerms(int call) {
+    const BenchPose& p = pose(call);
+    const runtime::InverseResult r =
+        runtime::solveInverse(model, ws, p.X_FrameTcp_target, terms, temp_c, p.seed_q_rad,
+                              runtime::Clock::now() + std::chrono::seconds(1));
+    iterations = r.iterations;
+    return r.status;
+  }
+  /// KDL's outcome as a status: converged within eps, or not.
+  runtime::Status kdl(int call) {
+    return kdl_side.solve(static_cast<size_t>(call) % poses.size())
+               ? runtime::Status::kOk
+               : runtime::Status::kNotConverged;
+  }
+};
+
+/// Every series' calls, and the heap allocations of ours.
+struct BenchSeries {
+  CallStats forward, inverse, one_pose, kdl, inverse_terms, authentication;
+  long allocations = 0;
+
+  explicit BenchSeries(int calls) {
     for (CallStats* stats : {&forward, &inverse, &one_pose, &kdl, &inverse_terms, &authentication}) {
       stats->latency_us.resize(static_cast<size_t>(calls));
     }
     inverse.iterations.resize(static_cast<size_t>(runtime::InverseOptions{}.max_iterations) + 1);
     one_pose.iterations.resize(inverse.iterations.size());
     inverse_terms.iterations.resize(inverse.iterations.size());
-    const runtime::CallTerms terms = benchTerms(*model);
-    // The cell key's cost: a request sealed by the controller (before the timing, one per call
-    // ever made: every counter fresh), checked, and the reply sealed.
-    std::array<uint8_t, service::kKeyBytes> key_bytes{};
-    randombytes_buf(key_bytes.data(), key_bytes.size());
-    const service::CellKey key = service::CellKey::fromBytes(key_bytes);
-    service::MessageSigner controller(key), daemon(key);
-    service::MessageVerifier verifier(key, 3'600'000'000);  // an hour: the pool is sealed once
-    stepcal_lcm::correction_request_t request_msg{};
-    request_msg.message_version = stepcal_lcm::correction_request_t::VERSION;
-    std::vector<uint8_t> reply_bytes(size_t(service::Service::replyBytes()));
-    const int reply_size = stepcal_lcm::correction_reply_t{}.getEncodedSize();
-    const size_t request_size = size_t(request_msg.getEncodedSize());
-    const size_t sealed_count =
-        size_t(calls + (calls / kRoundCalls + 1) * kRoundWarmupCalls + kWarmupCalls);
-    std::vector<uint8_t> sealed_requests(sealed_count * request_size);
-    for (size_t i = 0; i < sealed_count; ++i) {
-      request_msg.request_id = int64_t(i);
-      uint8_t* bytes = sealed_requests.data() + i * request_size;
-      request_msg.encode(bytes, 0, int(request_size));
-      controller.seal(bytes, int(request_size));
-    }
-    size_t next_sealed = 0;
-    const auto runAuthentication = [&](int) {
-      const uint8_t* bytes = sealed_requests.data() + (next_sealed++ % sealed_count) * request_size;
-      const service::Verdict verdict = verifier.verify(bytes, int(request_size), service::unixMicroseconds());
-      daemon.seal(reply_bytes.data(), reply_size);
-      return verdict == service::Verdict::kAuthentic ? runtime::Status::kOk
-                                                     : runtime::Status::kBadRequest;
-    };
-    const auto runForward = [&](int call) {
-      const BenchPose& p = pose(call);
-      return runtime::correctForward(*model, ws, p.q_rad, p.wrench_Sensor, temp_c).status;
-    };
-    const auto runInverse = [&](int call, int& iterations) {
-      const BenchPose& p = pose(call);
-      const runtime::InverseResult r =
-          runtime::solveInverse(*model, ws, p.X_TrackerTip_target, p.wrench_Sensor, temp_c,
-                                p.seed_q_rad, runtime::Clock::now() + std::chrono::seconds(1));
-      iterations = r.iterations;
-      return r.status;
-    };
-    const auto runInverseTerms = [&](int call, int& iterations) {
-      const BenchPose& p = pose(call);
-      const runtime::InverseResult r =
-          runtime::solveInverse(*model, ws, p.X_FrameTcp_target, terms, temp_c, p.seed_q_rad,
-                                runtime::Clock::now() + std::chrono::seconds(1));
-      iterations = r.iterations;
-      return r.status;
-    };
-    // KDL's outcome as a status: converged within eps, or not.
-    const auto runKdl = [&](int call) {
-      return kdl_side.solve(static_cast<size_t>(call) % poses.size())
-                 ? runtime::Status::kOk
-                 : runtime::Status::kNotConverged;
-    };
-    int iterations = 0;
-    std::vector<long> warmup_iterations(inverse.iterations.size());
-    for (int call = 0; call < kWarmupCalls; ++call) {
-      runForward(call);
-      runInverse(call, iterations);
-      ++warmup_iterations[size_t(iterations)];
-      runInverseTerms(call, iterations);
-      runAuthentication(call);
-      if (compare_kdl) runKdl(call);
-    }
-    // The pose of the machine's baseline: the first whose iteration count is the most common.
-    const int common = static_cast<int>(
-        std::max_element(warmup_iterations.begin(), warmup_iterations.end()) -
-        warmup_iterations.begin());
-    int baseline_call = 0;
-    while (baseline_call + 1 < static_cast<int>(poses.size()) &&
-           (runInverse(baseline_call, iterations), iterations != common)) {
-      ++baseline_call;
-    }
+  }
+};
 
-    // Calls [first, last) of one series, each timed alone, after kRoundWarmupCalls untimed ones
-    // (the round's first poses); the inverse's also counted by its Newton step count.
-    const auto timeCalls = [&](CallStats& stats, int first, int last, const auto& run) {
-      for (int call = first; call < first + kRoundWarmupCalls; ++call) run(call);
-      for (int call = first; call < last; ++call) {
-        const auto start = runtime::Clock::now();
-        const runtime::Status status = run(call);
-        stats.latency_us[size_t(call)] = microsecondsBetween(start, runtime::Clock::now());
-        ++stats.status_counts[static_cast<int>(status)];
-        if (!stats.iterations.empty()) ++stats.iterations[size_t(iterations)];
-      }
-    };
-    long allocations = 0;
-    for (int first = 0; first < calls; first += kRoundCalls) {
-      const int last = std::min(calls, first + kRoundCalls);
-      {
-        const test::AllocationCounter counter;  // ours only: KDL's are its own
-        timeCalls(forward, first, last, runForward);
-        timeCalls(inverse, first, last, [&](int call) { return runInverse(call, iterations); });
-        timeCalls(one_pose, first, last,
-                  [&](int) { return runInverse(baseline_call, iterations); });
-        timeCalls(inverse_terms, first, last,
-                  [&](int call) { return runInverseTerms(call, iterations); });
-        timeCalls(authentication, first, last, runAuthentication);
-        allocations += counter.count();
-      }
-      if (compare_kdl) timeCalls(kdl, first, last, runKdl);
-    }
-    if (!answers_path.empty()) writeAnswers(*model, ws, poses, temp_c, answers_path);
+/// Untimed warm-up of every series; returns the pose of the machine's baseline: the first whose
+/// inverse iteration count is the most common.
+int warmUpAndFindBaseline(BenchCalls& calls, bool compare_kdl, size_t iteration_counts) {
+  std::vector<long> warmup_iterations(iteration_counts);
+  for (int call = 0; call < kWarmupCalls; ++call) {
+    calls.forward(call);
+    calls.inverse(call);
+    ++warmup_iterations[size_t(calls.iterations)];
+    calls.inverseTerms(call);
+    calls.authentication(call);
+    if (compare_kdl) calls.kdl(call);
+  }
+  const int common = static_cast<int>(
+      std::max_element(warmup_iterations.begin(), warmup_iterations.end()) -
+      warmup_iterations.begin());
+  int baseline_call = 0;
+  while (baseline_call + 1 < static_cast<int>(calls.poses.size()) &&
+         (calls.inverse(baseline_call), calls.iterations != common)) {
+    ++baseline_call;
+  }
+  return baseline_call;
+}
 
-    nlohmann::json report = {{"model", model_path},
-                                   {"poses", poses.size()},
-                                   {"temp_c", std::isnan(temp_c) ? nlohmann::json(nullptr)
-                                                                 : nlohmann::json(temp_c)},
-                                   {"forward", toJson(forward, false)},
-                                   {"inverse", toJson(inverse, true)},
-                                   {"inverse_one_pose", toJson(one_pose, true)},
-                                   {"inverse_terms", toJson(inverse_terms, true)},
-                                   {"authentication", toJson(authentication, false)},
-                                   {"allocations", allocations},
-                                   {"realtime", realtime_report}};
+/// Calls [first, last) of one series, each timed alone, after kRoundWarmupCalls untimed ones
+/// (the round's first poses); the inverse's also counted by its Newton step count.
+template <typename Run>
+void timeCalls(CallStats& stats, int first, int last, const int& iterations, Run&& run) {
+  for (int call = first; call < first + kRoundWarmupCalls; ++call) run(call);
+  for (int call = first; call < last; ++call) {
+    const auto start = runtime::Clock::now();
+    const runtime::Status status = run(call);
+    stats.latency_us[size_t(call)] = microsecondsBetween(start, runtime::Clock::now());
+    ++stats.status_counts[static_cast<int>(status)];
+    if (!stats.iterations.empty()) ++stats.iterations[size_t(iterations)];
+  }
+}
+
+/// Every series in rounds of kRoundCalls calls, one series after the other.
+void timeSeries(BenchCalls& calls, BenchSeries& series, int call_count, int baseline_call,
+                bool compare_kdl) {
+  const int& iterations = calls.iterations;
+  for (int first = 0; first < call_count; first += kRoundCalls) {
+    const int last = std::min(call_count, first + kRoundCalls);
+    {
+      const test::AllocationCounter counter;  // ours only: KDL's are its own
+      timeCalls(series.forward, first, last, iterations,
+                [&](int call) { return calls.forward(call); });
+      timeCalls(series.inverse, first, last, iterations,
+                [&](int call) { return calls.inverse(call); });
+      timeCalls(series.one_pose, first, last, iterations,
+                [&](int) { return calls.inverse(baseline_call); });
+      timeCalls(series.inverse_terms, first, last, iterations,
+                [&](int call) { return calls.inverseTerms(call); });
+      timeCalls(series.authentication, first, last, iterations, calls.authentication);
+      series.allocations += counter.count();
+    }
     if (compare_kdl) {
-      nlohmann::json j = latencyJson(kdl.latency_us);
-      j["eps"] = KdlSide::kEps;
-      j["failures"] = kdl.status_counts[static_cast<int>(runtime::Status::kNotConverged)];
-      j["chain_mismatch_m"] = kdl_side.chain_mismatch_m;
-      j["ratio_p50"] = j["p50_us"].get<double>() / report["inverse"]["p50_us"].get<double>();
-      j["ratio_p99"] = j["p99_us"].get<double>() / report["inverse"]["p99_us"].get<double>();
-      report["kdl"] = j;
+      timeCalls(series.kdl, first, last, iterations, [&](int call) { return calls.kdl(call); });
     }
-    if (json) {
-      std::cout << report.dump(2) << "\n";
-    } else {
-      for (const char* name :
-           {"forward", "inverse", "inverse_one_pose", "inverse_terms", "authentication"}) {
-        const nlohmann::json& r = report[name];
-        std::cout << name << ": " << r["calls"] << " calls, p50 " << r["p50_us"].get<double>()
-                  << " us, p99 " << r["p99_us"].get<double>() << " us, max "
-                  << r["max_us"].get<double>() << " us, p50 of the quietest "
-                  << kQuietBatchCalls << " " << r["p50_quietest_batch_us"].get<double>() << " us";
-        if (r.contains("mean_iterations")) {
-          std::cout << ", mean iterations " << r["mean_iterations"].get<double>();
-        }
-        std::cout << ", statuses " << r["statuses"].dump() << "\n";
-      }
-      std::cout << "allocations during the timed calls: " << allocations << "\n";
-      std::cout << "real-time settings: " << realtime_report.dump() << "\n";
-      if (compare_kdl) {
-        const nlohmann::json& k = report["kdl"];
-        std::cout << "KDL ChainIkSolverPos_NR_JL, nominal chain, eps " << k["eps"].get<double>()
-                  << ": p50 " << k["p50_us"].get<double>() << " us, p99 "
-                  << k["p99_us"].get<double>() << " us, max " << k["max_us"].get<double>()
-                  << " us, failures " << k["failures"] << "; KDL / stepcal inverse: p50 "
-                  << k["ratio_p50"].get<double>() << "x, p99 " << k["ratio_p99"].get<double>()
-                  << "x\n";
-      }
+  }
+}
+
+nlohmann::json makeReport(const BenchOptions& options, const BenchPoses& drawn,
+                          BenchSeries& series, const KdlSide& kdl_side,
+                          const nlohmann::json& realtime_report) {
+  const double temp_c = options.temp_c;
+  nlohmann::json report = {{"model", options.model_path},
+                           {"poses", drawn.poses.size()},
+                           {"pose_source", drawn.source},
+                           {"temp_c", std::isnan(temp_c) ? nlohmann::json(nullptr)
+                                                         : nlohmann::json(temp_c)},
+                           {"forward", toJson(series.forward, false)},
+                           {"inverse", toJson(series.inverse, true)},
+                           {"inverse_one_pose", toJson(series.one_pose, true)},
+                           {"inverse_terms", toJson(series.inverse_terms, true)},
+                           {"authentication", toJson(series.authentication, false)},
+                           {"allocations", series.allocations},
+                           {"realtime", realtime_report}};
+  if (options.compare_kdl) {
+    nlohmann::json j = latencyJson(series.kdl.latency_us);
+    j["eps"] = KdlSide::kEps;
+    j["failures"] = series.kdl.status_counts[static_cast<int>(runtime::Status::kNotConverged)];
+    j["chain_mismatch_m"] = kdl_side.chain_mismatch_m;
+    j["ratio_p50"] = j["p50_us"].get<double>() / report["inverse"]["p50_us"].get<double>();
+    j["ratio_p99"] = j["p99_us"].get<double>() / report["inverse"]["p99_us"].get<double>();
+    report["kdl"] = j;
+  }
+  return report;
+}
+
+void printText(const nlohmann::json& report, const std::string& pose_description) {
+  std::cout << "poses: " << report["poses"] << ", " << pose_description << "\n";
+  for (const char* name :
+       {"forward", "inverse", "inverse_one_pose", "inverse_terms", "authentication"}) {
+    const nlohmann::json& r = report[name];
+    std::cout << name << ": " << r["calls"] << " calls, p50 " << r["p50_us"].get<double>()
+              << " us, p99 " << r["p99_us"].get<double>() << " us, max "
+              << r["max_us"].get<double>() << " us, p50 of the quietest " << kQuietBatchCalls
+              << " " << r["p50_quietest_batch_us"].get<double>() << " us";
+    if (r.contains("mean_iterations")) {
+      std::cout << ", mean iterations " << r["mean_iterations"].get<double>();
     }
+    std::cout << ", statuses " << r["statuses"].dump() << "\n";
+  }
+  std::cout << "allocations during the timed calls: " << report["allocations"] << "\n";
+  std::cout << "real-time settings: " << report["realtime"].dump() << "\n";
+  if (report.contains("kdl")) {
+    const nlohmann::json& k = report["kdl"];
+    std::cout << "KDL ChainIkSolverPos_NR_JL, nominal chain, eps " << k["eps"].get<double>()
+              << ": p50 " << k["p50_us"].get<double>() << " us, p99 " << k["p99_us"].get<double>()
+              << " us, max " << k["max_us"].get<double>() << " us, failures " << k["failures"]
+              << "; KDL / stepcal inverse: p50 " << k["ratio_p50"].get<double>() << "x, p99 "
+              << k["ratio_p99"].get<double>() << "x\n";
+  }
+}
+
+/// Loads the model, draws the poses, times every series and prints the report.
+void runBench(const BenchOptions& options) {
+  checkTemperature(options.temp_c);
+  const std::unique_ptr<const runtime::RuntimeModel> model =
+      runtime::RuntimeModel::load(options.model_path);
+  runtime::Workspace ws = runtime::makeWorkspace(*model);
+  const BenchPoses drawn =
+      benchPoses(*model, ws, options.temp_c, options.model_path, options.campaign_path);
+  KdlSide kdl_side;
+  if (options.compare_kdl) kdl_side = kdlSide(*model, drawn.poses);
+  const nlohmann::json realtime_report = enterRealtimeIfAsked(options.realtime);
+
+  BenchSeries series(options.calls);
+  BenchCalls calls{*model, ws, drawn.poses, options.temp_c, benchTerms(*model),
+                   std::move(kdl_side), AuthenticationCalls(options.calls)};
+  const int baseline_call =
+      warmUpAndFindBaseline(calls, options.compare_kdl, series.inverse.iterations.size());
+  timeSeries(calls, series, options.calls, baseline_call, options.compare_kdl);
+  if (!options.answers_path.empty()) {
+    writeAnswers(*model, ws, drawn.poses, options.temp_c, options.answers_path);
+  }
+
+  const nlohmann::json report =
+      makeReport(options, drawn, series, calls.kdl_side, realtime_report);
+  if (options.json) {
+    std::cout << report.dump(2) << "\n";
+  } else {
+    printText(report, drawn.description);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"stepcal-bench: latency of correctForward and solveInverse on a model file"};
+  BenchOptions options;
+  addOptions(app, options);
+  CLI11_PARSE(app, argc, argv);
+  try {
+    runBench(options);
   } catch (const InputError& e) {
     std::cerr << "stepcal-bench: error: " << e.what() << "\n";
     return 2;

@@ -816,7 +816,7 @@ std::string yamlText(const Campaign& c, const std::string& file) {
 // Reading, step by step
 
 /// What a campaign path is, for a file given in its place.
-const std::string kCampaignFolderText =
+constexpr const char* kCampaignFolderText =
     "a campaign folder holding campaign.yaml, robot.urdf and measurements.csv (or the path of "
     "its campaign.yaml)";
 
@@ -982,7 +982,7 @@ Campaign readCampaign(const std::string& path) {
       fs::is_directory(path, ec) ? fs::path(path) / "campaign.yaml" : fs::path(path);
   const std::string yaml_file = yaml_path.string();
   if (fs::is_regular_file(yaml_path, ec) && !isCampaignFileName(yaml_path)) {
-    throw InputError("is a file; expected " + kCampaignFolderText, yaml_file);
+    throw InputError(std::string("is a file; expected ") + kCampaignFolderText, yaml_file);
   }
   if (!fs::is_regular_file(yaml_path, ec)) {
     throw InputError(

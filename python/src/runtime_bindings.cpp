@@ -312,7 +312,8 @@ py::object makeModelIdType() {
   scope["__builtins__"] = py::module_::import("builtins");
   py::exec(R"(
 class ModelId(int):
-    "A model's id (FNV-1a 64 of its file's bytes): an int, printed as 16 hex digits like stepcal-client and the daemon."
+    """A model's id (FNV-1a 64 of its file's bytes): an int, printed as 16 hex digits as
+    stepcal-client and the daemon print it."""
     __slots__ = ()
     __module__ = "stepcal"
     def __repr__(self):

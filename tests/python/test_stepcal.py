@@ -8,6 +8,7 @@ in a private network namespace, python_client; tests/CMakeLists.txt sets the env
   STEPCAL_OLD_DAEMON   tests/python/old_daemon: a daemon of message version 1 (refusals only)
   STEPCAL_DOCS_DIR     docs/, whose python.md holds the example script run here
 """
+import enum
 import json
 import math
 import os
@@ -183,7 +184,7 @@ def test_statuses_per_row(model):
     not_unit = np.array([1.0, 0.5, 1.0, 2.0, 0.0, 0.0, 0.0])  # quaternion of norm 2
     assert model.solve_inverse(not_unit, seed=np.zeros(6)).status == stepcal.Status.BAD_REQUEST
     # The statuses of many rows are int8 values of stepcal.Status; status_names names them.
-    assert isinstance(stepcal.Status.OK, int) and issubclass(stepcal.Status, __import__("enum").IntEnum)
+    assert issubclass(stepcal.Status, enum.IntEnum) and isinstance(stepcal.Status.OK, int)
     names = stepcal.status_names(result.status)
     assert names[1] == "BAD_REQUEST" and len(names) == 3
     assert names == [stepcal.Status(int(s)).name for s in result.status]

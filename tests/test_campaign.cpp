@@ -610,8 +610,86 @@ TEST(CampaignRefuses, SemicolonSeparated) {
   expectCsvRefused(csv, 1, "seq", {"'seq' is missing", "separated by ',', not ';'"});
 }
 
-TEST(CampaignRefuses, ByteOrderMark) {
-  expectCsvRefused("\xEF\xBB\xBF" + std::string(kValidCsv), 1, "", {"byte-order mark"});
+// A UTF-8 byte-order mark (spreadsheets' "CSV UTF-8") is skipped by every reader (csv.hpp).
+TEST(Campaign, SkipsAByteOrderMark) {
+  TempDir plain, marked;
+  writeFolder(plain.path(), kValidYaml, kValidCsv);
+  const std::string bom = "\xEF\xBB\xBF";
+  writeFolder(marked.path(), bom + kValidYaml, bom + kValidCsv);
+  const Campaign a = readCampaign(plain.path().string());
+  const Campaign b = readCampaign(marked.path().string());
+  ASSERT_EQ(b.rows.size(), a.rows.size());
+  EXPECT_EQ(b.rows[0].seq, a.rows[0].seq);  // the first column is seq, not "\xEF\xBB\xBFseq"
+  EXPECT_EQ(b.extra_columns, a.extra_columns);
+}
+
+TEST(PoseList, SkipsAByteOrderMark) {
+  TempDir dir;
+  const std::string text = "pose_id,load_kg,q1_deg,q2_deg\np1,0,10,20\np1,20,10,20\n";
+  writeText(dir.path() / "plain.csv", text);
+  writeText(dir.path() / "marked.csv", "\xEF\xBB\xBF" + text);
+  const auto plain = readPoseList((dir.path() / "plain.csv").string(), 2);
+  const auto marked = readPoseList((dir.path() / "marked.csv").string(), 2);
+  ASSERT_EQ(marked.size(), plain.size());
+  EXPECT_EQ(marked[1].pose_id, "p1");
+  EXPECT_EQ(marked[1].q_rad, plain[1].q_rad);
+}
+
+TEST(PoseList, RefusesAFolderByName) {
+  TempDir dir;
+  test::expectInputError([&] { readPoseList(dir.path().string(), 6); }, "", 0, "",
+                         {"pose list", "is a folder; expected a readable file"});
+  const test::Refusal r = test::refusalOf([&] { readPoseList(dir.path().string(), 6); });
+  EXPECT_EQ(r.what.find("campaign.yaml"), std::string::npos) << r.what;
+}
+
+// ---------------------------------------------------------------------------------------------
+// A file where the campaign folder is expected: named as such in one short line
+
+/// The error of reading `file` as a campaign: one line, short, saying a folder is expected.
+void expectFileRefusedAsCampaign(const fs::path& file) {
+  const test::Refusal r = test::refusalOf([&] { readCampaign(file.string()); });
+  EXPECT_EQ(r.file, file.filename().string());
+  EXPECT_NE(r.what.find("is a file; expected a campaign folder holding campaign.yaml"),
+            std::string::npos)
+      << r.what;
+  EXPECT_EQ(r.what.find('\n'), std::string::npos) << r.what;
+  EXPECT_LT(r.what.size(), 300u) << r.what;
+}
+
+TEST(CampaignRefuses, AMeasurementsFileGivenForTheFolder) {
+  TempDir dir;
+  std::string big = splitOn(kValidCsv, '\n')[0] + "\n";
+  const std::string row = splitOn(kValidCsv, '\n')[1] + "\n";
+  while (big.size() < 438 * 1024) big += row;  // the size of the file
+  writeText(dir.path() / "measurements.csv", big);
+  expectFileRefusedAsCampaign(dir.path() / "measurements.csv");
+}
+
+TEST(CampaignRefuses, ARobotDescriptionGivenForTheFolder) {
+  TempDir dir;
+  writeText(dir.path() / "robot.urdf", kUrdf);
+  expectFileRefusedAsCampaign(dir.path() / "robot.urdf");
+}
+
+TEST(CampaignRefuses, ATableInCampaignYamlIsQuotedShort) {
+  // A campaign.yaml holding a whole table: the value is quoted as its first characters.
+  std::string big = kValidCsv;
+  while (big.size() < 100 * 1024) big += splitOn(kValidCsv, '\n')[1] + "\n";
+  TempDir dir;
+  writeFolder(dir.path(), big, kValidCsv);
+  const test::Refusal r = test::refusalOf([&] { readCampaign(dir.path().string()); });
+  EXPECT_EQ(r.file, "campaign.yaml");
+  EXPECT_NE(r.what.find("bytes)"), std::string::npos) << r.what;
+  EXPECT_LT(r.what.size(), 400u) << r.what.substr(0, 400);
+}
+
+TEST(CampaignRefuses, WritingOverAFile) {
+  TempDir dir;
+  writeText(dir.path() / "taken", "x");
+  std::mt19937_64 rng(1);
+  test::expectInputError([&] { writeCampaign(randomCampaign(rng, 3), (dir.path() / "taken").string()); },
+                         "taken", 0, "", {"is a file; expected the campaign folder to write"});
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -292,8 +292,26 @@ TEST(Correct, BadProgramsAreRefusedWithTheirLineAndColumn) {
   }
 }
 
-// A program's end of file (csv.hpp's rule): the last newline is optional, CRLF reads as LF, and,
-// unlike a campaign's measurements.csv, one blank line at the end is skipped; a second is refused.
+// A folder given for the program or the model is named as such, in one line.
+TEST(Correct, AFolderGivenForAFileIsNamedAsSuch) {
+  const Cell& c = cell();
+  const test::TempDir dir;
+  const std::string program = (dir.path() / "program.csv").string();
+  test::writeText(program, "id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\na,10,-20,30,0,40,0\n");
+  const std::string folder = dir.path().string();
+  for (const auto& [args, expected] : std::vector<std::pair<std::string, std::string>>{
+           {c.model + " " + folder, folder + ": is a folder; expected a file"},
+           {folder + " " + program, folder + ": is a folder; expected a stepcal model file"}}) {
+    const test::CommandResult r =
+        test::run(kStepcal + " correct " + args + " --out " + (dir.path() / "out.csv").string());
+    EXPECT_NE(r.status, 0) << args << ": " << r.out;
+    EXPECT_NE(r.out.find(expected), std::string::npos) << args << ": " << r.out;
+  }
+}
+
+// A program's end of file (csv.hpp's rule): the last newline is optional, CRLF reads as LF, a
+// UTF-8 byte-order mark is skipped, and, unlike a campaign's measurements.csv, one blank line at
+// the end is skipped; a second is refused.
 TEST(Correct, AProgramsLineEndsDoNotChangeItsTargets) {
   const Cell& c = cell();
   const test::TempDir dir;
@@ -311,7 +329,8 @@ TEST(Correct, AProgramsLineEndsDoNotChangeItsTargets) {
   ASSERT_EQ(expected.rfind("status ", 0), std::string::npos) << expected;
   for (const std::string& text : {header + "\n" + a + "\n" + b,
                                   header + "\r\n" + a + "\r\n" + b + "\r\n",
-                                  header + "\n" + a + "\n" + b + "\n\n"}) {
+                                  header + "\n" + a + "\n" + b + "\n\n",
+                                  "\xEF\xBB\xBF" + header + "\n" + a + "\n" + b + "\n"}) {
     EXPECT_EQ(correct(text), expected) << text;
   }
   const std::string refused = correct(header + "\n" + a + "\n" + b + "\n\n\n");

@@ -312,6 +312,30 @@ TEST(IpaImport, SyntheticSeriesImports) {
   EXPECT_EQ(c.rows[1].extra[3], "0.00099888");
 }
 
+// A UTF-8 byte-order mark (spreadsheets' "CSV UTF-8") is skipped, as by every reader (csv.hpp).
+TEST(IpaImport, SkipsAByteOrderMark) {
+  TempDir dir;
+  writeText(dir.path() / "series.csv", "\xEF\xBB\xBF" + seriesText());
+  writeText(dir.path() / "Trafo_TM_F_init.txt", std::string("\xEF\xBB\xBF") + kTrafo);
+  const Campaign marked =
+      importers::importIpaSeries((dir.path() / "series.csv").string(), 1, kUr10Urdf);
+  writeText(dir.path() / "series.csv", seriesText());
+  writeText(dir.path() / "Trafo_TM_F_init.txt", kTrafo);
+  const Campaign plain =
+      importers::importIpaSeries((dir.path() / "series.csv").string(), 1, kUr10Urdf);
+  ASSERT_EQ(marked.rows.size(), 3u);
+  EXPECT_EQ(marked.urdf_xml, plain.urdf_xml);  // the same T-Mac transform
+  for (size_t i = 0; i < 3; ++i) EXPECT_EQ(marked.rows[i].q_rad, plain.rows[i].q_rad);
+}
+
+TEST(IpaImport, RefusesAFolderForTheSeries) {
+  TempDir dir;
+  fs::create_directory(dir.path() / "series.csv");
+  test::expectInputError(
+      [&] { importers::importIpaSeries((dir.path() / "series.csv").string(), -1, kUr10Urdf); },
+      "series.csv", 0, "", {"is a folder; expected a readable file"});
+}
+
 TEST(IpaImport, RefusesDecimalPoint) {
   expectRefused(seriesText(3, "measurement_x", "335.14778"), kTrafo, "series.csv", 3,
                 "measurement_x",

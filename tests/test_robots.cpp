@@ -97,7 +97,7 @@ TEST(Robots, PathsAndUnknownNamesAreRefusedWithWhatWasSearched) {
   expectRefused([] { robotDescriptionPath(""); }, {"--robot is empty"});
   const test::TempDir dir;
   expectRefused([&] { robotDescriptionPath(dir.path().string()); },
-                         {"no such file"});  // a folder is no URDF
+                         {"': is a folder; expected a URDF file"});  // named as a folder
 }
 
 TEST(Urdf, ChainEndsAreTheRootAndTheEndOfTheArm) {

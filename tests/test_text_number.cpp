@@ -23,6 +23,23 @@ TEST(TextNumber, InQuotes) {
   EXPECT_EQ(inQuotes(" a,b "), "' a,b '");
 }
 
+// A message is read by a person: a file's content is quoted as its first characters and size.
+TEST(TextNumber, InQuotesCutsAFilesContent) {
+  const std::string long_value(kQuotedCharsMax, 'x');
+  EXPECT_EQ(inQuotes(long_value), "'" + long_value + "'");  // a long path stays whole
+  const std::string table = "seq,pose_id,set,load_kg,q1_deg,q2_deg,q3_deg,x_mm\n1,p1,geometry";
+  EXPECT_EQ(inQuotes(table), "'seq,pose_id,set,load_kg,q1_deg,q2_deg,q3…' (" +
+                                 std::to_string(table.size()) + " bytes)");
+  EXPECT_EQ(inQuotes("a\r\nb"), "'a…' (4 bytes)");
+  EXPECT_EQ(inQuotes(long_value + "x"), "'" + long_value.substr(0, kQuotedExcerptChars) + "…' (" +
+                                            std::to_string(kQuotedCharsMax + 1) + " bytes)");
+  // Cut between characters, not inside one: 'é' is two bytes.
+  std::string accents;
+  while (accents.size() <= kQuotedCharsMax) accents += "\xC3\xA9";
+  const std::string quoted = inQuotes(accents);
+  EXPECT_EQ(quoted.substr(0, quoted.find("\xE2\x80\xA6")), "'" + accents.substr(0, 40));
+}
+
 TEST(TextNumber, ParseFiniteAcceptsDecimalAndExponentForms) {
   EXPECT_EQ(parseFinite("0"), 0.0);
   EXPECT_EQ(parseFinite("21.5"), 21.5);

@@ -58,6 +58,15 @@ TEST(Csv, SplitLinesKeepsEveryOtherCharacter) {
   EXPECT_EQ(splitLines(text), (Lines{std::string_view("a\0b", 3), " c ,\t"}));
 }
 
+// The byte-order mark rule, one for every table reader: a UTF-8 BOM at the start is skipped.
+TEST(Csv, SplitLinesSkipsAByteOrderMarkAtTheStart) {
+  EXPECT_EQ(splitLines("\xEF\xBB\xBFseq,x\n1,2\n"), (Lines{"seq,x", "1,2"}));
+  EXPECT_EQ(splitLines("\xEF\xBB\xBF"), Lines{});
+  EXPECT_EQ(splitLines("a\n\xEF\xBB\xBF"), (Lines{"a", "\xEF\xBB\xBF"}));  // only at the start
+  EXPECT_EQ(withoutByteOrderMark("\xEF\xBB\xBF\xEF\xBB\xBF" "a"), "\xEF\xBB\xBF" "a");  // one
+  EXPECT_EQ(withoutByteOrderMark("\xEF\xBB" "a"), "\xEF\xBB" "a");  // not a whole mark
+}
+
 TEST(Csv, SplitFieldsKeepsEmptyFields) {
   EXPECT_EQ(splitFields("a,b,c"), (Lines{"a", "b", "c"}));
   EXPECT_EQ(splitFields("a,,b"), (Lines{"a", "", "b"}));

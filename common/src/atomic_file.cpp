@@ -76,6 +76,10 @@ SignalsHeldForWriting::~SignalsHeldForWriting() {
 
 void writeFileAtomically(const std::string& path, const void* data, size_t size,
                          const std::string& what) {
+  struct stat existing {};
+  if (::stat(path.c_str(), &existing) == 0 && S_ISDIR(existing.st_mode)) {
+    throw InputError("is a folder; expected the path of the " + what + " file to write", path);
+  }
   const SignalsHeldForWriting held;  // declared first: released after the temporary is gone
   const auto bytes = static_cast<const char*>(data);
   std::string pattern = path + ".tmp-XXXXXX";

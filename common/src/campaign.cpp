@@ -213,15 +213,20 @@ std::optional<RowSet> parseSet(std::string_view s) {
 // ---------------------------------------------------------------------------------------------
 // Files
 
-/// Whole file as text; throws naming the place that refers to it (file, line) when it cannot.
+/// Whole file as text; throws naming the place that refers to it (file, line) when it cannot,
+/// or the file itself when nothing refers to it.
 std::string readReferredFile(const fs::path& path, const std::string& what,
                              const std::string& referrer, int referrer_line) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) {
-    throw InputError(what + " " + inQuotes(path.string()) +
-                         (fs::exists(path, ec) ? " is not a regular file" : " does not exist") +
-                         "; expected a readable file (a relative path is relative to the folder "
-                         "of campaign.yaml)",
+    const char* found = fs::is_directory(path, ec) ? " is a folder"
+                        : fs::exists(path, ec)     ? " is not a regular file"
+                                                   : " does not exist";
+    const char* relative_to = referrer.empty()
+                                  ? ""
+                                  : " (a relative path is relative to the folder of campaign.yaml)";
+    throw InputError(what + " " + inQuotes(path.string()) + found + "; expected a readable file" +
+                         relative_to,
                      referrer, referrer_line);
   }
   std::ifstream in(path, std::ios::binary);
@@ -341,11 +346,6 @@ class CsvReader {
 
   CsvLayout parseHeader(std::string_view header) const {
     CsvLayout layout;
-    if (header.substr(0, 3) == "\xEF\xBB\xBF") {
-      fail(1, "",
-           "the file starts with a UTF-8 byte-order mark; expected plain text "
-           "(save it without BOM)");
-    }
     const std::vector<std::string_view> names = splitFields(header);
     layout.field_count = static_cast<int>(names.size());
     std::map<int, int> joint_positions;  // K → position of qK_deg
@@ -815,9 +815,21 @@ std::string yamlText(const Campaign& c, const std::string& file) {
 // ---------------------------------------------------------------------------------------------
 // Reading, step by step
 
+/// What a campaign path is, for a file given in its place.
+constexpr const char* kCampaignFolderText =
+    "a campaign folder holding campaign.yaml, robot.urdf and measurements.csv (or the path of "
+    "its campaign.yaml)";
+
+/// Whether a file given as the campaign may be its campaign.yaml: YAML or JSON by its name,
+/// not a table, a robot description or a model given where a folder is expected.
+bool isCampaignFileName(const fs::path& path) {
+  const std::string extension = path.extension().string();
+  return extension == ".yaml" || extension == ".yml" || extension == ".json";
+}
+
 YAML::Node parseYaml(const std::string& text, const std::string& file) {
   try {
-    return YAML::Load(text);
+    return YAML::Load(std::string(withoutByteOrderMark(text)));
   } catch (const YAML::Exception& e) {
     throw InputError("not valid YAML: " + e.msg, file, e.mark.line >= 0 ? e.mark.line + 1 : 0);
   }
@@ -969,6 +981,9 @@ Campaign readCampaign(const std::string& path) {
   const fs::path yaml_path =
       fs::is_directory(path, ec) ? fs::path(path) / "campaign.yaml" : fs::path(path);
   const std::string yaml_file = yaml_path.string();
+  if (fs::is_regular_file(yaml_path, ec) && !isCampaignFileName(yaml_path)) {
+    throw InputError(std::string("is a file; expected ") + kCampaignFolderText, yaml_file);
+  }
   if (!fs::is_regular_file(yaml_path, ec)) {
     throw InputError(
         "no campaign here; expected a campaign folder containing campaign.yaml, "
@@ -1001,9 +1016,13 @@ Campaign readCampaign(const std::string& path) {
 
 void writeCampaign(const Campaign& campaign, const std::string& directory) {
   const fs::path dir(directory);
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
+    throw InputError("is a file; expected the campaign folder to write (created if missing)",
+                     directory);
+  }
   const std::string yaml = yamlText(campaign, (dir / "campaign.yaml").string());
   const std::string csv = csvText(campaign, (dir / "measurements.csv").string());
-  std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) {
     throw InputError("cannot create the campaign folder: " + ec.message(), directory);

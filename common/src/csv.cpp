@@ -3,7 +3,16 @@
 
 namespace stepcal {
 
+std::string_view withoutByteOrderMark(std::string_view text) {
+  constexpr std::string_view kUtf8ByteOrderMark = "\xEF\xBB\xBF";
+  if (text.substr(0, kUtf8ByteOrderMark.size()) == kUtf8ByteOrderMark) {
+    text.remove_prefix(kUtf8ByteOrderMark.size());
+  }
+  return text;
+}
+
 std::vector<std::string_view> splitLines(std::string_view text) {
+  text = withoutByteOrderMark(text);
   std::vector<std::string_view> lines;
   size_t start = 0;
   while (start < text.size()) {

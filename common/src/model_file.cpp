@@ -930,6 +930,11 @@ CalibratedModel readModelFile(const std::string& path) {
   struct stat st {};
   if (::fstat(fd, &st) != 0) {
     error = errno;
+  } else if (S_ISDIR(st.st_mode)) {
+    ::close(fd);
+    throw InputError("is a folder; expected a stepcal model file (what `stepcal calibrate --out` "
+                     "writes)",
+                     path);
   } else if (!S_ISREG(st.st_mode) || uint64_t(st.st_size) > kMaxFileBytes) {
     ::close(fd);
     throw InputError("not a regular file of at most " + std::to_string(kMaxFileBytes) +

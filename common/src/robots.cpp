@@ -70,6 +70,10 @@ std::string robotDescriptionPath(const std::string& robot) {
                      listed(shippedRobots()) + ")");
   }
   if (isRobotPath(robot)) {
+    std::error_code ec;
+    if (fs::is_directory(robot, ec)) {
+      throw InputError("--robot '" + robot + "': is a folder; expected a URDF file");
+    }
     if (!isReadableFile(robot)) {
       throw InputError("--robot '" + robot + "': no such file; expected a URDF file (a path "
                        "containing '/' or ending in .urdf) or the name of a shipped robot (" +

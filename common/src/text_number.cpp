@@ -1,6 +1,7 @@
 // Numbers in text files (see text_number.hpp).
 #include "stepcal/common/text_number.hpp"
 
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
@@ -9,7 +10,19 @@
 
 namespace stepcal {
 
-std::string inQuotes(std::string_view text) { return "'" + std::string(text) + "'"; }
+std::string inQuotes(std::string_view text) {
+  const size_t line_end = text.find_first_of("\r\n");
+  if (line_end == std::string_view::npos && text.size() <= kQuotedCharsMax) {
+    return "'" + std::string(text) + "'";
+  }
+  size_t cut = std::min({line_end, text.size(), kQuotedExcerptChars});
+  // Back off to a character boundary: UTF-8 continuation bytes are 10xxxxxx.
+  while (cut > 0 && cut < text.size() && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) {
+    --cut;
+  }
+  return "'" + std::string(text.substr(0, cut)) + "…' (" + std::to_string(text.size()) +
+         " bytes)";
+}
 
 std::optional<double> parseFinite(std::string_view text) {
   double v = 0.0;

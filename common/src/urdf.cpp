@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -373,6 +374,10 @@ UrdfOrigin urdfOriginOf(const Pose& X) {
 }
 
 std::string readTextFile(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    throw InputError("is a folder; expected a file", path);
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError("cannot open file for reading", path);
   std::ostringstream text;

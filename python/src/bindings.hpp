@@ -47,6 +47,10 @@ py::array_t<double> outputArray(ssize_t rows, bool single, std::vector<ssize_t> 
 /// stepcal.Status (an enum.IntEnum, so that it compares with numpy's integers) of a status value.
 py::object statusObject(int8_t status);
 
+/// stepcal.ModelId (an int shown as 16 hex digits, as stepcal-client and the daemon print it) of
+/// a model id.
+py::object modelIdObject(uint64_t model_id);
+
 /// FNV-1a 64 of bytes: the runtime's model id of a model file's bytes.
 uint64_t fnv1a64(const std::vector<uint8_t>& bytes) noexcept;
 

@@ -159,7 +159,7 @@ class Client {
     f["compute_ns"] = r.compute_ns;
     f["wrench_stamp_ns"] = r.wrench_stamp_ns;
     f["wrench"] = arrayOf(r.wrench);
-    f["model_id"] = uint64_t(r.model_id);
+    f["model_id"] = modelIdObject(uint64_t(r.model_id));
     f["residual_position_m"] = r.residual_position_m;
     f["residual_orientation_rad"] = r.residual_orientation_rad;
     return py::module_::import("types").attr("SimpleNamespace")(**f);

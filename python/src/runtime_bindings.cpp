@@ -4,6 +4,8 @@
 #include <memory>
 #include <string>
 
+#include <pybind11/eval.h>
+
 #include "bindings.hpp"
 #include "model_handle.hpp"
 #include "stepcal/common/model_file.hpp"
@@ -295,6 +297,46 @@ py::object statusObject(int8_t status) {
   return py::reinterpret_borrow<py::object>(g_status_type)(int(status));
 }
 
+py::handle g_model_id_type;
+
+py::object modelIdObject(uint64_t model_id) {
+  return py::reinterpret_borrow<py::object>(g_model_id_type)(model_id);
+}
+
+namespace {
+
+/// stepcal.ModelId: the id stays an int (it compares with ints and other ids), its text is the
+/// 16 hex digits that stepcal-client (tools/client/replies.cpp) and the daemon's log print.
+py::object makeModelIdType() {
+  py::dict scope;
+  scope["__builtins__"] = py::module_::import("builtins");
+  py::exec(R"(
+class ModelId(int):
+    """A model's id (FNV-1a 64 of its file's bytes): an int, printed as 16 hex digits as
+    stepcal-client and the daemon print it."""
+    __slots__ = ()
+    __module__ = "stepcal"
+    def __repr__(self):
+        return format(int(self), "016x")
+    __str__ = __repr__
+)", scope);
+  return scope["ModelId"];
+}
+
+/// stepcal.status_names(statuses): the names of one status or of an array of them.
+py::object statusNames(const py::object& statuses) {
+  const auto values =
+      py::array_t<int, py::array::c_style | py::array::forcecast>::ensure(statuses);
+  if (!values) throw py::value_error("statuses: expected a status or an array of statuses");
+  const auto name = [&](ssize_t i) { return statusObject(int8_t(values.data()[i])).attr("name"); };
+  if (values.ndim() == 0) return name(0);
+  py::list names;
+  for (ssize_t i = 0; i < values.size(); ++i) names.append(name(i));
+  return std::move(names);
+}
+
+}  // namespace
+
 void bindRuntime(py::module_& m) {
   // The runtime's statuses by their names (runtime::toString) and values, which travel over LCM.
   py::list members;
@@ -313,6 +355,12 @@ void bindRuntime(py::module_& m) {
       "a rotation). The values travel over LCM.";
   m.attr("Status") = status;
   g_status_type = status.release();
+  m.def("status_names", &statusNames, py::arg("statuses"),
+        "The names of statuses: one name for one status, a list of names for an array (the int8 "
+        "arrays of correct_forward and solve_inverse), e.g. ['OK', 'BAD_REQUEST']");
+  py::object model_id = makeModelIdType();
+  m.attr("ModelId") = model_id;
+  g_model_id_type = model_id.release();
 
   py::class_<ModelHandle>(m, "Model",
                           "A calibrated model file, loaded for the runtime's calls (immutable)")
@@ -326,8 +374,9 @@ void bindRuntime(py::module_& m) {
              return self.runtime()->file.chain_Tracker.dof();
            })
       .def_property_readonly("model_id", [](const ModelHandle& self) {
-             return self.runtime()->model_id;
-           }, "the id the daemon's replies carry for this model (from its file's bytes)")
+             return modelIdObject(self.runtime()->model_id);
+           }, "the id the daemon's replies carry for this model (from its file's bytes): a "
+              "stepcal.ModelId, an int printed as 16 hex digits as stepcal-client prints it")
       .def_property_readonly("has_gpr", [](const ModelHandle& self) {
              return self.runtime()->file.gpr.has_value();
            })

@@ -4,6 +4,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include <pybind11/stl.h>
 
@@ -136,11 +137,30 @@ py::object calibrate(const CampaignPtr& campaign, int gpr_points) {
   }
   py::dict fields;
   fields["report"] = toPython(report);
-  fields["accuracy"] = columnsOf(report.at("validation"));
+  // Every row group (the report's validation and fit tables), each with its set.
+  fields["accuracy"] = columnsOf(cli::accuracyJson(outcome->accuracy));
   fields["stiffness"] = columnsOf(report.at("stiffness_nm_per_rad"));
   fields["row_position_errors_mm"] = row_errors;
   fields["model"] = py::cast(ModelHandle(std::move(*model)));
   return namespaceOf(fields);
+}
+
+/// The gain table with names that say which model each column is: the report's gpr_* (the
+/// starting model with its own GPR) as before_gpr_*, beside after_gpr_* (the extended model with
+/// its refitted GPR), before_* and after_* (the physical models).
+nlohmann::json gainColumnsNamed(const nlohmann::json& gain) {
+  constexpr std::string_view kStartingGpr = "gpr_";
+  nlohmann::json out = nlohmann::json::array();
+  for (const nlohmann::json& row : gain) {
+    nlohmann::json named = nlohmann::json::object();
+    for (const auto& item : row.items()) {
+      const std::string& key = item.key();
+      const bool starting_gpr = key.compare(0, kStartingGpr.size(), kStartingGpr) == 0;
+      named[starting_gpr ? "before_" + key : key] = item.value();
+    }
+    out.push_back(std::move(named));
+  }
+  return out;
 }
 
 py::object diagnose(const CampaignPtr& campaign, const std::optional<ModelHandle>& start,
@@ -164,7 +184,7 @@ py::object diagnose(const CampaignPtr& campaign, const std::optional<ModelHandle
   py::dict fields;
   fields["verdict"] = report.at("verdict").get<std::string>();
   fields["effects"] = toPython(report.at("effects"));
-  fields["gain"] = columnsOf(report.at("gain"));
+  fields["gain"] = columnsOf(gainColumnsNamed(report.at("gain")));
   fields["report"] = toPython(report);
   fields["model"] = py::cast(ModelHandle(diagnosis->extended_model));
   return namespaceOf(fields);
@@ -203,16 +223,19 @@ void bindTrainer(py::module_& m) {
   m.def("calibrate", &calibrate, py::arg("campaign"),
         py::arg("gpr_points") = trainer::CalibrationOptions{}.gpr_max_points,
         "All three steps on a campaign (`stepcal calibrate`). Returns report (the dict `stepcal "
-        "calibrate --json` prints), accuracy and stiffness (its tables as columns: numpy arrays "
-        "and lists), row_position_errors_mm (method -> one error per campaign row) and model "
-        "(stepcal.Model).");
+        "calibrate --json` prints), accuracy (one row per method, set and load: method, set, "
+        "load_kg, rows, mean/rms/max_position_mm, mean_orientation_deg) and stiffness (as "
+        "columns: numpy arrays and lists), row_position_errors_mm (method -> one error per "
+        "campaign row) and model (stepcal.Model).");
   m.def("diagnose", &diagnose, py::arg("campaign"), py::arg("model") = py::none(),
         py::arg("gpr_points") = trainer::CalibrationOptions{}.gpr_max_points,
         "What the physical model gets wrong (`stepcal diagnose`), from the given model or a "
         "calibration of the campaign. Returns verdict ('found', 'none', 'unexplained'), effects "
         "(each with its name, joint(s), parameters and uncertainty (1-σ), cross-validated gain "
-        "and p-value), gain (per validation load: before, after, with the GPR), report (the dict "
-        "`stepcal diagnose --json` prints) and model (the extended stepcal.Model).");
+        "and p-value), gain (per validation load, as columns: before_* the starting physical "
+        "model, before_gpr_* it with its GPR, after_* the extended physical model, after_gpr_* it "
+        "with its refitted GPR), report (the dict `stepcal diagnose --json` prints; its gain "
+        "says gpr_* for before_gpr_*) and model (the extended stepcal.Model).");
 }
 
 }  // namespace stepcal::python

@@ -8,6 +8,7 @@ in a private network namespace, python_client; tests/CMakeLists.txt sets the env
   STEPCAL_OLD_DAEMON   tests/python/old_daemon: a daemon of message version 1 (refusals only)
   STEPCAL_DOCS_DIR     docs/, whose python.md holds the example script run here
 """
+import enum
 import json
 import math
 import os
@@ -89,6 +90,14 @@ def test_calibrate_gives_the_command_lines_numbers(campaign):
     table = calibration.accuracy
     assert len(table["method"]) == len(table["mean_position_mm"]) > 0
     assert isinstance(table["mean_position_mm"], np.ndarray)
+    # Every group of rows, each with its set: the report's validation and fit tables together.
+    assert set(table["set"]) == {"geometry", "stiffness", "residual", "validation"}
+    report = calibration.report
+    assert len(table["set"]) == len(report["validation"]) + len(report["fit"])
+    validation = [i for i, s in enumerate(table["set"]) if s == "validation"]
+    assert [table["method"][i] for i in validation] == [r["method"] for r in report["validation"]]
+    np.testing.assert_array_equal(table["mean_position_mm"][validation],
+                                  [r["mean_position_mm"] for r in report["validation"]])
     assert calibration.row_position_errors_mm["poe"].shape == (len(campaign),)
     assert calibration.model.joint_count == 6
 
@@ -119,6 +128,17 @@ def test_diagnose_gives_the_command_lines_numbers(campaign, model):
     for effect in diagnosis.effects:  # each found effect with its parameters and 1-σ
         assert "name" in effect and "parameters" in effect and "uncertainty" in effect
     assert isinstance(diagnosis.gain["load_kg"], np.ndarray)
+    # The gain's columns name their model: before_gpr_* is the report's gpr_* (the starting
+    # model with its GPR), after_gpr_* the extended model with its refitted GPR.
+    gain = cli["gain"]
+    assert not [key for key in diagnosis.gain if key.startswith("gpr_")]
+    for key in ("before_gpr_mean_position_mm", "after_gpr_mean_position_mm",
+                "before_mean_position_mm", "after_mean_position_mm"):
+        assert key in diagnosis.gain, key
+    for python_key, cli_key in (("before_gpr_mean_position_mm", "gpr_mean_position_mm"),
+                                ("after_gpr_mean_position_mm", "after_gpr_mean_position_mm")):
+        cli_column = np.array([g[cli_key] for g in gain], float)  # null: NaN
+        np.testing.assert_allclose(diagnosis.gain[python_key], cli_column, rtol=1e-6)
 
 
 def test_runtime_gives_the_cpp_apis_numbers(campaign, model):
@@ -163,6 +183,15 @@ def test_statuses_per_row(model):
     assert stepcal.Status(int(result.status[0])) in (stepcal.Status.OK, stepcal.Status.OUT_OF_DOMAIN)
     not_unit = np.array([1.0, 0.5, 1.0, 2.0, 0.0, 0.0, 0.0])  # quaternion of norm 2
     assert model.solve_inverse(not_unit, seed=np.zeros(6)).status == stepcal.Status.BAD_REQUEST
+    # The statuses of many rows are int8 values of stepcal.Status; status_names names them.
+    assert issubclass(stepcal.Status, enum.IntEnum) and isinstance(stepcal.Status.OK, int)
+    names = stepcal.status_names(result.status)
+    assert names[1] == "BAD_REQUEST" and len(names) == 3
+    assert names == [stepcal.Status(int(s)).name for s in result.status]
+    assert stepcal.status_names(stepcal.Status.STALE_WRENCH) == "STALE_WRENCH"
+    assert [s.name for s in stepcal.Status] == ["OK", "NOT_CONVERGED", "STALE_WRENCH",
+                                                "OUT_OF_DOMAIN", "UNREACHABLE", "NEAR_SINGULAR",
+                                                "BAD_REQUEST"]
 
 
 def matrix_of(row):
@@ -250,6 +279,12 @@ def test_model_files_round_trip(tmp_path, model, campaign):
     model.save(str(copy))
     assert copy.read_bytes() == open(MODEL, "rb").read()
     assert stepcal.Model.load(str(copy)).model_id == model.model_id
+    # The id is an int shown as the 16 hex digits stepcal-client and the daemon print.
+    model_id = model.model_id
+    assert isinstance(model_id, int) and isinstance(model_id, stepcal.ModelId)
+    assert re.fullmatch(r"[0-9a-f]{16}", str(model_id)) and int(str(model_id), 16) == model_id
+    assert repr(model_id) == str(model_id) == "%s" % model_id == "{}".format(model_id)
+    assert "%d" % model_id == str(int(model_id))
     assert "joints" in model.describe()
 
 
@@ -275,6 +310,18 @@ def test_bad_input_raises_with_the_same_message(tmp_path, model):
     cli = subprocess.run([os.path.join(BIN, "stepcal"), "calibrate", str(broken)],
                          capture_output=True, text=True)
     assert cli.returncode == 2 and str(error) in cli.stderr
+
+    # A file where the campaign folder is expected: one short line, not the file's content.
+    big = tmp_path / "measurements.csv"
+    big.write_text((broken / "measurements.csv").read_text() * 4)
+    assert big.stat().st_size > 100000
+    with pytest.raises(stepcal.InputError) as a_file:
+        stepcal.Campaign.load(str(big))
+    message = str(a_file.value)
+    assert "is a file; expected a campaign folder holding campaign.yaml" in message
+    assert "\n" not in message and len(message) < 300, message[:400]
+    with pytest.raises(stepcal.InputError, match="is a folder; expected a stepcal model file"):
+        stepcal.Model.load(str(tmp_path))
 
     garbage = tmp_path / "garbage.stepcal"
     garbage.write_bytes(b"not a model at all")

@@ -74,7 +74,9 @@ bool contains(const Names& names, std::string_view name) {
 std::string readExistingFile(const fs::path& path, const std::string& what) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) {
-    throw InputError(what + " not found; expected a readable file", path.string());
+    throw InputError(what + (fs::is_directory(path, ec) ? " is a folder" : " not found") +
+                         "; expected a readable file",
+                     path.string());
   }
   return readTextFile(path.string());
 }

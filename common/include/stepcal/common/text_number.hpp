@@ -9,8 +9,14 @@
 namespace stepcal {
 
 /// The text in single quotes, for messages: 'text'.
-/// Nothing is escaped; an empty text gives ''.
+/// Nothing is escaped; an empty text gives ''. A message is read by a person, so a long text is
+/// cut: one with a line break or more than kQuotedCharsMax bytes gives its first line's first
+/// bytes (whole UTF-8 characters) and its size, 'seq,pose_id,…' (438123 bytes).
 std::string inQuotes(std::string_view text);
+/// Longest text inQuotes gives whole: a value or a path, not a file's content.
+constexpr size_t kQuotedCharsMax = 160;
+/// What inQuotes keeps of a text it cuts.
+constexpr size_t kQuotedExcerptChars = 40;
 
 /// The whole text as a finite double, or nullopt.
 /// Decimal point '.', optional exponent (e/E, sign allowed after it), optional leading '-'; no

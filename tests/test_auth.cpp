@@ -426,9 +426,9 @@ TEST(AuthUdpm, TheRealDaemonAndClientRefuseWhatTheKeyDoesNotVouchFor) {
 
   // Without the key, or with another: the daemon drops the requests; no reply.
   const test::CommandResult keyless = test::run(kBin + "/stepcal-client" + forward);
-  EXPECT_EQ(keyless.status, 1) << keyless.out;
+  EXPECT_EQ(keyless.status, 4) << keyless.out;
   const test::CommandResult wrong = test::run(kBin + "/stepcal-client --key-file " + other_key + forward);
-  EXPECT_EQ(wrong.status, 1) << wrong.out;
+  EXPECT_EQ(wrong.status, 4) << wrong.out;
 
   // An impostor answers every request too, without the key: the client takes the daemon's reply
   // and rejects the impostor's.

@@ -18,6 +18,7 @@
 #include <stepcal_lcm/correction_request_t.hpp>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/exit_codes.hpp"
 #include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/common/types.hpp"
 #include "stepcal/common/units.hpp"
@@ -62,16 +63,18 @@ struct Args {
 
 // ---- the subcommands ---------------------------------------------------------------------------
 
-/// --forward / --inverse: one request (or --forward --count N --rate HZ); exit status 1 when no
-/// reply came.
+/// --forward / --inverse: one request (or --forward --count N --rate HZ); exit status 4 when no
+/// reply came, 3 when a reply's status is not OK (exitStatusOf).
 int runSingle(const Args& args);
-/// --campaign: a campaign's rows as requests: latency, lost replies, statuses, accuracy.
+/// --campaign: a campaign's rows as requests: latency, lost replies, statuses, accuracy; exit
+/// status as exitStatusOf, 1 for a torn answer.
 int runCampaign(Args args);
 /// --ping N: raw LCM round trips to a `stepcal-client --echo`.
 int runPing(const Args& args);
 /// --echo: answers pings until SIGINT or SIGTERM.
 int runEcho(const Args& args);
-/// --sensor-command: one sensor_command_t (sealed with the key, if any) to the daemon's sensor.
+/// --sensor-command: one sensor_command_t (sealed with the key, if any) to the daemon's sensor,
+/// confirmed by its sensor_status_t counters; exit status 4 when refused or not confirmed.
 int runSensorCommand(const Args& args);
 
 // ---- requests (single.cpp) ------------------------------------------------------------------------
@@ -131,6 +134,11 @@ std::optional<service::CellKey> loadKey(const std::string& key_file);
 std::vector<correction_reply_t> sendRequests(
     lcm_t* lcm, const Args& args, std::vector<correction_request_t> requests, Exchange& exchange,
     service::LcmRequester& requester, const std::function<void(size_t)>& before_send = nullptr);
+
+/// The exit status of `requests` messages of which `answered` got a reply in time and `ok` of
+/// those the status OK (exit_codes.hpp): 4 when none was answered, 3 when some were lost or not
+/// OK (said on stderr, with `what`: "requests", "pings"), else 0.
+int exitStatusOf(int requests, int answered, long ok, const char* what);
 
 /// The requester's key and refused replies, for the reports.
 nlohmann::json authenticationJson(const service::LcmRequester& requester);

@@ -172,7 +172,13 @@ int main(int argc, char** argv) {
   CLI::App app{"stepcal-client: requests to stepcal-runtime over LCM; latency and accuracy"};
   Args args;
   addOptions(app, args);
-  CLI11_PARSE(app, argc, argv);
+  app.footer(stepcal::exit_code::kHelpFooter);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help is done (0); any other parse error is bad usage, whatever CLI11's own number.
+    return app.exit(e) == 0 ? stepcal::exit_code::kDone : stepcal::exit_code::kBadInput;
+  }
 
   try {
     checkArgs(args);
@@ -183,6 +189,6 @@ int main(int argc, char** argv) {
     return runSingle(args);
   } catch (const stepcal::InputError& e) {
     std::cerr << "stepcal-client: error: " << e.what() << "\n";
-    return 2;
+    return stepcal::exit_code::kBadInput;
   }
 }

@@ -48,7 +48,7 @@ void setTerms(const Args& args, correction_request_t& msg) {
 /// The forward request of the command line, args.count times at args.rate_hz: per request when it
 /// left and when its reply came (Unix time, to line up with faults logged elsewhere), its status,
 /// the age of the live wrench it used on arrival and the predicted position. SIGINT/SIGTERM end it
-/// early: the requests sent so far are reported. Exit status 1 when no reply came.
+/// early: the requests sent so far are reported. Exit status as exitStatusOf.
 int runRepeated(const Args& args, const correction_request_t& msg) {
   std::signal(SIGINT, onStopSignal);
   std::signal(SIGTERM, onStopSignal);
@@ -91,7 +91,7 @@ int runRepeated(const Args& args, const correction_request_t& msg) {
     std::cout << sent << " forward requests at " << args.rate_hz << " Hz: "
               << exchange.answered << " replies, statuses " << statuses.dump() << "\n";
   }
-  return exchange.answered > 0 ? 0 : 1;
+  return exitStatusOf(sent, exchange.answered, status_counts[0], "requests");
 }
 
 }  // namespace
@@ -107,7 +107,8 @@ void setWrench(correction_request_t& msg, const Vec6& wrench_Sensor) {
   for (int i = 0; i < 6; ++i) msg.wrench[i] = wrench_Sensor[i];
 }
 
-/// One request from the command line; exit status 1 when no reply came.
+/// One request from the command line; exit status 4 when no reply came, 3 when its status is not
+/// OK.
 int runSingle(const Args& args) {
   const bool inverse = !args.inverse_pose.empty();
   correction_request_t msg = emptyRequest(args);
@@ -133,7 +134,7 @@ int runSingle(const Args& args) {
     std::cerr << "stepcal-client: no reply within " << args.timeout_ms
               << " ms (is stepcal-runtime running on " << args.lcm_url << "?)\n";
     explainSilence(requester);
-    return 1;
+    return exit_code::kNoService;
   }
   if (args.json) {
     nlohmann::json j = replyJson(replies[0], inverse);
@@ -142,7 +143,7 @@ int runSingle(const Args& args) {
   } else {
     printReply(replies[0], exchange.round_trip_us[0], inverse, args.frame);
   }
-  return 0;
+  return exitStatusOf(1, 1, replies[0].status == int8_t(runtime::Status::kOk), "requests");
 }
 
 }  // namespace stepcal::client

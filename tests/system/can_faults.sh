@@ -121,7 +121,8 @@ fault flood bus "$start" "$EPOCHREALTIME"
 sleep "$healthy_s"
 
 kill -TERM "$client_pid"
-wait "$client_pid" || { echo "can_faults: the client failed" >&2; cat "$out/client.log" >&2; exit 1; }
+# Exit status 3: requests not answered OK during the faults, what this test provokes and counts.
+wait "$client_pid" || [[ $? -eq 3 ]] || { echo "can_faults: the client failed" >&2; cat "$out/client.log" >&2; exit 1; }
 kill -0 "$daemon_pid" 2>/dev/null || { echo "can_faults: FAILED: the daemon died" >&2; cat "$out/daemon.log" >&2; exit 1; }
 kill -TERM "$daemon_pid"
 daemon_status=0

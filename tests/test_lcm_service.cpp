@@ -1039,10 +1039,12 @@ class HandledLcm {
 struct StatusAnswerer {
   lcm_t* lcm = nullptr;
   std::atomic<int> status{int(Status::kOk)};
+  correction_request_t last_request{};  ///< read after the client's process has ended
   static void on(const lcm_recv_buf_t* rbuf, const char*, void* user) {
     auto* self = static_cast<StatusAnswerer*>(user);
     correction_request_t request{};
     if (request.decode(rbuf->data, 0, int(rbuf->data_size)) <= 0) return;
+    self->last_request = request;
     correction_reply_t reply{};
     reply.request_id = request.request_id;
     reply.status = int8_t(self->status.load());
@@ -1055,7 +1057,8 @@ struct StatusAnswerer {
 
 // The client's exit status says whether its request was corrected (exit_codes.hpp): 0 for OK,
 // 3 (done in part) for any other status, also when only some of repeated requests failed, and 4
-// when nothing answers. Over real UDP multicast: the client is a process of its own.
+// when nothing answers; its lengths are taken in mm and its angles in degrees. Over real UDP
+// multicast: the client is a process of its own.
 TEST(LcmUdpm, ClientExitStatusSaysWhetherTheRequestWasCorrected) {
   if (std::getenv("STEPCAL_NETNS") == nullptr) {
     GTEST_SKIP() << "needs a private network namespace with multicast on its loopback "
@@ -1063,7 +1066,7 @@ TEST(LcmUdpm, ClientExitStatusSaysWhetherTheRequestWasCorrected) {
   }
   const std::string url = "udpm://239.255.76.69:7669?ttl=0";
   const std::string forward = kClient + " --lcm-url '" + url +
-                              "' --forward 0 0 0 0 0.5 0 --wrench 0 0 -100 0 0 0";
+                              "' --forward 0 0 0 0 28.6 0 --wrench 0 0 -100 0 0 0";
   StatusAnswerer answerer;
   {
     HandledLcm daemon(url);
@@ -1086,6 +1089,31 @@ TEST(LcmUdpm, ClientExitStatusSaysWhetherTheRequestWasCorrected) {
             << r.out;
       }
     }
+    // Lengths on the command line in mm, angles in degrees; the message carries SI.
+    EXPECT_NEAR(answerer.last_request.q_rad[4], 28.6 * kRadPerDeg, 1e-15);
+    answerer.status = int(Status::kOk);
+    const std::string inverse = kClient + " --lcm-url '" + url +
+                                "' --timeout-ms 1000 --inverse 1500 -200 300 1 0 0 0 --seed 0 10 20 "
+                                "0 45 0 --frame user --user-frame 100 0 50 1 0 0 0 --tool 0 0 350 1 "
+                                "0 0 0 --payload 30 --cog 0 0 300";
+    const CommandResult in_mm = run(inverse);
+    EXPECT_EQ(in_mm.status, 0) << in_mm.out;
+    EXPECT_EQ(in_mm.out.find("warning"), std::string::npos) << in_mm.out;
+    const correction_request_t& sent = answerer.last_request;
+    EXPECT_NEAR(sent.desired_position_m[0], 1.5, 1e-15);
+    EXPECT_NEAR(sent.desired_position_m[1], -0.2, 1e-15);
+    EXPECT_NEAR(sent.user_frame_position_m[0], 0.1, 1e-15);
+    EXPECT_NEAR(sent.tool_position_m[2], 0.35, 1e-15);
+    EXPECT_NEAR(sent.payload_cog_m[2], 0.3, 1e-15);
+    EXPECT_NEAR(sent.seed_q_rad[4], 45.0 * kRadPerDeg, 1e-15);
+    // Metres where mm are expected: said, not refused.
+    const CommandResult in_m = run(kClient + " --lcm-url '" + url +
+                                   "' --timeout-ms 1000 --inverse 1.5 -0.2 0.3 1 0 0 0");
+    EXPECT_EQ(in_m.status, 0) << in_m.out;
+    EXPECT_NE(in_m.out.find("warning: --inverse x y z lie within 5 mm of the origin: metres given "
+                            "where mm are expected?"),
+              std::string::npos)
+        << in_m.out;
     answerer.status = int(Status::kStaleWrench);
     const CommandResult repeated = run(forward + " --timeout-ms 1000 --count 3 --rate 20");
     EXPECT_EQ(repeated.status, 3) << repeated.out;

@@ -54,7 +54,7 @@ done
 [[ -f $model ]] || { echo "can_faults: $model: no such model file" >&2; exit 2; }
 
 wrench=(0 0 -300 5 -8 2)          # N, N·m on the sensor
-joints=(0 0 0 0 0.5 0)           # rad: OK with this wrench (inside the GPR's domain)
+joints=(0 0 0 0 28.64788975654116 0)  # deg (0.5 rad): OK with this wrench (inside the GPR's domain)
 sensor=("$bin/stepcal-ftsim" --iface "$iface" --wrench "${wrench[@]}" --force-sigma-n 0
         --moment-sigma-nm 0)
 : >"$out/faults.txt"

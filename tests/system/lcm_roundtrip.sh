@@ -65,7 +65,7 @@ pids+=($!)
 # ping a pong.
 for _ in $(seq 50); do
   probe=0
-  "$bin/stepcal-client" --lcm-url "$url" --forward 0 0 0 0 0.5 0 --timeout-ms 100 \
+  "$bin/stepcal-client" --lcm-url "$url" --forward 0 0 0 0 28.64788975654116 0 --timeout-ms 100 \
     "${key_args[@]}" >/dev/null 2>&1 || probe=$?
   if [[ $probe -eq 0 || $probe -eq 3 ]] &&
     "$bin/stepcal-client" --lcm-url "$url" --ping 1 --timeout-ms 100 >/dev/null 2>&1; then

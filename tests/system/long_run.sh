@@ -120,7 +120,7 @@ probes=0
 for _ in $(seq 100); do
   probes=$((probes + 1))
   probe=0  # any reply: OK or (exit status 3) another status, e.g. STALE_WRENCH
-  "$client" --lcm-url "$url" --forward 0 0 0 0 0.5 0 --timeout-ms 200 >/dev/null 2>&1 || probe=$?
+  "$client" --lcm-url "$url" --forward 0 0 0 0 28.64788975654116 0 --timeout-ms 200 >/dev/null 2>&1 || probe=$?
   [[ $probe -eq 0 || $probe -eq 3 ]] && { ready=1; break; }
   sleep 0.1
 done

@@ -399,6 +399,10 @@ runtime::CallTerms frameTerms(const CorrectArgs& args) {
     }
     frame_terms.X_BaseUser.linear() = q.normalized().toRotationMatrix();
     frame_terms.X_BaseUser.translation() = Vec3(u[0], u[1], u[2]) * kMPerMm;
+    if (looksLikeMetres(u[0], u[1], u[2])) {
+      std::cerr << "stepcal correct: warning: --user-frame x y z lie within "
+                << kLooksLikeMetresBelow_mm << " mm of the base: metres given where mm are expected?\n";
+    }
   }
   return frame_terms;
 }

@@ -40,7 +40,8 @@ constexpr int kStatusCount = 7;
 
 struct Args {
   std::string lcm_url = service::kDefaultLcmUrl;
-  std::vector<double> forward_q_rad, inverse_pose, seed_q_rad, wrench;
+  // Command lines take mm and degrees (as `stepcal correct` does); messages carry SI.
+  std::vector<double> forward_q_deg, inverse_pose, seed_q_deg, wrench;  ///< poses: x y z mm, qw … qz
   double temp_c = runtime::kUnknownTemperature_c;  ///< single requests, °C
   std::string campaign_dir, set = "validation", mode = "forward", truth_path;
   int count = 0;
@@ -55,7 +56,7 @@ struct Args {
   std::vector<std::string> check_models;
   // Single requests in the controller's terms.
   std::string frame = "tracker", tool_from = "target", cog_frame = "flange";
-  std::vector<double> user_frame, tool, cog_m;
+  std::vector<double> user_frame, tool, cog_mm;  ///< x y z in mm (and qw qx qy qz)
   double payload_kg = -1.0;  ///< < 0: no payload
   std::string sensor_command;
   std::string key_file;

@@ -35,7 +35,7 @@ int main(int argc, char** argv) {
     }
   }
   if (argc <= 1) {  // a usage error, with the usage
-    std::cout << app.help();
+    std::cerr << app.help();
     return exit_code::kBadInput;
   }
   try {

@@ -414,7 +414,8 @@ TEST(AuthUdpm, TheRealDaemonAndClientRefuseWhatTheKeyDoesNotVouchFor) {
     stop((dir.path() / "daemon.pid").string());
     stop((dir.path() / "impostor.pid").string());
   }};
-  const std::string forward = " --forward 0.1 -0.3 0.4 0 0.8 0 --wrench 0 0 -196 0 0 0 --json "
+  const std::string forward = " --forward 5.729577951308233 -17.188733853924695 22.918311805232932 0 "
+                              "45.836623610465864 0 --wrench 0 0 -196 0 0 0 --json "
                               "--timeout-ms 1000 --lcm-url '" + url + "'";
   test::CommandResult genuine;
   for (int attempt = 0; attempt < 50; ++attempt) {  // until the daemon serves
@@ -426,9 +427,9 @@ TEST(AuthUdpm, TheRealDaemonAndClientRefuseWhatTheKeyDoesNotVouchFor) {
 
   // Without the key, or with another: the daemon drops the requests; no reply.
   const test::CommandResult keyless = test::run(kBin + "/stepcal-client" + forward);
-  EXPECT_EQ(keyless.status, 1) << keyless.out;
+  EXPECT_EQ(keyless.status, 4) << keyless.out;
   const test::CommandResult wrong = test::run(kBin + "/stepcal-client --key-file " + other_key + forward);
-  EXPECT_EQ(wrong.status, 1) << wrong.out;
+  EXPECT_EQ(wrong.status, 4) << wrong.out;
 
   // An impostor answers every request too, without the key: the client takes the daemon's reply
   // and rejects the impostor's.

@@ -184,6 +184,30 @@ TEST(Cli, CampaignNotWrittenByTheTwinCalibratesToo) {
   EXPECT_EQ(report["geometry"]["rank"].get<int>(), 30);
 }
 
+// No subcommand, or one without its required arguments, is a usage error: exit status 2 (not
+// CLI11's own numbers), with the usage; every --help ends with the exit status table.
+TEST(Cli, UsageErrorsExitTwoAndHelpListsTheExitStatuses) {
+  const CommandResult bare = run(kStepcal);
+  EXPECT_EQ(bare.status, 2) << bare.out;
+  EXPECT_NE(bare.out.find("Subcommands:"), std::string::npos) << bare.out;
+  const CommandResult missing = run(kStepcal + " correct");
+  EXPECT_EQ(missing.status, 2) << missing.out;
+  EXPECT_NE(missing.out.find("model is required"), std::string::npos) << missing.out;
+  EXPECT_EQ(run(kStepcal + " frobnicate").status, 2);
+  for (const char* command : {" --help", " correct --help", " import --help", " import ipa --help"}) {
+    const CommandResult help = run(kStepcal + command);
+    EXPECT_EQ(help.status, 0) << command;
+    EXPECT_NE(help.out.find("Exit status: 0 everything done"), std::string::npos) << command;
+    EXPECT_NE(help.out.find("3 done in part"), std::string::npos) << command;
+  }
+  for (const std::string binary : {"/stepcal-client", "/stepcal-runtime"}) {
+    const CommandResult help = run(std::string(STEPCAL_BIN_DIR) + binary + " --help");
+    EXPECT_EQ(help.status, 0) << binary;
+    EXPECT_NE(help.out.find("4 service unavailable"), std::string::npos) << binary << help.out;
+  }
+  EXPECT_EQ(run(std::string(STEPCAL_BIN_DIR) + "/stepcal-client --no-such-option").status, 2);
+}
+
 TEST(Cli, BadInputEndsWithAClearErrorAndStatusTwo) {
   const fs::path dir = scratch("bad");
   ASSERT_EQ(run(kStepcal + " simulate --protocol geometry --seed 1 --out " + dir.string()).status, 0);

@@ -231,6 +231,52 @@ TEST(Correct, PoseTargetsInAUserFrameComeBackToTheirJoints) {
   }
 }
 
+// A program of which some targets cannot be corrected (poses 10 m out of reach) is still written,
+// each line with its status, but the exit status says it was done in part (3) and stderr how
+// many lines were not corrected: a script cannot take it for a corrected program.
+TEST(Correct, APartlyCorrectedProgramExitsDoneInPart) {
+  const Cell& c = cell();
+  const Campaign olp = readCampaign(c.olp);
+  const test::TempDir dir;
+  const std::string program = (dir.path() / "program.csv").string();
+  {
+    std::ofstream out(program);
+    out << "id,x_mm,y_mm,z_mm,qw,qx,qy,qz\n";
+    const auto model = runtime::RuntimeModel::load(c.model);
+    runtime::Workspace ws = runtime::makeWorkspace(*model);
+    for (size_t i = 0; i < 4; ++i) {
+      const Pose X = runtime::correctForward(*model, ws, olp.rows[0].q_rad, runtime::CallTerms{},
+                                             runtime::kUnknownTemperature_c)
+                         .X_FrameTcp;
+      const Eigen::Quaterniond q(X.linear());
+      const double far_mm = i % 2 ? 10000.0 : 0.0;  // every other target out of reach
+      out << "t" << i << "," << formatShortest(X.translation().x() * 1e3 + far_mm) << ","
+          << formatShortest(X.translation().y() * 1e3) << ","
+          << formatShortest(X.translation().z() * 1e3) << "," << formatShortest(q.w()) << ","
+          << formatShortest(q.x()) << "," << formatShortest(q.y()) << "," << formatShortest(q.z())
+          << "\n";
+    }
+  }
+  std::string seed;
+  for (int j = 0; j < 6; ++j) seed += " " + formatShortest(olp.rows[0].q_rad[j] / kRadPerDeg);
+  const std::string corrected = (dir.path() / "corrected.csv").string();
+  const test::CommandResult r = test::run(kStepcal + " correct " + c.model + " " + program +
+                                          " --out " + corrected + " --seed" + seed);
+  EXPECT_EQ(r.status, 3) << r.out;
+  EXPECT_NE(r.out.find("stepcal correct: 2 of 4 lines not corrected"), std::string::npos) << r.out;
+  const auto rows = readCsv(corrected);
+  ASSERT_EQ(rows.size(), 4u);
+  for (size_t i = 0; i < rows.size(); ++i) {
+    EXPECT_EQ(rows[i].at("status") == "OK", i % 2 == 0) << "line " << i + 2 << ": " << rows[i].at("status");
+  }
+  const test::CommandResult json = test::run(kStepcal + " correct " + c.model + " " + program +
+                                             " --out " + corrected + " --seed" + seed + " --json");
+  EXPECT_EQ(json.status, 3) << json.out;
+  const size_t begin = json.out.find('{'), end = json.out.rfind('}');
+  EXPECT_EQ(nlohmann::json::parse(json.out.substr(begin, end + 1 - begin))["not_corrected"], 2)
+      << json.out;
+}
+
 // Every error in a program names the file, its line and its column.
 TEST(Correct, BadProgramsAreRefusedWithTheirLineAndColumn) {
   const Cell& c = cell();

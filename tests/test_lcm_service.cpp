@@ -5,7 +5,9 @@
 // request allocates nothing, and the daemon refuses what it cannot serve with exit status 2.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <atomic>
+#include <functional>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -999,6 +1001,188 @@ TEST(LcmUdpm, MessagesQueuedDuringAStallAreAllHandled) {
   EXPECT_NEAR(with_default_queue.messages, 30, 1)
       << "LCM's default queue capacity (lcm.h: 30) dropped all but about 30 of the stalled "
          "requests";
+}
+
+/// An LCM instance handled on a thread of its own until destroyed, with `each_tick` run every
+/// 100 ms (a daemon's status timer): the other end for a stepcal-client process.
+class HandledLcm {
+ public:
+  HandledLcm(const std::string& url, std::function<void()> each_tick = nullptr)
+      : lcm_(lcm_create(url.c_str()), &lcm_destroy), each_tick_(std::move(each_tick)) {}
+  ~HandledLcm() { stop(); }
+  lcm_t* get() const { return lcm_.get(); }
+  void start() {
+    thread_ = std::thread([this] {
+      Clock::time_point next_tick = Clock::now();
+      while (!stop_) {
+        lcm_handle_timeout(lcm_.get(), 10);
+        if (each_tick_ && Clock::now() >= next_tick) {
+          each_tick_();
+          next_tick += std::chrono::milliseconds(100);
+        }
+      }
+    });
+  }
+  void stop() {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+
+ private:
+  std::unique_ptr<lcm_t, void (*)(lcm_t*)> lcm_;
+  std::function<void()> each_tick_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+/// A stand-in for the daemon that answers every request with the status it is told.
+struct StatusAnswerer {
+  lcm_t* lcm = nullptr;
+  std::atomic<int> status{int(Status::kOk)};
+  correction_request_t last_request{};  ///< read after the client's process has ended
+  static void on(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+    auto* self = static_cast<StatusAnswerer*>(user);
+    correction_request_t request{};
+    if (request.decode(rbuf->data, 0, int(rbuf->data_size)) <= 0) return;
+    self->last_request = request;
+    correction_reply_t reply{};
+    reply.request_id = request.request_id;
+    reply.status = int8_t(self->status.load());
+    reply.predicted_quaternion_wxyz[0] = 1.0;
+    uint8_t bytes[4096];
+    const int size = encodeReply(reply, bytes, int(sizeof bytes));
+    lcm_publish(self->lcm, kReplyChannel, bytes, unsigned(size));
+  }
+};
+
+// The client's exit status says whether its request was corrected (exit_codes.hpp): 0 for OK,
+// 3 (done in part) for any other status, also when only some of repeated requests failed, and 4
+// when nothing answers; its lengths are taken in mm and its angles in degrees. Over real UDP
+// multicast: the client is a process of its own.
+TEST(LcmUdpm, ClientExitStatusSaysWhetherTheRequestWasCorrected) {
+  if (std::getenv("STEPCAL_NETNS") == nullptr) {
+    GTEST_SKIP() << "needs a private network namespace with multicast on its loopback "
+                    "(tests/system/in_netns.sh; ctest -R net_lcm_queue)";
+  }
+  const std::string url = "udpm://239.255.76.69:7669?ttl=0";
+  const std::string forward = kClient + " --lcm-url '" + url +
+                              "' --forward 0 0 0 0 28.6 0 --wrench 0 0 -100 0 0 0";
+  StatusAnswerer answerer;
+  {
+    HandledLcm daemon(url);
+    answerer.lcm = daemon.get();
+    lcm_subscribe(daemon.get(), kRequestChannel, &StatusAnswerer::on, &answerer);
+    daemon.start();
+    for (const auto& [status, expected_exit] :
+         std::vector<std::pair<Status, int>>{{Status::kOk, 0},
+                                             {Status::kStaleWrench, 3},
+                                             {Status::kNotConverged, 3},
+                                             {Status::kBadRequest, 3}}) {
+      answerer.status = int(status);
+      const CommandResult r = run(forward + " --timeout-ms 1000");
+      EXPECT_EQ(r.status, expected_exit) << runtime::toString(status) << ": " << r.out;
+      EXPECT_NE(r.out.find(runtime::toString(status)), std::string::npos) << r.out;
+      if (expected_exit != 0) {
+        EXPECT_NE(r.out.find("1 of 1 requests not corrected (0 without a reply in time, 1 with a "
+                             "status other than OK)"),
+                  std::string::npos)
+            << r.out;
+      }
+    }
+    // Lengths on the command line in mm, angles in degrees; the message carries SI.
+    EXPECT_NEAR(answerer.last_request.q_rad[4], 28.6 * kRadPerDeg, 1e-15);
+    answerer.status = int(Status::kOk);
+    const std::string inverse = kClient + " --lcm-url '" + url +
+                                "' --timeout-ms 1000 --inverse 1500 -200 300 1 0 0 0 --seed 0 10 20 "
+                                "0 45 0 --frame user --user-frame 100 0 50 1 0 0 0 --tool 0 0 350 1 "
+                                "0 0 0 --payload 30 --cog 0 0 300";
+    const CommandResult in_mm = run(inverse);
+    EXPECT_EQ(in_mm.status, 0) << in_mm.out;
+    EXPECT_EQ(in_mm.out.find("warning"), std::string::npos) << in_mm.out;
+    const correction_request_t& sent = answerer.last_request;
+    EXPECT_NEAR(sent.desired_position_m[0], 1.5, 1e-15);
+    EXPECT_NEAR(sent.desired_position_m[1], -0.2, 1e-15);
+    EXPECT_NEAR(sent.user_frame_position_m[0], 0.1, 1e-15);
+    EXPECT_NEAR(sent.tool_position_m[2], 0.35, 1e-15);
+    EXPECT_NEAR(sent.payload_cog_m[2], 0.3, 1e-15);
+    EXPECT_NEAR(sent.seed_q_rad[4], 45.0 * kRadPerDeg, 1e-15);
+    // Metres where mm are expected: said, not refused.
+    const CommandResult in_m = run(kClient + " --lcm-url '" + url +
+                                   "' --timeout-ms 1000 --inverse 1.5 -0.2 0.3 1 0 0 0");
+    EXPECT_EQ(in_m.status, 0) << in_m.out;
+    EXPECT_NE(in_m.out.find("warning: --inverse x y z lie within 5 mm of the origin: metres given "
+                            "where mm are expected?"),
+              std::string::npos)
+        << in_m.out;
+    answerer.status = int(Status::kStaleWrench);
+    const CommandResult repeated = run(forward + " --timeout-ms 1000 --count 3 --rate 20");
+    EXPECT_EQ(repeated.status, 3) << repeated.out;
+    EXPECT_NE(repeated.out.find("3 of 3 requests not corrected"), std::string::npos) << repeated.out;
+  }
+  const CommandResult silence = run(forward + " --timeout-ms 200");
+  EXPECT_EQ(silence.status, 4) << silence.out;
+  EXPECT_NE(silence.out.find("no reply within 200 ms"), std::string::npos) << silence.out;
+}
+
+// A sensor command is confirmed by the daemon's sensor status, never assumed: with the daemon's
+// key it is accepted (exit 0); with another key the daemon's forged-command counter grows and the
+// client says it was refused (exit 4); with no daemon it is not confirmed (exit 4).
+TEST(LcmUdpm, SensorCommandSaysWhetherTheDaemonTookIt) {
+  if (std::getenv("STEPCAL_NETNS") == nullptr) {
+    GTEST_SKIP() << "needs a private network namespace with multicast on its loopback "
+                    "(tests/system/in_netns.sh; ctest -R net_lcm_queue)";
+  }
+  const test::TempDir dir;
+  const std::string key_file = (dir.path() / "cell.key").string(),
+                    other_key = (dir.path() / "other.key").string();
+  ASSERT_EQ(run("printf '%032d' 7 > " + key_file + " && chmod 600 " + key_file +
+                " && printf '%032d' 8 > " + other_key + " && chmod 600 " + other_key)
+                .status,
+            0);
+  std::array<uint8_t, kKeyBytes> key_bytes{};
+  const std::string key_text = test::readText(key_file);
+  std::copy(key_text.begin(), key_text.end(), key_bytes.begin());
+  const std::string url = "udpm://239.255.76.70:7670?ttl=0";
+  const std::string command = kClient + " --lcm-url '" + url + "' --sensor-command bias";
+
+  ServiceOptions options = generousOptions();
+  options.key = CellKey::fromBytes(key_bytes);
+  Service service(paperModel(), "paper.stepcal", options);
+  int ends[2];
+  ASSERT_EQ(socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, ends), 0);
+  runtime::CanSocket sensor_end = runtime::CanSocket::adopt(ends[1], "socketpair");
+  ftsim::SensorSimulator simulator({});
+  std::atomic<bool> stop_sensor{false};
+  std::thread sensor([&] { simulator.serve(sensor_end, stop_sensor); });
+  {
+    std::unique_ptr<CanWrenchFeed> feed;
+    HandledLcm daemon(url, [&] { feed->publishStatus(); });
+    runtime::FtSensorOptions sensor_options;
+    sensor_options.bias_samples = 2;
+    feed = std::make_unique<CanWrenchFeed>(daemon.get(),
+                                           runtime::CanSocket::adopt(ends[0], "socketpair"),
+                                           sensor_options, "", service);
+    daemon.start();
+    const CommandResult genuine = run(command + " --key-file " + key_file);
+    EXPECT_EQ(genuine.status, 0) << genuine.out;
+    EXPECT_NE(genuine.out.find("accepted by the daemon (authenticated)"), std::string::npos)
+        << genuine.out;
+    const CommandResult wrong = run(command + " --key-file " + other_key);
+    EXPECT_EQ(wrong.status, 4) << wrong.out;
+    EXPECT_NE(wrong.out.find("REFUSED by the daemon: its code did not verify"), std::string::npos)
+        << wrong.out;
+    EXPECT_EQ(wrong.out.find("accepted"), std::string::npos) << wrong.out;
+    const CommandResult keyless = run(command);
+    EXPECT_EQ(keyless.status, 4) << keyless.out;
+    daemon.stop();
+    EXPECT_EQ(feed->forgedCommands(), 2);
+    feed.reset();
+  }
+  stop_sensor = true;
+  sensor.join();
+  const CommandResult nobody = run(command);
+  EXPECT_EQ(nobody.status, 4) << nobody.out;
+  EXPECT_NE(nobody.out.find("not confirmed: no sensor status"), std::string::npos) << nobody.out;
 }
 
 }  // namespace

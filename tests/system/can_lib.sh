@@ -29,7 +29,7 @@ can_wait_ok() {
   local name=$1
   shift
   for _ in $(seq 600); do
-    if "$bin/stepcal-client" --lcm-url "$url" --forward 0 0 0 0 0.5 0 --timeout-ms 200 --json \
+    if "$bin/stepcal-client" --lcm-url "$url" --forward 0 0 0 0 28.64788975654116 0 --timeout-ms 200 --json \
         2>/dev/null | jq -e '.status == "OK"' >/dev/null; then
       return 0
     fi

@@ -68,6 +68,9 @@ echo "package checks: passed"
 # Unpacked, not installed: the daemon and the client from the temporary root.
 dpkg -x "$deb" "$work/root"
 read -r -a row < <("$root/tests/system/campaign_row.sh" "$campaign")
+# The client takes joints in degrees (the row's are in rad, for the C++ consumer).
+q_deg=()
+for q in "${row[@]:0:6}"; do q_deg+=("$(awk -v q="$q" 'BEGIN { printf "%.17g", q * 180 / 3.141592653589793 }')"); done
 bin=$work/root/usr/bin
 set +e
 "$root/tests/system/in_netns.sh" bash -c '
@@ -81,7 +84,7 @@ set +e
   kill -TERM $daemon
   wait $daemon
   cat "$log"
-' _ "$bin" "$work/root/etc/stepcal/cell1.conf" "$model" "$work/daemon.log" "${row[@]}"
+' _ "$bin" "$work/root/etc/stepcal/cell1.conf" "$model" "$work/daemon.log" "${q_deg[@]}" "${row[@]:6}"
 status=$?
 set -e
 [[ $status -eq 77 ]] && { echo "deb_package: daemon run skipped (no network namespace)"; exit 77; }

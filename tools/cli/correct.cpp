@@ -20,6 +20,7 @@
 #include "stepcal/common/atomic_file.hpp"
 #include "stepcal/common/csv.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/exit_codes.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/common/text_number.hpp"
@@ -398,6 +399,10 @@ runtime::CallTerms frameTerms(const CorrectArgs& args) {
     }
     frame_terms.X_BaseUser.linear() = q.normalized().toRotationMatrix();
     frame_terms.X_BaseUser.translation() = Vec3(u[0], u[1], u[2]) * kMPerMm;
+    if (looksLikeMetres(u[0], u[1], u[2])) {
+      std::cerr << "stepcal correct: warning: --user-frame x y z lie within "
+                << kLooksLikeMetresBelow_mm << " mm of the base: metres given where mm are expected?\n";
+    }
   }
   return frame_terms;
 }
@@ -551,6 +556,7 @@ nlohmann::json summaryJson(const CorrectArgs& args, size_t lines, const Tally& t
     by_status[runtime::toString(runtime::Status(k))] = tally.statuses[size_t(k)];
   }
   summary["statuses"] = by_status;
+  summary["not_corrected"] = long(lines) - tally.statuses[size_t(runtime::Status::kOk)];
   if (with_truth) {
     summary["error_commanded"] = tally.before.toJson();
     summary["error_corrected"] = tally.after.toJson();
@@ -582,9 +588,20 @@ void printSummary(const CorrectArgs& args, size_t lines, const Tally& tally, boo
   }
 }
 
+/// Says on stderr how many lines were not corrected (status not OK): exit status 3 then, 0 when
+/// every line is OK.
+int exitStatusFor(size_t lines, const Tally& tally) {
+  const long not_corrected = long(lines) - tally.statuses[size_t(runtime::Status::kOk)];
+  if (not_corrected == 0) return exit_code::kDone;
+  std::cerr << "stepcal correct: " << not_corrected << " of " << lines
+            << " lines not corrected (status not OK; see the status column of the output)\n";
+  return exit_code::kDoneInPart;
+}
+
 /// Reads the model and the program, corrects every line, writes args.out (atomically) and prints
-/// the summary. Throws InputError naming the file, line and column of bad input.
-void runCorrect(const CorrectArgs& args) {
+/// the summary. Throws InputError naming the file, line and column of bad input. Exit status 3
+/// (done in part) when a line's status is not OK.
+int runCorrect(const CorrectArgs& args) {
   const std::unique_ptr<const runtime::RuntimeModel> model = runtime::RuntimeModel::load(args.model);
   const int dof = model->file.chain_Tracker.dof();
   runtime::Workspace ws = runtime::makeWorkspace(*model);
@@ -601,9 +618,10 @@ void runCorrect(const CorrectArgs& args) {
   if (args.json) {
     std::cout << summaryJson(args, program.size(), tally, truth.has_value(), *model).dump(2)
               << "\n";
-    return;
+  } else {
+    printSummary(args, program.size(), tally, truth.has_value());
   }
-  printSummary(args, program.size(), tally, truth.has_value());
+  return exitStatusFor(program.size(), tally);
 }
 
 }  // namespace
@@ -632,7 +650,7 @@ Subcommand addCorrectCommand(CLI::App& app) {
                       "the twin's truth.json: run every target on the simulated robot, as "
                       "commanded and as corrected (its payload at the twin's own centre of gravity)");
   correct->add_flag("--json", args.json, "print the summary as JSON");
-  return {correct, [args_owned] { runCorrect(*args_owned); }};
+  return {correct, [args_owned] { return runCorrect(*args_owned); }};
 }
 
 }  // namespace stepcal::cli

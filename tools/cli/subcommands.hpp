@@ -4,15 +4,33 @@
 #pragma once
 
 #include <functional>
+#include <type_traits>
+#include <utility>
 
 #include <CLI/CLI.hpp>
+
+#include "stepcal/common/exit_codes.hpp"
 
 namespace stepcal::cli {
 
 /// A registered subcommand, run when it is the one given on the command line.
 struct Subcommand {
-  CLI::App* command;          ///< the subcommand that selects it (`ipa` of `import ipa`)
-  std::function<void()> run;  ///< does its work; throws InputError on bad input (exit status 2)
+  CLI::App* command;        ///< the subcommand that selects it (`ipa` of `import ipa`)
+  std::function<int()> run;  ///< does its work, returns the exit status (exit_codes.hpp); throws
+                             ///< InputError on bad input (exit status 2)
+
+  /// work returns its exit status, or nothing when it is all or nothing (done: 0).
+  template <typename Work>
+  Subcommand(CLI::App* selecting_command, Work work) : command(selecting_command) {
+    if constexpr (std::is_void_v<std::invoke_result_t<Work&>>) {
+      run = [work = std::move(work)]() mutable {
+        work();
+        return exit_code::kDone;
+      };
+    } else {
+      run = std::move(work);
+    }
+  }
 };
 
 Subcommand addSimulateCommand(CLI::App& app);   ///< simulate.cpp

@@ -366,7 +366,12 @@ int runCampaign(Args args) {
   const std::vector<correction_reply_t> replies =
       sendRequests(lcm.get(), args, requests, exchange, requester,
                    args.live_wrench ? std::function<void(size_t)>(publishRobotState) : nullptr);
-  if (exchange.answered == 0) explainSilence(requester);
+  if (exchange.answered == 0) {
+    std::cerr << "stepcal-client: no reply within " << args.timeout_ms << " ms to any of "
+              << args.count << " requests (is stepcal-runtime running on " << args.lcm_url
+              << "?)\n";
+    explainSilence(requester);
+  }
   pacer.unsubscribe();
 
   const CampaignTally tally =
@@ -381,9 +386,10 @@ int runCampaign(Args args) {
   if (checker && !checker->passed()) {
     std::cerr << "stepcal-client: torn answer: " << checker->toJson()["first_problem"].get<std::string>()
               << "\n";
-    return 1;
+    return exit_code::kFailed;
   }
-  return 0;
+  return exitStatusOf(args.count, exchange.answered,
+                      tally.status_counts[size_t(runtime::Status::kOk)], "requests");
 }
 
 }  // namespace stepcal::client

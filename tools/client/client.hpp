@@ -18,6 +18,7 @@
 #include <stepcal_lcm/correction_request_t.hpp>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/exit_codes.hpp"
 #include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/common/types.hpp"
 #include "stepcal/common/units.hpp"
@@ -39,7 +40,8 @@ constexpr int kStatusCount = 7;
 
 struct Args {
   std::string lcm_url = service::kDefaultLcmUrl;
-  std::vector<double> forward_q_rad, inverse_pose, seed_q_rad, wrench;
+  // Command lines take mm and degrees (as `stepcal correct` does); messages carry SI.
+  std::vector<double> forward_q_deg, inverse_pose, seed_q_deg, wrench;  ///< poses: x y z mm, qw … qz
   double temp_c = runtime::kUnknownTemperature_c;  ///< single requests, °C
   std::string campaign_dir, set = "validation", mode = "forward", truth_path;
   int count = 0;
@@ -54,7 +56,7 @@ struct Args {
   std::vector<std::string> check_models;
   // Single requests in the controller's terms.
   std::string frame = "tracker", tool_from = "target", cog_frame = "flange";
-  std::vector<double> user_frame, tool, cog_m;
+  std::vector<double> user_frame, tool, cog_mm;  ///< x y z in mm (and qw qx qy qz)
   double payload_kg = -1.0;  ///< < 0: no payload
   std::string sensor_command;
   std::string key_file;
@@ -62,16 +64,18 @@ struct Args {
 
 // ---- the subcommands ---------------------------------------------------------------------------
 
-/// --forward / --inverse: one request (or --forward --count N --rate HZ); exit status 1 when no
-/// reply came.
+/// --forward / --inverse: one request (or --forward --count N --rate HZ); exit status 4 when no
+/// reply came, 3 when a reply's status is not OK (exitStatusOf).
 int runSingle(const Args& args);
-/// --campaign: a campaign's rows as requests: latency, lost replies, statuses, accuracy.
+/// --campaign: a campaign's rows as requests: latency, lost replies, statuses, accuracy; exit
+/// status as exitStatusOf, 1 for a torn answer.
 int runCampaign(Args args);
 /// --ping N: raw LCM round trips to a `stepcal-client --echo`.
 int runPing(const Args& args);
 /// --echo: answers pings until SIGINT or SIGTERM.
 int runEcho(const Args& args);
-/// --sensor-command: one sensor_command_t (sealed with the key, if any) to the daemon's sensor.
+/// --sensor-command: one sensor_command_t (sealed with the key, if any) to the daemon's sensor,
+/// confirmed by its sensor_status_t counters; exit status 4 when refused or not confirmed.
 int runSensorCommand(const Args& args);
 
 // ---- requests (single.cpp) ------------------------------------------------------------------------
@@ -131,6 +135,11 @@ std::optional<service::CellKey> loadKey(const std::string& key_file);
 std::vector<correction_reply_t> sendRequests(
     lcm_t* lcm, const Args& args, std::vector<correction_request_t> requests, Exchange& exchange,
     service::LcmRequester& requester, const std::function<void(size_t)>& before_send = nullptr);
+
+/// The exit status of `requests` messages of which `answered` got a reply in time and `ok` of
+/// those the status OK (exit_codes.hpp): 4 when none was answered, 3 when some were lost or not
+/// OK (said on stderr, with `what`: "requests", "pings"), else 0.
+int exitStatusOf(int requests, int answered, long ok, const char* what);
 
 /// The requester's key and refused replies, for the reports.
 nlohmann::json authenticationJson(const service::LcmRequester& requester);

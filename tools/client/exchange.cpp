@@ -94,6 +94,16 @@ std::vector<correction_reply_t> sendRequests(lcm_t* lcm, const Args& args,
   return replies;
 }
 
+int exitStatusOf(int requests, int answered, long ok, const char* what) {
+  if (requests > 0 && answered == 0) return exit_code::kNoService;  // the caller says why
+  const long not_ok = long(requests) - ok;
+  if (not_ok <= 0) return exit_code::kDone;
+  std::cerr << "stepcal-client: " << not_ok << " of " << requests << " " << what
+            << " not corrected (" << (requests - answered) << " without a reply in time, "
+            << (long(answered) - ok) << " with a status other than OK)\n";
+  return exit_code::kDoneInPart;
+}
+
 nlohmann::json authenticationJson(const service::LcmRequester& requester) {
   const service::RequesterCounters& c = requester.counters();
   return {{"key", requester.authenticated()}, {"rejected_forged_replies", c.rejected_forged},

@@ -1,14 +1,14 @@
 // stepcal-client: sends correction requests to stepcal-runtime over LCM and measures the answers.
 //
 //   stepcal-client --forward q1 … q6 [--wrench fx fy fz mx my mz] [--temp-c T]
-//                                                        one request, rad / N, N·m / °C
+//                                                        one request, deg / N, N·m / °C
 //   stepcal-client --forward q1 … q6 --count N --rate HZ [--json]
 //                                                        the same request N times at HZ (live
 //                                                        wrench unless --wrench): each reply's
 //                                                        send time, status and wrench age;
 //                                                        SIGINT/SIGTERM stops it early
 //   stepcal-client --inverse x y z qw qx qy qz [--seed q1 … q6] [--wrench …] [--temp-c T]
-//                                                        m, unit quaternion, in --frame
+//                                                        mm, unit quaternion, in --frame; deg
 //   stepcal-client --campaign DIR [--set validation] [--mode forward|inverse] [--count N]
 //                  [--rate HZ] [--truth truth.json] [--live-wrench [--wrench-channel C]] [--json]
 //   stepcal-client --ping N [--json]     raw LCM round trips to a `stepcal-client --echo`
@@ -17,9 +17,11 @@
 //                                        one sensor_command_t to the daemon's CAN sensor
 //
 // Single requests in the controller's terms (docs/runtime.md, "Integration"): --frame
-// tracker|base|user [--user-frame x y z qw qx qy qz] (the user frame in the base frame, m),
-// --tool x y z qw qx qy qz [--tool-from target|flange] (the TCP, m), --payload KG [--cog x y z]
-// [--cog-frame flange|tool] (the load data: mass and centre of gravity, m) instead of --wrench.
+// tracker|base|user [--user-frame x y z qw qx qy qz] (the user frame in the base frame, mm),
+// --tool x y z qw qx qy qz [--tool-from target|flange] (the TCP, mm), --payload KG [--cog x y z]
+// [--cog-frame flange|tool] (the load data: mass and centre of gravity, mm) instead of --wrench.
+// Every length on the command line is in mm and every angle in degrees, as in `stepcal correct`
+// and the campaign files; the messages carry SI. The exit statuses: exit_codes.hpp.
 // --key-file FILE: requests and sensor commands carry the cell key's code, and replies whose
 // code does not verify or whose counter is not fresh are rejected (counted, never matched).
 //
@@ -59,14 +61,14 @@ namespace {
 
 void addOptions(CLI::App& app, Args& args) {
   app.add_option("--lcm-url", args.lcm_url, "LCM URL")->capture_default_str();
-  app.add_option("--forward", args.forward_q_rad, "one forward request: joints q1..q6, rad")
+  app.add_option("--forward", args.forward_q_deg, "one forward request: joints q1..q6, deg")
       ->expected(6);
   app.add_option("--inverse", args.inverse_pose,
-                 "one inverse request: TCP position x y z (m) and quaternion qw qx qy qz in "
+                 "one inverse request: TCP position x y z (mm) and quaternion qw qx qy qz in "
                  "--frame (default: the tracker frame; the TCP is the measured target without "
                  "--tool)")
       ->expected(7);
-  app.add_option("--seed", args.seed_q_rad, "inverse: joints to start from, rad (default 0)")
+  app.add_option("--seed", args.seed_q_deg, "inverse: joints to start from, deg (default 0)")
       ->expected(6);
   app.add_option("--wrench", args.wrench,
                  "given wrench on the sensor, fx fy fz (N) mx my mz (N m), sensor axes "
@@ -104,9 +106,9 @@ void addOptions(CLI::App& app, Args& args) {
   app.add_option("--frame", args.frame,
                  "single request: frame of its poses: tracker | base | user")->capture_default_str();
   app.add_option("--user-frame", args.user_frame,
-                 "--frame user: the user frame in the robot base frame, x y z (m) qw qx qy qz")
+                 "--frame user: the user frame in the robot base frame, x y z (mm) qw qx qy qz")
       ->expected(7);
-  app.add_option("--tool", args.tool, "single request: the TCP, x y z (m) qw qx qy qz, from "
+  app.add_option("--tool", args.tool, "single request: the TCP, x y z (mm) qw qx qy qz, from "
                                       "--tool-from (default: none, the measured target)")
       ->expected(7);
   app.add_option("--tool-from", args.tool_from,
@@ -115,7 +117,7 @@ void addOptions(CLI::App& app, Args& args) {
       ->capture_default_str();
   app.add_option("--payload", args.payload_kg,
                  "single request: the payload's mass, kg (its weight replaces --wrench)");
-  app.add_option("--cog", args.cog_m, "--payload: centre of gravity x y z, m, in --cog-frame")
+  app.add_option("--cog", args.cog_mm, "--payload: centre of gravity x y z, mm, in --cog-frame")
       ->expected(3);
   app.add_option("--cog-frame", args.cog_frame, "--cog's frame: flange | tool")
       ->capture_default_str();
@@ -128,16 +130,16 @@ void addOptions(CLI::App& app, Args& args) {
 
 /// Throws InputError for options that do not go together.
 void checkArgs(const Args& args) {
-  const int modes = int(!args.forward_q_rad.empty()) + int(!args.inverse_pose.empty()) +
+  const int modes = int(!args.forward_q_deg.empty()) + int(!args.inverse_pose.empty()) +
                     int(!args.campaign_dir.empty()) + int(args.ping_count > 0) + int(args.echo) +
                     int(!args.sensor_command.empty());
   if (modes != 1) {
     throw InputError("choose exactly one of --forward, --inverse, --campaign, --ping N, --echo, "
                      "--sensor-command");
   }
-  const bool single = !args.forward_q_rad.empty() || !args.inverse_pose.empty();
+  const bool single = !args.forward_q_deg.empty() || !args.inverse_pose.empty();
   if (!single && (args.frame != "tracker" || !args.user_frame.empty() || !args.tool.empty() ||
-                  args.tool_from != "target" || args.payload_kg >= 0.0 || !args.cog_m.empty() ||
+                  args.tool_from != "target" || args.payload_kg >= 0.0 || !args.cog_mm.empty() ||
                   args.cog_frame != "flange")) {
     throw InputError("--frame, --user-frame, --tool, --tool-from, --payload, --cog and "
                      "--cog-frame go with --forward or --inverse");
@@ -145,18 +147,18 @@ void checkArgs(const Args& args) {
   if (!(args.timeout_ms > 0.0)) throw InputError("--timeout-ms must be > 0");
   if (!(args.rate_hz >= 0.0)) throw InputError("--rate must be ≥ 0");
   if (args.count > 0 && args.campaign_dir.empty() &&
-      (args.forward_q_rad.empty() || !(args.rate_hz > 0.0))) {
+      (args.forward_q_deg.empty() || !(args.rate_hz > 0.0))) {
     throw InputError("--count goes with --campaign, or with --forward and --rate");
   }
-  if (!args.seed_q_rad.empty() && args.inverse_pose.empty()) {
+  if (!args.seed_q_deg.empty() && args.inverse_pose.empty()) {
     throw InputError("--seed goes with --inverse");
   }
-  if (!args.wrench.empty() && args.forward_q_rad.empty() && args.inverse_pose.empty()) {
+  if (!args.wrench.empty() && args.forward_q_deg.empty() && args.inverse_pose.empty()) {
     throw InputError("--wrench goes with --forward or --inverse (campaign rows carry their own)");
   }
   if (!std::isnan(args.temp_c) &&
       (!runtime::validTemperature(args.temp_c) ||
-       (args.forward_q_rad.empty() && args.inverse_pose.empty()))) {
+       (args.forward_q_deg.empty() && args.inverse_pose.empty()))) {
     throw InputError("--temp-c goes with --forward or --inverse and lies within " +
                      std::to_string(int(runtime::kMinTemperature_c)) + " … " +
                      std::to_string(int(runtime::kMaxTemperature_c)) +
@@ -172,7 +174,13 @@ int main(int argc, char** argv) {
   CLI::App app{"stepcal-client: requests to stepcal-runtime over LCM; latency and accuracy"};
   Args args;
   addOptions(app, args);
-  CLI11_PARSE(app, argc, argv);
+  app.footer(stepcal::exit_code::kHelpFooter);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help is done (0); any other parse error is bad usage, whatever CLI11's own number.
+    return app.exit(e) == 0 ? stepcal::exit_code::kDone : stepcal::exit_code::kBadInput;
+  }
 
   try {
     checkArgs(args);
@@ -183,6 +191,6 @@ int main(int argc, char** argv) {
     return runSingle(args);
   } catch (const stepcal::InputError& e) {
     std::cerr << "stepcal-client: error: " << e.what() << "\n";
-    return 2;
+    return stepcal::exit_code::kBadInput;
   }
 }

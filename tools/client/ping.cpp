@@ -60,9 +60,8 @@ int runPing(const Args& args) {
   if (exchange.answered == 0) {
     std::cerr << "stepcal-client: no pong (is `stepcal-client --echo` running on "
               << args.lcm_url << "?)\n";
-    return 1;
   }
-  return 0;
+  return exitStatusOf(args.ping_count, exchange.answered, exchange.answered, "pings");
 }
 
 namespace {

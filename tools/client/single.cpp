@@ -11,7 +11,16 @@
 namespace stepcal::client {
 namespace {
 
-/// x y z qw qx qy qz (m, unit quaternion) into a message's position and quaternion fields.
+/// Says on stderr when x y z (mm) of an option look like metres (units.hpp): a warning only.
+void warnIfMetres(const std::string& option, const double* xyz_mm) {
+  if (looksLikeMetres(xyz_mm[0], xyz_mm[1], xyz_mm[2])) {
+    std::cerr << "stepcal-client: warning: " << option << " x y z lie within "
+              << kLooksLikeMetresBelow_mm << " mm of the origin: metres given where mm are "
+              << "expected?\n";
+  }
+}
+
+/// x y z qw qx qy qz (mm, unit quaternion) into a message's position (m) and quaternion fields.
 void setPose(const std::string& option, const std::vector<double>& v, double* position_m,
              double* quaternion_wxyz) {
   const double norm = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
@@ -19,8 +28,14 @@ void setPose(const std::string& option, const std::vector<double>& v, double* po
     throw InputError(option + ": the quaternion qw qx qy qz has norm " + std::to_string(norm) +
                      "; expected a unit quaternion (within 1e-6)");
   }
-  std::copy(v.begin(), v.begin() + 3, position_m);
+  warnIfMetres(option, v.data());
+  for (int a = 0; a < 3; ++a) position_m[a] = v[size_t(a)] * kMPerMm;
   std::copy(v.begin() + 3, v.end(), quaternion_wxyz);
+}
+
+/// Joints in degrees into a message's joints (rad).
+void setJoints(const std::vector<double>& q_deg, double* q_rad) {
+  for (size_t j = 0; j < q_deg.size(); ++j) q_rad[j] = q_deg[j] * kRadPerDeg;
 }
 
 /// The frame, tool and payload options of a single request into its message.
@@ -39,8 +54,8 @@ void setTerms(const Args& args, correction_request_t& msg) {
     if (!args.wrench.empty()) throw InputError("--payload and --wrench: give one load, not both");
     msg.wrench_source = correction_request_t::WRENCH_PAYLOAD;
     msg.payload_kg = args.payload_kg;
-    if (!args.cog_m.empty()) std::copy(args.cog_m.begin(), args.cog_m.end(), msg.payload_cog_m);
-  } else if (!args.cog_m.empty()) {
+    for (size_t a = 0; a < args.cog_mm.size(); ++a) msg.payload_cog_m[a] = args.cog_mm[a] * kMPerMm;
+  } else if (!args.cog_mm.empty()) {
     throw InputError("--cog goes with --payload");
   }
 }
@@ -48,7 +63,7 @@ void setTerms(const Args& args, correction_request_t& msg) {
 /// The forward request of the command line, args.count times at args.rate_hz: per request when it
 /// left and when its reply came (Unix time, to line up with faults logged elsewhere), its status,
 /// the age of the live wrench it used on arrival and the predicted position. SIGINT/SIGTERM end it
-/// early: the requests sent so far are reported. Exit status 1 when no reply came.
+/// early: the requests sent so far are reported. Exit status as exitStatusOf.
 int runRepeated(const Args& args, const correction_request_t& msg) {
   std::signal(SIGINT, onStopSignal);
   std::signal(SIGTERM, onStopSignal);
@@ -91,7 +106,7 @@ int runRepeated(const Args& args, const correction_request_t& msg) {
     std::cout << sent << " forward requests at " << args.rate_hz << " Hz: "
               << exchange.answered << " replies, statuses " << statuses.dump() << "\n";
   }
-  return exchange.answered > 0 ? 0 : 1;
+  return exitStatusOf(sent, exchange.answered, status_counts[0], "requests");
 }
 
 }  // namespace
@@ -107,7 +122,8 @@ void setWrench(correction_request_t& msg, const Vec6& wrench_Sensor) {
   for (int i = 0; i < 6; ++i) msg.wrench[i] = wrench_Sensor[i];
 }
 
-/// One request from the command line; exit status 1 when no reply came.
+/// One request from the command line; exit status 4 when no reply came, 3 when its status is not
+/// OK.
 int runSingle(const Args& args) {
   const bool inverse = !args.inverse_pose.empty();
   correction_request_t msg = emptyRequest(args);
@@ -116,12 +132,11 @@ int runSingle(const Args& args) {
   msg.temp_c = args.temp_c;
   if (inverse) {
     msg.mode = correction_request_t::MODE_INVERSE;
-    std::copy(args.inverse_pose.begin(), args.inverse_pose.begin() + 3, msg.desired_position_m);
-    std::copy(args.inverse_pose.begin() + 3, args.inverse_pose.end(), msg.desired_quaternion_wxyz);
-    if (!args.seed_q_rad.empty()) std::copy(args.seed_q_rad.begin(), args.seed_q_rad.end(), msg.seed_q_rad);
+    setPose("--inverse", args.inverse_pose, msg.desired_position_m, msg.desired_quaternion_wxyz);
+    setJoints(args.seed_q_deg, msg.seed_q_rad);
   } else {
     msg.mode = correction_request_t::MODE_FORWARD;
-    std::copy(args.forward_q_rad.begin(), args.forward_q_rad.end(), msg.q_rad);
+    setJoints(args.forward_q_deg, msg.q_rad);
     if (args.count > 0) return runRepeated(args, msg);
   }
   const Lcm lcm(args.lcm_url);
@@ -133,7 +148,7 @@ int runSingle(const Args& args) {
     std::cerr << "stepcal-client: no reply within " << args.timeout_ms
               << " ms (is stepcal-runtime running on " << args.lcm_url << "?)\n";
     explainSilence(requester);
-    return 1;
+    return exit_code::kNoService;
   }
   if (args.json) {
     nlohmann::json j = replyJson(replies[0], inverse);
@@ -142,7 +157,7 @@ int runSingle(const Args& args) {
   } else {
     printReply(replies[0], exchange.round_trip_us[0], inverse, args.frame);
   }
-  return 0;
+  return exitStatusOf(1, 1, replies[0].status == int8_t(runtime::Status::kOk), "requests");
 }
 
 }  // namespace stepcal::client

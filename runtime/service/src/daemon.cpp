@@ -27,6 +27,7 @@
 #include <thread>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/exit_codes.hpp"
 #include "stepcal/service/auth.hpp"
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/daemon_options.hpp"
@@ -243,6 +244,6 @@ int main(int argc, char** argv) {
     return serve(command_line.args);
   } catch (const InputError& e) {
     std::fprintf(stderr, "stepcal-runtime: error: %s\n", e.what());
-    return 2;
+    return exit_code::kBadInput;
   }
 }

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/exit_codes.hpp"
 #include "stepcal/common/text_number.hpp"
 
 namespace stepcal::service {
@@ -288,7 +289,8 @@ std::string daemonUsage() {
     if (!value.empty()) help += " (default " + value + ")";
     out += head + wrapped(help, indent.size(), indent) + "\n";
   }
-  return out;
+  // The daemon itself ends with 0 (stopped by SIGINT/SIGTERM) or 2 (bad input at start).
+  return out + "\n" + exit_code::kHelpFooter + "\n";
 }
 
 std::string daemonConfiguration(const DaemonArgs& args) {

@@ -22,4 +22,14 @@ inline constexpr double kMmPerM = 1e3;
 /// (campaign.cpp rounds value_deg * kRadPerDegExtended to double once).
 inline constexpr long double kRadPerDegExtended = 3.141592653589793238462643383279502884L / 180.0L;
 
+/// A translation given in mm shorter than this (and not zero) looks like metres typed where mm
+/// were expected: a robot's targets, frames and tools lie metres or centimetres apart.
+inline constexpr double kLooksLikeMetresBelow_mm = 5.0;
+
+/// Whether x y z (mm) looks like metres (kLooksLikeMetresBelow_mm): worth a warning, no more.
+inline bool looksLikeMetres(double x_mm, double y_mm, double z_mm) {
+  const double squared_mm2 = x_mm * x_mm + y_mm * y_mm + z_mm * z_mm;
+  return squared_mm2 > 0.0 && squared_mm2 < kLooksLikeMetresBelow_mm * kLooksLikeMetresBelow_mm;
+}
+
 }  // namespace stepcal

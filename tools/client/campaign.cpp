@@ -366,7 +366,7 @@ int runCampaign(Args args) {
   const std::vector<correction_reply_t> replies =
       sendRequests(lcm.get(), args, requests, exchange, requester,
                    args.live_wrench ? std::function<void(size_t)>(publishRobotState) : nullptr);
-  if (exchange.answered == 0) explainSilence(requester);
+  if (exchange.answered == 0) explainSilence(requester, args.lcm_url);
   pacer.unsubscribe();
 
   const CampaignTally tally =

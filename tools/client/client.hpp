@@ -134,8 +134,13 @@ std::vector<correction_reply_t> sendRequests(
 
 /// The requester's key and refused replies, for the reports.
 nlohmann::json authenticationJson(const service::LcmRequester& requester);
-/// Why no reply came, when the refused replies say (stderr).
-void explainSilence(const service::LcmRequester& requester);
+/// Exit status when the daemon refused the requests for the cell key: service unavailable
+/// (exit-code table).
+inline constexpr int kExitKeyRefused = 4;
+/// Why no reply came (stderr): the refused replies and the daemon's STEPCAL_STATUS, listened for
+/// a moment more when none was heard yet. True when the cell key is the trouble (missing or
+/// wrong; requester.keyRefused()).
+bool explainSilence(service::LcmRequester& requester, const std::string& lcm_url);
 
 /// When reply i arrived, CLOCK_MONOTONIC ns of this host (the daemon stamps wrenches on it too:
 /// the two run side by side).

@@ -84,13 +84,14 @@ int runRepeated(const Args& args, const correction_request_t& msg) {
                                  {"lost", sent - exchange.answered},
                                  {"rate_hz", args.rate_hz},  {"statuses", statuses},
                                  {"authentication", authenticationJson(requester)}, {"rows", rows}};
-  if (exchange.answered == 0) explainSilence(requester);
+  const bool key_refused = exchange.answered == 0 && explainSilence(requester, args.lcm_url);
   if (args.json) {
     std::cout << report.dump(1) << "\n";
   } else {
     std::cout << sent << " forward requests at " << args.rate_hz << " Hz: "
               << exchange.answered << " replies, statuses " << statuses.dump() << "\n";
   }
+  if (key_refused) return kExitKeyRefused;
   return exchange.answered > 0 ? 0 : 1;
 }
 
@@ -130,10 +131,9 @@ int runSingle(const Args& args) {
   const std::vector<correction_reply_t> replies =
       sendRequests(lcm.get(), args, {msg}, exchange, requester);
   if (exchange.answered == 0) {
-    std::cerr << "stepcal-client: no reply within " << args.timeout_ms
-              << " ms (is stepcal-runtime running on " << args.lcm_url << "?)\n";
-    explainSilence(requester);
-    return 1;
+    std::cerr << "stepcal-client: no reply within " << args.timeout_ms << " ms on " << args.lcm_url
+              << "\n";
+    return explainSilence(requester, args.lcm_url) ? kExitKeyRefused : 1;
   }
   if (args.json) {
     nlohmann::json j = replyJson(replies[0], inverse);

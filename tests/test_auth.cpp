@@ -165,14 +165,14 @@ TEST(Auth, KeyFileIsCheckedAtStart) {
   const test::CommandResult keyed = test::run(daemon);
   EXPECT_NE(keyed.out.find("cell key " + credential + " (credential cell-key;"), std::string::npos)
       << keyed.out;
-  // An explicit --key-file wins over the credential; an empty credential (the unit's
-  // SetCredential= fallback) is no key.
+  // An explicit --key-file wins over the credential; the credential "none" (the unit's
+  // SetCredential= fallback without a key file) is no key.
   ASSERT_EQ(chmod(path.c_str(), 0600), 0);
   const test::CommandResult explicit_key = test::run(daemon + " --key-file " + path);
   EXPECT_NE(explicit_key.out.find("cell key " + path + " (--key-file;"), std::string::npos)
       << explicit_key.out;
   ASSERT_EQ(chmod(credential.c_str(), 0600), 0);
-  test::writeText(credential, "");
+  test::writeText(credential, "none");
   EXPECT_NE(test::run(daemon).out.find("no cell key"), std::string::npos);
 }
 

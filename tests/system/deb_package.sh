@@ -64,6 +64,9 @@ if dpkg-deb --contents "$deb" | grep -F -e "$build" -e "$root"; then fail "build
 unit=$(dpkg-deb --fsys-tarfile "$deb" | tar -xO ./lib/systemd/system/stepcal-runtime@.service)
 grep -qx 'ExecStart=/usr/bin/stepcal-runtime --config /etc/stepcal/%i.conf' <<<"$unit" ||
   fail "the unit's ExecStart is not the installed daemon's"
+grep -qx 'LoadCredential=cell-key:/etc/stepcal/%i.key' <<<"$unit" ||
+  fail "the unit does not hand /etc/stepcal/%i.key over as the credential cell-key"
+grep -qx 'SetCredential=cell-key:none' <<<"$unit" || fail "the unit has no fallback for a cell without a key"
 echo "package checks: passed"
 
 # Unpacked, not installed: the daemon and the client from the temporary root.

@@ -23,9 +23,12 @@
 #include <atomic>
 #include <cerrno>
 #include <cstdarg>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <string>
+#include <string_view>
 #include <thread>
 
 #include "stepcal/common/error.hpp"
@@ -152,11 +155,22 @@ class RefusalLog {
 
 /// The systemd credential that carries the cell key (LoadCredential=cell-key:… in the unit).
 constexpr const char* kKeyCredential = "cell-key";
+/// Its content when the unit found no key file: SetCredential=cell-key:none.
+constexpr std::string_view kNoKeyCredential = "none";
+
+/// True when the file at path holds exactly kNoKeyCredential.
+bool holdsNoKey(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  std::string content(kNoKeyCredential.size() + 1, '\0');
+  file.read(content.data(), std::streamsize(content.size()));
+  return file.gcount() == std::streamsize(kNoKeyCredential.size()) &&
+         content.compare(0, kNoKeyCredential.size(), kNoKeyCredential) == 0;
+}
 
 /// Where the cell key comes from: --key-file when given (the command line or the configuration
 /// file: an explicit choice wins), else the credential cell-key when systemd handed one
-/// ($CREDENTIALS_DIRECTORY), else none. An empty credential is the unit's fallback for a cell
-/// without a key file (SetCredential=cell-key:): no key.
+/// ($CREDENTIALS_DIRECTORY), else none. The credential "none" is the unit's fallback for a cell
+/// without a key file (SetCredential=cell-key:none; systemd takes no empty value): no key.
 struct KeySource {
   std::string path;    ///< empty: no key
   std::string source;  ///< "--key-file" or "credential cell-key"
@@ -168,7 +182,7 @@ KeySource keySource(const DaemonArgs& args) {
   if (credentials == nullptr || *credentials == '\0') return {};
   const std::string path = std::string(credentials) + "/" + kKeyCredential;
   struct stat st {};
-  if (stat(path.c_str(), &st) != 0 || st.st_size == 0) return {};
+  if (stat(path.c_str(), &st) != 0 || holdsNoKey(path)) return {};
   return {path, std::string("credential ") + kKeyCredential};
 }
 

@@ -100,6 +100,10 @@ install(CODE "
        DESTINATION \"\${stepcal_units}\" PERMISSIONS OWNER_READ OWNER_WRITE GROUP_READ WORLD_READ)
   file(MAKE_DIRECTORY \"\$ENV{DESTDIR}\${STEPCAL_MODELS}\")
 " COMPONENT stepcal)
-# The user's documentation: what the installed files are and how to use them.
-install(FILES README.md docs/install.md docs/method.md docs/campaign-format.md docs/runtime.md
-        DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT stepcal)
+# The user's documentation, laid out as in the source tree so that README's links (docs/…,
+# docs/img/…) and the docs' own (../README.md) resolve; and the Debian copyright file.
+install(FILES README.md cmake/debian/copyright DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT stepcal)
+install(DIRECTORY docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}/docs COMPONENT stepcal
+        FILES_MATCHING PATTERN "*.md" PATTERN "img/*")
+install(FILES cmake/debian/copyright DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/doc/stepcal-dev
+        COMPONENT dev)

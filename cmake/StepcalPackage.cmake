@@ -44,7 +44,9 @@ process on the residual), diagnoses what the physical model gets wrong, and
 writes one binary model file. The daemon stepcal-runtime corrects commanded
 poses and inverts desired poses with that model over LCM, the wrench read live
 from an F/T sensor on CAN; it runs as the systemd service stepcal-runtime@CELL,
-configured in /etc/stepcal/CELL.conf.")
+configured in /etc/stepcal/CELL.conf, as user stepcal. The cell key, if any, is
+/etc/stepcal/CELL.key, root:root 0600: systemd reads it and hands it to the
+daemon as the credential cell-key.")
 set(CPACK_DEBIAN_STEPCAL_PACKAGE_CONTROL_EXTRA
   ${PROJECT_SOURCE_DIR}/cmake/debian/postinst ${PROJECT_SOURCE_DIR}/cmake/debian/prerm
   ${PROJECT_SOURCE_DIR}/cmake/debian/postrm ${PROJECT_SOURCE_DIR}/cmake/debian/conffiles)

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <functional>
 #include <optional>
 #include <thread>
@@ -145,6 +146,34 @@ TEST(Auth, KeyFileIsCheckedAtStart) {
   EXPECT_EQ(r.status, 2) << r.out;
   EXPECT_NE(r.out.find(path), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("mode 0640"), std::string::npos) << r.out;
+
+  // Started by systemd with the credential cell-key (LoadCredential=) and no --key-file: the
+  // daemon reads $CREDENTIALS_DIRECTORY/cell-key, and names it when refusing it.
+  const std::filesystem::path credentials = dir.path() / "credentials";
+  std::filesystem::create_directory(credentials);
+  const std::string credential = (credentials / "cell-key").string();
+  test::writeText(credential, std::string(32, 'c'));
+  ASSERT_EQ(chmod(credential.c_str(), 0644), 0);
+  const std::string daemon = "CREDENTIALS_DIRECTORY=" + credentials.string() + " timeout 1 " +
+                             std::string(STEPCAL_BIN_DIR) +
+                             "/stepcal-runtime --lcm-url memq:// --model " + model;
+  const test::CommandResult open_credential = test::run(daemon);
+  EXPECT_EQ(open_credential.status, 2) << open_credential.out;
+  EXPECT_NE(open_credential.out.find(credential + ": credential cell-key: mode 0644"),
+            std::string::npos) << open_credential.out;
+  ASSERT_EQ(chmod(credential.c_str(), 0400), 0);
+  const test::CommandResult keyed = test::run(daemon);
+  EXPECT_NE(keyed.out.find("cell key " + credential + " (credential cell-key;"), std::string::npos)
+      << keyed.out;
+  // An explicit --key-file wins over the credential; the credential "none" (the unit's
+  // SetCredential= fallback without a key file) is no key.
+  ASSERT_EQ(chmod(path.c_str(), 0600), 0);
+  const test::CommandResult explicit_key = test::run(daemon + " --key-file " + path);
+  EXPECT_NE(explicit_key.out.find("cell key " + path + " (--key-file;"), std::string::npos)
+      << explicit_key.out;
+  ASSERT_EQ(chmod(credential.c_str(), 0600), 0);
+  test::writeText(credential, "none");
+  EXPECT_NE(test::run(daemon).out.find("no cell key"), std::string::npos);
 }
 
 TEST(Auth, VerifierRefusesForgedAndReplayedMessages) {
@@ -426,10 +455,13 @@ TEST(AuthUdpm, TheRealDaemonAndClientRefuseWhatTheKeyDoesNotVouchFor) {
   EXPECT_NE(genuine.out.find("\"status\": \"OK\""), std::string::npos) << genuine.out;
 
   // Without the key, or with another: the daemon drops the requests; no reply.
+  // Its STEPCAL_STATUS tells the client why: the key is missing or may be wrong (exit 4).
   const test::CommandResult keyless = test::run(kBin + "/stepcal-client" + forward);
   EXPECT_EQ(keyless.status, 4) << keyless.out;
+  EXPECT_NE(keyless.out.find("the key is missing"), std::string::npos) << keyless.out;
   const test::CommandResult wrong = test::run(kBin + "/stepcal-client --key-file " + other_key + forward);
   EXPECT_EQ(wrong.status, 4) << wrong.out;
+  EXPECT_NE(wrong.out.find("the key may be wrong"), std::string::npos) << wrong.out;
 
   // An impostor answers every request too, without the key: the client takes the daemon's reply
   // and rejects the impostor's.

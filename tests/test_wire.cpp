@@ -308,6 +308,41 @@ TEST(LcmRequester, RefusesADaemonOfMessageVersion1ByName) {
   EXPECT_TRUE(requester.explainSilence("key_file", requester.counters()).empty());
 }
 
+TEST(LcmRequester, AKeyedDaemonsStatusSaysTheKeyIsMissingOrWrong) {
+  const LcmPtr lcm(lcm_create("memq://"), &lcm_destroy);
+  ServiceOptions options;
+  options.key = key(5);
+  Service service(runtime::RuntimeModel::fromModel(model(), 23), "model.stepcal", options);
+  LcmServer server(lcm.get(), service);
+  {
+    LcmRequester keyless(lcm.get(), std::nullopt);
+    correction_request_t msg = forwardRequest();
+    EXPECT_FALSE(keyless.exchange(msg, 1, std::chrono::milliseconds(50)));
+    EXPECT_FALSE(keyless.daemonHeard().heard);
+    EXPECT_FALSE(keyless.keyRefused()) << "nothing heard yet: no daemon, as far as it knows";
+    server.publishStatus(false);
+    keyless.listenForStatus(kTimeout);
+    ASSERT_TRUE(keyless.daemonHeard().heard);
+    EXPECT_TRUE(keyless.daemonHeard().keyed);
+    EXPECT_TRUE(keyless.keyRefused());
+    const std::vector<std::string> reasons = keyless.explainSilence("--key-file");
+    ASSERT_EQ(reasons.size(), 1u);
+    EXPECT_NE(reasons[0].find("the key is missing; give the cell's key with --key-file"),
+              std::string::npos) << reasons[0];
+  }
+  LcmRequester wrong_key(lcm.get(), key(6));
+  correction_request_t msg = forwardRequest();
+  EXPECT_FALSE(wrong_key.exchange(msg, 2, std::chrono::milliseconds(50)));
+  server.publishStatus(false);
+  wrong_key.listenForStatus(kTimeout);
+  EXPECT_EQ(wrong_key.daemonHeard().forged_requests, 2);
+  EXPECT_TRUE(wrong_key.keyRefused());
+  const std::vector<std::string> reasons = wrong_key.explainSilence("--key-file");
+  ASSERT_EQ(reasons.size(), 1u);
+  EXPECT_NE(reasons[0].find("the key may be wrong; is --key-file the daemon's key?"),
+            std::string::npos) << reasons[0];
+}
+
 TEST(LcmRequester, SealsWithTheKeyAndRefusesRepliesItDoesNotVouchFor) {
   const LcmPtr lcm(lcm_create("memq://"), &lcm_destroy);
   ServiceOptions options;

@@ -366,12 +366,7 @@ int runCampaign(Args args) {
   const std::vector<correction_reply_t> replies =
       sendRequests(lcm.get(), args, requests, exchange, requester,
                    args.live_wrench ? std::function<void(size_t)>(publishRobotState) : nullptr);
-  if (exchange.answered == 0) {
-    std::cerr << "stepcal-client: no reply within " << args.timeout_ms << " ms to any of "
-              << args.count << " requests (is stepcal-runtime running on " << args.lcm_url
-              << "?)\n";
-    explainSilence(requester);
-  }
+  if (exchange.answered == 0) explainSilence(requester, args.lcm_url);
   pacer.unsubscribe();
 
   const CampaignTally tally =

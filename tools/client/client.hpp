@@ -143,8 +143,9 @@ int exitStatusOf(int requests, int answered, long ok, const char* what);
 
 /// The requester's key and refused replies, for the reports.
 nlohmann::json authenticationJson(const service::LcmRequester& requester);
-/// Why no reply came, when the refused replies say (stderr).
-void explainSilence(const service::LcmRequester& requester);
+/// Why no reply came (stderr): the refused replies and the daemon's STEPCAL_STATUS, listened for
+/// a moment more when none was heard yet.
+void explainSilence(service::LcmRequester& requester, const std::string& lcm_url);
 
 /// When reply i arrived, CLOCK_MONOTONIC ns of this host (the daemon stamps wrenches on it too:
 /// the two run side by side).

@@ -111,9 +111,17 @@ nlohmann::json authenticationJson(const service::LcmRequester& requester) {
           {"old_version_replies", c.old_version}};
 }
 
-void explainSilence(const service::LcmRequester& requester) {
+void explainSilence(service::LcmRequester& requester, const std::string& lcm_url) {
+  // The daemon publishes its status at 10 Hz: three periods tell a silent one from none.
+  requester.listenForStatus(std::chrono::milliseconds(300));
   for (const std::string& reason : requester.explainSilence("--key-file")) {
     std::cerr << "stepcal-client: " << reason << "\n";
+  }
+  if (!requester.daemonHeard().heard) {
+    std::cerr << "stepcal-client: no STEPCAL_STATUS from a daemon on " << lcm_url
+              << " either: is stepcal-runtime running there? (one that runs with a cell key "
+                 "drops requests sent without it or with another key: is --key-file missing or "
+                 "wrong?)\n";
   }
 }
 

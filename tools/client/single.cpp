@@ -99,7 +99,7 @@ int runRepeated(const Args& args, const correction_request_t& msg) {
                                  {"lost", sent - exchange.answered},
                                  {"rate_hz", args.rate_hz},  {"statuses", statuses},
                                  {"authentication", authenticationJson(requester)}, {"rows", rows}};
-  if (exchange.answered == 0) explainSilence(requester);
+  if (exchange.answered == 0) explainSilence(requester, args.lcm_url);
   if (args.json) {
     std::cout << report.dump(1) << "\n";
   } else {
@@ -145,9 +145,9 @@ int runSingle(const Args& args) {
   const std::vector<correction_reply_t> replies =
       sendRequests(lcm.get(), args, {msg}, exchange, requester);
   if (exchange.answered == 0) {
-    std::cerr << "stepcal-client: no reply within " << args.timeout_ms
-              << " ms (is stepcal-runtime running on " << args.lcm_url << "?)\n";
-    explainSilence(requester);
+    std::cerr << "stepcal-client: no reply within " << args.timeout_ms << " ms on " << args.lcm_url
+              << "\n";
+    explainSilence(requester, args.lcm_url);
     return exit_code::kNoService;
   }
   if (args.json) {

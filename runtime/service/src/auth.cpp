@@ -1,6 +1,7 @@
 #include "stepcal/service/auth.hpp"
 
 #include <fcntl.h>
+#include <pwd.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -52,13 +53,32 @@ void codeOf(const crypto_auth_hmacsha512256_state& keyed, const uint8_t* bytes, 
   sodium_memzero(&state, sizeof state);
 }
 
+/// A user's name, or "uid N" when the user database has none.
+std::string userName(uid_t uid) {
+  const passwd* user = getpwuid(uid);
+  return user != nullptr ? std::string(user->pw_name) : "uid " + std::to_string(uid);
+}
+
+/// Why this process may not read the key at path: who it runs as, who owns the file, the fix.
+std::string permissionDenied(const std::string& path, const std::string& source) {
+  struct stat st {};
+  const std::string owner =
+      stat(path.c_str(), &st) == 0 ? " (owner " + userName(st.st_uid) + ")" : "";
+  return source + ": permission denied: user " + userName(geteuid()) + " may not read the cell key" +
+         owner + "; keep it root:root 0600 and let systemd hand it to the daemon as the credential "
+         "cell-key (LoadCredential=cell-key:" + path + ", as stepcal-runtime@.service does for "
+         "/etc/stepcal/NAME.key; docs/runtime.md), with key-file empty, or run as a user who may "
+         "read it";
+}
+
 }  // namespace
 
-CellKey CellKey::load(const std::string& path) {
+CellKey CellKey::load(const std::string& path, const std::string& source) {
   const int fd = open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
+  if (fd < 0 && errno == EACCES) throw InputError(permissionDenied(path, source), path);
   if (fd < 0) {
-    throw InputError(std::string("--key-file: cannot open the cell key: ") + std::strerror(errno) +
-                         "; " + kKeyHint,
+    throw InputError(source + ": cannot open the cell key: " + std::strerror(errno) + "; " +
+                         kKeyHint,
                      path);
   }
   struct FdCloser {
@@ -67,24 +87,24 @@ CellKey CellKey::load(const std::string& path) {
   } closer{fd};
   struct stat st {};
   if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-    throw InputError(std::string("--key-file: not a regular file; ") + kKeyHint, path);
+    throw InputError(source + ": not a regular file; " + kKeyHint, path);
   }
   if ((st.st_mode & 077) != 0) {
     char mode[8];
     std::snprintf(mode, sizeof mode, "%04o", unsigned(st.st_mode & 07777));
-    throw InputError(std::string("--key-file: mode ") + mode +
+    throw InputError(source + ": mode " + mode +
                          " lets the group or others at the cell key; expected 0600 or 0400 "
                          "(chmod 600 on it, and make a new key if others may have read it)",
                      path);
   }
   if (st.st_size != kKeyBytes) {
-    throw InputError("--key-file: " + std::to_string(st.st_size) + " bytes; expected exactly " +
+    throw InputError(source + ": " + std::to_string(st.st_size) + " bytes; expected exactly " +
                          std::to_string(kKeyBytes) + " random bytes; " + kKeyHint,
                      path);
   }
   CellKey key;
   if (read(fd, key.key_.data(), key.key_.size()) != kKeyBytes) {
-    throw InputError(std::string("--key-file: cannot read the cell key: ") + std::strerror(errno),
+    throw InputError(source + ": cannot read the cell key: " + std::strerror(errno),
                      path);
   }
   return key;

@@ -16,6 +16,7 @@
 #include <signal.h>
 #include <sys/eventfd.h>
 #include <sys/signalfd.h>
+#include <sys/stat.h>
 #include <sys/timerfd.h>
 #include <unistd.h>
 
@@ -23,7 +24,11 @@
 #include <cerrno>
 #include <cstdarg>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <string>
+#include <string_view>
 #include <thread>
 
 #include "stepcal/common/error.hpp"
@@ -149,15 +154,49 @@ class RefusalLog {
   bool old_version_ = false, forged_ = false, replayed_ = false;
 };
 
+/// The systemd credential that carries the cell key (LoadCredential=cell-key:… in the unit).
+constexpr const char* kKeyCredential = "cell-key";
+/// Its content when the unit found no key file: SetCredential=cell-key:none.
+constexpr std::string_view kNoKeyCredential = "none";
+
+/// True when the file at path holds exactly kNoKeyCredential.
+bool holdsNoKey(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  std::string content(kNoKeyCredential.size() + 1, '\0');
+  file.read(content.data(), std::streamsize(content.size()));
+  return file.gcount() == std::streamsize(kNoKeyCredential.size()) &&
+         content.compare(0, kNoKeyCredential.size(), kNoKeyCredential) == 0;
+}
+
+/// Where the cell key comes from: --key-file when given (the command line or the configuration
+/// file: an explicit choice wins), else the credential cell-key when systemd handed one
+/// ($CREDENTIALS_DIRECTORY), else none. The credential "none" is the unit's fallback for a cell
+/// without a key file (SetCredential=cell-key:none; systemd takes no empty value): no key.
+struct KeySource {
+  std::string path;    ///< empty: no key
+  std::string source;  ///< "--key-file" or "credential cell-key"
+};
+
+KeySource keySource(const DaemonArgs& args) {
+  if (!args.key_file.empty()) return {args.key_file, "--key-file"};
+  const char* credentials = std::getenv("CREDENTIALS_DIRECTORY");
+  if (credentials == nullptr || *credentials == '\0') return {};
+  const std::string path = std::string(credentials) + "/" + kKeyCredential;
+  struct stat st {};
+  if (stat(path.c_str(), &st) != 0 || holdsNoKey(path)) return {};
+  return {path, std::string("credential ") + kKeyCredential};
+}
+
 int serve(const DaemonArgs& args) {
   if (args.budget_us <= 0) throw InputError("--budget-us must be > 0");
   if (!(args.max_wrench_age_ms > 0.0)) throw InputError("--max-wrench-age-ms must be > 0");
   service::ServiceOptions options;
   options.budget_ns = int64_t(args.budget_us) * 1000;
   options.max_wrench_age_ns = int64_t(args.max_wrench_age_ms * 1e6);
-  if (!args.key_file.empty()) {
+  const KeySource key = keySource(args);
+  if (!key.path.empty()) {
     if (!(args.auth_window_ms > 0.0)) throw InputError("--auth-window-ms must be > 0");
-    options.key = service::CellKey::load(args.key_file);
+    options.key = service::CellKey::load(key.path, key.source);
     options.auth_window_us = int64_t(args.auth_window_ms * 1e3);
   }
 
@@ -188,11 +227,11 @@ int serve(const DaemonArgs& args) {
           args.model_path.c_str(), static_cast<unsigned long long>(service.modelId()),
           args.lcm_url.c_str(), args.budget_us, feed->describe().c_str(),
           args.max_wrench_age_ms, realtime ? "on" : "off", service::kSubscriptionQueueCapacity,
-          args.key_file.empty()
+          key.path.empty()
               ? "no cell key (anyone who reaches the LCM group may send requests and sensor "
                 "commands)"
-              : ("cell key " + args.key_file + " (requests, replies and sensor commands "
-                 "authenticated)").c_str());
+              : ("cell key " + key.path + " (" + key.source +
+                 "; requests, replies and sensor commands authenticated)").c_str());
   RefusalLog refusals;
 
   pollfd fds[3] = {{lcm_get_fileno(lcm), POLLIN, 0},

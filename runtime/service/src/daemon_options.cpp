@@ -138,7 +138,7 @@ const std::vector<DaemonOption>& options() {
       {"sensor-bias-samples", "N", "sensor can: readings averaged per bias (sensor_command_t BIAS)", field<&A::sensor, &S::bias_samples>()},
       {"sensor-republish", "CHANNEL", "sensor can: also publish every sample as wrench_t on this channel (empty: none)", field<&A::sensor, &S::republish_channel>()},
       {"realtime", "true|false", "mlockall and SCHED_FIFO priority 80 (needs CAP_IPC_LOCK and CAP_SYS_NICE or the matching rlimits)", field<&A::realtime>()},
-      {"key-file", "FILE", "the cell's shared key (32 bytes, mode 0600): requests and sensor commands must carry its code, replies carry the daemon's; empty: no authentication", field<&A::key_file>()},
+      {"key-file", "FILE", "the cell's shared key (32 bytes, mode 0600): requests and sensor commands must carry its code, replies carry the daemon's; empty: the systemd credential cell-key when the unit hands one over (LoadCredential=), else no authentication", field<&A::key_file>()},
       {"auth-window-ms", "MS", "key-file: how far a message's counter (its send time) may lie from this host's clock, ms", field<&A::auth_window_ms>()},
   };
   return table;

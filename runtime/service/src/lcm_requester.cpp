@@ -5,6 +5,8 @@
 
 #include <algorithm>
 
+#include <stepcal_lcm/runtime_status_t.hpp>
+
 #include "stepcal/common/error.hpp"
 #include "stepcal/service/channels.hpp"
 #include "stepcal/service/lcm_server.hpp"
@@ -32,9 +34,37 @@ LcmRequester::LcmRequester(lcm_t* lcm, const std::optional<CellKey>& key)
     verifier_.emplace(*key);
   }
   subscription_ = subscribeQueued(lcm_, kReplyChannel, &LcmRequester::onReply, this);
+  status_subscription_ = lcm_subscribe(lcm_, kStatusChannel, &LcmRequester::onStatus, this);
+  if (status_subscription_ == nullptr) {
+    lcm_unsubscribe(lcm_, subscription_);
+    throw InputError(std::string("cannot subscribe to ") + kStatusChannel);
+  }
 }
 
-LcmRequester::~LcmRequester() { lcm_unsubscribe(lcm_, subscription_); }
+LcmRequester::~LcmRequester() {
+  lcm_unsubscribe(lcm_, status_subscription_);
+  lcm_unsubscribe(lcm_, subscription_);
+}
+
+void LcmRequester::onStatus(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+  stepcal_lcm::runtime_status_t status;
+  if (status.decode(rbuf->data, 0, int(rbuf->data_size)) < 0) return;
+  DaemonHeard& daemon = static_cast<LcmRequester*>(user)->daemon_;
+  daemon.heard = true;
+  daemon.keyed = status.authenticated != 0;
+  daemon.forged_requests = status.forged_requests;
+}
+
+void LcmRequester::listenForStatus(std::chrono::nanoseconds wait) {
+  const Clock::time_point until = Clock::now() + wait;
+  while (!daemon_.heard && Clock::now() < until) handleLcmUntil(lcm_, until);
+}
+
+bool LcmRequester::keyRefused() const noexcept {
+  const bool keyed_daemon_refused =
+      daemon_.keyed && (!authenticated() || daemon_.forged_requests > 0);
+  return keyed_daemon_refused || counters_.rejected_forged > 0;
+}
 
 bool LcmRequester::send(correction_request_t& request, int64_t request_id) {
   request.request_id = request_id;
@@ -105,6 +135,16 @@ std::vector<std::string> LcmRequester::explainSilence(const std::string& key_opt
     reasons.push_back("rejected " + std::to_string(forged) +
                       " replies whose code does not verify and " + std::to_string(replayed) +
                       " whose counter is not fresh (" + key_option + ": is it the daemon's key?)");
+  }
+  if (daemon_.keyed && !authenticated()) {
+    reasons.push_back("the daemon takes only requests sealed with its cell key (its STEPCAL_STATUS "
+                      "says authenticated) and none was given: the key is missing; give the "
+                      "cell's key with " + key_option);
+  } else if (daemon_.keyed && daemon_.forged_requests > 0) {
+    reasons.push_back("the daemon has dropped " + std::to_string(daemon_.forged_requests) +
+                      " requests whose code does not verify since it started (STEPCAL_STATUS "
+                      "forged_requests): the key may be wrong; is " + key_option +
+                      " the daemon's key?");
   }
   return reasons;
 }

@@ -35,8 +35,10 @@ class CellKey {
  public:
   /// Reads path: a regular file of exactly kKeyBytes bytes whose mode gives the group and others
   /// nothing (0600 or 0400). Throws InputError naming the file, what is wrong and how to make a
-  /// key (`head -c 32 /dev/urandom > FILE && chmod 600 FILE`).
-  static CellKey load(const std::string& path);
+  /// key (`head -c 32 /dev/urandom > FILE && chmod 600 FILE`); one it may not read, naming the
+  /// user this process runs as and the file's owner. source: where the path came from, the
+  /// messages' prefix ("--key-file", "credential cell-key").
+  static CellKey load(const std::string& path, const std::string& source = "--key-file");
   /// A key from bytes (tests).
   static CellKey fromBytes(const std::array<uint8_t, kKeyBytes>& bytes);
   ~CellKey();

@@ -3,7 +3,8 @@
 // STEPCAL_REQUEST; every message on STEPCAL_REPLY judged before it may count as an answer: a
 // daemon of message version 1 is told apart by name (its correction_reply_v1_t), and with a key a
 // reply whose code does not verify or whose counter is not fresh is refused. Refusals are counted,
-// never matched to a request.
+// never matched to a request. The daemon's STEPCAL_STATUS is heard too: it tells a silence of a
+// keyed daemon (its requests dropped for want of the key) from one of no daemon at all.
 //
 // One thread: the one that sends and calls lcm_handle on the LCM instance.
 #pragma once
@@ -39,6 +40,13 @@ struct RequesterCounters {
   long old_version = 0;        ///< kOldVersion: replies of a daemon that predates this client
 };
 
+/// The latest runtime_status_t heard on kStatusChannel since the requester was made.
+struct DaemonHeard {
+  bool heard = false;
+  bool keyed = false;           ///< authenticated = 1: it takes only requests sealed with its key
+  int64_t forged_requests = 0;  ///< requests it dropped since its start: their code did not verify
+};
+
 class LcmRequester {
  public:
   using Clock = std::chrono::steady_clock;
@@ -47,7 +55,8 @@ class LcmRequester {
 
   /// Subscribes to kReplyChannel on lcm (not owned; must outlive the requester) with
   /// subscribeQueued's queue: every client sees every client's replies, so its queue must ride
-  /// out stalls at their sum. key: seal requests and verify replies; none: neither.
+  /// out stalls at their sum; and to kStatusChannel (daemonHeard). key: seal requests and verify
+  /// replies; none: neither.
   LcmRequester(lcm_t* lcm, const std::optional<CellKey>& key);
   ~LcmRequester();
   LcmRequester(const LcmRequester&) = delete;
@@ -55,6 +64,12 @@ class LcmRequester {
 
   bool authenticated() const noexcept { return signer_.has_value(); }
   const RequesterCounters& counters() const noexcept { return counters_; }
+  const DaemonHeard& daemonHeard() const noexcept { return daemon_; }
+  /// Handles LCM for `wait` at most, until a daemon's status has been heard (10 Hz).
+  void listenForStatus(std::chrono::nanoseconds wait);
+  /// True when what was heard says the cell key is the trouble: a keyed daemon and no key here,
+  /// a keyed daemon that has dropped forged requests, or replies whose code does not verify.
+  bool keyRefused() const noexcept;
 
   /// Stamps request with request_id and utime (now, µs since the Unix epoch), encodes it, seals
   /// it with the key (if any) and publishes it on kRequestChannel. False when LCM refused it.
@@ -83,9 +98,12 @@ class LcmRequester {
 
  private:
   static void onReply(const lcm_recv_buf_t* rbuf, const char* channel, void* user);
+  static void onStatus(const lcm_recv_buf_t* rbuf, const char* channel, void* user);
 
   lcm_t* lcm_;
   lcm_subscription_t* subscription_ = nullptr;
+  lcm_subscription_t* status_subscription_ = nullptr;
+  DaemonHeard daemon_;
   std::optional<MessageSigner> signer_;
   std::optional<MessageVerifier> verifier_;
   RequesterCounters counters_;

@@ -62,6 +62,7 @@
 #include "stepcal/service/auth.hpp"
 #include "stepcal/service/latency.hpp"
 #include "stepcal/service/realtime.hpp"
+#include "stepcal/service/request.hpp"
 #include "stepcal/service/service.hpp"
 #ifdef STEPCAL_BENCH_WITH_KDL
 #include "kdl_compare.hpp"
@@ -415,16 +416,15 @@ class AuthenticationCalls {
         verifier_(key_, 3'600'000'000),  // an hour: the pool is sealed once
         reply_bytes_(size_t(service::Service::replyBytes())),
         reply_size_(stepcal_lcm::correction_reply_t{}.getEncodedSize()) {
-    stepcal_lcm::correction_request_t request_msg{};
-    request_msg.message_version = stepcal_lcm::correction_request_t::VERSION;
-    request_size_ = size_t(request_msg.getEncodedSize());
+    stepcal_lcm::correction_request_t request_msg = service::blankRequest();
+    request_size_ = size_t(service::requestBytes());
     sealed_count_ =
         size_t(calls + (calls / kRoundCalls + 1) * kRoundWarmupCalls + kWarmupCalls);
     sealed_requests_.resize(sealed_count_ * request_size_);
     for (size_t i = 0; i < sealed_count_; ++i) {
       request_msg.request_id = int64_t(i);
       uint8_t* bytes = sealed_requests_.data() + i * request_size_;
-      request_msg.encode(bytes, 0, int(request_size_));
+      service::encodeRequest(request_msg, bytes, int(request_size_));
       controller_.seal(bytes, int(request_size_));
     }
   }

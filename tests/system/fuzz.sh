@@ -39,6 +39,8 @@ seed_main=0  # 1: the target's source, built with -DSTEPCAL_FUZZ_SEED_MAIN, writ
 case $target in
   model_file)
     sources=(common/src/{error,lie,chain,compliance,mechanisms,model_file,atomic_file}.cpp)
+    # Each mechanism kind's own file (common/src/mechanisms/, as the CMake build globs them).
+    for kind_source in "$root"/common/src/mechanisms/*.cpp; do sources+=("${kind_source#"$root"/}"); done
     seed_main=1
     ;;
   request_decoder)

@@ -1,5 +1,6 @@
-// Inside common: each kind's traits (its own file, common/src/mechanisms/<kind>.cpp), the shared
-// pieces of their text and curves, and the evaluation physicalLinkAngles takes from them.
+// Inside common: the shared pieces of the kinds' text and curves (each kind's traits are in its
+// own file, common/src/mechanisms/<kind>.cpp, listed in registry.cpp), and the evaluation
+// physicalLinkAngles takes from them.
 #pragma once
 
 #include <algorithm>
@@ -9,20 +10,6 @@
 #include "stepcal/common/mechanisms.hpp"
 
 namespace stepcal::mechanism {
-
-const MechanismTraits& backlashTraits();
-const MechanismTraits& selfWeightTraits();
-const MechanismTraits& transmissionErrorTraits();
-const MechanismTraits& nonlinearStiffnessTraits();
-const MechanismTraits& thermalExpansionTraits();
-const MechanismTraits& sensorBiasTraits();
-const MechanismTraits& jointCouplingTraits();
-const MechanismTraits& profileGeometryTraits();
-const MechanismTraits& torsionCurveTraits();
-const MechanismTraits& jointZeroDriftTraits();
-const MechanismTraits& registrationDriftTraits();
-const MechanismTraits& sessionFramesTraits();
-const MechanismTraits& campaignJointZeroTraits();
 
 /// " (joint j)", 1-based: describe's suffix of a kind that moves one joint.
 std::string jointSuffix(const Mechanism& m);

@@ -119,7 +119,7 @@ double torqueDeflection(const Mechanism& m, double tau_nm, double* derivative) n
     if (derivative) *derivative = 0.0;
     return 0.0;
   }
-  const double limit = traits->linear_above_nm(m);
+  const double limit = traits->linear_above_nm ? traits->linear_above_nm(m) : 0.0;  // none: 0
   if (!(limit > 0.0 && std::abs(tau_nm) > limit)) return traits->deflection(m, tau_nm, derivative);
   // d(±τ_lin) + d'(±τ_lin) (τ ∓ τ_lin)
   const double edge = std::copysign(limit, tau_nm);

@@ -143,7 +143,8 @@ struct MechanismTraits {
   /// describe's text after the name, e.g. " (joint 2)"; null: none.
   std::string (*describe_suffix)(const Mechanism& m) = nullptr;
   /// torque_deflection: the curve's formula at every torque, rad, and ∂/∂τ when derivative is
-  /// given; and the torque above which torqueDeflection carries it on with its slope (0: none).
+  /// given; and the torque above which torqueDeflection carries it on with its slope (0 or null:
+  /// none).
   double (*deflection)(const Mechanism& m, double tau_nm, double* derivative) noexcept = nullptr;
   double (*linear_above_nm)(const Mechanism& m) noexcept = nullptr;
 };

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <random>
 #include <string>
 
@@ -514,6 +515,47 @@ TEST(Cli, SimulateTheRobotAModelDescribes) {
                                     " --out " + (dir / "y").string());
   EXPECT_EQ(garbage.status, 2);
   EXPECT_NE(garbage.out.find("campaign.yaml"), std::string::npos) << garbage.out;
+}
+
+// Issue 42: a model knows its robot. The IRB4400's model given the real UR10's campaign (Series C)
+// is refused by name by validate, diagnose --model and simulate --model, a program of 7 joints by
+// correct; its own campaign still validates.
+TEST(Cli, AModelRefusesAnotherRobotsCampaignByName) {
+  const fs::path dir = scratch("another_robot");
+  ASSERT_EQ(run(kStepcal + " simulate --protocol geometry --seed 1 --out " + (dir / "irb").string()).status, 0);
+  const std::string model = (dir / "irb.stepcal").string();
+  calibrateJson(dir / "irb", model);
+  const std::string ur10 = (dir / "ur10").string();
+  const std::string csv =
+      std::string(STEPCAL_TEST_DATA_DIR) + "/ipa-robot-accuracy/Series_C/measurements_random_poses.csv";
+  ASSERT_EQ(run(kStepcal + " import ipa " + csv + " --out " + ur10).status, 0);
+  const auto expectRefusedByName = [&](const std::string& command) {
+    const CommandResult r = run(kStepcal + command);
+    EXPECT_EQ(r.status, 2) << command << "\n" << r.out;
+    for (const char* part : {"irb.stepcal", "the model's joints (joint_1, joint_2, joint_3, joint_4, joint_5, joint_6)",
+                             "are not the campaign's (shoulder_pan_joint, shoulder_lift_joint",
+                             "calibrated for"}) {
+      EXPECT_NE(r.out.find(part), std::string::npos) << command << ": no '" << part << "' in\n" << r.out;
+    }
+  };
+  expectRefusedByName(" validate " + model + " " + ur10);
+  expectRefusedByName(" simulate --model " + model + " --campaign " + ur10 + " --out " + (dir / "twin").string());
+  const CommandResult diagnose = run(kStepcal + " diagnose " + ur10 + " --model " + model);
+  EXPECT_EQ(diagnose.status, 2) << diagnose.out;
+  EXPECT_NE(diagnose.out.find("are not the campaign's (shoulder_pan_joint"), std::string::npos) << diagnose.out;
+
+  // A program names no robot, only its joint count: one of 7 joints is refused naming the model's.
+  const fs::path program = dir / "seven.csv";
+  std::ofstream(program) << "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,q7_deg\n0,0,0,0,0,0,0\n";
+  const CommandResult correct =
+      run(kStepcal + " correct " + model + " " + program.string() + " --out " + (dir / "out.csv").string());
+  EXPECT_EQ(correct.status, 2) << correct.out;
+  for (const char* part : {"seven.csv", "q7_deg", "a robot with 7 joints", "a robot with 6 (joint_1, joint_2"}) {
+    EXPECT_NE(correct.out.find(part), std::string::npos) << "no '" << part << "' in\n" << correct.out;
+  }
+  // The robot the model was calibrated for still validates.
+  const CommandResult same = run(kStepcal + " validate " + model + " " + (dir / "irb").string());
+  EXPECT_EQ(same.status, 0) << same.out;
 }
 
 TEST(Cli, SimulateWritesHiddenEffectsIntoTheTruth) {

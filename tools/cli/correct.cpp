@@ -216,8 +216,9 @@ std::vector<std::string_view> programLines(std::string_view text, const std::str
   return lines;
 }
 
-/// Highest N among the header's joint-target columns q<N>_deg, 0 without any.
-int highestJointColumn(const ProgramFile& file) {
+/// N when the header's joint-target columns are q1_deg … qN_deg, all of them; else 0 (none, or
+/// some missing: the header checks name which).
+int jointColumnCount(const ProgramFile& file) {
   int highest = 0;
   for (const std::string& name : file.names()) {
     if (name.size() < 6 || name[0] != 'q' || name.compare(name.size() - 4, 4, "_deg") != 0) continue;
@@ -228,13 +229,16 @@ int highestJointColumn(const ProgramFile& file) {
     }
     highest = std::max(highest, std::stoi(digits));
   }
+  for (int j = 0; j < highest; ++j) {
+    if (!file.has(jointColumn("", j))) return 0;
+  }
   return highest;
 }
 
 /// Refuses joint targets of a robot with another joint count than the model's, by name: a
 /// program carries no robot name, only its q1_deg … qN_deg columns.
 void requireModelJointCount(const ProgramFile& file, const KinematicChain& model_robot) {
-  const int columns = highestJointColumn(file);
+  const int columns = jointColumnCount(file);
   const int dof = model_robot.dof();
   if (columns == 0 || columns == dof) return;
   file.fail(1, jointColumn("", columns - 1),

@@ -518,8 +518,8 @@ TEST(Cli, SimulateTheRobotAModelDescribes) {
 }
 
 // Issue 42: a model knows its robot. The IRB4400's model given the real UR10's campaign (Series C)
-// is refused by name by validate, diagnose --model and simulate --model, a program of 7 joints by
-// correct; its own campaign still validates.
+// is refused by name by validate, diagnose --model, simulate --model and stepcal-client --campaign
+// --check-model, a program of 7 joints by correct; its own campaign still validates.
 TEST(Cli, AModelRefusesAnotherRobotsCampaignByName) {
   const fs::path dir = scratch("another_robot");
   ASSERT_EQ(run(kStepcal + " simulate --protocol geometry --seed 1 --out " + (dir / "irb").string()).status, 0);
@@ -540,6 +540,9 @@ TEST(Cli, AModelRefusesAnotherRobotsCampaignByName) {
   };
   expectRefusedByName(" validate " + model + " " + ur10);
   expectRefusedByName(" simulate --model " + model + " --campaign " + ur10 + " --out " + (dir / "twin").string());
+  // A request names no robot: the client refuses to send the campaign's rows to the models it
+  // checks the daemon's replies with.
+  expectRefusedByName("-client --campaign " + ur10 + " --set geometry --check-model " + model);
   const CommandResult diagnose = run(kStepcal + " diagnose " + ur10 + " --model " + model);
   EXPECT_EQ(diagnose.status, 2) << diagnose.out;
   EXPECT_NE(diagnose.out.find("are not the campaign's (shoulder_pan_joint"), std::string::npos) << diagnose.out;

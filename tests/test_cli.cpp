@@ -519,7 +519,8 @@ TEST(Cli, SimulateTheRobotAModelDescribes) {
 
 // Issue 42: a model knows its robot. The IRB4400's model given the real UR10's campaign (Series C)
 // is refused by name by validate, diagnose --model, simulate --model and stepcal-client --campaign
-// --check-model, a program of 7 joints by correct; its own campaign still validates.
+// --check-model, a program of 7 joints by correct; so is a campaign whose joints are named alike
+// in another geometry; its own campaign still validates.
 TEST(Cli, AModelRefusesAnotherRobotsCampaignByName) {
   const fs::path dir = scratch("another_robot");
   ASSERT_EQ(run(kStepcal + " simulate --protocol geometry --seed 1 --out " + (dir / "irb").string()).status, 0);
@@ -556,6 +557,18 @@ TEST(Cli, AModelRefusesAnotherRobotsCampaignByName) {
   for (const char* part : {"seven.csv", "q7_deg", "a robot with 7 joints", "a robot with 6 (joint_1, joint_2"}) {
     EXPECT_NE(correct.out.find(part), std::string::npos) << "no '" << part << "' in\n" << correct.out;
   }
+  // Joints named alike in another geometry: joint_2 moved by 50 mm in the campaign's description.
+  const fs::path moved = dir / "moved";
+  fs::copy(dir / "irb", moved);
+  std::string urdf = readTextFile((moved / "robot.urdf").string());
+  const std::string origin = "<origin xyz=\"0.200 0 0.680\"";
+  ASSERT_NE(urdf.find(origin), std::string::npos);
+  urdf.replace(urdf.find(origin), origin.size(), "<origin xyz=\"0.250 0 0.680\"");
+  std::ofstream((moved / "robot.urdf").string()) << urdf;
+  const CommandResult geometry = run(kStepcal + " validate " + model + " " + moved.string());
+  EXPECT_EQ(geometry.status, 2) << geometry.out;
+  EXPECT_NE(geometry.out.find("differ in geometry: joint_2's nominal frame lies 50.0 mm"), std::string::npos)
+      << geometry.out;
   // The robot the model was calibrated for still validates.
   const CommandResult same = run(kStepcal + " validate " + model + " " + (dir / "irb").string());
   EXPECT_EQ(same.status, 0) << same.out;

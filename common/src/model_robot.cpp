@@ -1,6 +1,10 @@
 #include "stepcal/common/model_robot.hpp"
 
+#include <cstdio>
+
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/text_number.hpp"
+#include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
 
 namespace stepcal {
@@ -10,6 +14,46 @@ std::string jointNameList(const KinematicChain& chain) {
   for (const ChainJoint& joint : chain.joints()) names += (names.empty() ? "" : ", ") + joint.name;
   return names;
 }
+
+namespace {
+
+// How far the same robot's nominal chain may lie from the model's, per joint frame.
+constexpr double kSameRobotOffsetM = 1e-3;
+constexpr double kSameRobotTurnRad = 1e-2;
+constexpr double kSameRobotTwistDifference = 1e-2;
+
+// Joints of the same names in another geometry (say two robots of one maker, both named joint_1
+// … joint_6): the robot's own initial poses and twists, the tool's excepted, against the model's.
+// The nominal chain is the robot description's, so the same robot agrees to rounding; the bounds
+// only forgive a description written again with fewer digits.
+std::string geometryMismatch(const KinematicChain& model_nominal, const KinematicChain& campaign_nominal) {
+  for (int k = 0; k < model_nominal.dof(); ++k) {
+    const Pose& X_model = model_nominal.initialPose(k);
+    const Pose& X_campaign = campaign_nominal.initialPose(k);
+    const double offset_m = (X_model.translation() - X_campaign.translation()).norm();
+    const double turn_rad =
+        Eigen::AngleAxisd(X_model.linear().transpose() * X_campaign.linear()).angle();
+    const Vec6& s_model = model_nominal.joints()[size_t(k)].twist_Local;
+    const Vec6& s_campaign = campaign_nominal.joints()[size_t(k)].twist_Local;
+    if (offset_m <= kSameRobotOffsetM && turn_rad <= kSameRobotTurnRad &&
+        (s_model - s_campaign).norm() <= kSameRobotTwistDifference) {
+      continue;
+    }
+    const std::string& joint = model_nominal.joints()[size_t(k)].name;
+    char apart[96];
+    std::snprintf(apart, sizeof apart, "%.1f mm and %.2f deg", offset_m * 1e3, turn_rad * kDegPerRad);
+    return "the model's robot and the campaign's name their joints alike (" +
+           jointNameList(model_nominal) + ") but differ in geometry: " + joint +
+           "'s nominal frame lies " + apart + " from the model's, its axis (" +
+           formatShortest(s_campaign[3]) + ", " + formatShortest(s_campaign[4]) + ", " +
+           formatShortest(s_campaign[5]) + ") against the model's (" + formatShortest(s_model[3]) +
+           ", " + formatShortest(s_model[4]) + ", " + formatShortest(s_model[5]) +
+           "); expected the campaign of the robot the model was calibrated for";
+  }
+  return {};
+}
+
+}  // namespace
 
 std::string campaignRobotMismatch(const CalibratedModel& model, const Campaign& campaign) {
   const std::string source =
@@ -21,7 +65,7 @@ std::string campaignRobotMismatch(const CalibratedModel& model, const Campaign& 
   const std::vector<ChainJoint>& b = campaign_nominal.joints();
   bool same = a.size() == b.size();
   for (size_t i = 0; same && i < a.size(); ++i) same = a[i].name == b[i].name;
-  if (same) return {};
+  if (same) return geometryMismatch(model.nominal_Base, campaign_nominal);
   return "the model's joints (" + jointNameList(model.nominal_Base) + ") are not the campaign's (" +
          jointNameList(campaign_nominal) + ", " + campaign.base_link + " -> " + campaign.tip_link +
          "); expected the campaign of the robot the model was calibrated for";

@@ -14,7 +14,7 @@ std::string jointNameList(const KinematicChain& chain);
 
 /// Empty when the campaign's robot (its description from base_link to tip_link) has the model's
 /// joints: the same count and names, in order, and each joint's nominal frame and axis where the
-/// model's is (within 1 mm, 0.01 rad; the tool frame may differ). Else one line naming both
+/// model's is (within 20 mm, 0.05 rad; the tool frame may differ). Else one line naming both
 /// robots' joints, or the first joint whose geometry differs.
 std::string campaignRobotMismatch(const CalibratedModel& model, const Campaign& campaign);
 

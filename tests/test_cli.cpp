@@ -569,9 +569,15 @@ TEST(Cli, AModelRefusesAnotherRobotsCampaignByName) {
   EXPECT_EQ(geometry.status, 2) << geometry.out;
   EXPECT_NE(geometry.out.find("differ in geometry: joint_2's nominal frame lies 50.0 mm"), std::string::npos)
       << geometry.out;
-  // The robot the model was calibrated for still validates.
+  // The robot the model was calibrated for still validates, also described by its calibrated URDF.
   const CommandResult same = run(kStepcal + " validate " + model + " " + (dir / "irb").string());
   EXPECT_EQ(same.status, 0) << same.out;
+  const fs::path calibrated = dir / "calibrated";
+  fs::copy(dir / "irb", calibrated);
+  ASSERT_EQ(run(kStepcal + " export urdf " + model + " --campaign " + (dir / "irb").string() +
+                " --out " + (calibrated / "robot.urdf").string()).status, 0);
+  const CommandResult described = run(kStepcal + " validate " + model + " " + calibrated.string());
+  EXPECT_EQ(described.status, 0) << described.out;
 }
 
 TEST(Cli, SimulateWritesHiddenEffectsIntoTheTruth) {

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <random>
 #include <string>
 
@@ -514,6 +515,69 @@ TEST(Cli, SimulateTheRobotAModelDescribes) {
                                     " --out " + (dir / "y").string());
   EXPECT_EQ(garbage.status, 2);
   EXPECT_NE(garbage.out.find("campaign.yaml"), std::string::npos) << garbage.out;
+}
+
+// Issue 42: a model knows its robot. The IRB4400's model given the real UR10's campaign (Series C)
+// is refused by name by validate, diagnose --model, simulate --model and stepcal-client --campaign
+// --check-model, a program of 7 joints by correct; so is a campaign whose joints are named alike
+// in another geometry; its own campaign still validates.
+TEST(Cli, AModelRefusesAnotherRobotsCampaignByName) {
+  const fs::path dir = scratch("another_robot");
+  ASSERT_EQ(run(kStepcal + " simulate --protocol geometry --seed 1 --out " + (dir / "irb").string()).status, 0);
+  const std::string model = (dir / "irb.stepcal").string();
+  calibrateJson(dir / "irb", model);
+  const std::string ur10 = (dir / "ur10").string();
+  const std::string csv =
+      std::string(STEPCAL_TEST_DATA_DIR) + "/ipa-robot-accuracy/Series_C/measurements_random_poses.csv";
+  ASSERT_EQ(run(kStepcal + " import ipa " + csv + " --out " + ur10).status, 0);
+  const auto expectRefusedByName = [&](const std::string& command) {
+    const CommandResult r = run(kStepcal + command);
+    EXPECT_EQ(r.status, 2) << command << "\n" << r.out;
+    for (const char* part : {"irb.stepcal", "the model's joints (joint_1, joint_2, joint_3, joint_4, joint_5, joint_6)",
+                             "are not the campaign's (shoulder_pan_joint, shoulder_lift_joint",
+                             "calibrated for"}) {
+      EXPECT_NE(r.out.find(part), std::string::npos) << command << ": no '" << part << "' in\n" << r.out;
+    }
+  };
+  expectRefusedByName(" validate " + model + " " + ur10);
+  expectRefusedByName(" simulate --model " + model + " --campaign " + ur10 + " --out " + (dir / "twin").string());
+  // A request names no robot: the client refuses to send the campaign's rows to the models it
+  // checks the daemon's replies with.
+  expectRefusedByName("-client --campaign " + ur10 + " --set geometry --check-model " + model);
+  const CommandResult diagnose = run(kStepcal + " diagnose " + ur10 + " --model " + model);
+  EXPECT_EQ(diagnose.status, 2) << diagnose.out;
+  EXPECT_NE(diagnose.out.find("are not the campaign's (shoulder_pan_joint"), std::string::npos) << diagnose.out;
+
+  // A program names no robot, only its joint count: one of 7 joints is refused naming the model's.
+  const fs::path program = dir / "seven.csv";
+  std::ofstream(program) << "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,q7_deg\n0,0,0,0,0,0,0\n";
+  const CommandResult correct =
+      run(kStepcal + " correct " + model + " " + program.string() + " --out " + (dir / "out.csv").string());
+  EXPECT_EQ(correct.status, 2) << correct.out;
+  for (const char* part : {"seven.csv", "q7_deg", "a robot with 7 joints", "a robot with 6 (joint_1, joint_2"}) {
+    EXPECT_NE(correct.out.find(part), std::string::npos) << "no '" << part << "' in\n" << correct.out;
+  }
+  // Joints named alike in another geometry: joint_2 moved by 50 mm in the campaign's description.
+  const fs::path moved = dir / "moved";
+  fs::copy(dir / "irb", moved);
+  std::string urdf = readTextFile((moved / "robot.urdf").string());
+  const std::string origin = "<origin xyz=\"0.200 0 0.680\"";
+  ASSERT_NE(urdf.find(origin), std::string::npos);
+  urdf.replace(urdf.find(origin), origin.size(), "<origin xyz=\"0.250 0 0.680\"");
+  std::ofstream((moved / "robot.urdf").string()) << urdf;
+  const CommandResult geometry = run(kStepcal + " validate " + model + " " + moved.string());
+  EXPECT_EQ(geometry.status, 2) << geometry.out;
+  EXPECT_NE(geometry.out.find("differ in geometry: joint_2's nominal frame lies 50.0 mm"), std::string::npos)
+      << geometry.out;
+  // The robot the model was calibrated for still validates, also described by its calibrated URDF.
+  const CommandResult same = run(kStepcal + " validate " + model + " " + (dir / "irb").string());
+  EXPECT_EQ(same.status, 0) << same.out;
+  const fs::path calibrated = dir / "calibrated";
+  fs::copy(dir / "irb", calibrated);
+  ASSERT_EQ(run(kStepcal + " export urdf " + model + " --campaign " + (dir / "irb").string() +
+                " --out " + (calibrated / "robot.urdf").string()).status, 0);
+  const CommandResult described = run(kStepcal + " validate " + model + " " + calibrated.string());
+  EXPECT_EQ(described.status, 0) << described.out;
 }
 
 TEST(Cli, SimulateWritesHiddenEffectsIntoTheTruth) {

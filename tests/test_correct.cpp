@@ -288,7 +288,12 @@ TEST(Correct, BadProgramsAreRefusedWithTheirLineAndColumn) {
       {"", ":1: the header line is empty"},
       {header + ",speed\n" + good + ",3\n", ":1: column 'speed': unknown column"},
       {header + ",q1_deg\n" + good + ",1\n", ":1: column 'q1_deg': appears twice (column 9)"},
-      {"id,q1_deg,q2_deg\n", ":1: column 'q3_deg': missing while other joint target columns"},
+      {"id,q1_deg,q2_deg,q4_deg\n", ":1: column 'q3_deg': missing while other joint target columns"},
+      {"id,q1_deg,q2_deg\n",
+       ":1: column 'q2_deg': joint targets q1_deg … q2_deg are of a robot with 2 joints; the model was "
+       "calibrated for a robot with 6 (joint_1, joint_2, joint_3, joint_4, joint_5, joint_6), "
+       "expected q1_deg … q6_deg"},
+      {header + ",q7_deg\n" + good + ",0\n", ":1: column 'q7_deg': joint targets q1_deg … q7_deg"},
       {"id,x_mm,y_mm\n", ":1: column 'z_mm': missing while other pose columns"},
       {"id,payload_kg\na,3\n", ":1: no target columns"},
       {header + "\n" + good + "\n" + "b,10,-20,30,0,40\n", ":3: 6 fields; expected 8"},

@@ -333,6 +333,16 @@ def test_bad_input_raises_with_the_same_message(tmp_path, model):
         stepcal.calibrate(stepcal.Campaign.load(CAMPAIGN), gpr_points=1)
 
 
+def test_a_model_refuses_another_robots_campaign_by_name(tmp_path, model):
+    ur10 = str(tmp_path / "ur10")
+    subprocess.run([os.path.join(BIN, "stepcal"), "simulate", "--robot", "ur10", "--seed", "1",
+                    "--out", ur10], check=True, capture_output=True)
+    expected = ("the model's joints (joint_1, joint_2, joint_3, joint_4, joint_5, joint_6) are not "
+                "the campaign's (shoulder_pan_joint, shoulder_lift_joint")
+    with pytest.raises(stepcal.InputError, match=re.escape(expected)):
+        stepcal.diagnose(stepcal.Campaign.load(ur10), model=model)
+
+
 def test_the_docs_example_runs(tmp_path):
     text = open(os.path.join(os.environ["STEPCAL_DOCS_DIR"], "python.md")).read()
     match = re.search(r"<!-- example, run by tests/python -->\s*```python\n(.*?)```", text, re.S)

@@ -22,6 +22,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/exit_codes.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/model_robot.hpp"
 #include "stepcal/common/pose_quaternion.hpp"
 #include "stepcal/common/text_number.hpp"
 #include "stepcal/common/units.hpp"
@@ -215,9 +216,43 @@ std::vector<std::string_view> programLines(std::string_view text, const std::str
   return lines;
 }
 
+/// N when the header's joint-target columns are q1_deg … qN_deg, all of them; else 0 (none, or
+/// some missing: the header checks name which).
+int jointColumnCount(const ProgramFile& file) {
+  int highest = 0;
+  for (const std::string& name : file.names()) {
+    if (name.size() < 6 || name[0] != 'q' || name.compare(name.size() - 4, 4, "_deg") != 0) continue;
+    const std::string digits = name.substr(1, name.size() - 5);
+    if (digits.empty() || digits.size() > 3 ||
+        digits.find_first_not_of("0123456789") != std::string::npos) {
+      continue;
+    }
+    highest = std::max(highest, std::stoi(digits));
+  }
+  for (int j = 0; j < highest; ++j) {
+    if (!file.has(jointColumn("", j))) return 0;
+  }
+  return highest;
+}
+
+/// Refuses joint targets of a robot with another joint count than the model's, by name: a
+/// program carries no robot name, only its q1_deg … qN_deg columns.
+void requireModelJointCount(const ProgramFile& file, const KinematicChain& model_robot) {
+  const int columns = jointColumnCount(file);
+  const int dof = model_robot.dof();
+  if (columns == 0 || columns == dof) return;
+  file.fail(1, jointColumn("", columns - 1),
+            "joint targets q1_deg … q" + std::to_string(columns) + "_deg are of a robot with " +
+                std::to_string(columns) + " joints; the model was calibrated for a robot with " +
+                std::to_string(dof) + " (" + jointNameList(model_robot) + "), expected q1_deg … q" +
+                std::to_string(dof) + "_deg (hint: a model corrects only the robot it was "
+                "calibrated for)");
+}
+
 /// Reads a program strictly: every error names the file, the line and the column.
-std::vector<ProgramLine> readProgram(const std::string& path, int dof,
+std::vector<ProgramLine> readProgram(const std::string& path, const KinematicChain& model_robot,
                                      const runtime::CallTerms& frame_terms, bool have_seed_option) {
+  const int dof = model_robot.dof();
   const std::string text = readTextFile(path);
   const std::vector<std::string_view> lines = programLines(text, path);
   if (lines.empty() || lines[0].empty()) {
@@ -226,6 +261,7 @@ std::vector<ProgramLine> readProgram(const std::string& path, int dof,
                      path, 1);
   }
   ProgramFile file(path, lines[0]);
+  requireModelJointCount(file, model_robot);
   const std::vector<std::string> known = knownColumns(dof);
   for (const std::string& name : file.names()) {
     if (std::find(known.begin(), known.end(), name) == known.end()) {
@@ -608,7 +644,7 @@ int runCorrect(const CorrectArgs& args) {
   const runtime::CallTerms frame_terms = frameTerms(args);
   const std::optional<JointVector> seed_option = seedOption(args, dof);
   const std::vector<ProgramLine> program =
-      readProgram(args.program, dof, frame_terms, seed_option.has_value());
+      readProgram(args.program, model->file.nominal_Base, frame_terms, seed_option.has_value());
   checkFlangeNeeds(program, *model, args.program);
   std::optional<TwinTruth> truth = readTruth(args.truth, *model);
 

@@ -9,6 +9,7 @@
 #include "interrupt_notice.hpp"
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/model_robot.hpp"
 #include "stepcal/report/diagnosis_report.hpp"
 #include "stepcal/report/report_html.hpp"
 #include "stepcal/trainer/diagnose.hpp"
@@ -45,6 +46,7 @@ void runDiagnose(const std::vector<std::string>& dirs, const std::string& model_
                                       trainer::calibrateCampaign(campaign, options.calibration));
   } else {
     model = readModelFile(model_path);
+    requireCampaignOfModelRobot(model, campaign, model_path);
   }
   const double seconds_calibrate =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "stepcal/common/campaign.hpp"
-#include "stepcal/common/error.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/model_robot.hpp"
 #include "stepcal/report/report.hpp"
 #include "stepcal/trainer/validate.hpp"
 #include "subcommands.hpp"
@@ -30,11 +30,7 @@ void runValidate(const std::string& model_path, const std::string& dir, bool ref
                  const std::string& covered_by, bool json) {
   const CalibratedModel model = readModelFile(model_path);
   const Campaign campaign = readCampaign(dir);
-  if (campaign.joint_count != model.chain_Tracker.dof()) {
-    throw InputError("campaign has " + std::to_string(campaign.joint_count) +
-                         " joints, the model " + std::to_string(model.chain_Tracker.dof()),
-                     dir);
-  }
+  requireCampaignOfModelRobot(model, campaign, model_path);
   std::optional<CalibratedModel> covering;
   if (!covered_by.empty()) covering = readModelFile(covered_by);
   const trainer::ValidationResult v =

@@ -354,7 +354,10 @@ int runCampaign(Args args) {
     throw InputError("--check-model recomputes replies from the requests' wrenches: drop --live-wrench");
   }
   std::optional<ReplyChecker> checker;
-  if (!args.check_models.empty()) checker.emplace(args.check_models);
+  if (!args.check_models.empty()) {
+    checker.emplace(args.check_models);
+    checker->requireRobotOf(campaign.campaign);
+  }
 
   std::vector<const Measurement*> row_of;
   const std::vector<correction_request_t> requests = campaignRequests(args, campaign.rows, row_of);

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "stepcal/common/model_robot.hpp"
 #include "stepcal/service/request.hpp"
 #include "stepcal/service/service.hpp"
 
@@ -15,6 +16,10 @@ ReplyChecker::ReplyChecker(const std::vector<std::string>& model_paths) {
     known.workspace = runtime::makeWorkspace(*known.model);
     models_.push_back(std::move(known));
   }
+}
+
+void ReplyChecker::requireRobotOf(const Campaign& campaign) const {
+  for (const Known& k : models_) requireCampaignOfModelRobot(k.model->file, campaign, k.path);
 }
 
 void ReplyChecker::check(const correction_request_t& request, const correction_reply_t& reply) {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "client.hpp"
+#include "stepcal/common/campaign.hpp"
 
 namespace stepcal::client {
 
@@ -20,6 +21,10 @@ class ReplyChecker {
   static constexpr double kTolerance = 1e-12;
 
   explicit ReplyChecker(const std::vector<std::string>& model_paths);
+
+  /// Throws InputError when a campaign is not of the robot every model was calibrated for
+  /// (model_robot.hpp): its requests would be another robot's joints.
+  void requireRobotOf(const Campaign& campaign) const;
 
   void check(const correction_request_t& request, const correction_reply_t& reply);
   bool passed() const { return mismatched_ == 0 && unknown_model_ == 0; }

@@ -7,6 +7,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/gpr_predictor.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/model_robot.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 
 namespace stepcal::trainer {
@@ -27,6 +28,7 @@ PoseModel withGpr(PoseModel physical, const GprParameters& parameters) {
 ValidationResult validateModel(const CalibratedModel& model, const Campaign& campaign,
                                bool refit_frames, const CalibratedModel* coverage_of) {
   const int n = model.chain_Tracker.dof();
+  requireCampaignOfModelRobot(model, campaign, "");
   diagnosis::requireJointCount(campaign, n);
   std::vector<const Measurement*> rows;
   for (const Measurement& row : campaign.rows) rows.push_back(&row);

@@ -10,7 +10,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/mechanisms/sensor_bias.hpp"
-#include "stepcal/common/urdf.hpp"
+#include "stepcal/common/model_robot.hpp"
 
 namespace stepcal::twin {
 namespace {
@@ -46,26 +46,11 @@ double sigmaOrStated(const std::optional<double>& given, double stated, bool is_
   return stated;
 }
 
-// Refuses a model of another robot than the campaign's: the joints' count and names.
+// Refuses a model of another robot than the campaign's (model_robot.hpp), or one that cannot
+// apply the campaign's loads.
 void requireSameRobot(const CalibratedModel& model, const Campaign& campaign,
                       const std::string& model_path) {
-  const KinematicChain nominal =
-      chainFromUrdf(campaign.urdf_xml, campaign.base_link, campaign.tip_link, {},
-                    campaign.directory.empty() ? campaign.robot_file
-                                               : campaign.directory + "/" + campaign.robot_file);
-  const std::vector<ChainJoint>& a = model.chain_Tracker.joints();
-  const std::vector<ChainJoint>& b = nominal.joints();
-  bool same = a.size() == b.size();
-  for (size_t i = 0; same && i < a.size(); ++i) same = a[i].name == b[i].name;
-  if (!same) {
-    std::string names_a, names_b;
-    for (const ChainJoint& j : a) names_a += (names_a.empty() ? "" : ", ") + j.name;
-    for (const ChainJoint& j : b) names_b += (names_b.empty() ? "" : ", ") + j.name;
-    throw InputError("the model's joints (" + names_a + ") are not the campaign's (" + names_b +
-                         ", " + campaign.base_link + " -> " + campaign.tip_link +
-                         "); expected the campaign of the robot the model was calibrated for",
-                     model_path);
-  }
+  requireCampaignOfModelRobot(model, campaign, model_path);
   bool loaded = false;
   for (const Measurement& row : campaign.rows) loaded = loaded || row.load_kg != 0.0;
   if (loaded && model.sensor_frame < 0) {

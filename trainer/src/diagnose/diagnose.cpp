@@ -11,6 +11,7 @@
 #include "search.hpp"
 #include "session_frames.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/model_robot.hpp"
 #include "stepcal/common/urdf.hpp"
 
 namespace stepcal::trainer {
@@ -201,6 +202,7 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
                    const DiagnoseOptions& options) {
   Diagnosis d;
   const int n = model.chain_Tracker.dof();
+  requireCampaignOfModelRobot(model, campaign, "");
   requireJointCount(campaign, n);
   const std::vector<const Measurement*> rows = fitRowsOf(campaign);
   const FitRows fit = makeFitRows(rows, campaign.tracker, options.folds);

@@ -22,8 +22,8 @@ struct SignatureContext {
   const Diagnosis& diagnosis;
   const PhysicalModel& model;  ///< the extended model, as its rows were measured
   const FitRows& fit;
-  const Evaluation& with;                       ///< the model evaluated at the rows
-  const Eigen::MatrixXd& link_angle_columns;    ///< linearise(model, fit, with.r).link_angle
+  const Evaluation& with;                     ///< the model evaluated at the rows
+  const Eigen::MatrixXd& link_angle_columns;  ///< linearise(model, fit, with.r).link_angle
 
   /// The model without its mechanism at index, evaluated at the rows.
   Evaluation without(size_t index) const;

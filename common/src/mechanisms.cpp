@@ -9,8 +9,6 @@
 #include "mechanisms/kinds.hpp"
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/lie.hpp"
-#include "stepcal/common/mechanisms/joint_coupling.hpp"
-#include "stepcal/common/mechanisms/joint_zero_drift.hpp"
 #include "stepcal/common/mechanisms/sensor_bias.hpp"
 #include "stepcal/common/mechanisms/thermal_expansion.hpp"
 #include "stepcal/common/units.hpp"
@@ -287,10 +285,11 @@ struct CommandedSide {
   const Mechanism* self_weight = nullptr;  ///< the model's self_weight, if any
 };
 
-/// θ₀ = q plus the commanded-angle mechanisms (joint_coupling, joint_zero_drift where temp_c is
-/// known, the transmission profiles), each profile's gate once (it switches the profile and its
-/// share of the geometry), and the wrench less the sensor's bias. profile_slope, when given, gets
-/// each profile's derivative by its commanded angle (zeroed before).
+/// θ₀ = q plus the commanded-angle mechanisms (each kind's MechanismTraits::add_link_angle_offset:
+/// joint_coupling, joint_zero_drift where temp_c is known; and the transmission profiles), each
+/// profile's gate once (it switches the profile and its share of the geometry), and the wrench
+/// less the sensor's bias. profile_slope, when given, gets each profile's derivative by its
+/// commanded angle (zeroed before).
 void commandedSide(const PhysicalModel& model, const JointVector& q_rad, const JointTrig& trig_q,
                    double temp_c, const Vec6& wrench_Sensor, JointVector* profile_slope,
                    CommandedSide& side) noexcept {
@@ -298,13 +297,9 @@ void commandedSide(const PhysicalModel& model, const JointVector& q_rad, const J
   side.wrench_Sensor = wrench_Sensor;
   JointVector& theta0 = side.theta0_rad;
   for (const Mechanism& m : model.mechanisms) {
-    if (m.kind == MechanismKind::kJointCoupling) {
-      theta0(m.joint) += view<mechanism::JointCoupling>(m).ratio() * q_rad(m.source_joint);
-    } else if (m.kind == MechanismKind::kJointZeroDrift) {
-      const mechanism::JointZeroDrift<const double> drift = view<mechanism::JointZeroDrift>(m);
-      if (std::isfinite(temp_c)) {
-        theta0(m.joint) += drift.driftRate_rad_per_k() * (temp_c - drift.referenceTemp_c());
-      }
+    const MechanismTraits* traits = findMechanismTraits(m.kind);
+    if (traits != nullptr && traits->add_link_angle_offset != nullptr) {
+      traits->add_link_angle_offset(m, q_rad, temp_c, theta0);
     } else if (m.kind == MechanismKind::kTransmissionError) {
       const size_t j = static_cast<size_t>(m.joint);
       double gate_slope = 0.0, slope = 0.0;

@@ -15,6 +15,10 @@ const MechanismTraits& jointCouplingTraits() {
       return " (joint " + std::to_string(m.source_joint + 1) + " -> joint " +
              std::to_string(m.joint + 1) + ")";
     };
+    t.add_link_angle_offset = [](const Mechanism& m, const JointVector& q_rad, double,
+                                 JointVector& theta0_rad) noexcept {
+      theta0_rad(m.joint) += view<JointCoupling>(m).ratio() * q_rad(m.source_joint);
+    };
     return t;
   }();
   return traits;

@@ -1,5 +1,7 @@
 #include "stepcal/common/mechanisms/joint_zero_drift.hpp"
 
+#include <cmath>
+
 #include "kinds.hpp"
 
 namespace stepcal::mechanism {
@@ -14,6 +16,13 @@ const MechanismTraits& jointZeroDriftTraits() {
       return {"drift_rad_per_k", "reference_temp_c"};
     };
     t.describe_suffix = jointSuffix;
+    t.add_link_angle_offset = [](const Mechanism& m, const JointVector&, double temp_c,
+                                 JointVector& theta0_rad) noexcept {
+      const JointZeroDrift<const double> drift = view<JointZeroDrift>(m);
+      if (std::isfinite(temp_c)) {
+        theta0_rad(m.joint) += drift.driftRate_rad_per_k() * (temp_c - drift.referenceTemp_c());
+      }
+    };
     return t;
   }();
   return traits;

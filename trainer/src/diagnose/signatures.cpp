@@ -1,36 +1,27 @@
 // Partial-residual plots of the found effects (diagnose.hpp EffectSignature): each effect's
 // value per fit row from the extended model with and without it, and the residual along it.
+// Each kind draws its own (families.hpp KindSignature, in families/<kind>.cpp).
+#include "signatures.hpp"
+
 #include <algorithm>
-#include <cmath>
 #include <numeric>
 
-#include "fit_rows.hpp"
-#include "stepcal/common/mechanisms/thermal_expansion.hpp"
-#include "stepcal/trainer/diagnose.hpp"
+#include "families/families.hpp"
 
 namespace stepcal::trainer {
-namespace {
+namespace diagnosis {
 
-using diagnosis::Evaluation;
-using diagnosis::FitRows;
-
-// Samples of a profile's curve across the rows' range: fine enough for 48 harmonics.
-constexpr int kCurveSamples = 600;
 // Most curve points taken from the rows (a curve sampled at the rows, sorted by x).
 constexpr size_t kRowCurvePoints = 400;
 // A row's direction weaker than this fraction of the median says little about the effect.
 constexpr double kLeverageFraction = 0.25;
 
-/// The model without its mechanism at index.
-PhysicalModel without(const PhysicalModel& model, size_t index) {
+Evaluation SignatureContext::without(size_t index) const {
   PhysicalModel out = model;
   out.mechanisms.erase(out.mechanisms.begin() + static_cast<std::ptrdiff_t>(index));
-  return out;
+  return evaluate(out, fit);
 }
 
-/// Fills x, effect and partial_residual from per-row values and directions (the weighted tip
-/// motion per unit of the effect, fit.equations(i) entries from fit.start[i]), leaving out rows
-/// of weak direction.
 void fillPoints(const FitRows& fit, const Eigen::VectorXd& r, const Eigen::VectorXd& direction,
                 const std::vector<double>& x, const std::vector<double>& effect,
                 EffectSignature& s) {
@@ -55,7 +46,6 @@ void fillPoints(const FitRows& fit, const Eigen::VectorXd& r, const Eigen::Vecto
   }
 }
 
-/// The curve as the effect at the kept rows, in order of x, thinned evenly.
 void curveFromRows(EffectSignature& s) {
   std::vector<size_t> order(s.x.size());
   std::iota(order.begin(), order.end(), size_t{0});
@@ -71,13 +61,9 @@ void curveFromRows(EffectSignature& s) {
   }
 }
 
-/// A link-angle effect on joint `joint` against x (per fit row): its value is the link angle
-/// with it minus without it.
-EffectSignature linkAngleSignature(const Mechanism& m, int joint, const FitRows& fit,
-                                   const Evaluation& with, const Evaluation& without_it,
-                                   const Eigen::MatrixXd& link_angle_columns,
-                                   SignatureVariable variable, int variable_joint,
-                                   const std::vector<double>& x) {
+EffectSignature linkAngleSignature(const SignatureContext& c, const Mechanism& m, int joint,
+                                   const Evaluation& without_it, SignatureVariable variable,
+                                   int variable_joint, const std::vector<double>& x) {
   EffectSignature s;
   s.mechanism = m;
   s.joint = joint;
@@ -85,10 +71,10 @@ EffectSignature linkAngleSignature(const Mechanism& m, int joint, const FitRows&
   s.variable_joint = variable_joint;
   s.response = SignatureResponse::kLinkAngle;
   std::vector<double> effect;
-  for (size_t i = 0; i < fit.rows.size(); ++i) {
-    effect.push_back(with.theta_rad[i](joint) - without_it.theta_rad[i](joint));
+  for (size_t i = 0; i < c.fit.rows.size(); ++i) {
+    effect.push_back(c.with.theta_rad[i](joint) - without_it.theta_rad[i](joint));
   }
-  fillPoints(fit, with.r, link_angle_columns.col(joint), x, effect, s);
+  fillPoints(c.fit, c.with.r, c.link_angle_columns.col(joint), x, effect, s);
   return s;
 }
 
@@ -98,7 +84,6 @@ std::vector<double> jointAngles(const FitRows& fit, int joint) {
   return q;
 }
 
-/// Joint torques of the model, or (self weight) what the mechanism adds to them.
 std::vector<double> jointTorques(const Evaluation& with, const Evaluation* without_it, int joint) {
   std::vector<double> tau;
   for (size_t i = 0; i < with.tau_nm.size(); ++i) {
@@ -107,142 +92,49 @@ std::vector<double> jointTorques(const Evaluation& with, const Evaluation* witho
   return tau;
 }
 
-}  // namespace
+namespace {
 
-std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Diagnosis& diagnosis,
-                                              const DiagnoseOptions& options) {
-  // The fit rows are as measured: a registration drift found goes back in with the tracker frame
-  // it was fitted in (the model file's is the tracker as it last stood).
+/// The extended model as its fit rows were measured: a registration drift found goes back in
+/// with the tracker frame it was fitted in (the model file's is the tracker as it last stood),
+/// and each later campaign's rows go through its own station, tool and joint zeros.
+PhysicalModel modelAsMeasured(const Diagnosis& diagnosis) {
   PhysicalModel model = physicalModelOf(diagnosis.extended_model);
   for (const FoundEffect& e : diagnosis.effects) {
     if (e.mechanism.kind != MechanismKind::kRegistrationDrift) continue;
-    const Pose X_LastFitted = diagnosis::X_FittedLast(e.mechanism).inverse();
+    const Pose X_LastFitted = X_FittedLast(e.mechanism).inverse();
     model.chain_Tracker.setInitialPose(0, X_LastFitted * model.chain_Tracker.initialPose(0));
     model.gravity_Tracker = X_LastFitted.linear() * model.gravity_Tracker;
     model.mechanisms.push_back(e.mechanism);
   }
-  // Several campaigns: each later one's rows through its own station, tool and joint zeros.
   for (const DiagnosedCampaign& c : diagnosis.campaigns) {
     if (!c.frames.parameters.empty()) model.mechanisms.push_back(c.frames);
   }
   for (const FoundEffect& e : diagnosis.effects) {
     if (e.mechanism.kind == MechanismKind::kCampaignJointZero) model.mechanisms.push_back(e.mechanism);
   }
+  return model;
+}
+
+}  // namespace
+}  // namespace diagnosis
+
+std::vector<EffectSignature> effectSignatures(const Campaign& campaign, const Diagnosis& diagnosis,
+                                              const DiagnoseOptions& options) {
+  const PhysicalModel model = diagnosis::modelAsMeasured(diagnosis);
   std::vector<const Measurement*> rows;
   for (const Measurement& row : campaign.rows) {
     if (row.set != RowSet::kValidation) rows.push_back(&row);
   }
-  const FitRows fit = diagnosis::makeFitRows(rows, campaign.tracker, options.folds);
-  const Evaluation with = diagnosis::evaluate(model, fit);
+  const diagnosis::FitRows fit = diagnosis::makeFitRows(rows, campaign.tracker, options.folds);
+  const diagnosis::Evaluation with = diagnosis::evaluate(model, fit);
   const Eigen::MatrixXd link_angle = diagnosis::linearise(model, fit, with.r).link_angle;
+  const diagnosis::SignatureContext context{diagnosis, model, fit, with, link_angle};
 
   std::vector<EffectSignature> signatures;
   for (size_t k = 0; k < model.mechanisms.size(); ++k) {
-    const Mechanism& m = model.mechanisms[k];
-    switch (m.kind) {
-      case MechanismKind::kTransmissionError: {
-        EffectSignature s = linkAngleSignature(m, m.joint, fit, with, diagnosis::evaluate(without(model, k), fit),
-                                               link_angle, SignatureVariable::kJointAngle, m.joint,
-                                               jointAngles(fit, m.joint));
-        if (s.x.empty()) break;
-        const auto [lo, hi] = std::minmax_element(s.x.begin(), s.x.end());
-        for (int i = 0; i < kCurveSamples; ++i) {
-          const double q = *lo + (*hi - *lo) * i / (kCurveSamples - 1);
-          s.curve_x.push_back(q);
-          s.curve_y.push_back(transmissionOffset(m, q));
-        }
-        signatures.push_back(std::move(s));
-        break;
-      }
-      case MechanismKind::kBacklash:
-      case MechanismKind::kNonlinearStiffness:
-      case MechanismKind::kTorsionCurve: {
-        // The joint's torque–deflection beyond its linear compliance, drawn over the torques the
-        // rows span: the curve a gear catalogue gives, less its linear part.
-        EffectSignature s = linkAngleSignature(
-            m, m.joint, fit, with, diagnosis::evaluate(without(model, k), fit), link_angle,
-            SignatureVariable::kJointTorque, m.joint, jointTorques(with, nullptr, m.joint));
-        if (s.x.empty()) break;
-        const auto [lo, hi] = std::minmax_element(s.x.begin(), s.x.end());
-        for (int i = 0; i < kCurveSamples; ++i) {
-          const double tau = *lo + (*hi - *lo) * i / (kCurveSamples - 1);
-          s.curve_x.push_back(tau);
-          s.curve_y.push_back(torqueDeflection(m, tau));
-        }
-        signatures.push_back(std::move(s));
-        break;
-      }
-      case MechanismKind::kJointCoupling: {
-        // A coupling follows the source joint's angle.
-        EffectSignature s = linkAngleSignature(
-            m, m.joint, fit, with, diagnosis::evaluate(without(model, k), fit), link_angle,
-            SignatureVariable::kJointAngle, m.source_joint, jointAngles(fit, m.source_joint));
-        curveFromRows(s);
-        signatures.push_back(std::move(s));
-        break;
-      }
-      case MechanismKind::kSelfWeight: {
-        const Evaluation without_it = diagnosis::evaluate(without(model, k), fit);
-        for (const FoundEffect& e : diagnosis.effects) {
-          if (e.mechanism.kind != MechanismKind::kSelfWeight) continue;
-          for (const int j : e.compliance_joints) {
-            EffectSignature s = linkAngleSignature(m, j, fit, with, without_it, link_angle,
-                                                   SignatureVariable::kJointTorque, j,
-                                                   jointTorques(with, &without_it, j));
-            curveFromRows(s);
-            signatures.push_back(std::move(s));
-          }
-        }
-        break;
-      }
-      case MechanismKind::kThermalExpansion: {
-        // The tip's motion per unit of length scale: lowering T_ref by Δ raises the scale by α Δ
-        // at every row, and the residual (measured − modelled) falls by that motion times α Δ.
-        const double alpha = view<mechanism::ThermalExpansion>(m).expansion_per_k();
-        if (!(alpha != 0.0)) break;
-        constexpr double kScaleStep = 1e-6;
-        PhysicalModel shifted = model;
-        view<mechanism::ThermalExpansion>(shifted.mechanisms[k]).referenceTemp_c() -=
-            kScaleStep / alpha;
-        const Eigen::VectorXd direction = (with.r - diagnosis::residuals(shifted, fit)) / kScaleStep;
-        EffectSignature s;
-        s.mechanism = m;
-        s.variable = SignatureVariable::kTemperature;
-        s.response = SignatureResponse::kLengthScale;
-        std::vector<double> x, effect;
-        for (const Measurement* row : fit.rows) {
-          x.push_back(rowTemperature(*row));
-          effect.push_back(model.linkLengthScale(x.back()) - 1.0);
-        }
-        fillPoints(fit, with.r, direction, x, effect, s);
-        curveFromRows(s);
-        signatures.push_back(std::move(s));
-        break;
-      }
-      case MechanismKind::kJointZeroDrift: {
-        // A joint's zero follows the temperature (rows without one: no drift, no point).
-        std::vector<double> temps;
-        for (const Measurement* row : fit.rows) temps.push_back(rowTemperature(*row));
-        EffectSignature s = linkAngleSignature(
-            m, m.joint, fit, with, diagnosis::evaluate(without(model, k), fit), link_angle,
-            SignatureVariable::kTemperature, -1, temps);
-        for (size_t i = s.x.size(); i-- > 0;) {
-          if (std::isfinite(s.x[i])) continue;
-          s.x.erase(s.x.begin() + static_cast<std::ptrdiff_t>(i));
-          s.effect.erase(s.effect.begin() + static_cast<std::ptrdiff_t>(i));
-          s.partial_residual.erase(s.partial_residual.begin() + static_cast<std::ptrdiff_t>(i));
-          ++s.rows_left_out;
-        }
-        curveFromRows(s);
-        signatures.push_back(std::move(s));
-        break;
-      }
-      case MechanismKind::kSensorBias:
-      case MechanismKind::kProfileGeometry:
-      case MechanismKind::kRegistrationDrift:
-      case MechanismKind::kSessionFrames:
-      case MechanismKind::kCampaignJointZero: break;  // constants of a campaign, not a model's
-    }
+    // Kinds without one are constants of a campaign, not a model's.
+    const diagnosis::KindSignature* kind = diagnosis::findKindSignature(model.mechanisms[k].kind);
+    if (kind != nullptr) kind->append(context, k, signatures);
   }
   return signatures;
 }

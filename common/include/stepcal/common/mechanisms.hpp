@@ -147,6 +147,13 @@ struct MechanismTraits {
   /// none).
   double (*deflection)(const Mechanism& m, double tau_nm, double* derivative) noexcept = nullptr;
   double (*linear_above_nm)(const Mechanism& m) noexcept = nullptr;
+  /// A kind that moves the commanded link angles θ₀ by a term of its own (joint_coupling,
+  /// joint_zero_drift; physicalLinkAngles): adds it at the commanded angles q_rad and temperature
+  /// temp_c (NaN: not known) to theta0_rad, in place (its rounding is the sum's). Null: none.
+  /// Allocation-free. The transmission profiles, whose gate also switches their geometry, stay
+  /// in physicalLinkAngles.
+  void (*add_link_angle_offset)(const Mechanism& m, const JointVector& q_rad, double temp_c,
+                                JointVector& theta0_rad) noexcept = nullptr;
 };
 
 /// Every kind's traits, in the order of MechanismKind.

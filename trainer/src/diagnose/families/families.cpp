@@ -27,6 +27,18 @@ const KindFit* findKindFit(MechanismKind kind) {
   return nullptr;
 }
 
+const KindSignature* findKindSignature(MechanismKind kind) {
+  static const std::vector<const KindSignature*> signatures = {
+      &transmissionErrorSignature(), &backlashSignature(),        &nonlinearStiffnessSignature(),
+      &torsionCurveSignature(),      &jointCouplingSignature(),   &selfWeightSignature(),
+      &thermalExpansionSignature(),  &jointZeroDriftSignature(),
+  };
+  for (const KindSignature* signature : signatures) {
+    if (signature->kind == kind) return signature;
+  }
+  return nullptr;
+}
+
 bool FamilyContext::wanted(MechanismKind kind, int joint, int source) const {
   return scope.families &&
          (scope.only == nullptr || (scope.only->kind == kind && scope.only->joint == joint &&

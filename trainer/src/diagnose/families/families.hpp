@@ -9,6 +9,7 @@
 
 #include "../candidates.hpp"
 #include "../screening_columns.hpp"
+#include "../signatures.hpp"
 
 namespace stepcal::trainer::diagnosis {
 
@@ -83,6 +84,28 @@ const KindFit& thermalExpansionFit();
 const KindFit& registrationDriftFit();
 const KindFit& jointZeroDriftFit();
 const KindFit& sessionFramesFit();
+
+/// How the diagnosis draws a found effect of a kind against its own variable (diagnose.hpp
+/// EffectSignature). One per kind that has one, in families/<kind>.cpp, listed in
+/// findKindSignature (families.cpp); a kind without one (a campaign's constants) draws none.
+struct KindSignature {
+  MechanismKind kind;
+  /// Appends the signatures of the model's mechanism at index (context.model.mechanisms).
+  void (*append)(const SignatureContext& context, size_t index,
+                 std::vector<EffectSignature>& signatures) = nullptr;
+};
+/// A kind's signature; null: none.
+const KindSignature* findKindSignature(MechanismKind kind);
+
+// One per file (families/<kind>.cpp), for the kinds that draw one.
+const KindSignature& backlashSignature();
+const KindSignature& nonlinearStiffnessSignature();
+const KindSignature& torsionCurveSignature();
+const KindSignature& transmissionErrorSignature();
+const KindSignature& jointCouplingSignature();
+const KindSignature& selfWeightSignature();
+const KindSignature& thermalExpansionSignature();
+const KindSignature& jointZeroDriftSignature();
 
 /// A mechanism of a kind at zero, sized for an n-joint chain.
 Mechanism blank(MechanismKind kind, int dof, int joint = -1, int source = -1, int order = 0);

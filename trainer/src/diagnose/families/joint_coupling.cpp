@@ -22,4 +22,19 @@ void jointCouplingFamilies(const FamilyContext& c) {
   }
 }
 
+const KindSignature& jointCouplingSignature() {
+  // A coupling follows the source joint's angle.
+  static const KindSignature signature{
+      MechanismKind::kJointCoupling,
+      [](const SignatureContext& c, size_t index, std::vector<EffectSignature>& signatures) {
+        const Mechanism& m = c.model.mechanisms[index];
+        EffectSignature s =
+            linkAngleSignature(c, m, m.joint, c.without(index), SignatureVariable::kJointAngle,
+                               m.source_joint, jointAngles(c.fit, m.source_joint));
+        curveFromRows(s);
+        signatures.push_back(std::move(s));
+      }};
+  return signature;
+}
+
 }  // namespace stepcal::trainer::diagnosis

@@ -1,4 +1,5 @@
 // joint_zero_drift: a joint's zero moving with temperature (families.hpp).
+#include <cmath>
 #include <cstdio>
 
 #include "families.hpp"
@@ -56,6 +57,34 @@ const KindFit& jointZeroDriftFit() {
     return f;
   }();
   return fit;
+}
+
+namespace {
+
+/// A joint's zero follows the temperature (rows without one: no drift, no point).
+void jointZeroDriftSignatures(const SignatureContext& c, size_t index,
+                              std::vector<EffectSignature>& signatures) {
+  const Mechanism& m = c.model.mechanisms[index];
+  std::vector<double> temps;
+  for (const Measurement* row : c.fit.rows) temps.push_back(rowTemperature(*row));
+  EffectSignature s = linkAngleSignature(c, m, m.joint, c.without(index),
+                                         SignatureVariable::kTemperature, -1, temps);
+  for (size_t i = s.x.size(); i-- > 0;) {
+    if (std::isfinite(s.x[i])) continue;
+    s.x.erase(s.x.begin() + static_cast<std::ptrdiff_t>(i));
+    s.effect.erase(s.effect.begin() + static_cast<std::ptrdiff_t>(i));
+    s.partial_residual.erase(s.partial_residual.begin() + static_cast<std::ptrdiff_t>(i));
+    ++s.rows_left_out;
+  }
+  curveFromRows(s);
+  signatures.push_back(std::move(s));
+}
+
+}  // namespace
+
+const KindSignature& jointZeroDriftSignature() {
+  static const KindSignature signature{MechanismKind::kJointZeroDrift, jointZeroDriftSignatures};
+  return signature;
 }
 
 }  // namespace stepcal::trainer::diagnosis

@@ -80,4 +80,25 @@ const KindFit& selfWeightFit() {
   return fit;
 }
 
+const KindSignature& selfWeightSignature() {
+  // Each compliant joint's link angle against the torque the weight adds to it.
+  static const KindSignature signature{
+      MechanismKind::kSelfWeight,
+      [](const SignatureContext& c, size_t index, std::vector<EffectSignature>& signatures) {
+        const Mechanism& m = c.model.mechanisms[index];
+        const Evaluation without_it = c.without(index);
+        for (const FoundEffect& e : c.diagnosis.effects) {
+          if (e.mechanism.kind != MechanismKind::kSelfWeight) continue;
+          for (const int j : e.compliance_joints) {
+            EffectSignature s =
+                linkAngleSignature(c, m, j, without_it, SignatureVariable::kJointTorque, j,
+                                   jointTorques(c.with, &without_it, j));
+            curveFromRows(s);
+            signatures.push_back(std::move(s));
+          }
+        }
+      }};
+  return signature;
+}
+
 }  // namespace stepcal::trainer::diagnosis

@@ -45,4 +45,41 @@ const KindFit& thermalExpansionFit() {
   return fit;
 }
 
+namespace {
+
+/// The length scale against the rows' temperatures. The tip's motion per unit of length scale:
+/// lowering T_ref by Δ raises the scale by α Δ at every row, and the residual (measured −
+/// modelled) falls by that motion times α Δ.
+void thermalExpansionSignatures(const SignatureContext& c, size_t index,
+                                std::vector<EffectSignature>& signatures) {
+  const Mechanism& m = c.model.mechanisms[index];
+  const double alpha = view<mechanism::ThermalExpansion>(m).expansion_per_k();
+  if (!(alpha != 0.0)) return;
+  constexpr double kScaleStep = 1e-6;
+  PhysicalModel shifted = c.model;
+  view<mechanism::ThermalExpansion>(shifted.mechanisms[index]).referenceTemp_c() -=
+      kScaleStep / alpha;
+  const Eigen::VectorXd direction = (c.with.r - residuals(shifted, c.fit)) / kScaleStep;
+  EffectSignature s;
+  s.mechanism = m;
+  s.variable = SignatureVariable::kTemperature;
+  s.response = SignatureResponse::kLengthScale;
+  std::vector<double> x, effect;
+  for (const Measurement* row : c.fit.rows) {
+    x.push_back(rowTemperature(*row));
+    effect.push_back(c.model.linkLengthScale(x.back()) - 1.0);
+  }
+  fillPoints(c.fit, c.with.r, direction, x, effect, s);
+  curveFromRows(s);
+  signatures.push_back(std::move(s));
+}
+
+}  // namespace
+
+const KindSignature& thermalExpansionSignature() {
+  static const KindSignature signature{MechanismKind::kThermalExpansion,
+                                       thermalExpansionSignatures};
+  return signature;
+}
+
 }  // namespace stepcal::trainer::diagnosis

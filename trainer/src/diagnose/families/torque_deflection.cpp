@@ -290,4 +290,37 @@ const KindFit& torsionCurveFit() {
   return fit;
 }
 
+namespace {
+
+/// The joint's torque–deflection beyond its linear compliance, drawn over the torques the rows
+/// span: the curve a gear catalogue gives, less its linear part.
+void torqueDeflectionSignature(const SignatureContext& c, size_t index,
+                               std::vector<EffectSignature>& signatures) {
+  const Mechanism& m = c.model.mechanisms[index];
+  EffectSignature s =
+      linkAngleSignature(c, m, m.joint, c.without(index), SignatureVariable::kJointTorque, m.joint,
+                         jointTorques(c.with, nullptr, m.joint));
+  if (s.x.empty()) return;
+  curveSampled(s, [&](double tau) { return torqueDeflection(m, tau); });
+  signatures.push_back(std::move(s));
+}
+
+}  // namespace
+
+const KindSignature& backlashSignature() {
+  static const KindSignature signature{MechanismKind::kBacklash, torqueDeflectionSignature};
+  return signature;
+}
+
+const KindSignature& nonlinearStiffnessSignature() {
+  static const KindSignature signature{MechanismKind::kNonlinearStiffness,
+                                       torqueDeflectionSignature};
+  return signature;
+}
+
+const KindSignature& torsionCurveSignature() {
+  static const KindSignature signature{MechanismKind::kTorsionCurve, torqueDeflectionSignature};
+  return signature;
+}
+
 }  // namespace stepcal::trainer::diagnosis

@@ -37,4 +37,20 @@ void transmissionErrorFamilies(const FamilyContext& c) {
   }
 }
 
+const KindSignature& transmissionErrorSignature() {
+  // The profile against its joint's commanded angle, drawn across the angles the rows span.
+  static const KindSignature signature{
+      MechanismKind::kTransmissionError,
+      [](const SignatureContext& c, size_t index, std::vector<EffectSignature>& signatures) {
+        const Mechanism& m = c.model.mechanisms[index];
+        EffectSignature s =
+            linkAngleSignature(c, m, m.joint, c.without(index), SignatureVariable::kJointAngle,
+                               m.joint, jointAngles(c.fit, m.joint));
+        if (s.x.empty()) return;
+        curveSampled(s, [&](double q) { return transmissionOffset(m, q); });
+        signatures.push_back(std::move(s));
+      }};
+  return signature;
+}
+
 }  // namespace stepcal::trainer::diagnosis

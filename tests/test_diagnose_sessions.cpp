@@ -102,7 +102,7 @@ TEST(DiagnoseSessions, OneBacklashForBothAndTheMovedZeroAreNamed) {
   // Measured +302.3 ± 1.4 µrad.
   EXPECT_NEAR(view<mechanism::CampaignJointZero>(z).offset_rad(1), kMovedZeroRad, 0.05 * kMovedZeroRad);
   EXPECT_NEAR(view<mechanism::CampaignJointZero>(z).offset_rad(1), kMovedZeroRad, 4.0 * z.sigma[0] + 1e-6);
-  const std::string text = cli::formatDiagnosis(d, 0.0);
+  const std::string text = report::formatDiagnosis(d, 0.0);
   EXPECT_NE(text.find("joint 3's zero differs from the first campaign's by +30"), std::string::npos)
       << text;
   // The poses are counted per campaign: both campaigns use the same pose_ids.
@@ -223,7 +223,7 @@ TEST(DiagnoseSessions, AProfileThatDiffersBetweenCampaignsIsNamedAndOneThatDoesN
   EXPECT_TRUE(named.score.significant);
   EXPECT_GT(named.score.relative_reduction, 0.2);
   EXPECT_NEAR(named.rms_rad, 0.6e-4 / std::sqrt(2.0), 15e-6);
-  const std::string text = cli::formatDiagnosis(changed, 0.0);
+  const std::string text = report::formatDiagnosis(changed, 0.0);
   EXPECT_NE(text.find("joint 3's profile: differs here"), std::string::npos) << text;
 }
 

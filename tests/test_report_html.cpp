@@ -39,7 +39,7 @@ Rendered simulateAndRender(const std::string& protocol) {
   r.campaign = twin::simulateCampaign(options, nullptr);
   r.campaign.directory = "/campaigns/irb4400-" + protocol;
   r.outcome = trainer::calibrateCampaign(r.campaign);
-  r.html = cli::htmlReport(r.campaign, r.outcome);
+  r.html = report::htmlReport(r.campaign, r.outcome);
   return r;
 }
 
@@ -272,7 +272,7 @@ TEST(HtmlReport, IsCompact) {
 TEST(HtmlReport, EscapesTheCampaignPath) {
   Rendered r = paperReport();
   r.campaign.directory = "/data/odd <&> \"name\" 'x'";
-  const std::string html = cli::htmlReport(r.campaign, r.outcome);
+  const std::string html = report::htmlReport(r.campaign, r.outcome);
   EXPECT_NE(html.find("/data/odd &lt;&amp;&gt; &quot;name&quot; &#39;x&#39;"), std::string::npos);
   EXPECT_EQ(html.find("<&>"), std::string::npos);
   EXPECT_EQ(structuralProblem(html), "");
@@ -305,7 +305,7 @@ const RenderedDiagnosis& backlashDiagnosis() {
     r.campaign.directory = "/campaigns/backlash";
     r.diagnosis = trainer::diagnose(
         r.campaign, trainer::modelFromOutcome(r.campaign, trainer::calibrateCampaign(r.campaign)));
-    r.html = cli::diagnosisHtml(r.campaign, r.diagnosis);
+    r.html = report::diagnosisHtml(r.campaign, r.diagnosis);
     return r;
   }();
   return rendered;

@@ -278,14 +278,14 @@ TEST(Sessions, AFrameIsKeptPerCampaignOnlyWhenItRemovesAPracticalShare) {
   d.shared_held_out_m = 0.45e-3;
   d.held_out_gain_m = 0.05 * d.shared_held_out_m;
   d.z_statistic = 6.8;
-  const std::string shared = cli::frameVerdictText(d);
+  const std::string shared = report::frameVerdictText(d);
   EXPECT_NE(shared.find("significant (z 6.8) but removes only 5.0 % of the held-out error: kept shared"),
             std::string::npos) << shared;
   EXPECT_NE(shared.find("a change of the robot removes most of it"), std::string::npos) << shared;
   d.held_out_gain_m = 0.60 * d.shared_held_out_m;
   d.kept_per_session = true;
-  EXPECT_NE(cli::frameVerdictText(d).find("60.0 % of the held-out error: kept per campaign"),
-            std::string::npos) << cli::frameVerdictText(d);
+  EXPECT_NE(report::frameVerdictText(d).find("60.0 % of the held-out error: kept per campaign"),
+            std::string::npos) << report::frameVerdictText(d);
 }
 
 // Joint 3's zero moved by only 40 µrad between the campaigns: the frames beside it are named
@@ -313,11 +313,11 @@ TEST(Sessions, ASignificantFrameBelowThePracticalShareStaysShared) {
   }
   EXPECT_TRUE(outcome.poe.own_frames.empty()) << "every joint frame shared";
 
-  const std::string text = cli::formatReport(merged, outcome);
+  const std::string text = report::formatReport(merged, outcome);
   EXPECT_NE(text.find("but removes only"), std::string::npos) << text;
   EXPECT_NE(text.find("kept shared; a change of the robot removes most of it"), std::string::npos) << text;
   EXPECT_NE(text.find("the fit keeps every joint frame shared"), std::string::npos) << text;
-  const nlohmann::json report = cli::reportJson(merged, outcome);
+  const nlohmann::json report = report::reportJson(merged, outcome);
   EXPECT_TRUE(report["per_campaign_frames"].empty()) << report["per_campaign_frames"];
   const nlohmann::json& joint3 = report["session_differences"][1];
   EXPECT_EQ(joint3["differs"], true) << joint3;
@@ -373,10 +373,10 @@ TEST(Sessions, ACampaignWithoutLoadedPairsLeavesTheCompliancesUntested) {
   EXPECT_EQ(all.untested_sessions, (std::vector<int>{0}));
   EXPECT_NE(all.not_tested.find("fewer than two campaigns have loaded pairs"), std::string::npos)
       << all.not_tested;
-  const std::string text = cli::formatReport(merged, outcome);
+  const std::string text = report::formatReport(merged, outcome);
   EXPECT_NE(text.find("per joint compliance"), std::string::npos) << text;
   EXPECT_NE(text.find("not tested: fewer than two campaigns"), std::string::npos) << text;
-  EXPECT_EQ(cli::reportJson(merged, outcome)["compliance_differences"]["tested"], false);
+  EXPECT_EQ(report::reportJson(merged, outcome)["compliance_differences"]["tested"], false);
 }
 
 TEST(Sessions, CampaignsTooSmallForTheFrameTestAreCalibratedWithoutIt) {

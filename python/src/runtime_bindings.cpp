@@ -385,7 +385,7 @@ void bindRuntime(py::module_& m) {
            }, "whether the model knows the robot's flange (its campaign's flange_link), so that "
               "tools and centres of gravity may be given from it")
       .def("describe", [](const ModelHandle& self) {
-             return cli::formatModel(self.runtime()->file, serializeModel(self.runtime()->file).size());
+             return report::formatModel(self.runtime()->file, serializeModel(self.runtime()->file).size());
            }, "what the model holds, as `stepcal inspect` prints it")
       .def("correct_forward", &correctForward, py::arg("q"), py::arg("wrench") = py::none(),
            py::arg("temp_c") = std::numeric_limits<double>::quiet_NaN(),

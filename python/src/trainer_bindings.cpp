@@ -127,7 +127,7 @@ py::object calibrate(const CampaignPtr& campaign, int gpr_points) {
     const py::gil_scoped_release unlocked;
     outcome = trainer::calibrateCampaign(*campaign, options);
     model = trainer::modelFromOutcome(*campaign, *outcome);
-    report = cli::reportJson(*campaign, *outcome);
+    report = report::reportJson(*campaign, *outcome);
   }
   py::dict row_errors;
   for (const auto& [method, errors] : outcome->row_errors) {
@@ -138,7 +138,7 @@ py::object calibrate(const CampaignPtr& campaign, int gpr_points) {
   py::dict fields;
   fields["report"] = toPython(report);
   // Every row group (the report's validation and fit tables), each with its set.
-  fields["accuracy"] = columnsOf(cli::accuracyJson(outcome->accuracy));
+  fields["accuracy"] = columnsOf(report::accuracyJson(outcome->accuracy));
   fields["stiffness"] = columnsOf(report.at("stiffness_nm_per_rad"));
   fields["row_position_errors_mm"] = row_errors;
   fields["model"] = py::cast(ModelHandle(std::move(*model)));
@@ -179,7 +179,7 @@ py::object diagnose(const CampaignPtr& campaign, const std::optional<ModelHandle
     const double seconds_calibrate =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
     diagnosis = trainer::diagnose(*campaign, model, options);
-    report = cli::diagnosisJson(*diagnosis, seconds_calibrate);
+    report = report::diagnosisJson(*diagnosis, seconds_calibrate);
   }
   py::dict fields;
   fields["verdict"] = report.at("verdict").get<std::string>();

@@ -37,7 +37,7 @@ using namespace stepcal;
 /// At the fewest poses, the plan's error against the truth must be below this share of each
 /// random campaign's (measured 0.60–0.62 with the default seeds).
 constexpr double kMaxShareOfRandom = 0.8;
-namespace html = stepcal::cli::html;
+namespace html = stepcal::report::html;
 
 /// poe+stiffness's mean position error over every validation row of a calibrated campaign, m.
 double validationError(const Campaign& campaign) {

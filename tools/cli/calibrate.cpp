@@ -36,7 +36,7 @@ void runCalibrate(const std::vector<std::string>& dirs, const std::string& model
   const trainer::CalibrationOutcome outcome = trainer::calibrateCampaign(campaign, options);
   if (!report_out.empty()) {
     notice.write(report_out, "report",
-                 [&] { writeReport(report_out, cli::htmlReport(campaign, outcome)); });
+                 [&] { writeReport(report_out, report::htmlReport(campaign, outcome)); });
   }
   if (!model_out.empty()) {
     notice.write(model_out, "model", [&] {
@@ -44,9 +44,9 @@ void runCalibrate(const std::vector<std::string>& dirs, const std::string& model
     });
   }
   if (json) {
-    std::cout << cli::reportJson(campaign, outcome).dump(2) << "\n";
+    std::cout << report::reportJson(campaign, outcome).dump(2) << "\n";
   } else {
-    std::cout << cli::formatReport(campaign, outcome);
+    std::cout << report::formatReport(campaign, outcome);
   }
 }
 

@@ -35,6 +35,8 @@
 namespace stepcal::cli {
 namespace {
 
+using report::format;
+
 constexpr int kStatusCount = 7;
 
 struct CorrectArgs {

@@ -53,15 +53,15 @@ void runDiagnose(const std::vector<std::string>& dirs, const std::string& model_
   const trainer::Diagnosis diagnosis = trainer::diagnose(campaign, model, options);
   if (!report_out.empty()) {
     notice.write(report_out, "report",
-                 [&] { writeReport(report_out, cli::diagnosisHtml(campaign, diagnosis)); });
+                 [&] { writeReport(report_out, report::diagnosisHtml(campaign, diagnosis)); });
   }
   if (!model_out.empty()) {
     notice.write(model_out, "model", [&] { writeModelFile(diagnosis.extended_model, model_out); });
   }
   if (json) {
-    std::cout << cli::diagnosisJson(diagnosis, seconds_calibrate).dump(2) << "\n";
+    std::cout << report::diagnosisJson(diagnosis, seconds_calibrate).dump(2) << "\n";
   } else {
-    std::cout << cli::formatDiagnosis(diagnosis, seconds_calibrate);
+    std::cout << report::formatDiagnosis(diagnosis, seconds_calibrate);
   }
 }
 

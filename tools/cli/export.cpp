@@ -69,7 +69,7 @@ void runExportUrdf(const std::string& model_path, const std::string& campaign_di
   for (const double load_kg : loads_kg) {
     for (const std::string& method : {std::string(trainer::kMethodPoe), full}) {
       for (const ValidationFigure& v : model.provenance.validation) {
-        if (v.method == method && v.load_kg == load_kg) std::cout << cli::formatValidationFigure(v);
+        if (v.method == method && v.load_kg == load_kg) std::cout << report::formatValidationFigure(v);
       }
     }
   }

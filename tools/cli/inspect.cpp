@@ -17,7 +17,7 @@ Subcommand addInspectCommand(CLI::App& app) {
   inspect->add_option("model", *model_path, "model file")->required();
   return {inspect, [model_path] {
             const std::string bytes = readTextFile(*model_path);
-            std::cout << cli::formatModel(parseModel(reinterpret_cast<const uint8_t*>(bytes.data()),
+            std::cout << report::formatModel(parseModel(reinterpret_cast<const uint8_t*>(bytes.data()),
                                                      bytes.size(), *model_path),
                                           bytes.size());
           }};

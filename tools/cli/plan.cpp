@@ -107,7 +107,7 @@ void runPlan(PlanArgs a) {
   const trainer::CampaignPlan plan = trainer::planCampaign(chain, sensor ? 0 : -1, a.options);
   writePoseList(plan.rows, a.out);
   std::cerr << "wrote " << a.out << "\n";
-  std::cout << cli::formatPlan(plan, a.options);
+  std::cout << report::formatPlan(plan, a.options);
 }
 
 }  // namespace

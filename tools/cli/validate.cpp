@@ -38,14 +38,14 @@ void runValidate(const std::string& model_path, const std::string& dir, bool ref
   std::vector<trainer::AccuracySummary> summaries = v.all;
   summaries.insert(summaries.end(), v.covered.begin(), v.covered.end());
   if (json) {
-    std::cout << cli::accuracyJson(summaries).dump(2) << "\n";
+    std::cout << report::accuracyJson(summaries).dump(2) << "\n";
   } else {
     std::cout << "model " << model_path << " (campaign " << model.provenance.campaign_path
               << ") on " << dir << ": " << v.rows << " rows";
     if (!v.covered.empty() || v.covered_rows > 0 || covering) {
       std::cout << ", " << v.covered_rows << " inside every transmission profile's coverage";
     }
-    std::cout << "\n" << cli::formatAccuracyTable(summaries);
+    std::cout << "\n" << report::formatAccuracyTable(summaries);
   }
 }
 

@@ -14,7 +14,7 @@
 #include "stepcal/common/units.hpp"
 #include "stepcal/report/text_format.hpp"
 
-namespace stepcal::cli {
+namespace stepcal::report {
 namespace {
 
 std::vector<std::string> parameterNames(const Mechanism& m) {
@@ -615,4 +615,4 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
   return j;
 }
 
-}  // namespace stepcal::cli
+}  // namespace stepcal::report

@@ -12,7 +12,7 @@
 #include "stepcal/report/session_report.hpp"
 #include "stepcal/report/text_format.hpp"
 
-namespace stepcal::cli {
+namespace stepcal::report {
 namespace {
 
 // NaN (no orientation measured) becomes null in JSON.
@@ -417,4 +417,4 @@ std::string formatPlan(const trainer::CampaignPlan& plan, const trainer::PlanOpt
   return out.str();
 }
 
-}  // namespace stepcal::cli
+}  // namespace stepcal::report

@@ -6,7 +6,7 @@
 #include "stepcal/common/units.hpp"
 #include "stepcal/report/text_format.hpp"
 
-namespace stepcal::cli {
+namespace stepcal::report {
 namespace {
 
 constexpr double kMicro = 1e6;
@@ -208,4 +208,4 @@ void addCampaignDifferencesJson(const Campaign& campaign, const trainer::Calibra
                                       {"joints", joints}};
 }
 
-}  // namespace stepcal::cli
+}  // namespace stepcal::report

@@ -16,7 +16,7 @@
 #include "stepcal/report/session_report.hpp"
 #include "stepcal/report/text_format.hpp"
 
-namespace stepcal::cli {
+namespace stepcal::report {
 namespace {
 
 using namespace html;
@@ -754,4 +754,4 @@ std::string htmlReport(const Campaign& campaign, const trainer::CalibrationOutco
   return PageWriter(campaign, outcome).write();
 }
 
-}  // namespace stepcal::cli
+}  // namespace stepcal::report

@@ -10,7 +10,7 @@
 #include "stepcal/report/text_format.hpp"
 #include "svg_frame.hpp"
 
-namespace stepcal::cli::html {
+namespace stepcal::report::html {
 namespace {
 
 /// The value at fraction p of sorted values, interpolated linearly.
@@ -382,4 +382,4 @@ std::string renderStrips(const StripChart& chart) {
   return out.str();
 }
 
-}  // namespace stepcal::cli::html
+}  // namespace stepcal::report::html

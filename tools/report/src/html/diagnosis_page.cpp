@@ -12,7 +12,7 @@
 #include "stepcal/report/report_html.hpp"
 #include "stepcal/report/text_format.hpp"
 
-namespace stepcal::cli {
+namespace stepcal::report {
 namespace {
 
 using namespace html;
@@ -301,4 +301,4 @@ std::string diagnosisHtml(const Campaign& campaign, const trainer::Diagnosis& di
   return DiagnosisPage(campaign, diagnosis).write();
 }
 
-}  // namespace stepcal::cli
+}  // namespace stepcal::report

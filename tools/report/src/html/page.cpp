@@ -5,7 +5,7 @@
 
 #include "stepcal/report/text_format.hpp"
 
-namespace stepcal::cli::html {
+namespace stepcal::report::html {
 
 std::string escape(std::string_view text) {
   std::string out;
@@ -87,4 +87,4 @@ std::string pageEnd() {
          "</script>\n</body>\n</html>\n";
 }
 
-}  // namespace stepcal::cli::html
+}  // namespace stepcal::report::html

@@ -6,7 +6,7 @@
 #include "stepcal/report/html/page.hpp"
 #include "stepcal/report/text_format.hpp"
 
-namespace stepcal::cli::html {
+namespace stepcal::report::html {
 namespace {
 
 /// 1, 2 or 5 × 10^k nearest above raw.
@@ -205,4 +205,4 @@ SvgFrame::SvgFrame(std::ostringstream& out, const std::string& title, const std:
   }
 }
 
-}  // namespace stepcal::cli::html
+}  // namespace stepcal::report::html

@@ -13,7 +13,7 @@
 #include "stepcal/report/html/page.hpp"
 #include "stepcal/report/text_format.hpp"
 
-namespace stepcal::cli::html {
+namespace stepcal::report::html {
 
 inline constexpr double kPlotHeight = 250.0;  ///< height of a line plot's data area, px
 inline constexpr double kMarginLeft = 64.0, kMarginRight = 18.0, kMarginBottom = 42.0;  ///< px
@@ -167,4 +167,4 @@ void extend(double& lo, double& hi, double v);
 /// Legend entries of the reference lines an axis of this scale can show.
 std::vector<LegendEntry> referenceEntries(Scale scale, const std::vector<ReferenceLine>& references);
 
-}  // namespace stepcal::cli::html
+}  // namespace stepcal::report::html

@@ -7,7 +7,7 @@
 
 #include "stepcal/trainer/diagnose.hpp"
 
-namespace stepcal::cli {
+namespace stepcal::report {
 
 /// The diagnosis as text: what the physical model gets wrong, the candidates that stood out,
 /// the verdict with parameters and 1-σ, the gain per validation load, where the time went.
@@ -67,4 +67,4 @@ std::string campaignFrameText(const Mechanism& frames, bool tool);
 /// The joint angles a profile covers, deg, e.g. "covers 52..180 deg".
 std::string coverageText(const Mechanism& profile);
 
-}  // namespace stepcal::cli
+}  // namespace stepcal::report

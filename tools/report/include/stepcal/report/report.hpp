@@ -10,7 +10,7 @@
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/trainer/plan.hpp"
 
-namespace stepcal::cli {
+namespace stepcal::report {
 
 /// What session k of a merged campaign fitted, against the first session.
 struct SessionSummary {
@@ -45,4 +45,4 @@ nlohmann::json accuracyJson(const std::vector<trainer::AccuracySummary>& summari
 /// selected poses' coverage of every joint's range.
 std::string formatPlan(const trainer::CampaignPlan& plan, const trainer::PlanOptions& options);
 
-}  // namespace stepcal::cli
+}  // namespace stepcal::report

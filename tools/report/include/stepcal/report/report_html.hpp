@@ -7,7 +7,7 @@
 #include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 
-namespace stepcal::cli {
+namespace stepcal::report {
 
 /// A self-contained HTML page (inline SVG, one inline script that checks the charts, no external
 /// files; html/page.hpp) with the calibration's figures and tables.
@@ -26,4 +26,4 @@ std::string htmlReport(const Campaign& campaign, const trainer::CalibrationOutco
 /// gain table.
 std::string diagnosisHtml(const Campaign& campaign, const trainer::Diagnosis& diagnosis);
 
-}  // namespace stepcal::cli
+}  // namespace stepcal::report

@@ -11,7 +11,7 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 
-namespace stepcal::cli {
+namespace stepcal::report {
 
 /// Session s's frame difference in the joint's terms, e.g. "joint_3's zero differs between A and
 /// B by +300 ± 4 µrad; the rest of the frame: rotation 4 ± 5 µrad, translation 2 ± 3 µm".
@@ -48,4 +48,4 @@ nlohmann::json sessionDifferencesJson(const Campaign& campaign, const trainer::C
 void addCampaignDifferencesJson(const Campaign& campaign, const trainer::CalibrationOutcome& outcome,
                                 nlohmann::json& report);
 
-}  // namespace stepcal::cli
+}  // namespace stepcal::report

@@ -6,7 +6,7 @@
 #include <cstdio>
 #include <string>
 
-namespace stepcal::cli {
+namespace stepcal::report {
 
 inline std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
 inline std::string format(const char* fmt, ...) {
@@ -22,4 +22,4 @@ inline std::string format(const char* fmt, ...) {
   return out;
 }
 
-}  // namespace stepcal::cli
+}  // namespace stepcal::report

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-namespace stepcal::cli::html {
+namespace stepcal::report::html {
 
 inline constexpr double kPanelWidth = 660.0;  ///< px
 
@@ -161,4 +161,4 @@ struct StripChart {
 
 std::string renderStrips(const StripChart& chart);
 
-}  // namespace stepcal::cli::html
+}  // namespace stepcal::report::html

@@ -7,7 +7,7 @@
 
 #include "stepcal/common/units.hpp"
 
-namespace stepcal::cli::html {
+namespace stepcal::report::html {
 
 inline constexpr double kMicro = 1e6;  ///< rad → µrad, 1 → ppm
 
@@ -30,4 +30,4 @@ std::string pageHead(const std::string& title);
 /// data-page-height (for a full-page screenshot). Nothing is fetched.
 std::string pageEnd();
 
-}  // namespace stepcal::cli::html
+}  // namespace stepcal::report::html

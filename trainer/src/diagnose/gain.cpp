@@ -4,6 +4,7 @@
 
 #include "search.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/mechanisms/registration_drift.hpp"
 
 namespace stepcal::trainer::diagnosis {
 namespace {
@@ -12,10 +13,15 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// A row as the tracker would have measured it standing as at the last fit row (drift: the found
-// model's, or null: the row as measured). Rows after the fit rows are measured there already.
+// A row as the tracker would have measured it standing as it last stood, the extended model's
+// tracker frame (X_FittedLast; drift: the found model's, or null: the row as measured). Rows after
+// the fit rows were measured by the tracker as it went on standing, which that frame stands for:
+// they are taken as measured, so the held-out error here is the one `stepcal validate` gives on
+// the model file (one definition; the drift's value at the last fit row gave another).
 Measurement withoutDrift(Measurement row, const Mechanism* drift) {
   if (drift == nullptr) return row;
+  const double last_fit_seq = view<mechanism::RegistrationDrift>(*drift).lastSeq();
+  if (static_cast<double>(row.seq) > last_fit_seq) return row;
   const Pose X_Undrift =
       X_FittedLast(*drift) * lie::expSE3(-registrationDrift(*drift, static_cast<double>(row.seq)));
   row.p_TipInTracker_m = X_Undrift * row.p_TipInTracker_m;

@@ -1,0 +1,580 @@
+#!/usr/bin/env python3
+"""The first day, checked: runs the commands README.md and docs/*.md show, as they show them, and
+compares the figures the docs print beside them with what the commands print, at the docs'
+printed precision.
+
+The docs stay the only place the figures are written. This file says, per documented run, which
+commands it is (each must appear verbatim in its doc, or the check fails) and, per figure, the
+doc's words around it (`{}` where the figure stands, any run of spaces or a line break matching
+any other) and where in the commands' output its value is. A figure is the same when the two
+printed numbers can round to one value: |doc − code| ≤ half a unit of the doc's last digit plus
+half a unit of the code's last printed digit (full precision from JSON).
+
+Usage: tests/system/first_day.py [--build DIR] [--work DIR] [--only RUN,…] [--slow] [--print]
+  --build  the build tree (default build): its bin/ is the documented build/bin/
+  --work   where the commands run (default BUILD/first-day): build, tools, tests and robots are
+           linked there so that the docs' command lines run as written, their out/ there
+  --only   these runs alone (names: --list)
+  --slow   the runs marked slow too (the real UR10's diagnosis and series; about 2 min)
+  --print  every figure: doc and line, the doc's value, the code's value, and whether they agree
+  --list   the runs and their commands
+Exit status: 0 every figure agrees, 1 a figure differs, a command failed or the doc's words or
+command were not found (each named with the doc and line), 2 usage.
+"""
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+SOURCE = Path(__file__).resolve().parents[2]
+
+# ---- the runs: commands as the docs show them ------------------------------------------------
+
+
+class Run:
+    def __init__(self, name, doc, commands, slow=False, netns=False, note=""):
+        self.name, self.doc, self.commands = name, doc, commands
+        self.slow, self.netns, self.note = slow, netns, note
+        self.outputs = []  # stdout of each command
+
+    def out(self, i=-1):
+        return self.outputs[i]
+
+
+D = "D=tests/data/ipa-robot-accuracy"
+RUNS = [
+    Run("paper", "README.md", [
+        "build/bin/stepcal simulate --robot irb4400 --protocol paper --seed 1 --out out/camp",
+        "build/bin/stepcal calibrate out/camp --out out/model.stepcal",
+        "build/bin/stepcal export urdf out/model.stepcal --out out/robot_calibrated.urdf",
+    ]),
+    Run("correct500", "docs/runtime.md", [
+        "build/bin/stepcal demo --out out/demo",
+        "build/bin/stepcal simulate --seed 5 --out out/olp",
+        """awk -F, 'NR == 1 { print "id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,payload_kg,cog_x_mm,cog_y_mm,cog_z_mm,cog_frame"; next }
+  NR <= 501 { print $2 "," $5 "," $6 "," $7 "," $8 "," $9 "," $10 "," $4 ",30,-20,195,flange" }' \\
+  out/olp/measurements.csv > out/program.csv""",
+        "build/bin/stepcal correct out/demo/model.stepcal out/program.csv --out out/corrected.csv --truth out/demo/truth.json",
+    ]),
+    Run("daemon", "docs/runtime.md", [
+        "build/bin/stepcal demo --out out/demo",
+        "build/bin/stepcal-runtime --model out/demo/model.stepcal --budget-us 1000 &",
+        'T="--frame user --user-frame 1500 -200 300 0.9689124 0 0 0.2474040 --tool 0 0 350 1 0 0 0 --tool-from flange --payload 30 --cog 0 0 300 --cog-frame flange"',
+        "build/bin/stepcal-client --forward 5.729578 -17.188734 22.918312 0 45.836624 0 $T",
+        "build/bin/stepcal-client --inverse -178.227 452.234 896.796 0.321962 0.188062 0.925572 -0.065495 --seed 5.729578 -17.188734 22.918312 0 45.836624 0 $T",
+    ], netns=True, note="the daemon over LCM in a private network namespace (tests/system/in_netns.sh)"),
+    Run("plan60", "README.md", [
+        "build/bin/stepcal plan --robot robots/irb4400.urdf --poses 60 --loads 0,20,40 --tracker 4,0,1.2 --out out/poses.csv",
+        "build/bin/stepcal simulate --robot irb4400 --poses out/poses.csv --seed 1 --out out/planned",
+        "build/bin/stepcal calibrate out/planned --out out/planned.stepcal --report out/planned-report.html",
+    ]),
+    Run("ur10_walk", "README.md", [
+        "build/bin/stepcal plan --robot robots/ur10.urdf --poses 40 --out out/ur10-poses.csv",
+        "build/bin/stepcal simulate --robot robots/ur10.urdf --poses out/ur10-poses.csv --seed 1 --out out/ur10-twin",
+        "build/bin/stepcal calibrate out/ur10-twin --out out/ur10-twin.stepcal",
+        "build/bin/stepcal diagnose out/ur10-twin --out out/ur10-twin.extended.stepcal",
+    ]),
+    Run("ur10_C", "README.md", [
+        D,
+        "build/bin/stepcal import ipa $D/Series_C/measurements_random_poses.csv --validation-from-row 2000 --out out/ur10-C",
+        "build/bin/stepcal calibrate out/ur10-C --json   # rms and the GPR columns",
+        "build/bin/stepcal import ipa $D/Series_B/measurements_joint_configurations.csv --out out/ur10-B",
+        "build/bin/stepcal import ipa $D/Series_C/measurements_random_poses.csv --validation-from-row 0 --out out/ur10-C-all",
+        "build/bin/stepcal calibrate out/ur10-B --out out/ur10-B.stepcal",
+        # the doc's `validate … [--refit-frames]`: without, then with
+        "build/bin/stepcal validate out/ur10-B.stepcal out/ur10-C-all --json",
+        "build/bin/stepcal validate out/ur10-B.stepcal out/ur10-C-all --refit-frames --json",
+    ]),
+    Run("ur10_C_diagnose", "README.md", [
+        D,
+        "build/bin/stepcal import ipa $D/Series_C/measurements_random_poses.csv --validation-from-row 2000 --out out/ur10-C",
+        "build/bin/stepcal diagnose out/ur10-C --out out/ur10-C.extended.stepcal",
+        "build/bin/stepcal validate out/ur10-C.extended.stepcal out/ur10-C --json",
+    ], slow=True),
+    Run("ur10_series", "README.md", [
+        "tools/ur10_series.sh                            # the across-series table (needs jq)",
+    ], slow=True),
+]
+RUN = {r.name: r for r in RUNS}
+# Commands that show a doc's optional flag expanded: the doc's line with the flag in brackets.
+EXPANDED = {
+    "build/bin/stepcal validate out/ur10-B.stepcal out/ur10-C-all --json":
+        "build/bin/stepcal validate out/ur10-B.stepcal out/ur10-C-all [--refit-frames]",
+    "build/bin/stepcal validate out/ur10-B.stepcal out/ur10-C-all --refit-frames --json":
+        "build/bin/stepcal validate out/ur10-B.stepcal out/ur10-C-all [--refit-frames]",
+    "build/bin/stepcal validate out/ur10-C.extended.stepcal out/ur10-C --json":
+        "stepcal validate` on the model that diagnose wrote",
+}
+
+# ---- reading the commands' output ------------------------------------------------------------
+
+
+def accuracy_table(text, set_name, load_kg, method):
+    """(mean, max, orientation) of a method in calibrate's or validate's accuracy table, as printed."""
+    lines = text.splitlines()
+    for i, line in enumerate(lines):
+        if not line.startswith("set ") or "load_kg" not in line:
+            continue
+        methods = re.split(r"\s{2,}", line.strip())[3:]
+        for row in lines[i + 1:]:
+            cells = row.split()
+            if len(cells) < 3 or not re.fullmatch(r"[\d.]+", cells[1]):
+                break
+            if cells[0] == set_name and float(cells[1]) == load_kg:
+                groups = [cells[3 + 4 * k: 7 + 4 * k] for k in range(len(methods))]
+                return dict(zip(methods, ((g[0], g[2], g[3]) for g in groups)))[method]
+    raise LookupError(f"no {set_name} {load_kg} kg {method} in the accuracy table")
+
+
+def validation(rows, method, load_kg=0.0, set_name="validation"):
+    """A row of calibrate --json's `validation` or validate --json's list."""
+    rows = rows["validation"] if isinstance(rows, dict) else rows
+    for r in rows:
+        if r["method"] == method and r["load_kg"] == load_kg and r.get("set", set_name) == set_name:
+            return r
+    raise LookupError(f"no {method} at {load_kg} kg ({set_name})")
+
+
+def grep(pattern, text, group=1):
+    m = re.search(pattern, text)
+    if m is None:
+        raise LookupError(f"'{pattern}' not in the output")
+    return m.group(group)
+
+
+def grep_all(pattern, text):
+    found = re.findall(pattern, text)
+    if not found:
+        raise LookupError(f"'{pattern}' not in the output")
+    return found
+
+
+def vector(label, text):
+    """The numbers of a client's line `label [a, b, c]`, as printed."""
+    return [v.strip() for v in grep(label + r"\s+\[([^\]]*)\]", text).split(",")]
+
+
+def out(run, i=-1):
+    return RUN[run].out(i)
+
+
+def js(run, i=-1):
+    return json.loads(RUN[run].out(i))
+
+
+def series_mean(name, method, set_name=""):
+    """Mean position error (mm) of a method in one of tools/ur10_series.sh's validate JSONs."""
+    rows = json.loads((WORK / "out/ur10-series" / name).read_text())
+    for r in rows:
+        if r["method"] == method and (not set_name or r.get("set") == set_name):
+            return r["mean_position_mm"]
+    raise LookupError(f"no {method} in {name}")
+
+
+def series_table():
+    """tools/ur10_series.sh's table as printed: rows of cells by the case's first word."""
+    table = {}
+    for line in (WORK / "out/ur10-series/table.md").read_text().splitlines():
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        if "→" in cells[0]:
+            table[cells[0].split()[0]] = cells[1:]
+    return table
+
+
+def diag_gain(text):
+    """The diagnosis's gain row at 0 kg: before, after, poe+gpr, extended+gpr (mean, max, deg)."""
+    cells, groups = grep(r"\n\s+0 kg\s+\d+\s+([\d. -]+)\n", text).split(), []
+    while cells:  # "-": a column without a model (no GPR)
+        take = 1 if cells[0] == "-" else 3
+        groups.append(cells[:take])
+        cells = cells[take:]
+    return groups
+
+
+# stepcal plan: "from 653 visible of 2000 candidates (0 out of range, 1219 below the floor, 128 …"
+PLAN_KEPT = r"from (\d+) visible of (\d+) candidates \(\d+ out of range, (\d+) below the floor, (\d+)"
+
+
+# ---- the figures -----------------------------------------------------------------------------
+# Fig(doc, words, run, value, …): in doc, the words with {} for each figure; per figure a function
+# of no argument giving the code's value (a string as printed, or a float at full precision).
+
+
+class Fig:
+    def __init__(self, doc, words, run, *values):
+        self.doc, self.words, self.run, self.values = doc, words, run, values
+
+
+def paper_row(load, rows):
+    """The README's paper table row at a load: nominal, poe, poe+stiffness, poe+gpr, poe+stiffness+gpr."""
+    calib = lambda m, k: (lambda: accuracy_table(out("paper", 1), "validation", load, m)[k])
+    values = []
+    for m in ("nominal", "poe", "poe+stiffness", "poe+gpr", "poe+stiffness+gpr"):
+        values += [calib(m, 0), calib(m, 2)]
+    label = f"| {int(load)} kg ({rows}) |"
+    return Fig("README.md", label + " {} / {} |" * 5, "paper", *values)
+
+
+def urdf_row(load, first):
+    calib = lambda m, k: (lambda: accuracy_table(out("paper", 1), "validation", load, m)[k])
+    label = "| simulated IRB4400, paper protocol, seed 1 (`poe+stiffness+gpr`) | 0 kg |" if first \
+        else f"| | {int(load)} kg |"
+    return Fig("README.md", label + " {} / {} | {} / {} |", "paper", calib("poe", 0), calib("poe", 2),
+               calib("poe+stiffness+gpr", 0), calib("poe+stiffness+gpr", 2))
+
+
+def stiffness(joint, k):
+    return lambda: grep(rf"\n  joint_{joint}\s+(\d+)\s+(\d+)", out("paper", 1), k)
+
+
+def series_row(doc, label, key):
+    cell = lambda i: (lambda: series_table()[key][i])
+    return Fig(doc, label + " | {} | {} | {} | - | {} | {} | {} |", "ur10_series",
+               *(cell(i) for i in (0, 1, 2, 4, 5, 6)))
+
+
+def drift_row(label, case):
+    """docs/diagnosis.md's drift table: the 'now' columns, from the series' JSONs (the 'before'
+    columns are an older build's)."""
+    src, tgt = case.split(":")
+    same = src == tgt
+    suffix = "" if same else " (frames refit)"
+    set_name = "validation" if same else ""
+    name = f"{src}-{tgt}.extended.json"
+    return Fig("docs/diagnosis.md", label + " | {-} | {} | {-} | {} |",
+               "ur10_series",
+               lambda: series_mean(name, "extended" + suffix, set_name),
+               lambda: series_mean(name, f"extended{suffix} (covered rows)", set_name))
+
+
+FIGS = [
+    # README, Results: the simulated IRB4400 (tools/quickstart.sh's campaign, seed 1)
+    Fig("README.md", "the noise floor (mean error the noise alone gives) is\n{} mm and {}°", "paper",
+        lambda: grep(r"noise floor \(mean\) ([\d.]+) mm", out("paper", 1)),
+        lambda: grep(r"noise floor \(mean\) [\d.]+ mm, ([\d.]+) deg", out("paper", 1))),
+    Fig("README.md", "Step 1 fits the {} geometry\nrows, converges in {} iterations, rank {} of {}", "paper",
+        lambda: grep(r"geometry \(local POE\): (\d+) rows", out("paper", 1)),
+        lambda: grep(r"converged after (\d+) iterations", out("paper", 1)),
+        lambda: grep(r"rank (\d+) of", out("paper", 1)),
+        lambda: grep(r"rank \d+ of (\d+)", out("paper", 1))),
+    paper_row(0.0, "80 rows"), paper_row(20.0, "80"), paper_row(30.0, "80"), paper_row(40.0, "80"),
+    paper_row(55.0, "50, extrapolation"),
+    Fig("README.md", "| identified | not excited | {} ± {} | {} ± {} | {} ± {} | {} ± {} | {} ± {} |", "paper",
+        *(stiffness(j, k) for j in range(2, 7) for k in (1, 2))),
+    Fig("README.md", "deflection on the validation pairs: {} / {} / {} % mean deviation at 20 / 30 / 40 kg", "paper",
+        *(lambda load=load: grep(rf"{load}.0 kg:.*deviation mean ([\d.]+) %", out("paper", 1))
+          for load in (20, 30, 40))),
+    Fig("README.md", "deflects the tip\n{} / {} / {} mm on average at 20 / 30 / 40 kg", "paper",
+        *(lambda load=load: grep(rf"{load}.0 kg:.*deflection ([\d.]+) mm", out("paper", 1))
+          for load in (20, 30, 40))),
+    urdf_row(0.0, True), urdf_row(20.0, False), urdf_row(40.0, False), urdf_row(55.0, False),
+    Fig("README.md", "| real UR10 Series C, 773 held-out rows (`poe+gpr`) | 0 kg | {} / {} | {} / {} |", "ur10_C",
+        *(lambda m=m, k=k: validation(js("ur10_C", 2), m)[k]
+          for m in ("poe", "poe+gpr") for k in ("mean_position_mm", "mean_orientation_deg"))),
+    # docs/runtime.md: 500 targets of an offline program corrected
+    Fig("docs/runtime.md", "wrote out/corrected.csv: {} lines: {} OK, {} OUT_OF_DOMAIN, {} UNREACHABLE, "
+        "{} NOT_CONVERGED, {} NEAR_SINGULAR, {} BAD_REQUEST; {} in the model's coverage", "correct500",
+        *(lambda i=i: grep_all(r"\d+", grep(r"(wrote out/corrected.csv: .*)", out("correct500")))[i]
+          for i in range(8))),
+    Fig("docs/runtime.md", "as commanded: mean {} mm, max {} mm, mean {} deg over {} targets", "correct500",
+        *(lambda i=i: grep(r"as commanded: mean ([\d.]+) mm, max ([\d.]+) mm, mean ([\d.]+) deg over (\d+)",
+                           out("correct500"), i) for i in range(1, 5))),
+    Fig("docs/runtime.md", "as corrected: mean {} mm, max {} mm, mean {} deg over {} targets", "correct500",
+        *(lambda i=i: grep(r"as corrected: mean ([\d.]+) mm, max ([\d.]+) mm, mean ([\d.]+) deg over (\d+)",
+                           out("correct500"), i) for i in range(1, 5))),
+    Fig("docs/runtime.md", "The corrected error, {} mm, is the model's own", "correct500",
+        lambda: grep(r"as corrected: mean ([\d.]+) mm", out("correct500"))),
+    Fig("README.md", "(on the twin: {} joint targets from {} mm to {} mm mean)", "correct500",
+        lambda: grep(r"as corrected: .* over (\d+)", out("correct500")),
+        lambda: grep(r"as commanded: mean ([\d.]+) mm", out("correct500")),
+        lambda: grep(r"as corrected: mean ([\d.]+) mm", out("correct500"))),
+    # docs/runtime.md: the worked example through the daemon
+    Fig("docs/runtime.md", "The forward answer: the real TCP at ({}, {}, {}) m in the fixture's frame,\n"
+        "under the payload's wrench ({}, {}, {}) N on the sensor", "daemon",
+        *(lambda i=i: vector(r"predicted \(user\s*\) p_m", out("daemon", 3))[i] for i in range(3)),
+        *(lambda i=i: vector(r"wrench used \(N, N m\)", out("daemon", 3))[i] for i in range(3))),
+    Fig("docs/runtime.md", "OK after {} steps, q_target ({}, {}, {},\n{}, {}, {})°", "daemon",
+        lambda: grep(r"iterations (\d+)", out("daemon", 4)),
+        *(lambda i=i: vector(r"q_target_deg", out("daemon", 4))[i] for i in range(6))),
+    Fig("docs/runtime.md", "the pre-distorted pose for a controller that takes poses:\n({}, {}, {}) m", "daemon",
+        *(lambda i=i: vector(r"commanded \(user\s*\) p_m", out("daemon", 4))[i] for i in range(3))),
+    # README, From plan to URDF
+    Fig("README.md", "how many candidates it kept (here {} of {}:\n{} with a link below the floor, {} with the arm in the line of sight)",
+        "plan60", *(lambda i=i: grep(PLAN_KEPT,
+                                     out("plan60", 0), i) for i in range(1, 5))),
+    Fig("README.md", "writes the campaign ({} geometry, {} stiffness and {} validation rows)", "plan60",
+        *(lambda s=s: grep(rf"(\d+) {s}", out("plan60", 2)) for s in ("geometry", "stiffness", "validation"))),
+    Fig("README.md", "(poe+stiffness on the validation rows: {}–{} mm per load", "plan60",
+        lambda: min((accuracy_table(out("plan60", 2), "validation", l, "poe+stiffness")[0]
+                     for l in (0.0, 20.0, 30.0, 40.0, 55.0)), key=float),
+        lambda: max((accuracy_table(out("plan60", 2), "validation", l, "poe+stiffness")[0]
+                     for l in (0.0, 20.0, 30.0, 40.0, 55.0)), key=float)),
+    # README, Your own robot: the walk on the UR10
+    Fig("README.md", "`plan` keeps {} of {} candidates ({} with a link below the floor, {} with the arm in the\nline of sight)",
+        "ur10_walk", *(lambda i=i: grep(PLAN_KEPT,
+                                        out("ur10_walk", 0), i) for i in range(1, 5))),
+    Fig("README.md", "covers every joint's range but q2's ({} of it:", "ur10_walk",
+        lambda: grep(r"joint range covered.* q2 ([\d.]+)", out("ur10_walk", 0))),
+    Fig("README.md", "on the {} validation rows the geometric model\n(`calibrate`'s `poe`) leaves {} mm", "ur10_walk",
+        lambda: grep(r"validation\s+0\.0\s+(\d+)", out("ur10_walk", 2)),
+        lambda: accuracy_table(out("ur10_walk", 2), "validation", 0.0, "poe")[0]),
+    Fig("README.md", "(joint 2\nand 3 compliance {} and {} rad/(N·m); truth", "ur10_walk",
+        lambda: grep(r"joint 2 compliance ([\d.e+-]+)", out("ur10_walk", 3)),
+        lambda: grep(r"joint 3 compliance ([\d.e+-]+)", out("ur10_walk", 3))),
+    Fig("README.md", "and its extended model\nreaches {} mm, the noise floor ({} mm)", "ur10_walk",
+        lambda: diag_gain(out("ur10_walk", 3))[1][0],
+        lambda: grep(r"noise floor ([\d.]+) mm", out("ur10_walk", 3))),
+    # README, Real UR10 data
+    Fig("README.md", "| Series C: fit on the first 2000 rows, check the other 773 | {} held out | {} / {} / {}, {}° | "
+        "**{} / {} / {}, {}°** | **{} / {} / {}, {}°** |", "ur10_C",
+        lambda: validation(js("ur10_C", 2), "poe")["rows"],
+        *(lambda m=m, k=k: validation(js("ur10_C", 2), m)[k]
+          for m in ("frames", "poe", "poe+gpr")
+          for k in ("mean_position_mm", "rms_position_mm", "max_position_mm", "mean_orientation_deg"))),
+    Fig("README.md", "| fit on Series B, check on all 2773 rows of Series C | {} | — | {} / {} / {}, {}° | {} / {} / {}, {}° |",
+        "ur10_C", lambda: validation(js("ur10_C", 6), "poe")["rows"],
+        *(lambda m=m, k=k: validation(js("ur10_C", 6), m)[k]
+          for m in ("poe", "poe+gpr")
+          for k in ("mean_position_mm", "rms_position_mm", "max_position_mm", "mean_orientation_deg"))),
+    Fig("README.md", "| the same, tracker and tool frames refit on C (`--refit-frames`) | {} | — | {} / {} / {}, {}° | {} / {} / {}, {}° |",
+        "ur10_C", lambda: validation(js("ur10_C", 7), "poe (frames refit)")["rows"],
+        *(lambda m=m, k=k: validation(js("ur10_C", 7), m)[k]
+          for m in ("poe (frames refit)", "poe+gpr (frames refit)")
+          for k in ("mean_position_mm", "rms_position_mm", "max_position_mm", "mean_orientation_deg"))),
+    # README and docs/diagnosis.md: the diagnosis of Series C
+    Fig("README.md", "(compliance {} ± {} and\n{} ± {} rad/(N·m), identified from self weight alone", "ur10_C_diagnose",
+        *(lambda j=j, k=k: grep(rf"joint {j} compliance ([\d.e+-]+) rad/\(N·m\) ± ([\d.e+-]+)", out("ur10_C_diagnose", 2), k)
+          for j in (2, 3) for k in (1, 2))),
+    Fig("docs/diagnosis.md", "the compliance of the shoulder and the\n   elbow, {} ± {} and {} ± {} rad/(N·m)", "ur10_C_diagnose",
+        *(lambda j=j, k=k: grep(rf"joint {j} compliance ([\d.e+-]+) rad/\(N·m\) ± ([\d.e+-]+)", out("ur10_C_diagnose", 2), k)
+          for j in (2, 3) for k in (1, 2))),
+    Fig("README.md", "transmission profile on every joint ({}–{} harmonics, RMS {}–{} µrad over the fit rows)", "ur10_C_diagnose",
+        lambda: min(grep_all(r"transmission_error \(joint \d, (\d+) harmonics\)", out("ur10_C_diagnose", 2)), key=int),
+        lambda: max(grep_all(r"transmission_error \(joint \d, (\d+) harmonics\)", out("ur10_C_diagnose", 2)), key=int),
+        lambda: min(grep_all(r"harmonics\): RMS (\d+) urad", out("ur10_C_diagnose", 2)), key=int),
+        lambda: max(grep_all(r"harmonics\): RMS (\d+) urad", out("ur10_C_diagnose", 2)), key=int)),
+    Fig("docs/diagnosis.md", "joint 2 (48 harmonics, RMS {} µrad over the fit rows), joint 1 (48,\n   {} µrad), joint 3 (48, {} µrad), "
+        "joint 4 (32, {} µrad), joint 5 (32, {} µrad), joint 6 (32,\n   {} µrad)", "ur10_C_diagnose",
+        *(lambda j=j: grep(rf"joint {j}, \d+ harmonics\): RMS (\d+) urad", out("ur10_C_diagnose", 2))
+          for j in (2, 1, 3, 4, 5, 6))),
+    Fig("README.md", "Held out, **{} → {} mm** mean (−{} %;\n`poe+gpr` {} mm)", "ur10_C_diagnose",
+        lambda: diag_gain(out("ur10_C_diagnose", 2))[0][0],
+        lambda: diag_gain(out("ur10_C_diagnose", 2))[1][0],
+        lambda: 100 * (1 - float(diag_gain(out("ur10_C_diagnose", 2))[1][0]) /
+                       float(diag_gain(out("ur10_C_diagnose", 2))[0][0])),
+        lambda: diag_gain(out("ur10_C_diagnose", 2))[2][0]),
+    Fig("README.md", "it takes the geometric model's\n  held-out error from {} to {} mm", "ur10_C_diagnose",
+        lambda: diag_gain(out("ur10_C_diagnose", 2))[0][0],
+        lambda: diag_gain(out("ur10_C_diagnose", 2))[1][0]),
+    # one model, one held-out error: diagnose's gain is validate's on the model it wrote
+    Fig("README.md", "Held out, **{} → {} mm** mean", "ur10_C_diagnose",
+        lambda: diag_gain(out("ur10_C_diagnose", 2))[0][0],
+        lambda: validation(js("ur10_C_diagnose", 3), "extended")["mean_position_mm"]),
+    Fig("docs/diagnosis.md", "the diagnosis now names and takes out ({-} → {} mm held out", "ur10_C_diagnose",
+        lambda: validation(js("ur10_C_diagnose", 3), "extended")["mean_position_mm"]),
+    # README and docs/diagnosis.md: tools/ur10_series.sh's table
+    *(series_row(doc, label, key) for doc in ("README.md", "docs/diagnosis.md") for label, key in (
+        ("| C→C, rows from 2000 on", "C→C,"), ("| A→A, rows from 8000 on", "A→A,"),
+        ("| A→D (frames refitted on D)", "A→D"), ("| A→B (frames refitted on B)", "A→B"),
+        ("| B→C (frames refitted on C)", "B→C"), ("| C→D (frames refitted on D)", "C→D"))),
+    drift_row("| C→C, rows from 2000 on (773; 761 covered)", "C-split:C-split"),
+    drift_row("| A→A, rows from 8000 on (3911; 3875)", "A-split:A-split"),
+    drift_row("| A→D, frames refitted on D (632; 139)", "A:D"),
+    drift_row("| A→B, frames refitted on B (1495; 687)", "A:B"),
+    drift_row("| B→C, frames refitted on C (2773; 1)", "B:C"),
+    drift_row("| C→D, frames refitted on D (632; 6)", "C:D"),
+]
+
+# ---- comparing ------------------------------------------------------------------------------
+
+NUMBER = r"[-−]?\d+(?:[  ]\d{3})*(?:\.\d+)?(?:e[-−+]?\d+)?"
+
+
+def parse(text):
+    """A printed number: (value, half a unit of its last printed digit)."""
+    text = str(text).replace("−", "-").replace(" ", "").replace(" ", "")
+    mantissa, _, exponent = text.partition("e")
+    decimals = len(mantissa.partition(".")[2])
+    scale = 10.0 ** int(exponent or 0)
+    return float(text), 0.5 * 10.0 ** -decimals * scale
+
+
+def words_pattern(words):
+    """A regex of the doc's words: {} and {-} a number (group), any run of whitespace any other."""
+    pattern = ""
+    for token in re.split(r"(\{-?\}|\s+)", words):
+        if token in ("{}", "{-}"):
+            pattern += f"({NUMBER})"
+        elif token and token.isspace():
+            pattern += r"\s+"
+        elif token:
+            pattern += re.escape(token)
+    return pattern
+
+
+def agree(doc_figure, code_value):
+    doc_value, doc_half = parse(doc_figure)
+    if isinstance(code_value, float):
+        code, code_half = code_value, 0.0
+    else:
+        code, code_half = parse(code_value)
+    slack = 1e-9 * max(1.0, abs(code))
+    if code_half == doc_half:  # printed alike: the same figure
+        return abs(doc_value - code) <= slack
+    return abs(doc_value - code) <= doc_half + code_half + slack
+
+
+def check(fig, docs, report):
+    """Compares one Fig; returns the number of problems. report(line) prints a line."""
+    text = docs[fig.doc]
+    matches = list(re.finditer(words_pattern(fig.words), text))
+    where = f"{fig.doc}"
+    if len(matches) != 1:
+        report(f"{where}: {'not found' if not matches else f'{len(matches)} places match'}: "
+               f"{fig.words!r} (run {fig.run})")
+        return 1
+    m = matches[0]
+    line = text.count("\n", 0, m.start()) + 1
+    checked = [g for g, tok in zip(m.groups(), re.findall(r"\{-?\}", fig.words)) if tok == "{}"]
+    spans = [m.span(i + 1) for i, tok in enumerate(re.findall(r"\{-?\}", fig.words)) if tok == "{}"]
+    problems = 0
+    for doc_figure, span, value in zip(checked, spans, fig.values):
+        at = f"{fig.doc}:{text.count(chr(10), 0, span[0]) + 1}"
+        context = " ".join(text[max(0, span[0] - 40):span[0]].split()[-4:])
+        try:
+            code = value()
+        except (LookupError, IndexError, ValueError, KeyError, json.JSONDecodeError) as e:
+            report(f"{at}: {doc_figure} (after '{context}'): the code's value not found: {e}")
+            problems += 1
+            continue
+        if isinstance(code, int) and not isinstance(code, bool):
+            code = str(code)
+        ok = agree(doc_figure, code)
+        shown = code if isinstance(code, str) else f"{code:.6g}"
+        line_text = (f"{at}: {'ok  ' if ok else 'DIFF'} doc {doc_figure:>12}  code {shown:>12}  "
+                     f"(after '{context}'; run {fig.run})")
+        if ARGS.print:
+            print(line_text)
+        if not ok:
+            report(line_text)
+        problems += not ok
+    if len(checked) != len(fig.values):
+        report(f"{fig.doc}:{line}: {len(checked)} figures in the words, {len(fig.values)} values")
+        problems += 1
+    return problems
+
+
+# ---- running --------------------------------------------------------------------------------
+
+
+def documented(run, docs):
+    """Each command of the run appears in its doc as written (or as EXPANDED says)."""
+    missing = []
+    for command in run.commands:
+        shown = EXPANDED.get(command, command)
+        doc = run.doc if command not in EXPANDED or "stepcal validate`" not in shown else "README.md"
+        if re.sub(r"[ \t]+", " ", shown) not in re.sub(r"[ \t]+", " ", docs[doc]):
+            missing.append(f"{run.doc}: run {run.name}: the command is not in the doc: {shown}")
+    return missing
+
+
+def prepare_work(build):
+    WORK.mkdir(parents=True, exist_ok=True)
+    for name, target in (("build", build), ("tools", SOURCE / "tools"), ("tests", SOURCE / "tests"),
+                         ("robots", SOURCE / "robots")):
+        link = WORK / name
+        if link.is_symlink() or link.exists():
+            link.unlink()
+        link.symlink_to(target)
+
+
+def execute(run):
+    """Runs the commands in one shell, each one's stdout kept; returns an error text or None."""
+    marker = "@@first-day-command-end@@"
+    script = "set -e\n"
+    for command in run.commands:
+        script += f"{command}\necho {marker}\n"
+    if run.netns:
+        script = script.replace(" &\n", " >out/daemon.log 2>&1 &\nsleep 1\n")
+        script += "cat out/daemon.log; kill %1\n"
+        argv = [str(SOURCE / "tests/system/in_netns.sh"), "bash", "-c", script]
+    else:
+        argv = ["bash", "-c", script]
+    started = time.monotonic()
+    result = subprocess.run(argv, cwd=WORK, capture_output=True, text=True)
+    run.seconds = time.monotonic() - started
+    parts = result.stdout.split(marker + "\n")
+    if run.netns and result.returncode == 77:
+        return "skipped"
+    if result.returncode != 0:
+        return (f"run {run.name} failed (status {result.returncode}) at command {len(parts)} of "
+                f"{len(run.commands)}:\n{result.stdout[-2000:]}{result.stderr[-2000:]}")
+    run.outputs = parts[:len(run.commands)]
+    if run.netns:  # the daemon's own lines, printed at its end, stand in its command's place
+        run.outputs[1] = parts[-1]
+    return None
+
+
+def main():
+    global ARGS, WORK
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--build", default=str(SOURCE / "build"))
+    parser.add_argument("--work")
+    parser.add_argument("--only")
+    parser.add_argument("--slow", action="store_true")
+    parser.add_argument("--print", action="store_true")
+    parser.add_argument("--list", action="store_true")
+    ARGS = parser.parse_args()
+    build = Path(ARGS.build).resolve()
+    WORK = Path(ARGS.work).resolve() if ARGS.work else build / "first-day"
+    if ARGS.list:
+        for run in RUNS:
+            print(f"{run.name} ({run.doc}{', slow' if run.slow else ''}):")
+            for command in run.commands:
+                print("  " + command)
+        return 0
+    chosen = [r for r in RUNS if (r.name in ARGS.only.split(",") if ARGS.only else ARGS.slow or not r.slow)]
+    unknown = set(ARGS.only.split(",")) - set(RUN) if ARGS.only else set()
+    if unknown:
+        print(f"first_day: --only {','.join(sorted(unknown))}: no such run (--list)", file=sys.stderr)
+        return 2
+    docs = {p: (SOURCE / p).read_text() for p in {"README.md"} | {r.doc for r in RUNS} |
+            {f.doc for f in FIGS}}
+    problems = []
+    for run in chosen:
+        problems += documented(run, docs)
+    prepare_work(build)
+    skipped = set()
+    for run in chosen:
+        for stale in ("out/ur10-series",) if run.name == "ur10_series" else ():
+            shutil.rmtree(WORK / stale, ignore_errors=True)
+        error = execute(run)
+        if error == "skipped":
+            print(f"first_day: run {run.name} skipped: {run.note} not permitted here")
+            skipped.add(run.name)
+        elif error:
+            problems.append(error)
+            skipped.add(run.name)
+        else:
+            print(f"first_day: run {run.name}: {len(run.commands)} commands, {run.seconds:.1f} s")
+    count = 0
+    for fig in FIGS:
+        if fig.run in {r.name for r in chosen} - skipped:
+            check(fig, docs, problems.append)
+            count += len([t for t in re.findall(r"\{-?\}", fig.words) if t == "{}"])
+    if problems:
+        print("first_day: the docs and the code differ (fix the doc, or the code if it is wrong):")
+    for p in problems:
+        print(p)
+    print(f"first_day: {count} figures of {len(chosen) - len(skipped)} runs checked; "
+          f"{len(problems)} problems")
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

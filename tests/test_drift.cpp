@@ -189,8 +189,9 @@ TEST(DriftDiagnosis, ATrackerThatSettlesIsTheMeasurementsNotTheRobots) {
   EXPECT_GT(d.before.noise_ratio, d.after.noise_ratio + 0.1);
   for (const Mechanism& m : d.extended_model.mechanisms) EXPECT_FALSE(isMeasurementOnly(m.kind));
   EXPECT_NE(d.drift.text.find("never applied to corrections"), std::string::npos);
-  // Validation rows, measured after the fit rows by the settled tracker, are judged without the
-  // drift found (held at its last value): the robot's model is at the noise floor there.
+  // Validation rows, measured after the fit rows by the settled tracker, are taken as measured,
+  // against the model's tracker frame (the drift's mean over its last tenth, as `stepcal validate`
+  // judges the model file): the robot's model is at the noise floor there.
   ASSERT_FALSE(d.gain.empty());
   for (const trainer::GainRow& g : d.gain) {
     SCOPED_TRACE("load " + std::to_string(g.load_kg) + " kg");

@@ -10,12 +10,15 @@ any other) and where in the commands' output its value is. A figure is the same 
 printed numbers can round to one value: |doc − code| ≤ half a unit of the doc's last digit plus
 half a unit of the code's last printed digit (full precision from JSON).
 
-Usage: tests/system/first_day.py [--build DIR] [--work DIR] [--only RUN,…] [--slow] [--print] [--again]
+Usage: tests/system/first_day.py [--build DIR] [--work DIR] [--only RUN,…] [--slow | --slow-only]
+                                 [--print] [--again] [--list]
   --build  the build tree (default build): its bin/ is the documented build/bin/
   --work   where the commands run (default BUILD/first-day): build, tools, tests and robots are
            linked there so that the docs' command lines run as written, their out/ there
   --only   these runs alone (names: --list)
-  --slow   the runs marked slow too (the real UR10's diagnosis and series; about 2 min)
+  --slow   the runs marked slow too (the real UR10's diagnosis, its twin and series, the planning
+           comparison's failing run; about 2.5 min on 2 idle cores)
+  --slow-only  those alone
   --print  every figure: doc and line, the doc's value, the code's value, and whether they agree
   --again  compare again with the outputs the last run in WORK kept, running nothing (while
            bringing the docs to new figures; the check itself always runs the commands)
@@ -39,8 +42,11 @@ SOURCE = Path(__file__).resolve().parents[2]
 
 
 class Run:
-    def __init__(self, name, doc, commands, slow=False, netns=False, retry_on=None, note=""):
+    def __init__(self, name, doc, commands, slow=False, netns=False, retry_on=None, needs=None,
+                 any_status=False, note=""):
         self.name, self.doc, self.commands = name, doc, commands
+        self.any_status = any_status  # a command's status is a figure (the doc shows `echo $?`)
+        self.needs = needs  # a run whose files these commands read (run first, in the same place)
         self.slow, self.netns, self.note = slow, netns, note
         # A failure whose output says this is the machine's (a deadline missed on a loaded host):
         # the run is tried again, up to 3 times.
@@ -108,6 +114,10 @@ RUNS = [
         "build/bin/stepcal simulate --seed 1 --out out/hidden-none",
         "build/bin/stepcal diagnose out/hidden-none --json",
     ]),
+    Run("plan_compare_random", "README.md", [
+        "$ build/bin/stepcal-plan-compare --planned random --poses 10,60",
+        "$ echo $?",
+    ], slow=True, any_status=True),
     Run("counts", "README.md", ["ctest --test-dir build -N -L unit"],
         note="the GoogleTest cases, once tools/test.sh has built them"),
     Run("ur10_C_diagnose", "README.md", [  # the doc's diagnose command of "The twin of a calibrated robot"
@@ -116,6 +126,11 @@ RUNS = [
         "build/bin/stepcal diagnose out/ur10-C --out out/ur10-C.extended.stepcal",
         "build/bin/stepcal validate out/ur10-C.extended.stepcal out/ur10-C --json   # the same held-out error, from the model file",
     ], slow=True),
+    Run("ur10_C_twin", "docs/diagnosis.md", [
+        "build/bin/stepcal simulate --model out/ur10-C.extended.stepcal --seed 1 --out out/ur10-C-twin",
+        "build/bin/stepcal calibrate out/ur10-C-twin     # poe: 0.4233 / 0.4202 mm on the fit / held-out rows",
+        "build/bin/stepcal calibrate out/ur10-C          # poe: 0.4382 / 0.4313 mm",
+    ], slow=True, needs="ur10_C_diagnose"),
     Run("ur10_series", "README.md", [
         "tools/ur10_series.sh                            # the across-series table (needs jq)",
     ], slow=True),
@@ -192,6 +207,12 @@ def series_mean(name, method, set_name=""):
         if r["method"] == method and (not set_name or r.get("set") == set_name):
             return r["mean_position_mm"]
     raise LookupError(f"no {method} in {name}")
+
+
+def truth_stiffness(campaign):
+    """The joint stiffnesses (N·m/rad) a twin campaign's truth.json holds."""
+    truth = json.loads((WORK / campaign / "truth.json").read_text())
+    return next(e for e in truth["effects"] if e["name"] == "joint_compliance")["stiffness_nm_per_rad"]
 
 
 def series_json(name):
@@ -376,6 +397,20 @@ FIGS = [
         *(lambda i=i: vector(r"q_target_deg", out("daemon", 4))[i] for i in range(6))),
     Fig("docs/runtime.md", "the pre-distorted pose for a controller that takes poses:\n({}, {}, {}) m", "daemon",
         *(lambda i=i: vector(r"commanded \(user\s*\) p_m", out("daemon", 4))[i] for i in range(3))),
+    # README, Planned against random poses: the documented failing run, line by line
+    Fig("README.md", "$ build/bin/stepcal-plan-compare --planned random --poses 10,60\n"
+        "| 10 | {} / {} | {} / {} | {} / {} |\n| 60 | {} / {} | {} / {} | {} / {} |\n"
+        "goal met: random reaches the paper protocol's {} mm at N = {} <= {} / 2\n"
+        "at N = 10, random / random (paper's ranges) against the truth: {} (FAILED: not below 0.80)\n"
+        "at N = 10, random / random (joint limits) against the truth: {} (FAILED: not below 0.80)\n"
+        "$ echo $?\n{}", "plan_compare_random",
+        *(lambda n=n, i=i: grep_all(r"[\d.]+", grep(rf"\n?(\| {n} \|[^\n]*)", out("plan_compare_random", 0)))[i]
+          for n in (10, 60) for i in range(1, 7)),
+        *(lambda i=i: grep(r"reaches the paper protocol's ([\d.]+) mm at N = (\d+) <= (\d+)",
+                           out("plan_compare_random", 0), i) for i in (1, 2, 3)),
+        lambda: grep(r"\(paper's ranges\) against the truth: ([\d.]+)", out("plan_compare_random", 0)),
+        lambda: grep(r"\(joint limits\) against the truth: ([\d.]+)", out("plan_compare_random", 0)),
+        lambda: out("plan_compare_random", 1).strip()),
     # README, From plan to URDF
     Fig("README.md", "how many candidates it kept (here {} of {}:\n{} with a link below the floor, {} with the arm in the line of sight)",
         "plan60", *(lambda i=i: grep(PLAN_KEPT,
@@ -399,9 +434,10 @@ FIGS = [
     Fig("README.md", "on the {} validation rows the geometric model\n(`calibrate`'s `poe`) leaves {} mm", "ur10_walk",
         lambda: grep(r"validation\s+0\.0\s+(\d+)", out("ur10_walk", 2)),
         lambda: accuracy_table(out("ur10_walk", 2), "validation", 0.0, "poe")[0]),
-    Fig("README.md", "(joint 2\nand 3 compliance {} and {} rad/(N·m); truth", "ur10_walk",
+    Fig("README.md", "compliance {} and {} rad/(N·m); truth {} and {})", "ur10_walk",
         lambda: grep(r"joint 2 compliance ([\d.e+-]+)", out("ur10_walk", 3)),
-        lambda: grep(r"joint 3 compliance ([\d.e+-]+)", out("ur10_walk", 3))),
+        lambda: grep(r"joint 3 compliance ([\d.e+-]+)", out("ur10_walk", 3)),
+        *(lambda j=j: 1.0 / truth_stiffness("out/ur10-twin")[j] for j in (1, 2))),
     Fig("README.md", "and its extended model\nreaches {} mm, the noise floor ({} mm)", "ur10_walk",
         lambda: diag_gain(out("ur10_walk", 3))[1][0],
         lambda: grep(r"noise floor ([\d.]+) mm", out("ur10_walk", 3))),
@@ -498,6 +534,17 @@ FIGS = [
         lambda: validation(js("ur10_C_diagnose", 3), "extended")["mean_position_mm"]),
     Fig("docs/diagnosis.md", "the diagnosis now names and takes out ({-} → {} mm held out", "ur10_C_diagnose",
         lambda: validation(js("ur10_C_diagnose", 3), "extended")["mean_position_mm"]),
+    Fig("README.md", "the extended model from `stepcal diagnose` ({} mm) exists only at run time", "ur10_C_diagnose",
+        lambda: validation(js("ur10_C_diagnose", 3), "extended")["mean_position_mm"]),
+    Fig("docs/diagnosis.md", "build/bin/stepcal calibrate out/ur10-C-twin     # poe: {} / {} mm on the fit / held-out rows",
+        "ur10_C_twin", *(lambda s=s: accuracy_table(out("ur10_C_twin", 1), s, 0.0, "poe")[0]
+                         for s in ("geometry", "validation"))),
+    Fig("docs/diagnosis.md", "build/bin/stepcal calibrate out/ur10-C          # poe: {} / {} mm", "ur10_C_twin",
+        *(lambda s=s: accuracy_table(out("ur10_C_twin", 2), s, 0.0, "poe")[0] for s in ("geometry", "validation"))),
+    Fig("docs/diagnosis.md", "| fit rows, mean | {} mm |", "ur10_C_twin",
+        lambda: accuracy_table(out("ur10_C_twin", 2), "geometry", 0.0, "poe")[0]),
+    Fig("docs/diagnosis.md", "| held-out rows, mean | {} mm |", "ur10_C_twin",
+        lambda: accuracy_table(out("ur10_C_twin", 2), "validation", 0.0, "poe")[0]),
     # README and docs/diagnosis.md: tools/ur10_series.sh's table
     *(series_row(doc, label, key) for doc in ("README.md", "docs/diagnosis.md") for label, key in (
         ("| C→C, rows from 2000 on", "C→C,"), ("| A→A, rows from 8000 on", "A→A,"),
@@ -616,9 +663,10 @@ def prepare_work(build):
 def execute(run):
     """Runs the commands in one shell, each one's stdout kept; returns an error text or None."""
     marker = "@@first-day-command-end@@"
-    script = "set -e\n"
-    for command in run.commands:
-        script += f"{command}\necho {marker}\n"
+    script = "" if run.any_status else "set -e\n"
+    for command in run.commands:  # a doc's "$ " prompt is not part of the command
+        command = command[2:] if command.startswith("$ ") else command
+        script += f"{command}\nstatus=$?; echo {marker}; (exit $status)\n"
     if run.netns:
         # the daemon in the background, its lines kept; the clients once it serves
         script = script.replace(" &\n", " >out/daemon.log 2>&1 &\n"
@@ -662,6 +710,7 @@ def main():
     parser.add_argument("--work")
     parser.add_argument("--only")
     parser.add_argument("--slow", action="store_true")
+    parser.add_argument("--slow-only", action="store_true")
     parser.add_argument("--print", action="store_true")
     parser.add_argument("--list", action="store_true")
     parser.add_argument("--again", action="store_true")
@@ -674,7 +723,13 @@ def main():
             for command in run.commands:
                 print("  " + command)
         return 0
-    chosen = [r for r in RUNS if (r.name in ARGS.only.split(",") if ARGS.only else ARGS.slow or not r.slow)]
+    if ARGS.only:
+        chosen = [r for r in RUNS if r.name in ARGS.only.split(",")]
+    else:
+        chosen = [r for r in RUNS if (r.slow if ARGS.slow_only else ARGS.slow or not r.slow)]
+    for run in list(chosen):
+        if run.needs and RUN[run.needs] not in chosen:
+            chosen.insert(chosen.index(run), RUN[run.needs])
     unknown = set(ARGS.only.split(",")) - set(RUN) if ARGS.only else set()
     if unknown:
         print(f"first_day: --only {','.join(sorted(unknown))}: no such run (--list)", file=sys.stderr)

@@ -28,7 +28,6 @@ command were not found (each named with the doc and line), 2 usage.
 """
 import argparse
 import json
-import os
 import re
 import shutil
 import subprocess
@@ -78,8 +77,8 @@ RUNS = [
         'T="--frame user --user-frame 1500 -200 300 0.9689124 0 0 0.2474040 --tool 0 0 350 1 0 0 0 --tool-from flange --payload 30 --cog 0 0 300 --cog-frame flange"',
         "build/bin/stepcal-client --forward 5.729578 -17.188734 22.918312 0 45.836624 0 $T",
         "build/bin/stepcal-client --inverse -178.227 452.234 896.796 0.321962 0.188062 0.925572 -0.065495 --seed 5.729578 -17.188734 22.918312 0 45.836624 0 $T",
-    ], netns=True, retry_on="NOT_CONVERGED", note="the daemon over LCM in a private network namespace (tests/system/in_netns.sh, "
-                        "needs root)"),
+    ], netns=True, retry_on="NOT_CONVERGED",
+        note="the daemon over LCM in a private network namespace (tests/system/in_netns.sh, needs root)"),
     Run("plan60", "README.md", [
         "build/bin/stepcal plan --robot robots/irb4400.urdf --poses 60 --loads 0,20,40 --tracker 4,0,1.2 --out out/poses.csv",
         "build/bin/stepcal simulate --robot irb4400 --poses out/poses.csv --seed 1 --out out/planned",
@@ -128,8 +127,8 @@ RUNS = [
     ], slow=True),
     Run("ur10_C_twin", "docs/diagnosis.md", [
         "build/bin/stepcal simulate --model out/ur10-C.extended.stepcal --seed 1 --out out/ur10-C-twin",
-        "build/bin/stepcal calibrate out/ur10-C-twin     # poe: 0.4233 / 0.4202 mm on the fit / held-out rows",
-        "build/bin/stepcal calibrate out/ur10-C          # poe: 0.4382 / 0.4313 mm",
+        "build/bin/stepcal calibrate out/ur10-C-twin",  # the doc's comment holds the figures
+        "build/bin/stepcal calibrate out/ur10-C",
     ], slow=True, needs="ur10_C_diagnose"),
     Run("ur10_series", "README.md", [
         "tools/ur10_series.sh                            # the across-series table (needs jq)",
@@ -202,8 +201,7 @@ def js(run, i=-1):
 
 def series_mean(name, method, set_name=""):
     """Mean position error (mm) of a method in one of tools/ur10_series.sh's validate JSONs."""
-    rows = json.loads((WORK / "out/ur10-series" / name).read_text())
-    for r in rows:
+    for r in series_json(name):
         if r["method"] == method and (not set_name or r.get("set") == set_name):
             return r["mean_position_mm"]
     raise LookupError(f"no {method} in {name}")
@@ -601,9 +599,8 @@ def check(fig, docs, report):
     """Compares one Fig; returns the number of problems. report(line) prints a line."""
     text = docs[fig.doc]
     matches = list(re.finditer(words_pattern(fig.words), text))
-    where = f"{fig.doc}"
     if len(matches) != 1:
-        report(f"{where}: {'not found' if not matches else f'{len(matches)} places match'}: "
+        report(f"{fig.doc}: {'not found' if not matches else f'{len(matches)} places match'}: "
                f"{fig.words!r} (run {fig.run})")
         return 1
     m = matches[0]
@@ -616,13 +613,18 @@ def check(fig, docs, report):
         context = " ".join(text[max(0, span[0] - 40):span[0]].split()[-4:])
         try:
             code = value()
-        except (LookupError, IndexError, ValueError, KeyError, json.JSONDecodeError) as e:
+        except (LookupError, StopIteration, ValueError, OSError) as e:
             report(f"{at}: {doc_figure} (after '{context}'): the code's value not found: {e}")
             problems += 1
             continue
         if isinstance(code, int) and not isinstance(code, bool):
             code = str(code)
-        ok = agree(doc_figure, code)
+        try:
+            ok = agree(doc_figure, code)
+        except ValueError:
+            report(f"{at}: {doc_figure} (after '{context}'): the code printed '{code}', not a number")
+            problems += 1
+            continue
         shown = code if isinstance(code, str) else f"{code:.6g}"
         line_text = (f"{at}: {'ok  ' if ok else 'DIFF'} doc {doc_figure:>12}  code {shown:>12}  "
                      f"(after '{context}'; run {fig.run})")

@@ -335,6 +335,12 @@ FIGS = [
     Fig("README.md", "deflects the tip\n{} / {} / {} mm on average at 20 / 30 / 40 kg", "paper",
         *(lambda load=load: grep(rf"{load}.0 kg:.*deflection ([\d.]+) mm", out("paper", 1))
           for load in (20, 30, 40))),
+    Fig("README.md", "(here at the noise floor, ≤ {}× at every load)", "paper",
+        lambda: max(float(accuracy_table(out("paper", 1), "validation", load, m)[0])
+                    for load in (0.0, 20.0, 30.0, 40.0, 55.0) for m in ("poe+stiffness", "poe+stiffness+gpr")) /
+        float(grep(r"noise floor \(mean\) ([\d.]+) mm", out("paper", 1)))),
+    Fig("README.md", "{} kB for the paper's campaign", "paper",
+        lambda: (WORK / "out/model.stepcal").stat().st_size / 1000),
     urdf_row(0.0, True), urdf_row(20.0, False), urdf_row(40.0, False), urdf_row(55.0, False),
     Fig("README.md", "| real UR10 Series C, 773 held-out rows (`poe+gpr`) | 0 kg | {} / {} | {} / {} |", "ur10_C",
         *(lambda m=m, k=k: validation(js("ur10_C", 2), m)[k]
@@ -456,6 +462,22 @@ FIGS = [
         *(lambda m=m, k=k: validation(js("ur10_C", 7), m)[k]
           for m in ("poe (frames refit)", "poe+gpr (frames refit)")
           for k in ("mean_position_mm", "rms_position_mm", "max_position_mm", "mean_orientation_deg"))),
+    Fig("README.md", "| Series B: fit on all 1495 rows (fit error) | {} | {} / {-} / {}, {}° | {} / {-} / {}, {}° | |",
+        "ur10_C", lambda: grep(r"\ngeometry\s+0\.0\s+(\d+)", out("ur10_C", 5)),
+        *(lambda m=m, k=k: accuracy_table(out("ur10_C", 5), "geometry", 0.0, m)[k]
+          for m in ("frames", "poe") for k in range(3))),
+    Fig("README.md", "is {} mm off on C's held-out\nrows", "ur10_C",
+        lambda: validation(js("ur10_C", 2), "nominal")["mean_position_mm"]),
+    Fig("README.md", "carry over to Series C ({} mm once the tracker and tool frames are\nregistered again); "
+        "used as they are, the error is {} mm", "ur10_C",
+        lambda: validation(js("ur10_C", 7), "poe (frames refit)")["mean_position_mm"],
+        lambda: validation(js("ur10_C", 6), "poe")["mean_position_mm"]),
+    Fig("README.md", "Within Series C the GPR removes a further {} %; trained on Series B it does not carry over to C\n"
+        "({} → {} mm)", "ur10_C",
+        lambda: 100 * (1 - validation(js("ur10_C", 2), "poe+gpr")["mean_position_mm"] /
+                       validation(js("ur10_C", 2), "poe")["mean_position_mm"]),
+        lambda: validation(js("ur10_C", 6), "poe")["mean_position_mm"],
+        lambda: validation(js("ur10_C", 6), "poe+gpr")["mean_position_mm"]),
     # README and docs/diagnosis.md: the diagnosis of Series C
     Fig("README.md", "(compliance {} ± {} and\n{} ± {} rad/(N·m), identified from self weight alone", "ur10_C_diagnose",
         *(lambda j=j, k=k: grep(rf"joint {j} compliance ([\d.e+-]+) rad/\(N·m\) ± ([\d.e+-]+)", out("ur10_C_diagnose", 2), k)

@@ -18,6 +18,7 @@
 #include "stepcal/common/chain.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/units.hpp"
+#include "stepcal/twin/draws.hpp"
 #include "stepcal/twin/twin.hpp"
 #include "support/campaign_rows.hpp"
 
@@ -325,6 +326,36 @@ TEST(TwinLoadEffects, SizesOnThePaperProtocol) {
   }
 }
 
+
+TEST(TwinLoadEffects, ForeignMixesAreTheirDesignsEffectsAtTheirSizes) {
+  std::map<std::string, int> designs;
+  for (uint64_t seed = 1; seed <= 40; ++seed) {
+    const ForeignMix mix = drawForeignMix(seed);
+    EXPECT_EQ(drawForeignMix(seed).foreign, mix.foreign);  // the same seed, the same mix
+    ++designs[mix.design];
+    const size_t foreign = mix.design == "both" ? 2u : 1u;
+    ASSERT_EQ(mix.foreign.size(), foreign) << seed;
+    EXPECT_EQ(mix.catalogued.size(), mix.design == "beside" ? 1u : 0u) << seed;
+    TwinOptions o = noiselessPaper(seed);
+    o.hidden_effects = mix.foreign;
+    for (const DrawnMechanism& m : mix.catalogued) o.hidden_effects.push_back(m.effect);
+    const TwinRobot robot(o);  // every draw a valid effect
+    for (const nlohmann::json& e : mix.foreign) {
+      if (e.at("name") == "bearing_tilt") {
+        const double c = e.at("compliance_rad_per_nm");
+        EXPECT_TRUE(e.at("joint") == 1 ? c >= 1.2e-7 && c <= 2.2e-7 : c >= 0.8e-6 && c <= 1.6e-6)
+            << e.dump();
+      } else {
+        EXPECT_EQ(e.at("name"), "angle_dependent_stiffness");
+        EXPECT_GE(e.at("amplitude").get<double>(), 0.1);
+        EXPECT_LE(e.at("amplitude").get<double>(), 0.25);
+      }
+    }
+  }
+  EXPECT_EQ(designs, (std::map<std::string, int>{
+                         {"angle_dependent_stiffness", 10}, {"bearing_tilt", 10}, {"beside", 10},
+                         {"both", 10}}));
+}
 
 // Pearson correlation of two equally long series.
 double correlation(const std::vector<double>& x, const std::vector<double>& y) {

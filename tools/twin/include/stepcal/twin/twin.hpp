@@ -5,8 +5,9 @@
 // to a separate truth.json that calibration never reads. Everything is SI inside.
 //
 // Randomness: every draw comes from std::mt19937_64 engines seeded from TwinOptions::seed, one
-// independent stream each for the truth, the commanded poses and the measurement noise, so that
-// switching a mechanism or a noise level off leaves every other draw unchanged; a tracker
+// independent stream each for the truth, the commanded poses, the measurement noise and a mixed
+// load order (TwinOptions::load_order), so that switching a mechanism or a noise level off
+// leaves every other draw unchanged; a tracker
 // station k >= 1 (TwinOptions::station) shares the truth's and has streams of its own for its
 // tracker placement, poses and noise. Normal variates use Box–Muller on 53-bit uniforms rather
 // than std::normal_distribution, whose output differs between standard libraries.

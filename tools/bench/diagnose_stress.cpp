@@ -202,11 +202,20 @@ void readUnexplained(const nlohmann::json& d, Outcome& o) {
   }
 }
 
-Outcome diagnoseSeed(uint64_t seed, const std::string& stepcal, const fs::path& work,
-                     bool foreign) {
+// How a seed is run: the mixes drawn and the campaign's load order.
+struct RunOptions {
+  std::string stepcal;
+  fs::path work;
+  bool foreign = false;
+  std::string load_order = "blocks";  // stepcal simulate --load-order
+};
+
+Outcome diagnoseSeed(uint64_t seed, const RunOptions& run_options) {
+  const std::string& stepcal = run_options.stepcal;
+  const fs::path& work = run_options.work;
   Outcome o;
   o.seed = seed;
-  if (foreign) {
+  if (run_options.foreign) {
     stepcal::twin::ForeignMix mix = stepcal::twin::drawForeignMix(seed);
     o.design = mix.design;
     o.foreign = std::move(mix.foreign);
@@ -219,6 +228,9 @@ Outcome diagnoseSeed(uint64_t seed, const std::string& stepcal, const fs::path& 
   fs::create_directories(work);
   std::vector<std::string> simulate = {stepcal, "simulate", "--seed", std::to_string(seed), "--out",
                                        dir.string()};
+  if (run_options.load_order != "blocks") {
+    simulate.insert(simulate.end(), {"--load-order", run_options.load_order});
+  }
   for (const DrawnMechanism& h : o.hidden) {
     simulate.push_back("--effect");
     simulate.push_back(h.effect.dump());
@@ -395,6 +407,7 @@ int main(int argc, char** argv) {
   std::string stepcal = stepcal::bench::stepcalBesideThis();
   int jobs = 1;
   bool strict = false, foreign = false;
+  std::string load_order = "blocks";
   app.add_option("--seeds", seeds_text, "seeds, e.g. 1-200 or 3,7,11")->capture_default_str();
   app.add_option("--out", work, "working folder (a campaign per seed)")->capture_default_str();
   app.add_option("--json", json_out, "file for every seed's outcome");
@@ -405,6 +418,11 @@ int main(int argc, char** argv) {
                "hide load effects outside the catalogue (bearing_tilt, angle_dependent_stiffness, "
                "alone, beside a catalogued mechanism, or both) and judge drifts and extra causes "
                "named, and what the verdict leaves unexplained");
+  app.add_option("--load-order", load_order,
+                 "the campaigns' fit rows load block by load block as in the paper, or mixed "
+                 "(stepcal simulate --load-order): load and time order then do not correlate")
+      ->check(CLI::IsMember({"blocks", "mixed"}))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   std::vector<uint64_t> seeds;
   try {
@@ -421,7 +439,7 @@ int main(int argc, char** argv) {
   std::mutex print;
   const auto worker = [&] {
     for (size_t i = next++; i < seeds.size(); i = next++) {
-      outcomes[i] = diagnoseSeed(seeds[i], stepcal, work, foreign);
+      outcomes[i] = diagnoseSeed(seeds[i], {stepcal, work, foreign, load_order});
       const std::lock_guard<std::mutex> lock(print);
       printSeed(outcomes[i]);
     }

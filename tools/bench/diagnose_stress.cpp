@@ -21,12 +21,14 @@
 // (as above), a hidden catalogued one missed, a bearing_tilt of joint j not named as an
 // off_axis_compliance of joint j (an angle_dependent_stiffness has no catalogue kind to be named
 // as), the worst load; and what the verdict says is left (unexplained_trend, and `unexplained`
-// where the diagnosis writes it). The summary has a row per design.
+// where the diagnosis writes it). The summary has a row per design. --load-order mixed measures
+// every campaign's fit rows shuffled (stepcal simulate --load-order), so that load and time order
+// do not correlate.
 #include <algorithm>
 #include <array>
-#include <cstddef>
 #include <atomic>
 #include <chrono>
+#include <cstddef>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>

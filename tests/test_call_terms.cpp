@@ -52,14 +52,13 @@ Pose translation(double x, double y, double z) {
   return X;
 }
 
-/// The twin's true flange, tracker frame: the joint-n frame at the true link angles, then the
+/// The twin's true flange, tracker frame: the deflected robot's joint-n frame, then the
 /// nominal flange offset (the twin keeps the flange, like its sensor, at its nominal place).
 Pose trueFlange(const twin::TwinRobot& truth, const runtime::RuntimeModel& model,
                 const JointVector& q_rad, double load_kg) {
   ChainWorkspace ws;
-  const JointVector theta = truth.linkAngles(q_rad, load_kg);
-  forwardKinematics(truth.trueChain(), theta, ws);
-  return truth.X_TrackerBase() * ws.X_RootFrame[size_t(theta.size())] * model.X_LastFlange_nominal;
+  truth.deflectedFrames(q_rad, load_kg, twin::kNoThermalExpansion, ws);
+  return truth.X_TrackerBase() * ws.X_RootFrame[size_t(q_rad.size())] * model.X_LastFlange_nominal;
 }
 
 double distance(const Pose& a, const Pose& b) { return (a.translation() - b.translation()).norm(); }

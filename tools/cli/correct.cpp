@@ -362,11 +362,11 @@ Pose trueTcp(const twin::TwinRobot& truth, const runtime::RuntimeModel& model,
   if (line.terms.tool_from == runtime::ToolFrom::kTarget) {
     return truth.X_TrackerTip(q_rad, load_kg, line.temp_c) * line.terms.X_Tool;
   }
-  // The twin's flange keeps its nominal place on the joint-n frame (as its sensor does).
+  // The twin's flange keeps its nominal place on the joint-n frame (as its sensor does); the
+  // frames are the deflected robot's (link angles, bearing tilts, lengths at temp_c).
   ChainWorkspace ws;
-  const JointVector theta = truth.linkAngles(q_rad, load_kg, line.temp_c);
-  forwardKinematics(truth.trueChain(), theta, ws);
-  return truth.X_TrackerBase() * ws.X_RootFrame[size_t(theta.size())] *
+  truth.deflectedFrames(q_rad, load_kg, line.temp_c, ws);
+  return truth.X_TrackerBase() * ws.X_RootFrame[size_t(q_rad.size())] *
          model.X_LastFlange_nominal * line.terms.X_Tool;
 }
 

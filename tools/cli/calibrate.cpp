@@ -9,6 +9,7 @@
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/report/report.hpp"
 #include "stepcal/report/report_html.hpp"
+#include "stepcal/report/unexplained_report.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "subcommands.hpp"
 
@@ -43,10 +44,14 @@ void runCalibrate(const std::vector<std::string>& dirs, const std::string& model
       writeModelFile(trainer::modelFromOutcome(campaign, outcome), model_out);
     });
   }
+  const std::string note = report::residualNote(campaign, outcome);
   if (json) {
-    std::cout << report::reportJson(campaign, outcome).dump(2) << "\n";
+    nlohmann::json j = report::reportJson(campaign, outcome);
+    j["residual_note"] = note.empty() ? nlohmann::json(nullptr) : nlohmann::json(note);
+    std::cout << j.dump(2) << "\n";
   } else {
     std::cout << report::formatReport(campaign, outcome);
+    if (!note.empty()) std::cout << "\n" << note << "\n";
   }
 }
 

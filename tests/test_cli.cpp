@@ -672,8 +672,10 @@ void expectSameAnswers(const nlohmann::json& stored, const nlohmann::json& now,
   if (stored.is_number_float() || (stored.is_number() && now.is_number_float())) {
     if (!now.is_number()) return differ("a number before, now " + now.dump());
     const std::string key = path.substr(path.find_last_of('.') + 1);
-    const bool rank_statistic = key == "z_statistic" || key == "p_value";
-    const bool gain = key == "cv_gain_mm" || key == "relative_reduction";
+    const bool rank_statistic =
+        key == "z_statistic" || key == "p_value" || key == "z" || key == "learner_z";
+    const bool gain = key == "cv_gain_mm" || key == "relative_reduction" ||
+                      key == "learner_gain_mm" || key == "learner_relative_reduction";
     const bool lumped_mass = key.size() > 3 && (key.compare(key.size() - 3, 3, "_kg") == 0 ||
                                                 key.compare(key.size() - 4, 4, "_kgm") == 0);
     const double a = stored.get<double>(), b = now.get<double>();

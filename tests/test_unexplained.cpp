@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <random>
 #include <string>
 
@@ -75,6 +76,7 @@ Diagnosis diagnosed(const Campaign& campaign) {
 TEST(Unexplained, ACleanCampaignLeavesNothing) {
   const Diagnosis d = diagnoseSimulation(paperOptions(101, {}));
   const UnexplainedPart& u = d.unexplained;
+  std::cout << "unexplained: " << u.text << "\n";
   EXPECT_FALSE(u.any) << u.text;
   EXPECT_EQ(u.residual_rows, "validation");
   EXPECT_LT(u.ratio, 1.3);
@@ -111,6 +113,7 @@ TEST(Unexplained, ABearingTiltIsAPerpendicularMomentOfItsJointNotTheTimeOrder) {
   const Diagnosis d = diagnosed(campaign);
   const UnexplainedPart& u = d.unexplained;
   SCOPED_TRACE(u.text + "\nnamed: " + effectsText(d));
+  std::cout << "named: " << effectsText(d) << "\nunexplained: " << u.text << "\n";
   EXPECT_TRUE(u.any);
   const UnexplainedVariable* top = strongest(d);
   ASSERT_NE(top, nullptr);
@@ -146,6 +149,7 @@ TEST(Unexplained, AnAngleDependentStiffnessIsItsJointsTorqueWithItsAngle) {
   const Diagnosis d = diagnosed(campaign);
   const UnexplainedPart& u = d.unexplained;
   SCOPED_TRACE(u.text + "\nnamed: " + effectsText(d));
+  std::cout << "named: " << effectsText(d) << "\nunexplained: " << u.text << "\n";
   EXPECT_TRUE(u.any);
   const UnexplainedVariable* top = strongest(d);
   ASSERT_NE(top, nullptr);

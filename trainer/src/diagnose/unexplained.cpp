@@ -454,20 +454,23 @@ std::string learnerText(const UnexplainedPart& u) {
 }
 
 std::string unexplainedText(const UnexplainedPart& u) {
-  const std::string rows = u.residual_rows == "validation" ? "validation rows" : "fit rows (no validation rows)";
+  // Without validation rows the fit rows are all there is: the figure is not held out.
+  const std::string where = u.residual_rows == "validation"
+                                ? "held out (the validation rows)"
+                                : "on the fit rows (the campaign holds no validation rows out)";
   const std::string noise =
       u.noise_stated ? "" : " (the campaign states no tracker noise: the floor is the default sigma's)";
   if (!u.any) {
     return "nothing unexplained: the extended model leaves " +
-           printed("%.4f mm held out on the ", 1e3 * u.residual_m) + rows +
-           printed(", %.2f times the noise floor of %.4f mm", u.ratio, 1e3 * u.floor_m) + noise +
+           printed("%.4f mm ", kMmPerM * u.residual_m) + where +
+           printed(", %.2f times the noise floor of %.4f mm", u.ratio, kMmPerM * u.floor_m) + noise +
            ", and follows none of the " + std::to_string(u.variables_tested) +
            " variables tested; " + learnerText(u);
   }
   return "nothing in the catalogue explains " +
-         printed("%.4f mm held out (the extended model leaves %.4f mm on the ",
-                 1e3 * std::max(0.0, u.residual_m - u.floor_m), 1e3 * u.residual_m) +
-         rows + printed(", %.1f times the noise floor of %.4f mm)", u.ratio, 1e3 * u.floor_m) +
+         printed("%.4f mm above the noise: the extended model leaves %.4f mm ",
+                 kMmPerM * std::max(0.0, u.residual_m - u.floor_m), kMmPerM * u.residual_m) +
+         where + printed(", %.1f times the noise floor of %.4f mm", u.ratio, kMmPerM * u.floor_m) +
          noise + "; " + followsText(u) + "; " + learnerText(u);
 }
 

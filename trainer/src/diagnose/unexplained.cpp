@@ -8,8 +8,8 @@
 //   angle, its torque), or the tip's motion per tilt of joint j's frame about each of its axes
 //   (a moment of the payload's wrench in that frame) or per shift along each (a force) times
 //   P_d(v): what a property of the arm follows, the tip moving as the arm carries it;
-// - a torque modulated by its joint's angle: the link-angle column times τ_j cos h q_j and
-//   τ_j sin h q_j, h = 1..3, alone (a compliance that varies with the angle).
+// - a torque modulated by harmonic h of its joint's angle: the link-angle column times
+//   τ_j cos h q_j and τ_j sin h q_j alone (a compliance that varies with the angle), h = 1..12.
 // A joint's frame is joint j's before its motion, T_{0,j−1}(θ) · T_{j−1,j}(0): its tilt is the
 // geometry's rotation columns of initial pose j−1 (Linearisation::geometry), so that several
 // campaigns' stations and the registration drift are the linearisation's.
@@ -34,7 +34,10 @@ namespace stepcal::trainer::diagnosis {
 namespace {
 
 constexpr int kDegree = 3;     // Legendre P1..P3 of a variable
-constexpr int kHarmonics = 3;  // of a joint's angle, modulating its torque
+// Harmonics of a joint's angle that may modulate its torque (a gear's mesh stiffness varies
+// at the teeth's and the bearings' frequencies over a revolution): each one a variable, and the
+// learner's features up to this one.
+constexpr int kHarmonics = 12;
 constexpr int kMaxEquations = 6;
 // The learner's ridges, relative to the mean diagonal of its training Gram.
 constexpr std::array<double, 3> kLearnerRidges = {1e-6, 1e-4, 1e-2};
@@ -84,19 +87,31 @@ RowValues rowValues(const PhysicalModel& model, const Measurement& row, const Jo
 
 // How a variable reaches the residual besides (or, kModulatedTorque, instead of) a cubic in the
 // tracker's axes.
-enum class Reach { kTrackerOnly, kLinkAngle, kFrameTilt, kFrameShift, kModulatedTorque };
+enum class Reach {
+  kTrackerOnly,
+  kLinkAngle,
+  kFrameTilt,
+  kFrameShift,
+  kModulatedTorque,
+  /// the frame tilted about each axis perpendicular to the joint's by a cubic in the payload's
+  /// moment about that axis, alone (a bearing's tilt); value: the first such axis' moment
+  kPerpendicularTilt,
+};
 
 struct Spec {
   UnexplainedVariable variable;
   int value = 0;  ///< its index in Layout (kModulatedTorque: the torque's)
   Reach reach = Reach::kTrackerOnly;
+  int harmonic = 0;  ///< kModulatedTorque: of the joint's angle
+  std::array<int, 2> perpendicular_axes = {0, 0};  ///< kPerpendicularTilt: of the joint's frame
   int width() const {
     switch (reach) {
       case Reach::kTrackerOnly: return kMaxEquations * kDegree;
       case Reach::kLinkAngle: return (kMaxEquations + 1) * kDegree;
       case Reach::kFrameTilt:
       case Reach::kFrameShift: return (kMaxEquations + 3) * kDegree;
-      case Reach::kModulatedTorque: return 2 * kHarmonics;
+      case Reach::kModulatedTorque: return 2;
+      case Reach::kPerpendicularTilt: return 2 * kDegree;
     }
     return 0;
   }
@@ -121,9 +136,15 @@ std::vector<Spec> variableSpecs(const KinematicChain& chain, const Layout& at) {
     const std::string J = std::to_string(j + 1);
     add("q" + J + "_deg", jointText(j) + "'s angle", at.q(j), Reach::kLinkAngle, j);
     add("tau" + J + "_nm", jointText(j) + "'s torque", at.tau(j), Reach::kLinkAngle, j);
-    add("tau" + J + "_nm*harmonics(q" + J + ")",
-        jointText(j) + "'s torque modulated by its angle (harmonics 1-3)", at.tau(j),
-        Reach::kModulatedTorque, j);
+  }
+  for (int j = 0; j < n; ++j) {
+    const std::string J = std::to_string(j + 1);
+    for (int h = 1; h <= kHarmonics; ++h) {
+      add("tau" + J + "_nm*h" + std::to_string(h) + "(q" + J + ")",
+          jointText(j) + "'s torque modulated by harmonic " + std::to_string(h) + " of its angle",
+          at.tau(j), Reach::kModulatedTorque, j);
+      specs.back().harmonic = h;
+    }
   }
   add("load_kg", "the payload's mass", at.load(), Reach::kTrackerOnly, -1);
   add("temp_c", "the temperature", at.temp(), Reach::kTrackerOnly, -1);
@@ -142,6 +163,14 @@ std::vector<Spec> variableSpecs(const KinematicChain& chain, const Layout& at) {
           at.wrench(j, 3 + c), Reach::kFrameTilt, j);
       specs.back().variable.perpendicular_moment = perpendicular;
     }
+    // Both moments perpendicular to a coordinate axis, each tilting the frame about its own axis.
+    const int along = chain.coordinateAxis(j);
+    if (along < 0) continue;
+    add("joint" + std::to_string(j + 1) + "_mperp_nm",
+        "the payload's moment perpendicular to " + jointText(j) + "'s axis, tilting its frame",
+        at.wrench(j, 3 + (along + 1) % 3), Reach::kPerpendicularTilt, j);
+    specs.back().variable.perpendicular_moment = true;
+    specs.back().perpendicular_axes = {(along + 1) % 3, (along + 2) % 3};
   }
   return specs;
 }
@@ -155,7 +184,7 @@ struct Range {
     return present * 10 >= rows * 9 && hi - lo > 1e-9 * std::max(1.0, std::abs(hi));
   }
   Eigen::Vector3d legendre(double value) const {
-    if (!std::isfinite(value)) return Eigen::Vector3d::Zero();
+    if (!std::isfinite(value) || !(hi > lo)) return Eigen::Vector3d::Zero();
     const double x = 2.0 * (value - lo) / (hi - lo) - 1.0;
     return {x, 0.5 * (3 * x * x - 1), 0.5 * (5 * x * x * x - 3 * x)};
   }
@@ -202,12 +231,21 @@ void specColumns(const Spec& s, const std::vector<Range>& ranges, const RowColum
   A.setZero();
   const Range& range = ranges[static_cast<size_t>(s.value)];
   const int j = s.variable.joint;
-  if (s.reach == Reach::kModulatedTorque) {
-    const double t = range.scaled(row.values(s.value)), q = row.row.q_rad(j);
-    for (int h = 1; h <= kHarmonics; ++h) {
-      A.col(2 * (h - 1)) = row.link_angle.col(j) * t * std::cos(h * q);
-      A.col(2 * (h - 1) + 1) = row.link_angle.col(j) * t * std::sin(h * q);
+  if (s.reach == Reach::kPerpendicularTilt) {
+    for (int k = 0; k < 2; ++k) {
+      const int axis = s.perpendicular_axes[static_cast<size_t>(k)];
+      const int value = s.value + axis - s.perpendicular_axes[0];
+      const Eigen::Vector3d P = ranges[static_cast<size_t>(value)].legendre(row.values(value));
+      for (int d = 0; d < kDegree; ++d) {
+        A.col(k * kDegree + d) = row.geometry.col(6 * j + 3 + axis) * P(d);
+      }
     }
+    return;
+  }
+  if (s.reach == Reach::kModulatedTorque) {
+    const double t = range.scaled(row.values(s.value)), hq = s.harmonic * row.row.q_rad(j);
+    A.col(0) = row.link_angle.col(j) * (t * std::cos(hq));
+    A.col(1) = row.link_angle.col(j) * (t * std::sin(hq));
     return;
   }
   const Eigen::Vector3d P = range.legendre(row.values(s.value));
@@ -224,10 +262,11 @@ void specColumns(const Spec& s, const std::vector<Range>& ranges, const RowColum
   }
 }
 
-// The learner's dictionary at a row: per joint its torque times harmonics 0..3 of its angle
+// The learner's dictionary at a row: per joint its torque times harmonics 0..12 of its angle
 // through its link angle, its frame's tilt about each axis times each moment component and its
 // shift along each axis times each force component (each variable over its largest magnitude).
-constexpr int kLearnerPerJoint = (1 + 2 * kHarmonics) + 9 + 9;
+constexpr int kTorqueFeatures = 1 + 2 * kHarmonics;
+constexpr int kLearnerPerJoint = kTorqueFeatures + 9 + 9;
 void learnerColumns(const std::vector<Range>& ranges, const Layout& at, const RowColumns& row,
                     Eigen::Ref<Eigen::MatrixXd> A) {
   A.setZero();
@@ -244,8 +283,10 @@ void learnerColumns(const std::vector<Range>& ranges, const Layout& at, const Ro
     }
     for (int a = 0; a < 3; ++a) {
       for (int b = 0; b < 3; ++b) {
-        A.col(c0 + 7 + 3 * a + b) = row.geometry.col(6 * j + 3 + a) * scaled(at.wrench(j, 3 + b));
-        A.col(c0 + 16 + 3 * a + b) = row.geometry.col(6 * j + a) * scaled(at.wrench(j, b));
+        A.col(c0 + kTorqueFeatures + 3 * a + b) =
+            row.geometry.col(6 * j + 3 + a) * scaled(at.wrench(j, 3 + b));
+        A.col(c0 + kTorqueFeatures + 9 + 3 * a + b) =
+            row.geometry.col(6 * j + a) * scaled(at.wrench(j, b));
       }
     }
   }
@@ -474,7 +515,8 @@ std::string unexplainedText(const UnexplainedPart& u) {
          noise + "; " + followsText(u) + "; " + learnerText(u);
 }
 
-// The variables' held-out scores, most significant first.
+// The variables' held-out scores: the significant ones first, by the held-out reduction, as the
+// rounds choose among families; then the others by z.
 void judgeVariables(const Tests& tests, const std::vector<CrossValidation::Outcome>& outcomes,
                     const DiagnoseOptions& options, UnexplainedPart& u) {
   u.variables_tested = static_cast<int>(tests.specs.size());
@@ -492,6 +534,7 @@ void judgeVariables(const Tests& tests, const std::vector<CrossValidation::Outco
   std::stable_sort(u.variables.begin(), u.variables.end(),
                    [](const UnexplainedVariable& a, const UnexplainedVariable& b) {
                      if (a.significant != b.significant) return a.significant;
+                     if (a.significant) return a.relative_reduction > b.relative_reduction;
                      return a.z_statistic > b.z_statistic;
                    });
 }

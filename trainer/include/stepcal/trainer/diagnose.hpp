@@ -236,11 +236,11 @@ struct DiagnosedCampaign {
 /// as a family is: the residual fitted on a cubic in it (Legendre P1–P3 of the variable over its
 /// range on the fit rows) in the tracker's axes, and, where it belongs to a joint, through the
 /// arm: joint j's link angle (its angle, its torque), or the tilt and shift of joint j's frame
-/// (the payload's wrench in that frame); a torque modulated by its joint's angle through the link
-/// angle alone (τ_j cos h q_j, τ_j sin h q_j, h = 1–3).
+/// (the payload's wrench in that frame); a torque modulated by harmonic h of its joint's angle
+/// through the link angle alone (τ_j cos h q_j, τ_j sin h q_j; one variable per h = 1–12).
 struct UnexplainedVariable {
   /// e.g. "load_kg", "temp_c", "seq", "q3_deg", "tau3_nm", "joint3_mx_nm", "joint3_fz_n",
-  /// "tau3_nm*harmonics(q3)"
+  /// "tau3_nm*h7(q3)"
   std::string name;
   std::string description;  ///< in words, e.g. "the payload's moment about joint 3's x axis"
   int joint = -1;           ///< the joint it belongs to (0-based), −1 for none
@@ -266,10 +266,11 @@ struct UnexplainedPart {
   double ratio = 0.0;         ///< residual_m / floor_m
   bool noise_stated = false;  ///< false: the campaign states no tracker noise (the default σ)
   int variables_tested = 0;
-  /// Every variable tested, most significant first.
+  /// Every variable tested: the significant ones first, by their held-out reduction (as the
+  /// rounds choose among families), then the others by z.
   std::vector<UnexplainedVariable> variables;
   /// The free learner: a ridge fit over a dictionary of physical features (per joint: its torque
-  /// times harmonics 0–3 of its angle through its link angle, its frame's tilt under each moment
+  /// times harmonics 0–12 of its angle through its link angle, its frame's tilt under each moment
   /// component and shift under each force component of the payload's wrench), its ridge chosen
   /// held out among a few; its held-out gain and signed-rank test (Bonferroni over the ridges).
   int learner_features = 0;

@@ -58,7 +58,10 @@ void runCalibrate(const std::vector<std::string>& dirs, const std::string& model
 Subcommand addCalibrateCommand(CLI::App& app) {
   auto args = std::make_shared<CalibrateArgs>();
   CalibrateArgs& a = *args;
-  CLI::App* calibrate = app.add_subcommand("calibrate", "calibrate a campaign and print its accuracy tables");
+  CLI::App* calibrate = app.add_subcommand(
+      "calibrate",
+      "calibrate a campaign and print its accuracy tables; a note when the model leaves more than "
+      "3x the stated tracker-noise floor on the validation rows (then try `stepcal diagnose`)");
   calibrate
       ->add_option("campaign", a.campaign_dirs,
                    "campaign folder (or its campaign.yaml); several: one robot measured in several "

@@ -652,7 +652,9 @@ TEST(Cli, SimulateWithASensorBiasOffsetsEveryReading) {
 // tests/data/diagnosis/ur10-series-c.json was written (its timing left out, numbers to 9 digits):
 // first before the screening matrix stopped being held whole (issue 32), written again when the
 // drift candidates joined the catalogue (a registration drift in time order found after the six
-// profiles; every other answer within the tolerances below). Strings, counts and flags must be equal; numbers
+// profiles; every other answer within the tolerances below), and again when the verdict gained
+// its unexplained part (its `unexplained` object added, every other answer as it was). Strings,
+// counts and flags must be equal; numbers
 // within 1e-4 relative, a signed-rank z and its p-value within 1e-2 (one rank's step moves z by
 // 6e-4 relative, and p by 2e-4), held-out gains and reductions also within 1e-5 absolute (mm, or a
 // fraction of the held-out error), a self weight's masses and first moments also within 1e-6 kg or
@@ -672,8 +674,10 @@ void expectSameAnswers(const nlohmann::json& stored, const nlohmann::json& now,
   if (stored.is_number_float() || (stored.is_number() && now.is_number_float())) {
     if (!now.is_number()) return differ("a number before, now " + now.dump());
     const std::string key = path.substr(path.find_last_of('.') + 1);
-    const bool rank_statistic = key == "z_statistic" || key == "p_value";
-    const bool gain = key == "cv_gain_mm" || key == "relative_reduction";
+    const bool rank_statistic =
+        key == "z_statistic" || key == "p_value" || key == "z" || key == "learner_z";
+    const bool gain = key == "cv_gain_mm" || key == "relative_reduction" ||
+                      key == "learner_gain_mm" || key == "learner_relative_reduction";
     const bool lumped_mass = key.size() > 3 && (key.compare(key.size() - 3, 3, "_kg") == 0 ||
                                                 key.compare(key.size() - 4, 4, "_kgm") == 0);
     const double a = stored.get<double>(), b = now.get<double>();
@@ -733,7 +737,7 @@ TEST(Cli, TheDiagnosisOfUr10SeriesCIsTheStoredOne) {
 // wrote before its screening matrix was made chunk by chunk wherever its rows are needed instead
 // of stored (issue 32), tests/data/diagnosis/twin-stress-seed-3.json, the same tolerances; written
 // again when the drift candidates joined the catalogue (their scores added, every other answer
-// the same). Made again after a change meant to change the answers: `stepcal-diagnose-stress
+// the same), and when the verdict gained its unexplained part (its `unexplained` object added). Made again after a change meant to change the answers: `stepcal-diagnose-stress
 // --seeds 3`, then `stepcal diagnose OUT/seed-3 --json` without timing_s.
 TEST(Cli, TheDiagnosisOfATwinMixIsTheStoredOne) {
   const fs::path dir = scratch("twin_stress_seed_3");

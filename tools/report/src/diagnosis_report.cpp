@@ -13,6 +13,7 @@
 #include "stepcal/common/mechanisms/transmission_error.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/report/text_format.hpp"
+#include "stepcal/report/unexplained_report.hpp"
 
 namespace stepcal::report {
 namespace {
@@ -413,6 +414,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
                                   : "structure left after the effects: ") +
            d.unexplained_trend + "\n";
   }
+  out += unexplainedText(d.unexplained);
   if (!d.effects.empty()) out += "\n" + statisticsText("  after", d.after);
   out += campaignsText(d);
 
@@ -601,6 +603,7 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
   j["unexplained_trend"] =
       d.unexplained_trend.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.unexplained_trend);
   j["drift"] = driftJson(d.drift);
+  j["unexplained"] = unexplainedJson(d.unexplained);
   j["residual"] = {{"before", residualStatisticsJson(d.before)},
                    {"after", residualStatisticsJson(d.after)}};
   j["campaigns"] = nlohmann::json::array();

@@ -10,6 +10,7 @@
 #include "residual_statistics.hpp"
 #include "search.hpp"
 #include "session_frames.hpp"
+#include "unexplained.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/model_robot.hpp"
 #include "stepcal/common/urdf.hpp"
@@ -235,8 +236,9 @@ Diagnosis diagnose(const Campaign& campaign, const CalibratedModel& model,
   judgeCampaignProfiles(search);
   giveVerdict(d, options);
 
-  // 4. The extended model with its GPR, and the gain on validation rows.
+  // 4. The extended model with its GPR, the gain on validation rows, and what it leaves.
   extendAndEvaluate(campaign, model, extended_physical, search);
+  judgeUnexplained(search, extended_physical, campaign.tracker);
   return d;
 }
 

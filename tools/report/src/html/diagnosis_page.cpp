@@ -11,6 +11,7 @@
 #include "stepcal/report/html/page.hpp"
 #include "stepcal/report/report_html.hpp"
 #include "stepcal/report/text_format.hpp"
+#include "stepcal/report/unexplained_report.hpp"
 
 namespace stepcal::report {
 namespace {
@@ -107,7 +108,8 @@ class DiagnosisPage {
     const std::string name = campaign_.directory.empty() ? "(campaign built in memory)" : campaign_.directory;
     out_ << pageHead("stepcal diagnosis: " + name);
     out_ << "<h1>stepcal diagnosis</h1>\n<nav><a href=\"#effects\">effects found</a>"
-            "<a href=\"#signatures\">signatures</a><a href=\"#residual\">residual</a>"
+            "<a href=\"#signatures\">signatures</a><a href=\"#unexplained\">unexplained</a>"
+            "<a href=\"#residual\">residual</a>"
             "<a href=\"#candidates\">candidates</a>"
         << (d_.campaigns.empty() ? "" : "<a href=\"#campaigns\">campaigns</a>")
         << "<a href=\"#gain\">gain</a></nav>\n<p>"
@@ -121,6 +123,7 @@ class DiagnosisPage {
     if (!d_.drift.text.empty()) out_ << "<p>What drifted: " << escape(d_.drift.text) << ".</p>\n";
     writeEffects();
     writeSignatures();
+    out_ << unexplainedSection(d_.unexplained);
     writeResidual();
     writeCandidates();
     writeCampaigns();

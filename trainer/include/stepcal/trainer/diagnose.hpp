@@ -232,6 +232,57 @@ struct DiagnosedCampaign {
   std::vector<CampaignProfileDifference> profile_differences;
 };
 
+/// A variable the extended model's residual may follow (Diagnosis::unexplained), judged held out
+/// as a family is: the residual fitted on a cubic in it (Legendre P1–P3 of the variable over its
+/// range on the fit rows) in the tracker's axes, and, where it belongs to a joint, through the
+/// arm: joint j's link angle (its angle, its torque), or the tilt and shift of joint j's frame
+/// (the payload's wrench in that frame); a torque modulated by harmonic h of its joint's angle
+/// through the link angle alone (τ_j cos h q_j, τ_j sin h q_j; one variable per h = 1–12).
+struct UnexplainedVariable {
+  /// e.g. "load_kg", "temp_c", "seq", "q3_deg", "tau3_nm", "joint3_mx_nm", "joint3_fz_n",
+  /// "tau3_nm*h7(q3)"
+  std::string name;
+  std::string description;  ///< in words, e.g. "the payload's moment about joint 3's x axis"
+  int joint = -1;           ///< the joint it belongs to (0-based), −1 for none
+  /// A moment component of the payload's wrench in joint's frame, perpendicular to its axis
+  /// (what a bearing's tilt follows).
+  bool perpendicular_moment = false;
+  double cv_gain_mm = 0.0;  ///< held-out mean position error it removes, mm
+  double relative_reduction = 0.0;
+  double z_statistic = 0.0, p_value = 1.0;
+  /// p below family_alpha / (variables tested), and at least min_relative_reduction removed
+  bool significant = false;
+};
+
+/// The verdict's "unexplained" part: what the extended model leaves beyond the tracker noise
+/// held out, which variables it follows, and how much a free learner over physical features
+/// removes of it that the catalogue does not.
+struct UnexplainedPart {
+  /// The extended model's mean position error held out, m: on the validation rows (every load),
+  /// or, with none, on the fit rows (residual_rows says which).
+  double residual_m = 0.0;
+  std::string residual_rows;  ///< "validation" or "fit"
+  double floor_m = 0.0;       ///< the mean error the stated tracker noise alone gives, m
+  double ratio = 0.0;         ///< residual_m / floor_m
+  bool noise_stated = false;  ///< false: the campaign states no tracker noise (the default σ)
+  int variables_tested = 0;
+  /// Every variable tested: the significant ones first, by their held-out reduction (as the
+  /// rounds choose among families), then the others by z.
+  std::vector<UnexplainedVariable> variables;
+  /// The free learner: a ridge fit over a dictionary of physical features (per joint: its torque
+  /// times harmonics 0–12 of its angle through its link angle, its frame's tilt under each moment
+  /// component and shift under each force component of the payload's wrench), its ridge chosen
+  /// held out among a few; its held-out gain and signed-rank test (Bonferroni over the ridges).
+  int learner_features = 0;
+  double learner_gain_mm = 0.0, learner_relative_reduction = 0.0, learner_z = 0.0,
+         learner_p = 1.0;
+  bool learner_significant = false;
+  /// Something is unexplained: the residual above DiagnoseOptions::noise_ratio_limit × the
+  /// floor, a significant variable, or a significant learner.
+  bool any = false;
+  std::string text;  ///< the verdict's sentences
+};
+
 struct Diagnosis {
   Verdict verdict = Verdict::kNone;
   DriftVerdict drift;
@@ -243,6 +294,8 @@ struct Diagnosis {
   std::vector<ModelChange> changes;
   ResidualStatistics before, after;        ///< of the model without / with the effects
   std::string unexplained_trend;           ///< what the residual still follows, if anything
+  /// What the catalogue does not explain, held out, and what it follows.
+  UnexplainedPart unexplained;
   std::vector<GainRow> gain;               ///< per validation load
   std::string gpr_method;                  ///< the GPR reference, e.g. "poe+stiffness+gpr"
   /// The extended model's GPR: its training rows, the signed-rank z of its held-out reduction

@@ -25,7 +25,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& diagnosis, double seconds_
 /// in the final fit).
 /// Then `candidates` → every family tried with its score, `untestable`, `identifiability`,
 /// `extended_gpr` {training_rows, z_statistic, taken},
-/// `unexplained_trend`, `residual` {before, after}, `campaigns` (several campaigns diagnosed
+/// `unexplained_trend`, `unexplained` (unexplainedJson), `residual` {before, after}, `campaigns` (several campaigns diagnosed
 /// together; else empty) → [{directory, fit_rows, before_mean_position_mm, after_mean_position_mm,
 /// and after the first: station, tool → {translation_mm, translation_sigma_mm, rotation_deg,
 /// rotation_sigma_deg}, profile_differences → [{joint, order, ridge, cv_gain_mm,

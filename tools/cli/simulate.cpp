@@ -130,7 +130,9 @@ Subcommand addSimulateCommand(CLI::App& app) {
                        "thermal_expansion {expansion_per_k, reference_temp_c}, sensor_bias "
                        "{force_n, moment_nm}, joint_zero_drift {joint, drift_rad_per_k, "
                        "reference_temp_c}, registration_drift {translation_m, rotation_rad, "
-                       "settling_rows}; joints and links 1 … n; a self_weight replaces the "
+                       "settling_rows}; outside the diagnosis's catalogue: bearing_tilt {joint, "
+                       "compliance_rad_per_nm}, angle_dependent_stiffness {joint, harmonic, "
+                       "amplitude, phase_rad}; joints and links 1 … n; a self_weight replaces the "
                        "URDF inertials' one")
       ->excludes(model_option);
   simulate->add_option("--poses", sim.poses,

@@ -192,11 +192,26 @@ class TwinRobot {
   /// Everything true, SI, units in the key names (format "stepcal-twin-truth/1").
   nlohmann::json truthJson() const;
 
-  /// Link angles the robot reaches at commanded angles q_cmd_rad [rad] under a payload of
-  /// load_kg [kg] at the CoG and its own weight, at temp_c [°C]: the pipeline's fixed point,
-  /// to 1e-12 rad. rad.
+  /// The deflected robot at one measurement: the pipeline's fixed point (effects.hpp).
+  struct Deflection {
+    JointVector link_angles_rad;  ///< θ, rad
+    /// Per joint, its bearing_tilt δ: rotation vector in the frame after the joint's motion,
+    /// rad; zero for a joint without one.
+    std::vector<Vec3> tilt_rad;
+  };
+  /// The link angles and bearing tilts the robot reaches at commanded angles q_cmd_rad [rad]
+  /// under a payload of load_kg [kg] at the CoG and its own weight, at temp_c [°C]: the
+  /// pipeline's fixed point, to 1e-12 rad.
+  Deflection deflection(const JointVector& q_cmd_rad, double load_kg,
+                        double temp_c = kNoThermalExpansion) const;
+  /// deflection()'s link angles, rad. With a bearing_tilt they alone do not place the frames:
+  /// see deflectedFrames.
   JointVector linkAngles(const JointVector& q_cmd_rad, double load_kg,
                          double temp_c = kNoThermalExpansion) const;
+  /// Every chain frame of the deflected robot (link angles, bearing tilts, lengths scaled at
+  /// temp_c [°C]) into ws, base_link root, m.
+  void deflectedFrames(const JointVector& q_cmd_rad, double load_kg, double temp_c,
+                       ChainWorkspace& ws) const;
   /// True tip pose in base_link, deflected, at temp_c [°C], m.
   Pose X_BaseTip(const JointVector& q_cmd_rad, double load_kg,
                  double temp_c = kNoThermalExpansion) const;
@@ -231,9 +246,13 @@ class TwinRobot {
   TwinRobot() = default;
   // Payload wrench at the base origin, base axes, (f [N], m [N·m]), from frames in ws.
   Vec6 payloadWrenchAtBase(const ChainWorkspace& ws, double load_kg) const;
-  // Evaluates ws at the link angles of linkAngles (same arguments), lengths scaled at temp_c.
-  void deflectedFrames(const JointVector& q_cmd_rad, double load_kg, double temp_c,
-                       ChainWorkspace& ws) const;
+  // Evaluates ws at the deflection d with lengths scaled by scale: forward kinematics at its
+  // link angles, then each bearing tilt turns its joint's frame and every frame beyond.
+  void framesAt(const Deflection& d, double scale, ChainWorkspace& ws) const;
+  // Each bearing tilt's δ at the frames in ws, under the payload's wrench W_payload (at the
+  // base origin) and the links' weight beyond its joint; into tilt_rad (one per joint).
+  void bearingTilts(const ChainWorkspace& ws, const Vec6& W_payload,
+                    std::vector<Vec3>& tilt_rad) const;
 
   KinematicChain chain_;
   int sensor_frame_ = -1;

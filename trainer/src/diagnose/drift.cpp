@@ -79,25 +79,31 @@ std::string variableWords(const std::string& name) {
   return "the wrench's " + name.substr(0, name.find('_'));
 }
 
-// The variables beside which a family could not be told apart, in words with their r.
+// The variables beside which a family could not be told apart, with r and its score beside each.
 std::string notToldApartFrom(const ConfoundTest& test) {
   std::string words;
   for (const ConfoundTest::Beside& b : test.beside) {
     if (b.told_apart) continue;
-    words += (words.empty() ? "" : ", ") + variableWords(b.variable) + printed(" (r = %.2f)", b.r);
+    words += (words.empty() ? "" : ", ") + variableWords(b.variable) +
+             printed(" (r = %.2f; beside it z %.1f, %.1f %% held out)", b.r, b.z_statistic,
+                     100.0 * b.relative_reduction);
   }
   return words;
 }
 
-// Each beside-score of a test, "load_kg: z 0.4, 0.2 %".
-std::string besideScores(const ConfoundTest& test) {
-  std::string words;
+// A test told apart from every variable beside: how many, and the weakest score beside one.
+std::string toldApartFromAll(const ConfoundTest& test) {
+  const ConfoundTest::Beside* weakest = nullptr;
   for (const ConfoundTest::Beside& b : test.beside) {
-    words += (words.empty() ? "" : "; ") + variableWords(b.variable) +
-             printed(" (r = %.2f): z %.1f, %.1f %% held out", b.r, b.z_statistic,
-                     100.0 * b.relative_reduction);
+    if (weakest == nullptr || b.z_statistic < weakest->z_statistic) weakest = &b;
   }
-  return words;
+  return printed("told apart from each of the %.0f variables that move with ",
+                 static_cast<double>(test.beside.size())) +
+         (test.driver == "seq" ? std::string("the time order") : "the temperature") +
+         printed(" (alone z %.1f; weakest beside ", test.z_statistic) +
+         variableWords(weakest->variable) +
+         printed(", r = %.2f: z %.1f, %.1f %% held out)", weakest->r, weakest->z_statistic,
+                 100.0 * weakest->relative_reduction);
 }
 
 bool sameFamily(const Mechanism& a, const Mechanism& b) {
@@ -147,19 +153,24 @@ std::vector<DriverCorrelation> timeOrderCorrelations(const Search& search) {
   return out;
 }
 
-// The confound numbers in a sentence: what moves with the time order, and how far.
+// The confound numbers in a sentence: what moves with the time order, and how far (the three
+// that move most by name).
 std::string timeOrderLine(const std::vector<DriverCorrelation>& correlations) {
   if (correlations.empty()) return "";
   std::string moving;
+  int count = 0;
   for (const DriverCorrelation& c : correlations) {
     if (c.r < 0.3) break;
-    moving += (moving.empty() ? "" : ", ") + variableWords(c.variable) + printed(" r = %.2f", c.r);
+    if (++count <= 3) {
+      moving += (moving.empty() ? "" : ", ") + variableWords(c.variable) + printed(" r = %.2f", c.r);
+    }
   }
-  if (moving.empty()) {
+  if (count == 0) {
     return "nothing else moves with the time order (largest, " +
            variableWords(correlations.front().variable) +
            printed(": r = %.2f)", correlations.front().r);
   }
+  if (count > 3) moving += printed(" and %.0f more at r ≥ 0.3", count - 3.0);
   return "what moves with the time order over the fit rows: " + moving;
 }
 
@@ -170,10 +181,10 @@ std::string confoundedLine(const ConfoundTest& t) {
       registration ? "a trend in time order (" + describe(t.mechanism) + ")"
                    : "joint " + std::to_string(t.mechanism.joint + 1) +
                          "'s zero following the temperature";
-  return what + " that cannot be told apart from " + notToldApartFrom(t) +
-         printed(": significant alone (z %.1f, round %.0f), not beside ", t.z_statistic,
-                 static_cast<double>(t.round)) +
-         "it (" + besideScores(t) + "); not named" +
+  return what +
+         printed(", significant alone in round %.0f (z %.1f), that cannot be told apart from ",
+                 static_cast<double>(t.round), t.z_statistic) +
+         notToldApartFrom(t) + ": not named" +
          (registration ? ", so what it explained stays with the robot's model, not the measurement"
                        : "");
 }
@@ -221,9 +232,7 @@ void judgeDrift(Search& search) {
     });
     if (named) {
       if (!t.beside.empty()) {
-        parts.push_back(describe(t.mechanism) + " is told apart from what moves with " +
-                        (t.driver == "seq" ? std::string("the time order") : "the temperature") +
-                        printed(" (alone z %.1f; beside ", t.z_statistic) + besideScores(t) + ")");
+        parts.push_back(describe(t.mechanism) + " is " + toldApartFromAll(t));
       }
       continue;
     }
@@ -256,10 +265,12 @@ void judgeDrift(Search& search) {
   }
   for (const TrendScore& t : d.after.trends) {
     if (t.significant && (t.variable == "seq" || t.variable == "temp_c")) {
+      const bool confounded = t.variable == "seq" ? confounded_registration : confounded_zero;
       parts.push_back("a trend in " + t.variable +
-                      printed(" is left (%.4f mm held out, z %.1f): what drifts there has a form "
-                              "neither of these takes",
-                              t.cv_gain_mm, t.z_statistic));
+                      printed(" is left (%.4f mm held out, z %.1f): ", t.cv_gain_mm, t.z_statistic) +
+                      (confounded ? "the one above, which the rows cannot tell from what moves "
+                                    "with it"
+                                  : "what drifts there has a form neither of these takes"));
     }
   }
   v.text.clear();

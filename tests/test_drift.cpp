@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <random>
 
@@ -300,6 +301,8 @@ TEST(DriftDiagnosis, ALoadEffectInBlocksIsNotNamedADrift) {
   const Diagnosis d = trainer::test_support::diagnoseSimulation(
       trainer::test_support::paperOptions(41, {tilt}));
   SCOPED_TRACE("named: " + trainer::test_support::effectsText(d) + "; drift: " + d.drift.text);
+  std::printf("named: %s\ndrift: %s\n", trainer::test_support::effectsText(d).c_str(),
+              d.drift.text.c_str());
   EXPECT_EQ(effectOf(d, MechanismKind::kRegistrationDrift), nullptr);
   EXPECT_FALSE(d.drift.registration);
   EXPECT_GT(timeOrderCorrelation(d, "load_kg"), 0.5) << "the paper's blocks";
@@ -329,6 +332,8 @@ TEST(DriftDiagnosis, ATrackerDriftWithMixedLoadsIsNamed) {
   std::shuffle(options.planned_fit_rows.begin(), options.planned_fit_rows.end(), rng);
   const Diagnosis d = trainer::test_support::diagnoseSimulation(options);
   SCOPED_TRACE("named: " + trainer::test_support::effectsText(d) + "; drift: " + d.drift.text);
+  std::printf("named: %s\ndrift: %s\n", trainer::test_support::effectsText(d).c_str(),
+              d.drift.text.c_str());
   EXPECT_LT(timeOrderCorrelation(d, "load_kg"), 0.3) << "the loads are mixed";
   ASSERT_NE(effectOf(d, MechanismKind::kRegistrationDrift), nullptr);
   EXPECT_TRUE(d.drift.registration);

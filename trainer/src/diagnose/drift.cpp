@@ -97,10 +97,11 @@ std::string toldApartFromAll(const ConfoundTest& test) {
   for (const ConfoundTest::Beside& b : test.beside) {
     if (weakest == nullptr || b.z_statistic < weakest->z_statistic) weakest = &b;
   }
-  return printed("told apart from each of the %.0f variables that move with ",
-                 static_cast<double>(test.beside.size())) +
-         (test.driver == "seq" ? std::string("the time order") : "the temperature") +
-         printed(" (alone z %.1f; weakest beside ", test.z_statistic) +
+  const size_t count = test.beside.size();
+  return std::string("told apart from what moves with ") +
+         (test.driver == "seq" ? "the time order" : "the temperature") +
+         printed(" (%.0f variable", static_cast<double>(count)) + (count == 1 ? "" : "s") +
+         printed("; alone z %.1f; weakest beside ", test.z_statistic) +
          variableWords(weakest->variable) +
          printed(", r = %.2f: z %.1f, %.1f %% held out)", weakest->r, weakest->z_statistic,
                  100.0 * weakest->relative_reduction);

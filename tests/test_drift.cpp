@@ -332,8 +332,9 @@ TEST(DriftDiagnosis, ATrackerDriftWithMixedLoadsIsNamed) {
   std::shuffle(options.planned_fit_rows.begin(), options.planned_fit_rows.end(), rng);
   const Diagnosis d = trainer::test_support::diagnoseSimulation(options);
   SCOPED_TRACE("named: " + trainer::test_support::effectsText(d) + "; drift: " + d.drift.text);
-  std::printf("named: %s\ndrift: %s\n", trainer::test_support::effectsText(d).c_str(),
-              d.drift.text.c_str());
+  std::printf("named: %s\ndrift: %s\nthe load's r with the time order: %.3f\n",
+              trainer::test_support::effectsText(d).c_str(), d.drift.text.c_str(),
+              timeOrderCorrelation(d, "load_kg"));
   EXPECT_LT(timeOrderCorrelation(d, "load_kg"), 0.3) << "the loads are mixed";
   ASSERT_NE(effectOf(d, MechanismKind::kRegistrationDrift), nullptr);
   EXPECT_TRUE(d.drift.registration);

@@ -12,8 +12,8 @@ namespace {
 // From this r a variable moves with the time order enough to be tested (confounds.hpp's rule).
 constexpr double kShownFrom = 0.3;
 
-std::string familyName(const trainer::ConfoundTest& t) {
-  return describe(t.mechanism);
+std::string driverWords(const std::string& driver) {
+  return driver == "seq" ? "the time order" : driver == "temp_c" ? "the temperature" : driver;
 }
 
 }  // namespace
@@ -33,14 +33,14 @@ std::string driftConfoundsSection(const trainer::DriftVerdict& drift) {
     out << "</table>\n";
   }
   for (const trainer::ConfoundTest& t : drift.confound_tests) {
-    out << "<p>" << escape(familyName(t)) << ", round " << t.round << ": z "
+    out << "<p>" << escape(describe(t.mechanism)) << ", round " << t.round << ": z "
         << cell("%.1f", t.z_statistic) << " alone; "
-        << (t.beside.empty() ? "nothing moves with " + escape(t.driver)
+        << (t.beside.empty() ? "nothing moves with " + escape(driverWords(t.driver))
                              : std::string(t.told_apart ? "told apart from every variable that "
                                                           "moves with "
                                                         : "<b>not told apart</b> from what moves "
                                                           "with ") +
-                                   escape(t.driver))
+                                   escape(driverWords(t.driver)))
         << ".</p>\n";
     if (t.beside.empty()) continue;
     out << "<table>\n<tr><th class=\"l\">beside</th><th>r</th><th>held-out gain (mm)</th>"

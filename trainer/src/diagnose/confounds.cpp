@@ -21,6 +21,11 @@ constexpr size_t kMaxLevels = 8;
 constexpr int kConfounderDegree = 3;
 // From this multiple correlation on a variable moves with the driver enough to stand in for it.
 constexpr double kMovesWithDriver = 0.3;
+// The family is told apart from at most this many of them, those that move most with the driver:
+// on the paper's protocol the load, the torques it loads and the wrench's six components all
+// move with the blocks (13 variables), and each costs the screening matrix 18–42 columns whose
+// Grams grow with their square, for variables that stand in for the same blocks.
+constexpr size_t kMostConfounders = 6;
 
 bool sameLevel(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(1.0, std::abs(b)); }
 
@@ -122,6 +127,9 @@ std::vector<Confounder> confoundersOf(const std::vector<ConfounderPtr>& variable
     const double r = driverCorrelation(values, *v);
     if (r >= kMovesWithDriver) moving.push_back({v, r});
   }
+  std::stable_sort(moving.begin(), moving.end(),
+                   [](const Confounder& a, const Confounder& b) { return a.r > b.r; });
+  if (moving.size() > kMostConfounders) moving.resize(kMostConfounders);
   return moving;
 }
 

@@ -42,7 +42,8 @@ std::vector<ConfounderPtr> confounderVariables(const FitRows& fit, const Evaluat
 /// functions, 0 … 1: how far the variable moves with it.
 double driverCorrelation(const std::vector<double>& driver, const ConfounderVariable& variable);
 
-/// The variables other than the driver that move with it (R ≥ 0.3), with their R.
+/// The variables other than the driver that move with it (R ≥ 0.3), with their R: the six that
+/// move most, largest R first.
 struct Confounder {
   ConfounderPtr variable;
   double r = 0.0;

@@ -1,13 +1,15 @@
 // The twin's load effects outside the diagnosis's catalogue: bearing_tilt (a joint's compliance
 // perpendicular to its axis) and angle_dependent_stiffness (a joint's compliance varying with
 // its angle), against their closed forms and finite differences, their input checks, truth.json
-// round trips, and their sizes on the paper protocol.
+// round trips, and their sizes on the paper protocol; and the campaign designs that confound a
+// load effect with the time order or not (TwinOptions::load_order, temperature_ramp_c).
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <set>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -15,7 +17,10 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/chain.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/units.hpp"
+#include "stepcal/twin/draws.hpp"
 #include "stepcal/twin/twin.hpp"
+#include "support/campaign_rows.hpp"
 
 namespace stepcal::twin {
 namespace {
@@ -174,6 +179,8 @@ TEST(TwinLoadEffects, BearingTiltTurnsTheArmAboutTheJointsOriginLinearlyInSmallC
     EXPECT_LT((d1 - first_order).norm(), 1e-4 * first_order.norm()) << m.pose_id;
     EXPECT_LT((d2 - 2.0 * d1).norm(), 1e-4 * d1.norm()) << m.pose_id;
     EXPECT_GT(d1.norm(), 1e-6) << m.pose_id;
+    // The payload hangs in front of joint 1's vertical axis: the arm sags under it.
+    EXPECT_LT(d1.z(), 0.0) << m.pose_id;
   }
   EXPECT_GT(loaded, 50);
 }
@@ -318,6 +325,170 @@ TEST(TwinLoadEffects, SizesOnThePaperProtocol) {
     EXPECT_LT(mean.at(20.0) * 1e3, c.at20_max_mm) << c.what;
     EXPECT_GT(mean.at(55.0) * 1e3, c.at55_min_mm) << c.what;
     EXPECT_LT(mean.at(55.0) * 1e3, c.at55_max_mm) << c.what;
+  }
+}
+
+
+TEST(TwinLoadEffects, ForeignMixesAreTheirDesignsEffectsAtTheirSizes) {
+  std::map<std::string, int> designs;
+  for (uint64_t seed = 1; seed <= 40; ++seed) {
+    const ForeignMix mix = drawForeignMix(seed);
+    EXPECT_EQ(drawForeignMix(seed).foreign, mix.foreign);  // the same seed, the same mix
+    ++designs[mix.design];
+    const size_t foreign = mix.design == "both" ? 2u : 1u;
+    ASSERT_EQ(mix.foreign.size(), foreign) << seed;
+    EXPECT_EQ(mix.catalogued.size(), mix.design == "beside" ? 1u : 0u) << seed;
+    TwinOptions o = noiselessPaper(seed);
+    o.hidden_effects = mix.foreign;
+    for (const DrawnMechanism& m : mix.catalogued) o.hidden_effects.push_back(m.effect);
+    const TwinRobot robot(o);  // every draw a valid effect
+    for (const nlohmann::json& e : mix.foreign) {
+      if (e.at("name") == "bearing_tilt") {
+        const double c = e.at("compliance_rad_per_nm");
+        EXPECT_TRUE(e.at("joint") == 1 ? c >= 1.2e-7 && c <= 2.2e-7 : c >= 0.8e-6 && c <= 1.6e-6)
+            << e.dump();
+      } else {
+        EXPECT_EQ(e.at("name"), "angle_dependent_stiffness");
+        EXPECT_GE(e.at("amplitude").get<double>(), 0.1);
+        EXPECT_LE(e.at("amplitude").get<double>(), 0.25);
+      }
+    }
+  }
+  EXPECT_EQ(designs, (std::map<std::string, int>{
+                         {"angle_dependent_stiffness", 10}, {"bearing_tilt", 10}, {"beside", 10},
+                         {"both", 10}}));
+}
+
+// Pearson correlation of two equally long series.
+double correlation(const std::vector<double>& x, const std::vector<double>& y) {
+  const double n = static_cast<double>(x.size());
+  double mx = 0.0, my = 0.0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    mx += x[i] / n;
+    my += y[i] / n;
+  }
+  double sxy = 0.0, sxx = 0.0, syy = 0.0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    sxy += (x[i] - mx) * (y[i] - my);
+    sxx += (x[i] - mx) * (x[i] - mx);
+    syy += (y[i] - my) * (y[i] - my);
+  }
+  return sxy / std::sqrt(sxx * syy);
+}
+
+// The fit rows' load against their time order (seq): Pearson r.
+double loadTimeCorrelationOfFitRows(const Campaign& c) {
+  std::vector<double> seq, load;
+  for (const Measurement& m : c.rows) {
+    if (m.set == RowSet::kValidation) continue;
+    seq.push_back(static_cast<double>(m.seq));
+    load.push_back(m.load_kg);
+  }
+  return correlation(seq, load);
+}
+
+TEST(TwinCampaignDesign, MixedLoadOrderShufflesTheFitRowsAndNothingElse) {
+  TwinOptions blocks = noiselessPaper(9);
+  blocks.tracker_position_sigma_m = 10e-6;  // noise on: it follows the time order, not the row
+  blocks.hidden_effects = {bearingTilt(1, 1.6e-7)};
+  TwinOptions mixed = blocks;
+  mixed.load_order = "mixed";
+  const Campaign a = simulateCampaign(blocks, nullptr);
+  const Campaign b = simulateCampaign(mixed, nullptr);
+  ASSERT_EQ(a.rows.size(), b.rows.size());
+  std::multiset<std::tuple<std::string, double, int>> fit_a, fit_b;
+  int moved = 0;
+  for (size_t i = 0; i < a.rows.size(); ++i) {
+    const Measurement& x = a.rows[i];
+    const Measurement& y = b.rows[i];
+    EXPECT_EQ(x.seq, y.seq);
+    EXPECT_EQ(x.set == RowSet::kValidation, y.set == RowSet::kValidation) << x.seq;
+    if (x.set == RowSet::kValidation) {
+      // Same place, same pose, load, noise and temperature: the same measurement.
+      EXPECT_EQ(x.pose_id, y.pose_id);
+      EXPECT_EQ(x.load_kg, y.load_kg);
+      EXPECT_EQ(x.p_TipInTracker_m, y.p_TipInTracker_m);
+      EXPECT_EQ(x.wrench_Sensor, y.wrench_Sensor);
+      EXPECT_EQ(x.temp_c, y.temp_c);
+      continue;
+    }
+    fit_a.insert({x.pose_id, x.load_kg, static_cast<int>(x.set)});
+    fit_b.insert({y.pose_id, y.load_kg, static_cast<int>(y.set)});
+    moved += x.pose_id != y.pose_id || x.load_kg != y.load_kg;
+  }
+  EXPECT_EQ(fit_a, fit_b);  // the same fit rows, in another order
+  EXPECT_GT(moved, 650);  // of the 700 fit rows
+  // Blocks: the load rises with the time order; mixed: it does not (|r| < 3/√780 ≈ 0.11).
+  EXPECT_GT(loadTimeCorrelationOfFitRows(a), 0.5);
+  EXPECT_LT(std::abs(loadTimeCorrelationOfFitRows(b)), 0.11);
+  // A row keeps its own commanded pose and physics wherever it is measured.
+  const TwinRobot robot(mixed);
+  for (size_t i = 0; i < b.rows.size(); i += 11) {
+    const Measurement& m = b.rows[i];
+    EXPECT_LT((m.p_TipInTracker_m - robot.X_TrackerTip(m.q_rad, m.load_kg).translation()).norm(),
+              6.0 * 10e-6 * std::sqrt(3.0))
+        << m.pose_id;
+  }
+  // Seeded: the same order again; another seed's order is another.
+  test::expectSameRows(b, simulateCampaign(mixed, nullptr));
+  TwinOptions other = mixed;
+  other.seed = 10;
+  const Campaign o = simulateCampaign(other, nullptr);
+  int same_place = 0;
+  for (size_t i = 0; i < b.rows.size(); ++i) {
+    same_place += b.rows[i].set != RowSet::kValidation && b.rows[i].pose_id == o.rows[i].pose_id &&
+                  b.rows[i].load_kg == o.rows[i].load_kg;
+  }
+  EXPECT_LT(same_place, 20);
+}
+
+TEST(TwinCampaignDesign, TemperatureRampRisesSteadilyWithTheTimeOrder) {
+  TwinOptions o = noiselessPaper(10);
+  o.temperature_swing_c = 0.0;
+  o.temperature_ramp_c = 4.0;
+  const Campaign c = simulateCampaign(o, nullptr);
+  const double rows = static_cast<double>(c.rows.size());
+  std::vector<double> seq, temp;
+  for (const Measurement& m : c.rows) {
+    EXPECT_NEAR(*m.temp_c, 20.0 + 4.0 * static_cast<double>(m.seq - 1) / (rows - 1.0), 1e-12);
+    seq.push_back(static_cast<double>(m.seq));
+    temp.push_back(*m.temp_c);
+  }
+  EXPECT_NEAR(correlation(seq, temp), 1.0, 1e-12);
+  // On top of the sinusoid; an explicit ramp of 0 is the default campaign bit for bit.
+  TwinOptions both = noiselessPaper(10);
+  both.temperature_ramp_c = -2.0;
+  const Campaign d = simulateCampaign(both, nullptr);
+  TwinOptions flat = noiselessPaper(10);
+  flat.temperature_ramp_c = 0.0;
+  const Campaign e = simulateCampaign(flat, nullptr);
+  const Campaign f = simulateCampaign(noiselessPaper(10), nullptr);
+  for (size_t i = 0; i < d.rows.size(); ++i) {
+    const double sine = 3.0 * std::sin(2.0 * kPi * static_cast<double>(d.rows[i].seq) / 300.0);
+    EXPECT_NEAR(*d.rows[i].temp_c, 20.0 + sine - 2.0 * static_cast<double>(i) / (rows - 1.0),
+                1e-12);
+    EXPECT_EQ(*e.rows[i].temp_c, *f.rows[i].temp_c);
+  }
+}
+
+TEST(TwinCampaignDesign, BadLoadOrderOrRampIsRefusedWithTheKey) {
+  TwinOptions order = noiselessPaper(1);
+  order.load_order = "random";
+  TwinOptions ramp = noiselessPaper(1);
+  ramp.temperature_ramp_c = 45.0;
+  TwinOptions nan_ramp = noiselessPaper(1);
+  nan_ramp.temperature_ramp_c = std::nan("");
+  const std::vector<std::pair<TwinOptions, std::string>> cases = {
+      {order, "TwinOptions.load_order = 'random'; expected 'blocks'"},
+      {ramp, "TwinOptions.temperature_ramp_c = 45; expected a finite rise"},
+      {nan_ramp, "TwinOptions.temperature_ramp_c = nan"}};
+  for (const auto& [o, message] : cases) {
+    try {
+      simulateCampaign(o, nullptr);
+      ADD_FAILURE() << "accepted " << message;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
   }
 }
 

@@ -341,5 +341,35 @@ TEST(DriftDiagnosis, ATrackerDriftWithMixedLoadsIsNamed) {
   EXPECT_EQ(besideOf(*test, "load_kg"), nullptr) << "the load does not move with the time order";
 }
 
+// Joint 2's zero follows the temperature by 30 µrad/K, but the temperature only ramps, 4 °C
+// steadily through the campaign (a workshop warming through the day, no swing): temperature and
+// time order are one variable on these rows, and a tracker drift in time would be one in
+// temperature. The zero drift moves one joint, not the tracker's frame, and goes on within the
+// load blocks: it is told apart from the load and named with its coefficient; a registration drift
+// is not named (the rows cannot tell it from the temperature).
+TEST(DriftDiagnosis, AZeroDriftOnATemperatureRampIsTheRobots) {
+  const nlohmann::json warm = {{"name", "joint_zero_drift"},
+                               {"joint", 2},
+                               {"drift_rad_per_k", 3e-5},
+                               {"reference_temp_c", 20.0}};
+  twin::TwinOptions options = trainer::test_support::paperOptions(42, {warm});
+  options.temperature_swing_c = 0.0;
+  options.temperature_ramp_c = 4.0;
+  const Diagnosis d = trainer::test_support::diagnoseSimulation(options);
+  SCOPED_TRACE("named: " + trainer::test_support::effectsText(d) + "; drift: " + d.drift.text);
+  std::printf("named: %s\ndrift: %s\n", trainer::test_support::effectsText(d).c_str(),
+              d.drift.text.c_str());
+  EXPECT_EQ(effectOf(d, MechanismKind::kRegistrationDrift), nullptr);
+  EXPECT_GT(timeOrderCorrelation(d, "temp_c"), 0.95);
+  const FoundEffect* e = effectOf(d, MechanismKind::kJointZeroDrift);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->mechanism.joint, 1);
+  EXPECT_NEAR(view<mechanism::JointZeroDrift>(e->mechanism).driftRate_rad_per_k(), 3e-5, 0.1 * 3e-5);
+  const trainer::ConfoundTest* test = confoundTestOf(d, MechanismKind::kJointZeroDrift);
+  ASSERT_NE(test, nullptr);
+  EXPECT_TRUE(test->told_apart);
+  EXPECT_EQ(besideOf(*test, "seq"), nullptr) << "its own joint's zero in time is the robot's too";
+}
+
 }  // namespace
 }  // namespace stepcal

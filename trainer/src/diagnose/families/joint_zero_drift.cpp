@@ -1,4 +1,5 @@
 // joint_zero_drift: a joint's zero moving with temperature (families.hpp).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -17,11 +18,16 @@ constexpr double kMinZeroDriftSpreadC = 0.1;
 
 void jointZeroDriftFamilies(const FamilyContext& c) {
   const RowTemperatures temps = rowTemperatures(c.fit);
-  // What moves with the temperature (the time order among them, when the room warms through the
-  // campaign): each re-makes the zero drift as a function of itself (confounds.hpp).
+  // What moves with the temperature: each re-makes the zero drift as a function of itself
+  // (confounds.hpp). Not the time order: a zero that follows the time rather than the
+  // temperature is still that joint's zero, the robot's either way (a load block, a grid's loop
+  // or a torque is another cause).
   std::vector<Confounder> moving;
   if (!temps.few && temps.spread_c >= kMinZeroDriftSpreadC) {
     moving = confoundersOf(confounderVariables(c.fit, c.start), "temp_c");
+    moving.erase(std::remove_if(moving.begin(), moving.end(),
+                                [](const Confounder& m) { return m.variable->name == "seq"; }),
+                 moving.end());
   }
   for (int j = 0; j < c.n; ++j) {
     if (present(c.global, MechanismKind::kJointZeroDrift, j, -1) ||

@@ -654,8 +654,8 @@ TEST(Cli, SimulateWithASensorBiasOffsetsEveryReading) {
 // drift candidates joined the catalogue (a registration drift in time order found after the six
 // profiles; every other answer within the tolerances below), and when a time-order family had to
 // be told apart from what moves with its driver (issue 43: drift.time_order_correlations and
-// drift.confound_tests added, the drift text, and 13 drift candidates of rounds 4–8 no longer
-// significant: confounded with the temperature; the effects and every number the same). Strings, counts and flags must be equal; numbers
+// drift.confound_tests added, the drift text, and 11 registration-drift candidates of rounds 4–8
+// no longer significant: confounded with the temperature; the effects and every number the same). Strings, counts and flags must be equal; numbers
 // within 1e-4 relative, a signed-rank z and its p-value within 1e-2 (one rank's step moves z by
 // 6e-4 relative, and p by 2e-4), held-out gains and reductions also within 1e-5 absolute (mm, or a
 // fraction of the held-out error), a self weight's masses and first moments also within 1e-6 kg or

@@ -507,14 +507,46 @@ nlohmann::json candidateJson(const trainer::CandidateScore& c) {
   return x;
 }
 
+// A time-order family's test beside what moves with its driver (diagnose.hpp, ConfoundTest).
+nlohmann::json confoundTestJson(const trainer::ConfoundTest& t) {
+  nlohmann::json x = {{"name", toString(t.mechanism.kind)},
+                      {"joint", t.mechanism.joint >= 0 ? nlohmann::json(t.mechanism.joint + 1)
+                                                       : nlohmann::json(nullptr)},
+                      {"order", t.mechanism.order > 0 ? nlohmann::json(t.mechanism.order)
+                                                      : nlohmann::json(nullptr)},
+                      {"round", t.round},
+                      {"driver", t.driver},
+                      {"z_statistic", t.z_statistic},
+                      {"told_apart", t.told_apart},
+                      {"beside", nlohmann::json::array()}};
+  for (const trainer::ConfoundTest::Beside& b : t.beside) {
+    x["beside"].push_back({{"variable", b.variable},
+                           {"r", b.r},
+                           {"cv_gain_mm", b.cv_gain_mm},
+                           {"relative_reduction", b.relative_reduction},
+                           {"z_statistic", b.z_statistic},
+                           {"p_value", b.p_value},
+                           {"told_apart", b.told_apart}});
+  }
+  return x;
+}
+
 nlohmann::json driftJson(const trainer::DriftVerdict& drift) {
   nlohmann::json zero_drift = nlohmann::json::array();
   for (int joint : drift.zero_drift_joints) zero_drift.push_back(joint + 1);
+  nlohmann::json correlations = nlohmann::json::array();
+  for (const trainer::DriverCorrelation& c : drift.time_order_correlations) {
+    correlations.push_back({{"variable", c.variable}, {"r", c.r}});
+  }
+  nlohmann::json tests = nlohmann::json::array();
+  for (const trainer::ConfoundTest& t : drift.confound_tests) tests.push_back(confoundTestJson(t));
   return {{"registration", drift.registration},
           {"zero_drift_joints", zero_drift},
           {"seq_temp_correlation", std::isfinite(drift.seq_temp_correlation)
                                        ? nlohmann::json(drift.seq_temp_correlation)
                                        : nlohmann::json(nullptr)},
+          {"time_order_correlations", correlations},
+          {"confound_tests", tests},
           {"text", drift.text}};
 }
 

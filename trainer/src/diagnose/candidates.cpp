@@ -51,6 +51,13 @@ void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, s
           lin.geometry.block(e_i, t.geometry, k, 1) * legendrePolynomial(t.degree, s);
     }
   }
+  for (const VariableScaled& v : recipe.variable_scaled) {
+    for (size_t i = begin; i < end; ++i) {
+      const Eigen::Index e_i = fit.start[i] - first, k = fit.equations(i);
+      chunk.dense.block(e_i, v.dense, k, 1) =
+          lin.geometry.block(e_i, v.geometry, k, 1) * v.variable->function(v.function, i);
+    }
+  }
   chunk.link_angle = std::move(lin.link_angle);
   const KinematicChain& chain = recipe.whole.chain_Tracker;
   const Eigen::Index rows = static_cast<Eigen::Index>(end - begin);
@@ -92,6 +99,9 @@ void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, s
           case ScaledSource::Kind::kTemperature:
             out(r, source.first) =
                 fit.rows[i]->temp_c ? *fit.rows[i]->temp_c - source.reference_c : 0.0;
+            break;
+          case ScaledSource::Kind::kConfounder:
+            out(r, source.first) = source.variable->function(source.function, i);
             break;
           case ScaledSource::Kind::kCampaign:
             out(r, source.first) = fit.rows[i]->session == source.campaign ? 1.0 : 0.0;

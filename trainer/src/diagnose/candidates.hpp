@@ -40,6 +40,16 @@ struct Family {
   int extends = -1;
   /// Fitted on every row it makes every compliance it frees negative: not a deflection.
   bool negative_compliance = false;
+  /// A time-order family (confounds.hpp): its driver ("seq", "temp_c"; empty: none) and, per
+  /// variable that moves with it, the nuisance columns that re-make it as a function of that
+  /// variable (its own columns times the variable's functions).
+  std::string driver;
+  struct Confound {
+    std::string variable;
+    double r = 0.0;  ///< DriverCorrelation of the driver with it
+    std::vector<Eigen::Index> columns;
+  };
+  std::vector<Confound> confounds;
   /// A profile's difference in this later campaign (its columns zero on the other campaigns'
   /// rows), tested for the report and never added; 0: a family of the robot.
   int campaign = 0;

@@ -1,10 +1,12 @@
 // What drifted while the campaign was measured (search.hpp, DriftVerdict): the tracker's
 // registration in time order, a joint's zero with temperature, and what the rows tell apart.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <string>
 
+#include "confounds.hpp"
 #include "search.hpp"
 #include "stepcal/common/mechanisms/joint_zero_drift.hpp"
 
@@ -64,12 +66,138 @@ std::string notFound(const Diagnosis& d, MechanismKind kind, const char* what) {
                  best->z_statistic);
 }
 
+// A variable in words: "the load", "joint 2's torque", "the wrench's fz", "the time order".
+std::string variableWords(const std::string& name) {
+  if (name == "load_kg") return "the load";
+  if (name == "temp_c") return "the temperature";
+  if (name == "seq") return "the time order";
+  if (name.size() > 1 && (name[0] == 'q' || name.rfind("tau", 0) == 0)) {
+    const bool angle = name[0] == 'q';
+    const std::string joint = name.substr(angle ? 1 : 3, name.find('_') - (angle ? 1 : 3));
+    return "joint " + joint + (angle ? "'s angle" : "'s torque");
+  }
+  return "the wrench's " + name.substr(0, name.find('_'));
+}
+
+// The variables beside which a family could not be told apart, with r and its score beside each.
+std::string notToldApartFrom(const ConfoundTest& test) {
+  std::string words;
+  for (const ConfoundTest::Beside& b : test.beside) {
+    if (b.told_apart) continue;
+    words += (words.empty() ? "" : ", ") + variableWords(b.variable) +
+             printed(" (r = %.2f; beside it z %.1f, %.1f %% held out)", b.r, b.z_statistic,
+                     100.0 * b.relative_reduction);
+  }
+  return words;
+}
+
+// A test told apart from every variable beside: how many, and the weakest score beside one.
+std::string toldApartFromAll(const ConfoundTest& test) {
+  const ConfoundTest::Beside* weakest = nullptr;
+  for (const ConfoundTest::Beside& b : test.beside) {
+    if (weakest == nullptr || b.z_statistic < weakest->z_statistic) weakest = &b;
+  }
+  const size_t count = test.beside.size();
+  return std::string("told apart from what moves with ") +
+         (test.driver == "seq" ? "the time order" : "the temperature") +
+         printed(" (%.0f variable", static_cast<double>(count)) + (count == 1 ? "" : "s") +
+         printed("; alone z %.1f; weakest beside ", test.z_statistic) +
+         variableWords(weakest->variable) +
+         printed(", r = %.2f: z %.1f, %.1f %% held out)", weakest->r, weakest->z_statistic,
+                 100.0 * weakest->relative_reduction);
+}
+
+bool sameFamily(const Mechanism& a, const Mechanism& b) {
+  return a.kind == b.kind && a.joint == b.joint;
+}
+
+// Per time-order family, the test that stands: the one of the round it was named in (at its
+// order), else its last round's, the configuration told apart if any, else the strongest alone.
+std::vector<ConfoundTest> standingTests(const Diagnosis& d) {
+  std::vector<ConfoundTest> standing;
+  for (const ConfoundTest& t : d.drift.confound_tests) {
+    const FoundEffect* named = nullptr;
+    for (const FoundEffect& e : d.effects) {
+      if (sameFamily(e.mechanism, t.mechanism)) named = &e;
+    }
+    if (named && (t.round != named->round || t.mechanism.order != named->mechanism.order)) continue;
+    auto it = std::find_if(standing.begin(), standing.end(), [&](const ConfoundTest& s) {
+      return sameFamily(s.mechanism, t.mechanism);
+    });
+    if (it == standing.end()) {
+      standing.push_back(t);
+      continue;
+    }
+    const bool later = t.round > it->round;
+    const bool better = t.round == it->round &&
+                        (t.told_apart != it->told_apart ? t.told_apart
+                                                        : t.z_statistic > it->z_statistic);
+    if (later || better) *it = t;
+  }
+  return standing;
+}
+
+// How far each candidate confounder moves with the time order over the fit rows, largest first.
+std::vector<DriverCorrelation> timeOrderCorrelations(const Search& search) {
+  const Evaluation e = evaluate(search.model.combined(), search.fit);
+  const std::vector<ConfounderPtr> variables = confounderVariables(search.fit, e);
+  std::vector<DriverCorrelation> out;
+  const auto seq = std::find_if(variables.begin(), variables.end(),
+                                [](const ConfounderPtr& v) { return v->name == "seq"; });
+  if (seq == variables.end()) return out;
+  for (const ConfounderPtr& v : variables) {
+    if (v != *seq) out.push_back({v->name, driverCorrelation((*seq)->values, *v)});
+  }
+  std::stable_sort(out.begin(), out.end(), [](const DriverCorrelation& a, const DriverCorrelation& b) {
+    return a.r > b.r;
+  });
+  return out;
+}
+
+// The confound numbers in a sentence: what moves with the time order, and how far (the three
+// that move most by name).
+std::string timeOrderLine(const std::vector<DriverCorrelation>& correlations) {
+  if (correlations.empty()) return "";
+  std::string moving;
+  int count = 0;
+  for (const DriverCorrelation& c : correlations) {
+    if (c.r < 0.3) break;
+    if (++count <= 3) {
+      moving += (moving.empty() ? "" : ", ") + variableWords(c.variable) + printed(" r = %.2f", c.r);
+    }
+  }
+  if (count == 0) {
+    return "nothing else moves with the time order (largest, " +
+           variableWords(correlations.front().variable) +
+           printed(": r = %.2f)", correlations.front().r);
+  }
+  if (count > 3) moving += printed(" and %.0f more at r ≥ 0.3", count - 3.0);
+  return "what moves with the time order over the fit rows: " + moving;
+}
+
+// A time-order family significant alone whose last test could not tell it from a variable.
+std::string confoundedLine(const ConfoundTest& t) {
+  const bool registration = t.mechanism.kind == MechanismKind::kRegistrationDrift;
+  const std::string what =
+      registration ? "a trend in time order (" + describe(t.mechanism) + ")"
+                   : "joint " + std::to_string(t.mechanism.joint + 1) +
+                         "'s zero following the temperature";
+  return what +
+         printed(", significant alone in round %.0f (z %.1f), that cannot be told apart from ",
+                 static_cast<double>(t.round), t.z_statistic) +
+         notToldApartFrom(t) + ": not named" +
+         (registration ? ", so what it explained stays with the robot's model, not the measurement"
+                       : "");
+}
+
 }  // namespace
 
 void judgeDrift(Search& search) {
   Diagnosis& d = search.d;
   DriftVerdict& v = d.drift;
   v.seq_temp_correlation = seqTemperatureCorrelation(search.fit);
+  v.time_order_correlations = timeOrderCorrelations(search);
+  v.confound_tests = standingTests(d);
   std::vector<std::string> parts;
   for (const FoundEffect& e : d.effects) {
     const Mechanism& m = e.mechanism;
@@ -98,13 +226,33 @@ void judgeDrift(Search& search) {
       }
     }
   }
-  if (!v.registration) {
+  bool confounded_registration = false, confounded_zero = false;
+  for (const ConfoundTest& t : v.confound_tests) {
+    const bool named = std::any_of(d.effects.begin(), d.effects.end(), [&](const FoundEffect& e) {
+      return sameFamily(e.mechanism, t.mechanism);
+    });
+    if (named) {
+      if (!t.beside.empty()) {
+        parts.push_back(describe(t.mechanism) + " is " + toldApartFromAll(t));
+      }
+      continue;
+    }
+    if (t.told_apart) continue;
+    parts.push_back(confoundedLine(t));
+    const bool registration = t.mechanism.kind == MechanismKind::kRegistrationDrift;
+    confounded_registration = confounded_registration || registration;
+    confounded_zero = confounded_zero || !registration;
+  }
+  if (!v.registration && !confounded_registration) {
     parts.push_back(notFound(d, MechanismKind::kRegistrationDrift,
                              "a drift of the tracker's registration in time order"));
   }
-  if (v.zero_drift_joints.empty()) {
+  if (v.zero_drift_joints.empty() && !confounded_zero) {
     parts.push_back(notFound(d, MechanismKind::kJointZeroDrift,
                              "a drift of a joint's zero with temperature"));
+  }
+  if (const std::string line = timeOrderLine(v.time_order_correlations); !line.empty()) {
+    parts.push_back(line);
   }
   if (std::isfinite(v.seq_temp_correlation)) {
     std::string line = printed("temp_c and the time order correlate at r = %.2f over the fit rows",
@@ -118,10 +266,12 @@ void judgeDrift(Search& search) {
   }
   for (const TrendScore& t : d.after.trends) {
     if (t.significant && (t.variable == "seq" || t.variable == "temp_c")) {
+      const bool confounded = t.variable == "seq" ? confounded_registration : confounded_zero;
       parts.push_back("a trend in " + t.variable +
-                      printed(" is left (%.4f mm held out, z %.1f): what drifts there has a form "
-                              "neither of these takes",
-                              t.cv_gain_mm, t.z_statistic));
+                      printed(" is left (%.4f mm held out, z %.1f): ", t.cv_gain_mm, t.z_statistic) +
+                      (confounded ? "the one above, which the rows cannot tell from what moves "
+                                    "with it"
+                                  : "what drifts there has a form neither of these takes"));
     }
   }
   v.text.clear();

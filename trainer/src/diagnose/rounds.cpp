@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "confounds.hpp"
 #include "model_fits.hpp"
 #include "scoring.hpp"
 #include "search.hpp"
@@ -103,12 +104,15 @@ void searchRounds(Search& search) {
     std::vector<Scored> scored =
         scoreFamilies(sc.families, cv, sc.stage1.size(), *grams, options, fit, isSignificant);
     if (!d.effects.empty()) namePreviousAlternatives(scored, options, rivals, d.effects.back());
+    for (Scored& s : scored) {
+      s.score.round = round;
+      s.score.significant = isSignificant(s.score);
+    }
+    // A time-order family is named only where the rows tell it from what moves with its driver.
+    testConfounds(scored, cv, isSignificant, round, d.drift.confound_tests);
     std::vector<size_t> significant;
     for (size_t k = 0; k < scored.size(); ++k) {
-      CandidateScore& s = scored[k].score;
-      s.round = round;
-      s.significant = isSignificant(s);
-      if (s.significant) significant.push_back(k);
+      if (scored[k].score.significant) significant.push_back(k);
     }
     d.seconds_screening += secondsSince(clock);
     if (significant.empty()) {

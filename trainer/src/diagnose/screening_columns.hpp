@@ -5,6 +5,7 @@
 
 #include <vector>
 
+#include "confounds.hpp"
 #include "cross_validation.hpp"
 #include "fit_rows.hpp"
 #include "model.hpp"
@@ -21,6 +22,7 @@ struct ScaledSource {
     kProfile,        // a profile's gated harmonics, 2·order columns
     kTemperature,    // the row's temperature less a reference (0 where it is not known)
     kCampaign,       // 1 on the rows of one campaign, 0 on the others
+    kConfounder,     // a function of a variable that moves with a time-order family's driver
   };
   Kind kind = Kind::kTorquePart;
   Mechanism unit;            // kTorquePart
@@ -29,11 +31,14 @@ struct ScaledSource {
   int campaign = 0;          // kCampaign; kProfile: ≥ 1, its columns on that campaign's rows only
   AngleCoverage coverage;    // kProfile
   int order = 0;             // kProfile
+  ConfounderPtr variable;    // kConfounder: the variable, and which of its functions
+  int function = 0;
   Eigen::Index first = 0;    // its first column among the joint's scaled ones
   bool sameColumn(const ScaledSource& other) const {
     return kind == other.kind && kind != Kind::kProfile && source_joint == other.source_joint &&
            reference_c == other.reference_c && campaign == other.campaign &&
-           unit.kind == other.unit.kind && unit.parameters == other.unit.parameters;
+           unit.kind == other.unit.kind && unit.parameters == other.unit.parameters &&
+           variable == other.variable && function == other.function;
   }
 };
 
@@ -47,6 +52,16 @@ struct TimeScaled {
   double first_seq = 0.0, last_seq = 1.0;
 };
 
+// A dense column of the screening matrix that is a geometry column times a function of a
+// variable that moves with the time order: a registration drift re-made as a function of that
+// variable, the nuisance it is told apart from (confounds.hpp).
+struct VariableScaled {
+  Eigen::Index dense = 0;     // its place among a chunk's dense columns
+  Eigen::Index geometry = 0;  // the geometry column it scales
+  ConfounderPtr variable;
+  int function = 0;           // ConfounderVariable::function
+};
+
 // What a round's screening matrix is made from, chunk by chunk of fit rows: the model it is
 // linearised at (its geometry and link-angle columns, its torques and link angles for the
 // features), the models whose finite differences are its other dense columns, the geometry
@@ -57,6 +72,7 @@ struct ColumnRecipe {
   std::vector<double> step;
   std::vector<Eigen::Index> moved_dense;  // per finite-difference column, its dense place
   std::vector<TimeScaled> time_scaled;
+  std::vector<VariableScaled> variable_scaled;
   Eigen::Index dense = 0;                         // dense columns of a chunk
   std::vector<std::vector<ScaledSource>> scaled;  // per joint
   std::vector<double> masses;                     // the URDF's, for kGravityTorque
@@ -91,6 +107,17 @@ struct ColumnSink {
       if (t.geometry == c && t.degree == degree) return added({-1, t.dense}, 0.0);
     }
     recipe_.time_scaled.push_back({layout_.dense, c, degree, first_seq, last_seq});
+    recipe_.dense = layout_.dense + 1;
+    return added({-1, layout_.dense++}, 0.0);
+  }
+  // Geometry column c times a function of a variable (one column per distinct triple).
+  Eigen::Index variableScaled(Eigen::Index c, const ConfounderPtr& variable, int function) {
+    for (const VariableScaled& v : recipe_.variable_scaled) {
+      if (v.geometry == c && v.variable == variable && v.function == function) {
+        return added({-1, v.dense}, 0.0);
+      }
+    }
+    recipe_.variable_scaled.push_back({layout_.dense, c, variable, function});
     recipe_.dense = layout_.dense + 1;
     return added({-1, layout_.dense++}, 0.0);
   }

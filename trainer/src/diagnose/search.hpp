@@ -67,8 +67,9 @@ void describeEffects(Search& s);
 /// first (DiagnosedCampaign::profile_differences), the model left as it is.
 void judgeCampaignProfiles(Search& s);
 
-/// What drifted (DriftVerdict): the drift effects found, the candidates of the last round and
-/// the trends left, in sentences.
+/// What drifted (DriftVerdict): the drift effects found, the candidates of the last round, each
+/// time-order family's standing confound test (the rounds ran them, confounds.hpp), what moves
+/// with the time order, and the trends left, in sentences.
 void judgeDrift(Search& s);
 
 /// The extended model (the starting model with the found physical model and a GPR on its

@@ -8,6 +8,7 @@
 #include "stepcal/common/mechanisms/torsion_curve.hpp"
 #include "stepcal/report/diagnosis_report.hpp"
 #include "stepcal/report/html/charts.hpp"
+#include "stepcal/report/html/drift_confounds.hpp"
 #include "stepcal/report/html/page.hpp"
 #include "stepcal/report/report_html.hpp"
 #include "stepcal/report/text_format.hpp"
@@ -121,6 +122,7 @@ class DiagnosisPage {
       out_ << "<p>Structure no catalogued mechanism explains: " << escape(d_.unexplained_trend) << "</p>\n";
     }
     if (!d_.drift.text.empty()) out_ << "<p>What drifted: " << escape(d_.drift.text) << ".</p>\n";
+    out_ << driftConfoundsSection(d_.drift);
     writeEffects();
     writeSignatures();
     out_ << unexplainedSection(d_.unexplained);

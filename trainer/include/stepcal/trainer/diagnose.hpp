@@ -196,6 +196,37 @@ struct GainRow {
   AccuracySummary before, after, gpr, after_gpr;
 };
 
+/// How far a variable moves with the time order (or another family's driver): the multiple
+/// correlation R of the driver with the variable's functions (each of its levels when it has at
+/// most 8 distinct values, else P_1..P_3 of it over its range) over the fit rows, 0 … 1.
+struct DriverCorrelation {
+  /// "load_kg", "temp_c", "q2_deg", "tau3_nm" (the model's torque), "fx_n" … "mz_nm" (the
+  /// wrench, sensor axes) or "seq"
+  std::string variable;
+  double r = 0.0;
+};
+
+/// A time-order family (registration_drift: the time order; joint_zero_drift: temp_c) that was
+/// significant in a round, scored again beside each variable that moves with its driver (R ≥
+/// 0.3): its own columns times the variable's functions added to the model as nuisance. It may
+/// be named only when it stays significant beside every one of them (the round's family-wise
+/// test and practical minimum); otherwise the rows cannot tell it from that variable, and what
+/// it explained stays with the robot's causes or the residual.
+struct ConfoundTest {
+  Mechanism mechanism;  ///< the family at its best configuration in that round
+  int round = 1;
+  std::string driver;   ///< "seq" or "temp_c"
+  double z_statistic = 0.0;  ///< its signed-rank z in that round, alone
+  struct Beside {
+    std::string variable;
+    double r = 0.0;  ///< DriverCorrelation of the driver with it
+    double cv_gain_mm = 0.0, relative_reduction = 0.0, z_statistic = 0.0, p_value = 1.0;
+    bool told_apart = false;  ///< still significant beside it
+  };
+  std::vector<Beside> beside;  ///< empty: nothing moves with the driver
+  bool told_apart = true;      ///< from every variable beside: it may be named
+};
+
 /// What drifted while the campaign was measured: the tracker's registration in time order (the
 /// measurement's), a joint's zero with temperature (the robot's), both, or neither, and what
 /// the rows can tell apart.
@@ -205,6 +236,12 @@ struct DriftVerdict {
   /// Pearson correlation of temp_c and seq over the fit rows with a temperature (NaN: fewer than
   /// 3 such rows, or either constant).
   double seq_temp_correlation = 0.0;
+  /// How far each variable moves with the time order over the fit rows (the confounders a
+  /// drift in time must be told apart from), largest first.
+  std::vector<DriverCorrelation> time_order_correlations;
+  /// Per time-order family significant in some round, its last round's test beside the
+  /// variables that move with its driver (in the order first tested).
+  std::vector<ConfoundTest> confound_tests;
   std::string text;  ///< the verdict's sentences
 };
 

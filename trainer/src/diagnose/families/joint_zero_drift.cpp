@@ -1,7 +1,9 @@
 // joint_zero_drift: a joint's zero moving with temperature (families.hpp).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
+#include "../confounds.hpp"
 #include "families.hpp"
 #include "stepcal/common/mechanisms/joint_zero_drift.hpp"
 
@@ -16,6 +18,17 @@ constexpr double kMinZeroDriftSpreadC = 0.1;
 
 void jointZeroDriftFamilies(const FamilyContext& c) {
   const RowTemperatures temps = rowTemperatures(c.fit);
+  // What moves with the temperature: each re-makes the zero drift as a function of itself
+  // (confounds.hpp). Not the time order: a zero that follows the time rather than the
+  // temperature is still that joint's zero, the robot's either way (a load block, a grid's loop
+  // or a torque is another cause).
+  std::vector<Confounder> moving;
+  if (!temps.few && temps.spread_c >= kMinZeroDriftSpreadC) {
+    moving = confoundersOf(confounderVariables(c.fit, c.start), "temp_c");
+    moving.erase(std::remove_if(moving.begin(), moving.end(),
+                                [](const Confounder& m) { return m.variable->name == "seq"; }),
+                 moving.end());
+  }
   for (int j = 0; j < c.n; ++j) {
     if (present(c.global, MechanismKind::kJointZeroDrift, j, -1) ||
         !c.wanted(MechanismKind::kJointZeroDrift, j)) {
@@ -38,6 +51,18 @@ void jointZeroDriftFamilies(const FamilyContext& c) {
     f.mechanism = blank(MechanismKind::kJointZeroDrift, c.n, j);
     view<mechanism::JointZeroDrift>(f.mechanism).referenceTemp_c() = temps.mean_c;
     f.free = {mechanism::JointZeroDrift<double>::kDriftRate};
+    f.driver = "temp_c";
+    for (const Confounder& m : moving) {
+      Family::Confound confound{m.variable->name, m.r, {}};
+      for (int k = 0; k < m.variable->functions(); ++k) {
+        ScaledSource nuisance;
+        nuisance.kind = ScaledSource::Kind::kConfounder;
+        nuisance.variable = m.variable;
+        nuisance.function = k;
+        confound.columns.push_back(c.sink.feature(j, std::move(nuisance)));
+      }
+      f.confounds.push_back(std::move(confound));
+    }
     ScaledSource source;
     source.kind = ScaledSource::Kind::kTemperature;
     source.reference_c = temps.mean_c;

@@ -6,6 +6,7 @@
 // frame, one joint), not by when.
 #include <algorithm>
 
+#include "../confounds.hpp"
 #include "families.hpp"
 #include "stepcal/common/mechanisms/registration_drift.hpp"
 
@@ -44,6 +45,18 @@ void registrationDriftFamilies(const FamilyContext& c) {
     return;
   }
   using Drift = mechanism::RegistrationDrift<double>;
+  // What moves with the time order: each re-makes the drift (the registration's twist) as a
+  // function of itself, the nuisance the drift must be told apart from (confounds.hpp).
+  std::vector<Family::Confound> confounds;
+  for (const Confounder& moving : confoundersOf(confounderVariables(c.fit, c.start), "seq")) {
+    Family::Confound confound{moving.variable->name, moving.r, {}};
+    for (Eigen::Index k = 0; k < 6; ++k) {
+      for (int f = 0; f < moving.variable->functions(); ++f) {
+        confound.columns.push_back(c.sink.variableScaled(k, moving.variable, f));
+      }
+    }
+    confounds.push_back(std::move(confound));
+  }
   for (const int degree : kDriftDegrees) {
     Family f;
     f.mechanism = blank(MechanismKind::kRegistrationDrift, c.n, -1, -1, degree);
@@ -56,6 +69,8 @@ void registrationDriftFamilies(const FamilyContext& c) {
         columns.push_back(c.sink.timeScaled(k, d, first_seq, last_seq));
       }
     }
+    f.driver = "seq";
+    f.confounds = confounds;
     std::vector<double> steps(columns.size(), typicalStep(f.mechanism, Drift::termIndex(1)));
     c.addGlobal(std::move(f), std::move(columns), std::move(steps));
   }

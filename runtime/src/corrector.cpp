@@ -414,9 +414,11 @@ bool physicalNeedsWrench(const CalibratedModel& file) noexcept {
   return file.compliance_rad_per_nm.size() > 0 && !file.compliance_rad_per_nm.isZero(0.0);
 }
 
-/// Whether the GPR's training wrenches vary (its wrench inputs are the last six); when not, the
-/// constant they take, sensor axes.
+/// Whether the GPR's training wrenches vary (its wrench inputs are the last six) or it is a GPR
+/// per payload force (its correction scales with the force read); when not, the constant they
+/// take, sensor axes.
 bool gprNeedsWrench(const GprParameters& gpr, int dof, Vec6& constant_wrench) noexcept {
+  if (gpr.payload_force_reference_n > 0.0) return true;
   const Eigen::MatrixXd& x = gpr.inputs_normalised;
   for (int i = 0; i < 6; ++i) {
     const Eigen::Index d = dof + i;

@@ -564,8 +564,8 @@ TEST(Runtime, SensorBiasIsTakenOffTheMeasuredWrenchButNotOffTheGprInput) {
 }
 
 // A GPR per payload force (docs/method.md eq. 30a): at a wrench without force the corrected
-// pose is the physical model's exactly, with a zero std (in domain); with a force, the paper's
-// correction of the same GP times ‖f‖ / f_ref.
+// pose is the physical model's exactly, with a zero std (in domain); with a force, the same GP's
+// output times ‖f‖ / f_ref, read in the tracker's axes.
 TEST(Runtime, AGprPerPayloadForceCorrectsNothingAtZeroForceAndScalesWithIt) {
   CalibratedModel per_force = withMechanisms({}, true);
   per_force.gpr->payload_force_reference_n = 400.0;
@@ -595,8 +595,12 @@ TEST(Runtime, AGprPerPayloadForceCorrectsNothingAtZeroForceAndScalesWithIt) {
         correctForward(*physical, ws_physical, row->q_rad, W, kUnknownTemperature_c).X_TrackerTip;
     const Pose X_paper =
         correctForward(*paper_gpr, ws_paper, row->q_rad, W, kUnknownTemperature_c).X_TrackerTip;
-    const Vec6 xi_paper = lie::logSE3(X_physical.inverse() * X_paper);
-    const Pose expected = X_physical * lie::expSE3(gain * xi_paper);
+    // The GP's output, in the tracker's axes for the GPR per payload force.
+    const Vec6 output = lie::logSE3(X_physical.inverse() * X_paper);
+    const Mat3 R = X_physical.linear();
+    const Vec6 xi = gain * (Vec6() << R.transpose() * output.head<3>(),
+                            R.transpose() * output.tail<3>()).finished();
+    const Pose expected = X_physical * lie::expSE3(xi);
     worst_scaled_m = std::max(
         worst_scaled_m,
         poseDifference(correctForward(*gated, ws, row->q_rad, W, kUnknownTemperature_c).X_TrackerTip,

@@ -378,4 +378,10 @@ double GprPredictor::relativeStdBound(const double* x_raw, Workspace& workspace)
   return parameters_.payload_force_reference_n == 0.0 ? relative : gain * relative;
 }
 
+void tipTwistFromGprOutput(const GprParameters& gpr, const Mat3& R_TrackerTip, Vec6& twist) noexcept {
+  if (gpr.payload_force_reference_n == 0.0) return;
+  twist.head<3>() = R_TrackerTip.transpose() * twist.head<3>().eval();
+  twist.tail<3>() = R_TrackerTip.transpose() * twist.tail<3>().eval();
+}
+
 }  // namespace stepcal

@@ -107,7 +107,10 @@ PoseModel physicalPoseModel(PhysicalModel physical) {
 
 PoseModel withResidual(PoseModel base, const GaussianProcess& gp) {
   return [base = std::move(base), &gp](const Measurement& row) {
-    return Pose(base(row) * lie::expSE3(gp.predictMean(gprInput(row))));
+    const Pose X = base(row);
+    Vec6 twist = gp.predictMean(gprInput(row));
+    tipTwistFromGprOutput(gp.parameters(), X.linear(), twist);
+    return Pose(X * lie::expSE3(twist));
   };
 }
 
@@ -172,9 +175,14 @@ ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measur
   for (size_t i = 0; i < m; ++i) {
     const Measurement& row = *usable[i * usable.size() / m];
     X.row(static_cast<Eigen::Index>(i)) = gprInput(row).transpose();
-    Y.row(static_cast<Eigen::Index>(i)) =
-        lie::logSE3(model(row).inverse() * row.X_TrackerTip()).transpose();
-    if (per_force) gain(static_cast<Eigen::Index>(i)) = payloadForce(row);
+    const Pose X = model(row);
+    Vec6 twist = lie::logSE3(X.inverse() * row.X_TrackerTip());
+    if (per_force) {
+      twist.head<3>() = X.linear() * twist.head<3>().eval();  // in the tracker's axes (eq. 30a)
+      twist.tail<3>() = X.linear() * twist.tail<3>().eval();
+      gain(static_cast<Eigen::Index>(i)) = payloadForce(row);
+    }
+    Y.row(static_cast<Eigen::Index>(i)) = twist.transpose();
   }
   if (per_force) {
     reference_n = gain.mean();
@@ -399,7 +407,9 @@ std::vector<std::pair<std::string, PoseModel>> modelLayers(const CalibratedModel
                           Vec6 residual;
                           gpr->predictInto(gprInput(row).data(), residual.data(), nullptr,
                                            workspace);
-                          return Pose(physical(row) * lie::expSE3(residual));
+                          const Pose X = physical(row);
+                          tipTwistFromGprOutput(gpr->parameters(), X.linear(), residual);
+                          return Pose(X * lie::expSE3(residual));
                         });
   }
   return layers;

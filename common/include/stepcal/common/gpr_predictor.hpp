@@ -111,4 +111,10 @@ class GprPredictor {
   Eigen::MatrixXd subset_cholesky_inverse_;  // r × r: L_S⁻¹ (lower triangular)
 };
 
+/// The residual twist in the tip's axes (docs/method.md eq. 32) from a GPR's output at a tip of
+/// the physical model turned by R_TrackerTip, in place: the paper's GPR gives it as it is; a GPR
+/// per payload force gives the tip's displacement and rotation in the tracker's axes (eq. 30a), in
+/// which a load effect of the arm does not turn with the wrist. Allocation-free.
+void tipTwistFromGprOutput(const GprParameters& gpr, const Mat3& R_TrackerTip, Vec6& twist) noexcept;
+
 }  // namespace stepcal

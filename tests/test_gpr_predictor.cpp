@@ -353,6 +353,54 @@ TEST(GprPredictor, InputsConstantOverTrainingGiveTheSamePredictions) {
   expectPredictionsMatchTheDirectSum(conditioned, rng);
 }
 
+// A GPR per payload force (docs/method.md eq. 30a): its correction is the same GP's times
+// ‖f‖ / f_ref, f the wrench's force (inputs D−6 .. D−4); at zero force exactly zero, mean and
+// std, without evaluating the GP; allocation-free.
+TEST(GprPredictor, PerPayloadForceScalesByTheForceAndIsZeroAtZeroLoad) {
+  std::mt19937_64 rng(23);
+  const GprParameters paper = randomParameters(rng, 30, 12, 6, 0.1);
+  GprParameters per_force = paper;
+  per_force.payload_force_reference_n = 300.0;
+  const GprPredictor plain = GprPredictor::fromParameters(paper);
+  const GprPredictor gated = GprPredictor::fromParameters(per_force);
+  GprPredictor::Workspace ws_plain = plain.makeWorkspace(), ws_gated = gated.makeWorkspace();
+  Eigen::VectorXd x = rawTrainingInput(paper, 3);
+  x.segment<3>(6) << 120.0, -160.0, 0.0;  // ‖f‖ = 200 N: gain 2/3
+  Eigen::VectorXd mean(6), std_dev(6), mean_gated(6), std_gated(6), bound(6), bound_gated(6);
+  plain.predictInto(x.data(), mean.data(), std_dev.data(), ws_plain);
+  gated.predictInto(x.data(), mean_gated.data(), std_gated.data(), ws_gated);
+  EXPECT_DOUBLE_EQ(gated.outputGain(x.data()), 200.0 / 300.0);
+  for (int o = 0; o < 6; ++o) {
+    EXPECT_NEAR(mean_gated(o), 2.0 / 3.0 * mean(o), 1e-15 * std::abs(mean(o)) + 1e-300);
+    EXPECT_NEAR(std_gated(o), 2.0 / 3.0 * std_dev(o), 1e-15 * std_dev(o) + 1e-300);
+  }
+  EXPECT_GT(mean.cwiseAbs().maxCoeff(), 0.0);
+  plain.predictMeanAndBoundInto(x.data(), mean.data(), bound.data(), ws_plain);
+  gated.predictMeanAndBoundInto(x.data(), mean_gated.data(), bound_gated.data(), ws_gated);
+  EXPECT_NEAR(bound_gated(0), 2.0 / 3.0 * bound(0), 1e-15 * bound(0));
+  EXPECT_NEAR(gated.relativeStdBound(x.data(), ws_gated),
+              2.0 / 3.0 * plain.relativeStdBound(x.data(), ws_plain), 1e-15);
+
+  x.segment<3>(6).setZero();  // no load; the moments alone do not count
+  x.segment<3>(9) << 5.0, -3.0, 1.0;
+  long allocations = 0;
+  {
+    test::AllocationCounter counter;
+    gated.predictInto(x.data(), mean_gated.data(), std_gated.data(), ws_gated);
+    gated.predictMeanAndBoundInto(x.data(), mean_gated.data(), bound_gated.data(), ws_gated);
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
+  EXPECT_TRUE((mean_gated.array() == 0.0).all()) << mean_gated.transpose();
+  EXPECT_TRUE((std_gated.array() == 0.0).all());
+  EXPECT_TRUE((bound_gated.array() == 0.0).all());
+  EXPECT_EQ(gated.relativeStd(x.data(), ws_gated), 0.0);
+
+  GprParameters bad = per_force;
+  bad.payload_force_reference_n = -1.0;
+  EXPECT_THROW(GprPredictor::fromParameters(bad), InputError);
+}
+
 TEST(GprPredictor, RefusesInconsistentParameters) {
   std::mt19937_64 rng(17);
   const GprParameters good = randomParameters(rng, 10, 3, 2, 0.1);

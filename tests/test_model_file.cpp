@@ -174,6 +174,7 @@ void expectSameModel(const CalibratedModel& a, const CalibratedModel& b) {
     EXPECT_EQ(ga.noise_sigma, gb.noise_sigma);
     EXPECT_TRUE(sameMatrix(ga.targets_standardised, gb.targets_standardised));
     EXPECT_TRUE(sameMatrix(ga.alpha, gb.alpha));
+    EXPECT_EQ(ga.payload_force_reference_n, gb.payload_force_reference_n);
   }
   const ModelProvenance& pa = a.provenance;
   const ModelProvenance& pb = b.provenance;
@@ -364,6 +365,31 @@ TEST_F(ModelFileTest, RoundTripWithoutOptionalSteps) {
   expectSameModel(bare, parsed);
   EXPECT_EQ(serializeModel(parsed), b);
   EXPECT_LT(b.size(), 3500u);
+}
+
+// A GPR per payload force writes its reference force after α (8 bytes); the paper's GPR is
+// written as before (its bytes are those of every earlier file); the loader refuses a reference
+// that is not a force > 0.
+TEST_F(ModelFileTest, GprPerPayloadForceRoundTripsAndItsReferenceIsChecked) {
+  CalibratedModel per_force = model();
+  per_force.gpr->payload_force_reference_n = 294.2;
+  const std::vector<uint8_t> b = serializeModel(per_force);
+  EXPECT_EQ(b.size(), bytes().size() + 8);
+  const CalibratedModel parsed = parse(b);
+  expectSameModel(per_force, parsed);
+  EXPECT_EQ(serializeModel(parsed), b);
+  EXPECT_EQ(parse(bytes()).gpr->payload_force_reference_n, 0.0);
+
+  const size_t reference_at = payloadOf(b, "PROV") - 16 - 8;
+  ASSERT_EQ(getF64(b, reference_at), 294.2);
+  for (const double bad : {0.0, -3.0, std::nan("")}) {
+    std::vector<uint8_t> edited = b;
+    putF64(edited, reference_at, bad);
+    refix(edited);
+    EXPECT_NE(refusal(edited).find("gpr.payload_force_reference_n"), std::string::npos) << bad;
+  }
+  per_force.gpr->payload_force_reference_n = -1.0;
+  EXPECT_THROW(serializeModel(per_force), InputError);
 }
 
 TEST_F(ModelFileTest, IllConditionedButConsistentGprIsAccepted) {

@@ -563,6 +563,53 @@ TEST(Runtime, SensorBiasIsTakenOffTheMeasuredWrenchButNotOffTheGprInput) {
   EXPECT_GT(smallest_effect_m, 1e-8) << "the bias must change the deflection";
 }
 
+// A GPR per payload force (docs/method.md eq. 30a): at a wrench without force the corrected
+// pose is the physical model's exactly, with a zero std (in domain); with a force, the same GP's
+// output times ‖f‖ / f_ref, read in the tracker's axes.
+TEST(Runtime, AGprPerPayloadForceCorrectsNothingAtZeroForceAndScalesWithIt) {
+  CalibratedModel per_force = withMechanisms({}, true);
+  per_force.gpr->payload_force_reference_n = 400.0;
+  const auto gated = RuntimeModel::fromModel(per_force, 21);
+  const auto paper_gpr = RuntimeModel::fromModel(withMechanisms({}, true), 22);
+  const auto physical = RuntimeModel::fromModel(withMechanisms({}, false), 23);
+  EXPECT_TRUE(gated->needs_wrench);
+  Workspace ws = makeWorkspace(*gated), ws_paper = makeWorkspace(*paper_gpr),
+            ws_physical = makeWorkspace(*physical);
+  double worst_unloaded_m = 0.0, worst_scaled_m = 0.0;
+  for (const Measurement* row : validationRows()) {
+    const Vec6 W = row->wrenchOrZero();
+    const Vec6 moment_only = (Vec6() << 0.0, 0.0, 0.0, W.tail<3>()).finished();
+    const ForwardResult unloaded =
+        correctForward(*gated, ws, row->q_rad, moment_only, kUnknownTemperature_c);
+    EXPECT_EQ(unloaded.status, Status::kOk);
+    EXPECT_TRUE((unloaded.gpr_std.array() == 0.0).all());
+    worst_unloaded_m = std::max(
+        worst_unloaded_m,
+        poseDifference(unloaded.X_TrackerTip,
+                       correctForward(*physical, ws_physical, row->q_rad, moment_only,
+                                      kUnknownTemperature_c)
+                           .X_TrackerTip));
+    if (W.head<3>().norm() == 0.0) continue;
+    const double gain = W.head<3>().norm() / 400.0;
+    const Pose X_physical =
+        correctForward(*physical, ws_physical, row->q_rad, W, kUnknownTemperature_c).X_TrackerTip;
+    const Pose X_paper =
+        correctForward(*paper_gpr, ws_paper, row->q_rad, W, kUnknownTemperature_c).X_TrackerTip;
+    // The GP's output, in the tracker's axes for the GPR per payload force.
+    const Vec6 output = lie::logSE3(X_physical.inverse() * X_paper);
+    const Mat3 R = X_physical.linear();
+    const Vec6 xi = gain * (Vec6() << R.transpose() * output.head<3>(),
+                            R.transpose() * output.tail<3>()).finished();
+    const Pose expected = X_physical * lie::expSE3(xi);
+    worst_scaled_m = std::max(
+        worst_scaled_m,
+        poseDifference(correctForward(*gated, ws, row->q_rad, W, kUnknownTemperature_c).X_TrackerTip,
+                       expected));
+  }
+  EXPECT_EQ(worst_unloaded_m, 0.0);
+  EXPECT_LT(worst_scaled_m, 1e-12);
+}
+
 TEST(Runtime, InverseRoundTripsThroughForwardWithMechanismsOfEveryKind) {
   const auto model = RuntimeModel::fromModel(withMechanisms(mechanismOfEveryKind(), true), 14);
   Workspace ws = makeWorkspace(*model);

@@ -165,6 +165,13 @@ GprPredictor GprPredictor::factorised(GprParameters parameters) {
     throw InputError("GPR has σ_f = " + std::to_string(g.signal_sigma) + ", σ_n = " +
                      std::to_string(g.noise_sigma) + "; expected finite σ_f > 0 and σ_n ≥ 0");
   }
+  if (!(std::isfinite(g.payload_force_reference_n) && g.payload_force_reference_n >= 0.0) ||
+      (g.payload_force_reference_n > 0.0 && D < 6)) {
+    throw InputError("GPR has payload_force_reference_n = " +
+                     std::to_string(g.payload_force_reference_n) + " with " + std::to_string(D) +
+                     " inputs; expected 0 (the paper's GPR) or a finite force > 0 N with the "
+                     "wrench as the last six inputs");
+  }
 
   GprPredictor predictor;
   predictor.parameters_ = std::move(parameters);
@@ -221,6 +228,13 @@ GprPredictor GprPredictor::factorised(GprParameters parameters) {
   predictor.subset_cholesky_inverse_ =
       L_S.triangularView<Eigen::Lower>().solve(Eigen::MatrixXd::Identity(r, r));
   return predictor;
+}
+
+double GprPredictor::outputGain(const double* x_raw) const noexcept {
+  const double reference = parameters_.payload_force_reference_n;
+  if (reference == 0.0) return 1.0;
+  const double* force = x_raw + inputDim() - 6;
+  return std::sqrt(force[0] * force[0] + force[1] * force[1] + force[2] * force[2]) / reference;
 }
 
 int GprPredictor::inputDim() const noexcept {
@@ -298,35 +312,76 @@ double GprPredictor::exactLatentStd(Workspace& workspace) const noexcept {
 void GprPredictor::predictInto(const double* x_raw, double* mean_out, double* std_out,
                                Workspace& workspace) const noexcept {
   const GprParameters& g = parameters_;
+  const double gain = outputGain(x_raw);
+  if (gain == 0.0) {
+    zeroOutputs(mean_out, std_out);
+    return;
+  }
   kernelColumn(x_raw, workspace);
   meanFromColumn(workspace, mean_out);
-  if (std_out == nullptr) return;
-  const double latent_std = exactLatentStd(workspace);
-  for (Eigen::Index o = 0; o < g.alpha.cols(); ++o) std_out[o] = g.output_scale(o) * latent_std;
+  if (std_out != nullptr) {
+    const double latent_std = exactLatentStd(workspace);
+    for (Eigen::Index o = 0; o < g.alpha.cols(); ++o) std_out[o] = g.output_scale(o) * latent_std;
+  }
+  applyGain(gain, mean_out, std_out);
+}
+
+void GprPredictor::zeroOutputs(double* mean_out, double* std_out) const noexcept {
+  for (Eigen::Index o = 0; o < parameters_.alpha.cols(); ++o) {
+    mean_out[o] = 0.0;
+    if (std_out != nullptr) std_out[o] = 0.0;
+  }
+}
+
+void GprPredictor::applyGain(double gain, double* mean_out, double* std_out) const noexcept {
+  if (parameters_.payload_force_reference_n == 0.0) return;  // the paper's GPR: as computed
+  for (Eigen::Index o = 0; o < parameters_.alpha.cols(); ++o) {
+    mean_out[o] *= gain;
+    if (std_out != nullptr) std_out[o] *= gain;
+  }
 }
 
 void GprPredictor::predictMeanAndBoundInto(const double* x_raw, double* mean_out,
                                            double* std_bound_out,
                                            Workspace& workspace) const noexcept {
   const GprParameters& g = parameters_;
+  const double gain = outputGain(x_raw);
+  if (gain == 0.0) {
+    zeroOutputs(mean_out, std_bound_out);
+    return;
+  }
   kernelColumn(x_raw, workspace);
   meanFromColumn(workspace, mean_out);
-  if (std_bound_out == nullptr) return;
-  const double latent_std = subsetLatentStd(workspace);
-  for (Eigen::Index o = 0; o < g.alpha.cols(); ++o) {
-    std_bound_out[o] = g.output_scale(o) * latent_std;
+  if (std_bound_out != nullptr) {
+    const double latent_std = subsetLatentStd(workspace);
+    for (Eigen::Index o = 0; o < g.alpha.cols(); ++o) {
+      std_bound_out[o] = g.output_scale(o) * latent_std;
+    }
   }
+  applyGain(gain, mean_out, std_bound_out);
 }
 
 double GprPredictor::relativeStd(const double* x_raw, Workspace& workspace) const noexcept {
   const GprParameters& g = parameters_;
+  const double gain = outputGain(x_raw);
+  if (gain == 0.0) return 0.0;
   kernelColumn(x_raw, workspace);
-  return exactLatentStd(workspace) / g.signal_sigma;
+  const double relative = exactLatentStd(workspace) / g.signal_sigma;
+  return g.payload_force_reference_n == 0.0 ? relative : gain * relative;
 }
 
 double GprPredictor::relativeStdBound(const double* x_raw, Workspace& workspace) const noexcept {
+  const double gain = outputGain(x_raw);
+  if (gain == 0.0) return 0.0;
   kernelColumn(x_raw, workspace);
-  return subsetLatentStd(workspace) / parameters_.signal_sigma;
+  const double relative = subsetLatentStd(workspace) / parameters_.signal_sigma;
+  return parameters_.payload_force_reference_n == 0.0 ? relative : gain * relative;
+}
+
+void tipTwistFromGprOutput(const GprParameters& gpr, const Mat3& R_TrackerTip, Vec6& twist) noexcept {
+  if (gpr.payload_force_reference_n == 0.0) return;
+  twist.head<3>() = R_TrackerTip.transpose() * twist.head<3>().eval();
+  twist.tail<3>() = R_TrackerTip.transpose() * twist.tail<3>().eval();
 }
 
 }  // namespace stepcal

@@ -73,6 +73,8 @@ constexpr SectionId kMechanisms{fourcc("MECH"), "mechanisms"};
 constexpr SectionId kGpr{fourcc("GPR "), "gpr"};
 constexpr SectionId kProvenance{fourcc("PROV"), "provenance"};
 
+/// Bytes a GPR per payload force adds to its section: its reference force, N.
+constexpr uint64_t kPayloadForceBytes = 8;
 /// Payload bytes of a GPR section with m samples, D inputs and P outputs.
 constexpr uint64_t gprPayloadBytes(uint64_t m, uint64_t D, uint64_t P) {
   return 12 + 8 * (3 * D + 2 * P + 2) + 8 * m * (D + 2 * P);
@@ -80,7 +82,7 @@ constexpr uint64_t gprPayloadBytes(uint64_t m, uint64_t D, uint64_t P) {
 
 /// Largest file readModelFile accepts: every legal model fits (the GPR at its bounds dominates).
 constexpr uint64_t kMaxFileBytes = 64ull << 20;
-static_assert(gprPayloadBytes(kMaxGprSamples, kMaxGprDims, kMaxGprDims) +
+static_assert(gprPayloadBytes(kMaxGprSamples, kMaxGprDims, kMaxGprDims) + kPayloadForceBytes +
                       uint64_t(kMaxValidationFigures + 4) * (kMaxStringBytes + 64) +
                       uint64_t(kMaxMechanisms) *
                           (kMechanismHeaderBytes + 16 * kMaxMechanismParameters) +
@@ -258,6 +260,12 @@ void checkWritable(const CalibratedModel& model, const std::string& source) {
     checkSize(g.targets_standardised.rows(), g.targets_standardised.cols(), m, P,
               "targets_standardised");
     checkSize(g.alpha.rows(), g.alpha.cols(), m, P, "alpha");
+    if (!(std::isfinite(g.payload_force_reference_n) && g.payload_force_reference_n >= 0.0) ||
+        (g.payload_force_reference_n > 0.0 && D < 6)) {
+      refuse("gpr.payload_force_reference_n is " + number(g.payload_force_reference_n) +
+             " with D = " + std::to_string(D) +
+             "; expected 0 (the paper's GPR) or a finite force > 0 N with D ≥ 6");
+    }
   }
   if (model.mechanisms.size() > kMaxMechanisms) {
     refuse("the model has " + std::to_string(model.mechanisms.size()) +
@@ -664,12 +672,16 @@ void readGpr(Reader& in, CalibratedModel& model, size_t payload_bytes) {
                 std::to_string(kMaxGprSamples) + " samples and 1 … " +
                 std::to_string(kMaxGprDims) + " inputs and outputs");
   }
-  // The sizes fix the payload length; checking it first bounds every allocation below.
+  // The sizes fix the payload length (a GPR per payload force: 8 more bytes, its reference
+  // force, after α); checking it first bounds every allocation below.
   const uint64_t expected = gprPayloadBytes(m, D, P);
-  if (expected != payload_bytes) {
+  const bool per_payload_force = payload_bytes == expected + kPayloadForceBytes && D >= 6;
+  if (expected != payload_bytes && !per_payload_force) {
     in.fail(at, "gpr", "payload has " + std::to_string(payload_bytes) + " bytes; expected " +
                            std::to_string(expected) + " for m = " + std::to_string(m) +
-                           ", D = " + std::to_string(D) + ", P = " + std::to_string(P));
+                           ", D = " + std::to_string(D) + ", P = " + std::to_string(P) +
+                           " (or " + std::to_string(expected + kPayloadForceBytes) +
+                           " for a GPR per payload force, D ≥ 6)");
   }
   GprParameters g;
   g.input_offset = in.vector(D, "gpr.input_offset");
@@ -683,6 +695,7 @@ void readGpr(Reader& in, CalibratedModel& model, size_t payload_bytes) {
   g.targets_standardised = in.matrix(m, P, "gpr.targets_standardised");
   const size_t alpha_at = in.offset();
   g.alpha = in.matrix(m, P, "gpr.alpha");
+  if (per_payload_force) g.payload_force_reference_n = in.positive("gpr.payload_force_reference_n");
   const double backward_error = alphaBackwardError(g);
   // "Not ≤", so that NaN from overflowing hyperparameters is refused too.
   if (!(backward_error <= kAlphaBackwardErrorLimit)) {
@@ -877,6 +890,8 @@ std::vector<uint8_t> serializeModel(const CalibratedModel& model) {
     out.rowMajor(g.inputs_normalised);
     out.rowMajor(g.targets_standardised);
     out.rowMajor(g.alpha);
+    // Only a GPR per payload force writes its reference: the paper's is written as before.
+    if (g.payload_force_reference_n > 0.0) out.f64(g.payload_force_reference_n);
   } else {
     for (int i = 0; i < 3; ++i) out.u32(0);
   }

@@ -199,11 +199,13 @@ Pose physicalTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_
   return tipPose(ws.chain);
 }
 
-/// The GPR's residual twist ξ at (q, measured wrench) into ws.gpr_mean (zero without a GPR);
-/// with_std also writes its std bound (the subset GP's, GprPredictor::predictMeanAndBoundInto)
-/// to ws.gpr_std.
+/// The GPR's residual twist ξ in the tip's axes at (q, measured wrench) into ws.gpr_mean (zero
+/// without a GPR), at a physical tip turned by R_TrackerTip (a GPR per payload force learns it in
+/// the tracker's axes: tipTwistFromGprOutput); with_std also writes its std bound (the subset
+/// GP's, GprPredictor::predictMeanAndBoundInto, per output of the GPR) to ws.gpr_std.
 const Vec6& residualTwist(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                          const Vec6& wrench_Sensor, bool with_std) noexcept {
+                          const Vec6& wrench_Sensor, const Mat3& R_TrackerTip,
+                          bool with_std) noexcept {
   if (!model.file.gpr) {
     ws.gpr_mean.setZero();
     return ws.gpr_mean;
@@ -212,6 +214,7 @@ const Vec6& residualTwist(const RuntimeModel& model, Workspace& ws, const JointV
   ws.gpr_input.tail<6>() = wrench_Sensor;
   model.gpr.predictMeanAndBoundInto(ws.gpr_input.data(), ws.gpr_mean.data(),
                                     with_std ? ws.gpr_std.data() : nullptr, ws.gpr);
+  tipTwistFromGprOutput(*model.file.gpr, R_TrackerTip, ws.gpr_mean);
   return ws.gpr_mean;
 }
 
@@ -223,7 +226,8 @@ Pose correctedTip(const RuntimeModel& model, Workspace& ws, const JointVector& q
   const Pose X_physical = physicalTip(model, ws, q_rad, call, wrench_Sensor, temp_c, false);
   *reading = loadReading(model, ws, call, wrench_Sensor);
   if (!model.file.gpr) return X_physical;
-  return Pose(X_physical * lie::expSE3(residualTwist(model, ws, q_rad, *reading, true)));
+  return Pose(X_physical *
+              lie::expSE3(residualTwist(model, ws, q_rad, *reading, X_physical.linear(), true)));
 }
 
 /// σ/σ_f from the per-output std bound (raw units) that predictMeanAndBoundInto wrote: the
@@ -414,9 +418,11 @@ bool physicalNeedsWrench(const CalibratedModel& file) noexcept {
   return file.compliance_rad_per_nm.size() > 0 && !file.compliance_rad_per_nm.isZero(0.0);
 }
 
-/// Whether the GPR's training wrenches vary (its wrench inputs are the last six); when not, the
-/// constant they take, sensor axes.
+/// Whether the GPR's training wrenches vary (its wrench inputs are the last six) or it is a GPR
+/// per payload force (its correction scales with the force read); when not, the constant they
+/// take, sensor axes.
 bool gprNeedsWrench(const GprParameters& gpr, int dof, Vec6& constant_wrench) noexcept {
+  if (gpr.payload_force_reference_n > 0.0) return true;
   const Eigen::MatrixXd& x = gpr.inputs_normalised;
   for (int i = 0; i < 6; ++i) {
     const Eigen::Index d = dof + i;
@@ -752,8 +758,8 @@ struct InverseIteration {
   void refreezeTwist() noexcept {
     if ((!have_twist && iterations > 0) ||
         (have_twist && (q_rad - q_twist_rad).cwiseAbs().maxCoeff() > kFrozenTwistDistance_rad)) {
-      xi_frozen =
-          residualTwist(model, ws, q_rad, loadReading(model, ws, call, wrench_Sensor), false);
+      xi_frozen = residualTwist(model, ws, q_rad, loadReading(model, ws, call, wrench_Sensor),
+                                X_TrackerTip_physical.linear(), false);
       exp_frozen_tcp = lie::expSE3(xi_frozen);
       if (!call.at_target) exp_frozen_tcp = exp_frozen_tcp * call.X_TipTcp;
       q_twist_rad = q_rad;
@@ -766,7 +772,8 @@ struct InverseIteration {
   /// here on. Returns the full model's residual; within the tolerances, the iterate is the answer.
   Vec6 fullModelResidual() noexcept {
     reading_last = loadReading(model, ws, call, wrench_Sensor);
-    xi_frozen = residualTwist(model, ws, q_rad, reading_last, true);
+    xi_frozen =
+        residualTwist(model, ws, q_rad, reading_last, X_TrackerTip_physical.linear(), true);
     const Pose exp_twist = lie::expSE3(xi_frozen);
     exp_frozen_tcp = call.at_target ? exp_twist : Pose(exp_twist * call.X_TipTcp);
     q_twist_rad = q_rad;

@@ -343,6 +343,7 @@ GprParameters parametersOf(Eigen::MatrixXd normalised_inputs, const GprScaling& 
   g.noise_sigma = hyperparameters.noise_sigma;
   g.targets_standardised = std::move(standardised_targets);
   g.alpha = std::move(alpha);
+  g.payload_force_reference_n = scaling.payload_force_reference_n;
   return g;
 }
 
@@ -384,7 +385,8 @@ Eigen::VectorXd GaussianProcess::startingPoint(int index, int input_dim, const G
 GaussianProcess GaussianProcess::fit(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y,
                                      const GprOptions& options, GprFitReport* report) {
   pinEigenBlocking();
-  const GprScaling scaling = GprScaling::fromData(X, Y);
+  GprScaling scaling = GprScaling::fromData(X, Y);
+  scaling.payload_force_reference_n = options.payload_force_reference_n;
   const Eigen::Index D = X.cols();
   const Eigen::MatrixXd Xn = normaliseInputs(X, scaling);
   const Eigen::MatrixXd Yn = standardiseOutputs(Y, scaling);

@@ -107,7 +107,10 @@ PoseModel physicalPoseModel(PhysicalModel physical) {
 
 PoseModel withResidual(PoseModel base, const GaussianProcess& gp) {
   return [base = std::move(base), &gp](const Measurement& row) {
-    return Pose(base(row) * lie::expSE3(gp.predictMean(gprInput(row))));
+    const Pose X = base(row);
+    Vec6 twist = gp.predictMean(gprInput(row));
+    tipTwistFromGprOutput(gp.parameters(), X.linear(), twist);
+    return Pose(X * lie::expSE3(twist));
   };
 }
 
@@ -115,49 +118,92 @@ PoseModel withResidual(PoseModel base, const ResidualModel& residual) {
   return residual.taken ? withResidual(std::move(base), residual.gp) : base;
 }
 
-ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measurement*>& rows,
-                          const std::string& set_name, const TrackerNoise& noise,
-                          const CalibrationOptions& options) {
+namespace {
+
+// A row's payload force ‖f‖, N: the wrench's force as the sensor reads it.
+double payloadForce(const Measurement& row) { return row.wrenchOrZero().head<3>().norm(); }
+
+// The rows a residual GP learns from: with orientation and, per payload force, with a load.
+std::vector<const Measurement*> residualRows(const std::vector<const Measurement*>& rows,
+                                             ResidualTarget target) {
   std::vector<const Measurement*> usable;
   for (const Measurement* row : rows) {
-    if (row->has_orientation) usable.push_back(row);
+    const bool loaded = row->load_kg > 0.0 && payloadForce(*row) > 0.0;
+    if (row->has_orientation && (target == ResidualTarget::kResidual || loaded)) {
+      usable.push_back(row);
+    }
   }
-  if (usable.size() < 2) {
-    throw InputError("step 3 needs at least 2 " + set_name +
-                     " rows with orientation (qw..qz) to learn the 6-D residual");
-  }
-  const size_t m = std::min(usable.size(), static_cast<size_t>(options.gpr_max_points));
-  const Eigen::Index D = gprInput(*usable[0]).size();
-  Eigen::MatrixXd X(static_cast<Eigen::Index>(m), D), Y(static_cast<Eigen::Index>(m), 6);
-  for (size_t i = 0; i < m; ++i) {
-    const Measurement& row = *usable[i * usable.size() / m];
-    X.row(static_cast<Eigen::Index>(i)) = gprInput(row).transpose();
-    Y.row(static_cast<Eigen::Index>(i)) =
-        lie::logSE3(model(row).inverse() * row.X_TrackerTip()).transpose();
-  }
-  // The twist's noise per output: the tip's position error (v, in tip axes) and its rotation (ω).
-  Eigen::VectorXd stated(6);
-  stated << Eigen::Vector3d::Constant(noise.position_sigma_m),
-      Eigen::Vector3d::Constant(noise.orientation_sigma_rad);
-  GprOptions gpr = options.gpr;
-  if (gpr.output_noise_sigma.size() == 0) gpr.output_noise_sigma = stated;
-  stated = gpr.output_noise_sigma;
-  if (gpr.cv_folds < 2) gpr.cv_folds = 10;  // the choice below needs it
-  GprFitReport report;
-  GaussianProcess gp = GaussianProcess::fit(X, Y, gpr, &report);
-  ResidualModel out{std::move(gp), std::move(report), static_cast<int>(m), set_name};
+  return usable;
+}
+
+// Whether the GP lowers the held-out error significantly (ResidualModel::taken), in the
+// residual's units: row i's held-out residual and target times gain(i).
+void judgeResidual(ResidualModel& out, const Eigen::MatrixXd& Y, const Eigen::VectorXd& gain,
+                   const Eigen::VectorXd& stated, int folds) {
   const Eigen::RowVectorXd weight = stated.array().square().inverse().matrix().transpose();
+  const Eigen::MatrixXd held_out_twist =
+      gain.asDiagonal() * out.gp.crossValidationResiduals(folds);
+  const Eigen::MatrixXd twist = gain.asDiagonal() * Y;
   const Eigen::VectorXd held_out =
-      (out.gp.crossValidationResiduals(gpr.cv_folds).array().square().rowwise() * weight.array())
-          .rowwise()
-          .sum();
-  const Eigen::VectorXd uncorrected = (Y.array().square().rowwise() * weight.array()).rowwise().sum();
+      (held_out_twist.array().square().rowwise() * weight.array()).rowwise().sum();
+  const Eigen::VectorXd uncorrected = (twist.array().square().rowwise() * weight.array()).rowwise().sum();
   out.cv_error = held_out.mean();
   out.uncorrected_error = uncorrected.mean();
   out.z_statistic = diagnosis::signedRankZ(
       std::vector<double>(uncorrected.data(), uncorrected.data() + uncorrected.size()),
       std::vector<double>(held_out.data(), held_out.data() + held_out.size()));
   out.taken = out.z_statistic > kGprTakenZ;
+}
+
+}  // namespace
+
+ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measurement*>& rows,
+                          const std::string& set_name, const TrackerNoise& noise,
+                          const CalibrationOptions& options, ResidualTarget target) {
+  const bool per_force = target == ResidualTarget::kPerPayloadForce;
+  const std::vector<const Measurement*> usable = residualRows(rows, target);
+  if (usable.size() < 2) {
+    throw InputError("step 3 needs at least 2 " + set_name + " rows with orientation (qw..qz)" +
+                     (per_force ? " and a load read by the sensor" : "") +
+                     " to learn the 6-D residual");
+  }
+  const size_t m = std::min(usable.size(), static_cast<size_t>(options.gpr_max_points));
+  const Eigen::Index D = gprInput(*usable[0]).size();
+  Eigen::MatrixXd X(static_cast<Eigen::Index>(m), D), Y(static_cast<Eigen::Index>(m), 6);
+  Eigen::VectorXd gain = Eigen::VectorXd::Ones(static_cast<Eigen::Index>(m));
+  double reference_n = 0.0;
+  for (size_t i = 0; i < m; ++i) {
+    const Measurement& row = *usable[i * usable.size() / m];
+    X.row(static_cast<Eigen::Index>(i)) = gprInput(row).transpose();
+    const Pose X = model(row);
+    Vec6 twist = lie::logSE3(X.inverse() * row.X_TrackerTip());
+    if (per_force) {
+      twist.head<3>() = X.linear() * twist.head<3>().eval();  // in the tracker's axes (eq. 30a)
+      twist.tail<3>() = X.linear() * twist.tail<3>().eval();
+      gain(static_cast<Eigen::Index>(i)) = payloadForce(row);
+    }
+    Y.row(static_cast<Eigen::Index>(i)) = twist.transpose();
+  }
+  if (per_force) {
+    reference_n = gain.mean();
+    gain /= reference_n;
+    Y = gain.cwiseInverse().asDiagonal() * Y;  // the residual per payload force
+  }
+  // The twist's noise per output: the tip's position error (v, in tip axes) and its rotation (ω);
+  // per payload force, the least a row's target carries (the largest force's).
+  Eigen::VectorXd stated(6);
+  stated << Eigen::Vector3d::Constant(noise.position_sigma_m),
+      Eigen::Vector3d::Constant(noise.orientation_sigma_rad);
+  GprOptions gpr = options.gpr;
+  if (gpr.output_noise_sigma.size() == 0) gpr.output_noise_sigma = stated;
+  stated = gpr.output_noise_sigma;
+  if (per_force) gpr.output_noise_sigma = stated / gain.maxCoeff();
+  gpr.payload_force_reference_n = reference_n;
+  if (gpr.cv_folds < 2) gpr.cv_folds = 10;  // the choice below needs it
+  GprFitReport report;
+  GaussianProcess gp = GaussianProcess::fit(X, Y, gpr, &report);
+  ResidualModel out{std::move(gp), std::move(report), static_cast<int>(m), set_name};
+  judgeResidual(out, Y, gain, stated, gpr.cv_folds);
   return out;
 }
 
@@ -361,7 +407,9 @@ std::vector<std::pair<std::string, PoseModel>> modelLayers(const CalibratedModel
                           Vec6 residual;
                           gpr->predictInto(gprInput(row).data(), residual.data(), nullptr,
                                            workspace);
-                          return Pose(physical(row) * lie::expSE3(residual));
+                          const Pose X = physical(row);
+                          tipTwistFromGprOutput(gpr->parameters(), X.linear(), residual);
+                          return Pose(X * lie::expSE3(residual));
                         });
   }
   return layers;

@@ -240,6 +240,10 @@ std::string formatModel(const CalibratedModel& model, size_t file_bytes) {
                          static_cast<long>(g.inputs_normalised.rows()), static_cast<long>(g.inputs_normalised.cols()),
                          static_cast<long>(g.alpha.cols()), g.noise_sigma, g.signal_sigma);
     for (Eigen::Index d = 0; d < g.length_scales.size(); ++d) out << format(" %.3g", g.length_scales(d));
+    if (g.payload_force_reference_n > 0.0) {
+      out << format("; the residual per payload force in the tracker's axes, reference %.4g N",
+                    g.payload_force_reference_n);
+    }
     out << "\n";
   }
   out << "validation figures at training time (mean / max position mm, mean orientation deg):\n";

@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <chrono>
 
+#include "../least_squares.hpp"
 #include "search.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/mechanisms/registration_drift.hpp"
@@ -56,6 +57,81 @@ Measurement inFirstCampaignTerms(Measurement row, const MeasurementFrames& frame
   return row;
 }
 
+// Singular values below this fraction of the largest are unobservable (as in step 1).
+constexpr double kPinRankTolerance = 1e-9;
+// Gauss–Newton steps of the geometry on the unloaded rows: it starts beside its optimum.
+constexpr int kPinIterations = 8;
+// The F statistic above which the unloaded rows reject the global fit's geometry: far in the
+// tail of F(rank, equations − rank) (its 99.9 % point is about 2 for 30 directions and 500
+// equations), so a model the data fit is not moved.
+constexpr double kPinF = 3.0;
+
+// The geometry alone refitted on rows by Gauss–Newton steps, the rest of the model held; the
+// identifiable directions' count in *rank.
+PhysicalModel geometryRefitted(PhysicalModel model, const FitRows& rows, int* rank) {
+  Eigen::VectorXd r = residuals(model, rows);
+  for (int it = 0; it < kPinIterations; ++it) {
+    const Eigen::MatrixXd A = linearise(model, rows, r).geometry;
+    TallQr system(A.cols());
+    system.add(A, r);
+    const SvdSolution s = solveReduced(system, kPinRankTolerance);
+    *rank = s.rank;
+    bool improved = false;
+    for (double fraction = 1.0; fraction > 1e-3 && !improved; fraction *= 0.5) {
+      PhysicalModel candidate = model;
+      candidate.chain_Tracker = model.chain_Tracker.corrected(fraction * s.x);
+      const Eigen::VectorXd r_candidate = residuals(candidate, rows);
+      if (r_candidate.squaredNorm() < r.squaredNorm()) {
+        improved = r.squaredNorm() - r_candidate.squaredNorm() > 1e-6 * r.squaredNorm();
+        model = std::move(candidate);
+        r = r_candidate;
+        if (!improved) return model;
+        break;
+      }
+    }
+    if (!improved) break;
+  }
+  return model;
+}
+
+// The paper's step 1 within the extended model: where the unloaded fit rows reject the geometry
+// the global fit found on every fit row (a load effect the catalogue cannot explain leaked into
+// it), the geometry they alone give, the mechanisms held; the loaded rows' rest is the GPR's.
+PhysicalModel pinnedToUnloaded(const PhysicalModel& found, const Search& search,
+                               const TrackerNoise& noise, GeometryPin& pin) {
+  std::vector<const Measurement*> unloaded;
+  for (const Measurement* row : search.fit.rows) {
+    if (row->load_kg == 0.0) unloaded.push_back(row);
+  }
+  pin = GeometryPin();
+  pin.unloaded_rows = static_cast<int>(unloaded.size());
+  if (unloaded.empty() || unloaded.size() == search.fit.rows.size()) return found;
+  const FitRows rows = makeFitRows(unloaded, noise, search.fit.folds);
+  const double cost_found = residuals(found, rows).squaredNorm();
+  PhysicalModel pinned = geometryRefitted(found, rows, &pin.rank);
+  const double cost_pinned = residuals(pinned, rows).squaredNorm();
+  const int dof = rows.count - pin.rank;
+  pin.tested = pin.rank > 0 && dof > 0 && cost_pinned > 0.0;
+  if (!pin.tested) return found;
+  pin.f_statistic = ((cost_found - cost_pinned) / pin.rank) / (cost_pinned / dof);
+  pin.pinned = pin.f_statistic > kPinF;
+  return pin.pinned ? pinned : found;
+}
+
+// What the extended model's GPR learns: where its rows carry loads, the residual per payload
+// force, so that a load effect outside the catalogue is smooth in its inputs (one linear in the
+// payload: a function of the pose alone) and an unloaded row is never moved (docs/method.md
+// eq. 30a); rows without loads, the residual itself.
+ResidualTarget extendedResidualTarget(const std::vector<const Measurement*>& rows) {
+  int loaded = 0;
+  for (const Measurement* row : rows) {
+    if (row->has_orientation && row->load_kg > 0.0 && row->wrenchOrZero().head<3>().norm() > 0.0) {
+      ++loaded;
+    }
+  }
+  return loaded >= 2 ? ResidualTarget::kPerPayloadForce : ResidualTarget::kResidual;
+}
+
 // A model of the first campaign's tracker, tool and readings, each row seen from its own
 // campaign's.
 PoseModel inOwnFrames(PoseModel model, MeasurementFrames frames) {
@@ -71,9 +147,10 @@ PoseModel inOwnFrames(PoseModel model, MeasurementFrames frames) {
 }  // namespace
 
 void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
-                       const PhysicalModel& extended_found, Search& search) {
+                       const PhysicalModel& found, Search& search) {
   const DiagnoseOptions& options = search.options;
   Diagnosis& d = search.d;
+  const PhysicalModel extended_found = pinnedToUnloaded(found, search, campaign.tracker, d.geometry_pin);
   // The robot's part of what was found: a drift of the tracker is the campaign's, never a
   // correction. The rows the GPR learns from and the validation rows are judged as the tracker
   // would have measured them had it stood as at the last fit row (withoutDrift). Several
@@ -124,8 +201,8 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
     }
     for (size_t i = 0; i < as_first.size(); ++i) gpr_rows[i] = &as_first[i];
   }
-  const ResidualModel residual =
-      fitResidual(after, gpr_rows, gpr_set, campaign.tracker, options.calibration);
+  const ResidualModel residual = fitResidual(after, gpr_rows, gpr_set, campaign.tracker,
+                                             options.calibration, extendedResidualTarget(gpr_rows));
   ext.gpr.reset();
   if (residual.taken) ext.gpr = residual.gp.parameters();
   d.extended_gpr_rows = residual.training_rows;

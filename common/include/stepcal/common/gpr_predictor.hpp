@@ -34,6 +34,9 @@ class GprPredictor {
   /// replaced by α = (K + σ_n² I)⁻¹ targets_standardised, solved with the Cholesky factor.
   static GprPredictor conditioned(GprParameters parameters);
 
+  /// The factor the GP's output is applied with at x_raw: 1 for the paper's GPR, ‖f‖ /
+  /// payload_force_reference_n for a GPR of the residual per payload force (eq. 30a).
+  double outputGain(const double* x_raw) const noexcept;
   int inputDim() const noexcept;
   int outputDim() const noexcept;
   int trainingSize() const noexcept;
@@ -50,7 +53,8 @@ class GprPredictor {
   const Eigen::VectorXi& boundSubset() const noexcept { return subset_indices_; }
 
   /// Predictive mean in raw output units (eq. 30) and, when std_out is not null, the predictive
-  /// standard deviation of the latent function per output (eq. 31, without the noise term).
+  /// standard deviation of the latent function per output (eq. 31, without the noise term); both
+  /// times outputGain (a GPR per payload force: exactly zero at zero force, the GP not evaluated).
   /// x_raw has inputDim() entries in raw input units; mean_out and std_out outputDim().
   /// mean = output_mean + output_scale ⊙ (k*ᵀ α); std = output_scale · √max(0, σ_f² − vᵀv),
   /// v = L⁻¹ k*.
@@ -59,7 +63,8 @@ class GprPredictor {
 
   /// Predictive std over prior std (σ_f), ∈ [0, 1]: near 0 beside the training data, 1 where
   /// the data say nothing (extrapolation). Same for every output (the kernel is shared).
-  /// √max(0, σ_f² − vᵀv) / σ_f, v = L⁻¹ k*.
+  /// outputGain · √max(0, σ_f² − vᵀv) / σ_f, v = L⁻¹ k* (a GPR per payload force: the std of its
+  /// correction over its prior std at the reference force, 0 at zero force, above 1 possible).
   double relativeStd(const double* x_raw, Workspace& workspace) const noexcept;
 
   /// Predictive mean (as predictInto) and a cheap upper bound on the predictive std.
@@ -82,6 +87,10 @@ class GprPredictor {
   /// ‖z̃_i‖² + ‖z̃‖² − 2 z̃_iᵀz̃ (clamped at 0) over the inputs that vary in training by one
   /// matrix–vector product, plus the others' shared (z̃_d − x̃_d)², then exp.
   void kernelColumn(const double* x_raw, Workspace& workspace) const noexcept;
+  /// Zero mean and std (std_out may be null): the correction at zero force.
+  void zeroOutputs(double* mean_out, double* std_out) const noexcept;
+  /// Mean and std (may be null) times the gain, for a GPR per payload force.
+  void applyGain(double gain, double* mean_out, double* std_out) const noexcept;
   /// Predictive mean from the kernel column in workspace (raw output units).
   void meanFromColumn(const Workspace& workspace, double* mean_out) const noexcept;
   /// Latent std of the subset GP from the kernel column in workspace (standardised units).
@@ -101,5 +110,11 @@ class GprPredictor {
   Eigen::VectorXi subset_indices_;         // r, ascending
   Eigen::MatrixXd subset_cholesky_inverse_;  // r × r: L_S⁻¹ (lower triangular)
 };
+
+/// The residual twist in the tip's axes (docs/method.md eq. 32) from a GPR's output at a tip of
+/// the physical model turned by R_TrackerTip, in place: the paper's GPR gives it as it is; a GPR
+/// per payload force gives the tip's displacement and rotation in the tracker's axes (eq. 30a), in
+/// which a load effect of the arm does not turn with the wrist. Allocation-free.
+void tipTwistFromGprOutput(const GprParameters& gpr, const Mat3& R_TrackerTip, Vec6& twist) noexcept;
 
 }  // namespace stepcal

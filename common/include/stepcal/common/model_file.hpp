@@ -63,6 +63,10 @@ struct GprParameters {
   double signal_sigma = 0, noise_sigma = 0;   ///< standardised output units
   Eigen::MatrixXd targets_standardised;       ///< m × P, lets the loader check α
   Eigen::MatrixXd alpha;                      ///< m × P, (K + σ_n² I)⁻¹ Y (eq. 30)
+  /// 0: the paper's GPR, its output the residual itself (eq. 30). > 0, N: a GPR of the residual
+  /// per payload force, its output times ‖f‖ / payload_force_reference_n, f the force of the
+  /// wrench (inputs D−6 .. D−4), so its correction is exactly zero at zero load (eq. 30a).
+  double payload_force_reference_n = 0;
 };
 
 /// One line of the accuracy table measured on held-out poses when the model was trained.

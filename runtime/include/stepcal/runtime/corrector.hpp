@@ -175,7 +175,7 @@ struct ForwardResult {
   /// The wrench the answer used, as a sensor tared unloaded reads it (sensor axes, N and N·m):
   /// the given or live one, or a payload's weight at the deflected pose plus the sensor bias.
   Vec6 wrench_Sensor = Vec6::Zero();
-  Vec6 gpr_std = Vec6::Zero();           ///< predictive 1-σ of the residual twist (v [m], ω [rad])
+  Vec6 gpr_std = Vec6::Zero();           ///< predictive 1-σ of the residual twist (v [m], ω [rad]; of a GPR per payload force in the tracker's axes)
   ///< (gpr_std is an upper bound on the exact predictive std: GprPredictor::predictMeanAndBoundInto)
   /// Bit j: joint j's angle lies outside the angles its transmission profile was fitted on, so
   /// the profile is faded out there (jointsOutsideCoverage); the status is unaffected.

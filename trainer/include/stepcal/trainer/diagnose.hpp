@@ -320,6 +320,17 @@ struct UnexplainedPart {
   std::string text;  ///< the verdict's sentences
 };
 
+/// Whether the extended model's geometry was pinned by the unloaded fit rows (docs/diagnosis.md,
+/// "The extended model"): the geometry refitted on them alone, the rest held, against the geometry
+/// of the global fit on every fit row; pinned when the unloaded rows reject the latter (F test).
+struct GeometryPin {
+  bool tested = false;  ///< false: the fit rows are all unloaded or all loaded
+  bool pinned = false;
+  int unloaded_rows = 0;
+  int rank = 0;         ///< identifiable geometry directions on the unloaded rows
+  double f_statistic = 0.0;  ///< (Δcost / rank) / (cost_pinned / (equations − rank))
+};
+
 struct Diagnosis {
   Verdict verdict = Verdict::kNone;
   DriftVerdict drift;
@@ -341,6 +352,7 @@ struct Diagnosis {
   int extended_gpr_rows = 0;
   double extended_gpr_z = 0.0;
   bool extended_gpr_taken = true;
+  GeometryPin geometry_pin;                ///< of the extended model
   double floor_position_m = 0.0;           ///< mean error the tracker noise alone gives
   CalibratedModel extended_model;          ///< the model with the effects and its GPR
   /// With several campaigns, each in the order given; empty for one. The extended model's tracker

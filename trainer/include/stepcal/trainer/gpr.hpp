@@ -56,6 +56,10 @@ struct GprOptions {
   /// the measurement's interpolates its training rows, noise included (a 60-row campaign's
   /// search otherwise ended at σ_n = 0.01, with every fit row at 0.0000 mm and validation worse).
   Eigen::VectorXd output_noise_sigma;
+  /// 0: Y is the residual. > 0, N: Y is the residual per payload force (the residual over
+  /// ‖f‖ / this, f the force of the wrench, the last six inputs), and the model's predictions
+  /// are scaled back by ‖f‖ / this (GprParameters::payload_force_reference_n).
+  double payload_force_reference_n = 0.0;
 };
 
 /// Share of the stated output noise σ_n may not go below: rows that a calibration step fitted
@@ -77,6 +81,8 @@ struct GprScaling {
   Eigen::VectorXd input_scale;   ///< D, raw input units per normalised unit (> 0)
   Eigen::VectorXd output_mean;   ///< P, raw output units
   Eigen::VectorXd output_scale;  ///< P, raw output units per standardised unit (> 0)
+  /// 0, or the reference force of a GPR per payload force (GprOptions), N.
+  double payload_force_reference_n = 0.0;
 
   /// Per-column mean and sample std of X (m × D) and Y (m × P); a constant column gets scale 1.
   static GprScaling fromData(const Eigen::MatrixXd& X, const Eigen::MatrixXd& Y);

@@ -106,15 +106,23 @@ PoseModel withResidual(PoseModel base, const GaussianProcess& gp);
 /// model itself. residual must outlive the predictor.
 PoseModel withResidual(PoseModel base, const ResidualModel& residual);
 
+/// What the residual GP learns: the residual twist itself (the paper's step 3), or the residual
+/// per payload force, learnt on the loaded rows alone and applied times ‖f‖ / f_ref (docs/method.md
+/// eq. 30a): a load effect linear in the payload is then a function of the pose alone, and the
+/// correction at zero load is exactly zero.
+enum class ResidualTarget { kResidual, kPerPayloadForce };
+
 /// Step 3: residual twists ξ = log(T_model⁻¹ T_measured)^∨ (eq. 25) on the training rows,
-/// thinned evenly to options.gpr_max_points; rows without orientation cannot give a 6-D twist.
+/// thinned evenly to options.gpr_max_points; rows without orientation cannot give a 6-D twist
+/// (per payload force: nor rows without a load, load_kg = 0 or no force read).
 /// The tracker's stated noise bounds the GP's σ_n from below (GprOptions::output_noise_sigma:
 /// position σ on v, orientation σ on ω, unless options.gpr gives its own) and weighs the
-/// choice whether it is taken (ResidualModel::taken).
-/// Throws InputError when fewer than 2 rows have orientation.
+/// choice whether it is taken (ResidualModel::taken), judged on the residual itself.
+/// Throws InputError when fewer than 2 rows are usable.
 ResidualModel fitResidual(const PoseModel& model, const std::vector<const Measurement*>& rows,
                           const std::string& set_name, const TrackerNoise& noise,
-                          const CalibrationOptions& options);
+                          const CalibrationOptions& options,
+                          ResidualTarget target = ResidualTarget::kResidual);
 
 /// Builds the campaign's chain from its URDF (base_link → tip_link, sensor_link attached as
 /// frame 0, flange_link, if named, after it as the frame kFlangeFrameName). Throws InputError

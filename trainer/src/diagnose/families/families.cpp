@@ -11,6 +11,7 @@ const std::vector<FamilyBuilder>& familyBuilders() {
       torqueDeflectionFamilies, jointCouplingFamilies,     selfWeightFamilies,
       sensorBiasFamilies,       thermalExpansionFamilies,  registrationDriftFamilies,
       jointZeroDriftFamilies,   campaignJointZeroFamilies, transmissionErrorFamilies,
+      offAxisComplianceFamilies,
   };
   return builders;
 }
@@ -20,6 +21,7 @@ const KindFit* findKindFit(MechanismKind kind) {
       &backlashFit(),         &nonlinearStiffnessFit(), &torsionCurveFit(),
       &selfWeightFit(),       &sensorBiasFit(),         &thermalExpansionFit(),
       &registrationDriftFit(), &jointZeroDriftFit(),    &sessionFramesFit(),
+      &offAxisComplianceFit(),
   };
   for (const KindFit* fit : fits) {
     if (fit->kind == kind) return fit;

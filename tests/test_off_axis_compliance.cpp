@@ -110,16 +110,20 @@ TEST(OffAxisCompliance, APayloadTiltsEverythingBeyondTheJointAboutItsOrigin) {
   for (const int joint : {0, 1, 2, 4}) {
     SCOPED_TRACE("joint " + std::to_string(joint + 1));
     PhysicalModel tilted = rigid;
-    const Mechanism m = offAxis(joint, 3e-7, 1.5e-7);  // a heavy robot's bearing
+    // A heavy robot's base bearing; the joints beyond carry only the payload's moment out of
+    // the arm's plane (and the wrist's), so ten times softer ones there.
+    const double scale = joint == 0 ? 1.0 : 10.0;
+    const Mechanism m = offAxis(joint, 3e-7 * scale, 1.5e-7 * scale);
     tilted.mechanisms.push_back(m);
     ASSERT_TRUE(physicalLinkAngles(tilted, q, Vec6::Zero(), std::nan(""), {ws_tilted, theta, tau},
                                    {nullptr, nullptr, &payload}));
     const Vec3 move = tipPose(ws_tilted).translation() - tipPose(ws_rigid).translation();
     const Vec3 expected = firstOrderTipMove(rigid, theta_rigid, joint, W_Root, m);
-    ASSERT_GT(expected.norm(), 2e-5) << "the payload tilts the joint";
-    // Second order: the tilt (~1e-4 rad) squared times the arm, and the payload's moment
-    // changing as the arm turns (~1e-4 of it).
-    EXPECT_NEAR((move - expected).norm(), 0.0, 2e-3 * expected.norm())
+    ASSERT_GT(expected.norm(), 2e-6) << "the payload tilts the joint";
+    // Second order: the tilt (~1e-4 rad) squared times the arm, and the moment across the axis
+    // changing as the arm turns: by the tilt times the moment along the axis, which beyond joint
+    // 1 is a hundred times larger (0.4 % on joint 2).
+    EXPECT_NEAR((move - expected).norm(), 0.0, 1e-2 * expected.norm())
         << "move " << move.transpose() << " expected " << expected.transpose();
     // The frames up to the joint's own origin do not move.
     EXPECT_NEAR((ws_tilted.X_RootFrame[static_cast<size_t>(joint + 1)].translation() -

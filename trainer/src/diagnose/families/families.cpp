@@ -33,7 +33,7 @@ const KindSignature* findKindSignature(MechanismKind kind) {
   static const std::vector<const KindSignature*> signatures = {
       &transmissionErrorSignature(), &backlashSignature(),        &nonlinearStiffnessSignature(),
       &torsionCurveSignature(),      &jointCouplingSignature(),   &selfWeightSignature(),
-      &thermalExpansionSignature(),  &jointZeroDriftSignature(),
+      &thermalExpansionSignature(),  &jointZeroDriftSignature(),   &offAxisComplianceSignature(),
   };
   for (const KindSignature* signature : signatures) {
     if (signature->kind == kind) return signature;

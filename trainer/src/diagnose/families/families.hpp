@@ -112,6 +112,7 @@ const KindSignature& jointCouplingSignature();
 const KindSignature& selfWeightSignature();
 const KindSignature& thermalExpansionSignature();
 const KindSignature& jointZeroDriftSignature();
+const KindSignature& offAxisComplianceSignature();
 
 /// A mechanism of a kind at zero, sized for an n-joint chain.
 Mechanism blank(MechanismKind kind, int dof, int joint = -1, int source = -1, int order = 0);

@@ -1,8 +1,13 @@
 // off_axis_compliance: a joint's frame tilting across its axis under the moment it carries
 // (families.hpp). One family per joint, its two compliances as finite-difference columns of the
 // whole model (the tilt acts inside the fixed point, on the frames, not on a link angle).
+#include <cmath>
+
 #include "families.hpp"
+#include "stepcal/common/compliance.hpp"
 #include "stepcal/common/mechanisms/off_axis_compliance.hpp"
+#include "stepcal/common/mechanisms/sensor_bias.hpp"
+#include "stepcal/trainer/pipeline.hpp"
 
 namespace stepcal::trainer::diagnosis {
 namespace {
@@ -63,6 +68,89 @@ const KindFit& offAxisComplianceFit() {
     return f;
   }();
   return fit;
+}
+
+namespace {
+
+// Relative step of a compliance for the residual's direction per unit tilt.
+constexpr double kSignatureStep = 0.01;
+
+/// Per fit row, the load's moment about the mechanism's joint origin along its two directions
+/// across the axis (u·M, v·M), N·m, at the extended model's deflected frames.
+std::vector<Eigen::Vector2d> rowMoments(const SignatureContext& c, const Mechanism& m) {
+  const PhysicalModel& model = c.model;
+  const KinematicChain& chain = model.chain_Tracker;
+  Vec6 bias = Vec6::Zero();
+  for (const Mechanism& other : model.mechanisms) {
+    if (other.kind == MechanismKind::kSensorBias) bias = view<mechanism::SensorBias>(other).wrench();
+  }
+  const Vec3 axis = chain.joints()[static_cast<size_t>(m.joint)].twist_Local.tail<3>();
+  Vec3 u, v;
+  mechanism::tiltDirections(axis, u, v);
+  const MeasurementFrames frames = measurementFramesOf(model);
+  std::vector<Eigen::Vector2d> moments;
+  ChainWorkspace ws;
+  JointVector theta, tau;
+  for (const Measurement* row : c.fit.rows) {
+    const Vec6 wrench = row->wrenchOrZero();
+    physicalLinkAngles(model, frames.commanded(*row), wrench, rowTemperature(*row),
+                       {ws, theta, tau});
+    const Vec6 W_Root = wrenchInRoot(framePose(chain, ws, model.sensor_frame), wrench - bias);
+    const Pose& X_RootJoint = ws.X_RootFrame[static_cast<size_t>(m.joint + 1)];
+    const Vec3 moment_Joint =
+        X_RootJoint.linear().transpose() *
+        (W_Root.tail<3>() - X_RootJoint.translation().cross(W_Root.head<3>()));
+    moments.emplace_back(u.dot(moment_Joint), v.dot(moment_Joint));
+  }
+  return moments;
+}
+
+/// The tilt about each direction with a compliance against the moment about it: the residual's
+/// direction per unit tilt from a small step of that compliance, divided row by row by the
+/// moment (a row without one says nothing of the tilt and is left out).
+void offAxisComplianceSignatures(const SignatureContext& c, size_t index,
+                                 std::vector<EffectSignature>& signatures) {
+  const Mechanism& m = c.model.mechanisms[index];
+  const std::vector<Eigen::Vector2d> moments = rowMoments(c, m);
+  double largest = 0.0;
+  for (const Eigen::Vector2d& moment : moments) largest = std::max(largest, moment.cwiseAbs().maxCoeff());
+  for (int d = 0; d < 2; ++d) {
+    const double compliance = m.parameter(d);
+    if (!(compliance > 0.0)) continue;
+    PhysicalModel stepped = c.model;
+    stepped.mechanisms[index].parameter(d) = compliance * (1.0 + kSignatureStep);
+    Eigen::VectorXd direction = (c.with.r - evaluate(stepped, c.fit).r) / (kSignatureStep * compliance);
+    std::vector<double> x, effect;
+    for (size_t i = 0; i < c.fit.rows.size(); ++i) {
+      const double moment = moments[i](d);
+      x.push_back(moment);
+      effect.push_back(compliance * moment);
+      auto row = direction.segment(c.fit.start[i], c.fit.equations(i));
+      if (std::abs(moment) > 1e-6 * largest) {
+        row /= moment;
+      } else {
+        row.setZero();
+      }
+    }
+    EffectSignature s;
+    s.mechanism = m;
+    s.joint = m.joint;
+    s.variable = SignatureVariable::kMomentAcrossAxis;
+    s.variable_joint = m.joint;
+    s.response = SignatureResponse::kFrameTilt;
+    s.direction = d;
+    fillPoints(c.fit, c.with.r, direction, x, effect, s);
+    curveFromRows(s);
+    signatures.push_back(std::move(s));
+  }
+}
+
+}  // namespace
+
+const KindSignature& offAxisComplianceSignature() {
+  static const KindSignature signature{MechanismKind::kOffAxisCompliance,
+                                       offAxisComplianceSignatures};
+  return signature;
 }
 
 }  // namespace stepcal::trainer::diagnosis

@@ -25,15 +25,16 @@ bool anyLoadedRow(const FitRows& fit) {
 }  // namespace
 
 void offAxisComplianceFamilies(const FamilyContext& c) {
-  const bool testable = c.global.sensor_frame >= 0 && anyLoadedRow(c.fit);
+  if (c.global.sensor_frame < 0 || !anyLoadedRow(c.fit)) {
+    if (c.scope.families && c.scope.only == nullptr) {  // once, in a whole round's screening
+      c.s.untestable.push_back(
+          {"off_axis_compliance", "no F/T sensor frame or no loaded row: no moment to tilt a joint"});
+    }
+    return;
+  }
   for (int j = 0; j < c.n; ++j) {
     if (present(c.global, MechanismKind::kOffAxisCompliance, j, -1) ||
         !c.wanted(MechanismKind::kOffAxisCompliance, j)) {
-      continue;
-    }
-    if (!testable) {
-      c.s.untestable.push_back({"off_axis_compliance (joint " + std::to_string(j + 1) + ")",
-                                "no F/T sensor frame or no loaded row: no moment to tilt a joint"});
       continue;
     }
     Family f;

@@ -652,7 +652,8 @@ TEST(Cli, SimulateWithASensorBiasOffsetsEveryReading) {
 // tests/data/diagnosis/ur10-series-c.json was written (its timing left out, numbers to 9 digits):
 // first before the screening matrix stopped being held whole (issue 32), written again when the
 // drift candidates joined the catalogue (a registration drift in time order found after the six
-// profiles; every other answer within the tolerances below). Strings, counts and flags must be equal; numbers
+// profiles; every other answer within the tolerances below), and when off_axis_compliance joined it
+// (its one untestable entry added: no loaded row). Strings, counts and flags must be equal; numbers
 // within 1e-4 relative, a signed-rank z and its p-value within 1e-2 (one rank's step moves z by
 // 6e-4 relative, and p by 2e-4), held-out gains and reductions also within 1e-5 absolute (mm, or a
 // fraction of the held-out error), a self weight's masses and first moments also within 1e-6 kg or
@@ -733,7 +734,8 @@ TEST(Cli, TheDiagnosisOfUr10SeriesCIsTheStoredOne) {
 // wrote before its screening matrix was made chunk by chunk wherever its rows are needed instead
 // of stored (issue 32), tests/data/diagnosis/twin-stress-seed-3.json, the same tolerances; written
 // again when the drift candidates joined the catalogue (their scores added, every other answer
-// the same). Made again after a change meant to change the answers: `stepcal-diagnose-stress
+// the same), and when off_axis_compliance did (24 candidates added, none significant, every other
+// answer the same). Made again after a change meant to change the answers: `stepcal-diagnose-stress
 // --seeds 3`, then `stepcal diagnose OUT/seed-3 --json` without timing_s.
 TEST(Cli, TheDiagnosisOfATwinMixIsTheStoredOne) {
   const fs::path dir = scratch("twin_stress_seed_3");

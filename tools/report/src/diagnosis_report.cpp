@@ -113,8 +113,9 @@ std::string statisticsText(const char* title, const trainer::ResidualStatistics&
 // What the data can and cannot tell apart, and what the search changed, in sentences: the
 // model changes in the order done, then each effect's alternatives, then what each effect is on
 // the fit rows.
-/// The joints whose axis is parallel to joint's at every pose of the chain (tried at poses spread
-/// over the joints' ranges, ±π where unlimited), 0-based.
+/// The joints whose axis is parallel to joint's at every pose of the chain, within a calibrated
+/// chain's axis errors (tried at poses spread over the joints' ranges, ±π where unlimited),
+/// 0-based.
 std::vector<int> alwaysParallelJoints(const KinematicChain& chain, int joint) {
   constexpr int kPoses = 64;
   const int n = chain.dof();
@@ -135,7 +136,8 @@ std::vector<int> alwaysParallelJoints(const KinematicChain& chain, int joint) {
     };
     const Vec3 axis = axisInRoot(joint);
     for (int k = 0; k < n; ++k) {
-      if (std::abs(std::abs(axis.dot(axisInRoot(k))) - 1.0) > 1e-9) parallel[static_cast<size_t>(k)] = false;
+      // Parallel within a calibration's axis errors (~1e-4 rad): 1 − cos 4.5 mrad = 1e-5.
+      if (1.0 - std::abs(axis.dot(axisInRoot(k))) > 1e-5) parallel[static_cast<size_t>(k)] = false;
     }
   }
   std::vector<int> joints;

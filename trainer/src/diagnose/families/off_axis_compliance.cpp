@@ -22,6 +22,33 @@ bool anyLoadedRow(const FitRows& fit) {
   return false;
 }
 
+// A neighbour's axis through a joint's origin and across its axis, within a calibrated chain's
+// errors: 1 mm, 1 mrad.
+constexpr double kThroughOrigin_m = 1e-3;
+constexpr double kAcross = 1e-3;
+
+/// Whether joint j's tilt is its neighbours' compliance: the axes of joints j − 1 and j + 1 both
+/// cross j's axis at right angles at j's origin (a spherical wrist's middle joint), so turning
+/// j's frame about the directions across its axis is turning about theirs, about the same point,
+/// under the same moments.
+bool tiltIsNeighboursCompliance(const KinematicChain& chain, int j) {
+  const int n = chain.dof();
+  if (j == 0 || j == n - 1) return false;
+  ChainWorkspace ws;
+  forwardKinematics(chain, JointVector::Zero(n), ws);
+  const auto axis = [&](int k) -> Vec3 {
+    return ws.X_RootFrame[static_cast<size_t>(k + 1)].linear() *
+           chain.joints()[static_cast<size_t>(k)].twist_Local.tail<3>();
+  };
+  const Vec3 origin = ws.X_RootFrame[static_cast<size_t>(j + 1)].translation();
+  for (const int k : {j - 1, j + 1}) {
+    const Vec3 to_origin = origin - ws.X_RootFrame[static_cast<size_t>(k + 1)].translation();
+    const double off_line_m = (to_origin - to_origin.dot(axis(k)) * axis(k)).norm();
+    if (off_line_m > kThroughOrigin_m || std::abs(axis(k).dot(axis(j))) > kAcross) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 void offAxisComplianceFamilies(const FamilyContext& c) {
@@ -35,6 +62,13 @@ void offAxisComplianceFamilies(const FamilyContext& c) {
   for (int j = 0; j < c.n; ++j) {
     if (present(c.global, MechanismKind::kOffAxisCompliance, j, -1) ||
         !c.wanted(MechanismKind::kOffAxisCompliance, j)) {
+      continue;
+    }
+    if (tiltIsNeighboursCompliance(c.global.chain_Tracker, j)) {
+      c.s.untestable.push_back(
+          {"off_axis_compliance (joint " + std::to_string(j + 1) + ")",
+           "its tilt is joints " + std::to_string(j) + " and " + std::to_string(j + 2) +
+               "'s compliance: their axes cross its own at right angles at its origin"});
       continue;
     }
     Family f;

@@ -22,10 +22,10 @@ bool anyLoadedRow(const FitRows& fit) {
   return false;
 }
 
-// A neighbour's axis through a joint's origin and across its axis, within a calibrated chain's
-// errors: 1 mm, 1 mrad.
-constexpr double kThroughOrigin_m = 1e-3;
-constexpr double kAcross = 1e-3;
+// A neighbour's axis through a joint's origin and across its axis, well beyond a calibrated
+// chain's errors (a few tenths of a millimetre and of a milliradian per frame): 5 mm, 10 mrad.
+constexpr double kThroughOrigin_m = 5e-3;
+constexpr double kAcross = 1e-2;
 
 /// Whether joint j's tilt is its neighbours' compliance: the axes of joints j − 1 and j + 1 both
 /// cross j's axis at right angles at j's origin (a spherical wrist's middle joint), so turning

@@ -653,12 +653,14 @@ TEST(Cli, SimulateWithASensorBiasOffsetsEveryReading) {
 // first before the screening matrix stopped being held whole (issue 32), written again when the
 // drift candidates joined the catalogue (a registration drift in time order found after the six
 // profiles; every other answer within the tolerances below), when the verdict gained its
-// unexplained part (its `unexplained` object added, every other answer as it was), and when a
+// unexplained part (its `unexplained` object added, every other answer as it was), when a
 // time-order family had to be told apart from what moves with its driver (issue 43:
 // drift.time_order_correlations and drift.confound_tests added, the drift text, and 11
 // registration-drift candidates of rounds 4–8 no longer significant: confounded with the
-// temperature; the effects and every number the same). Strings, counts and flags must be equal;
-// numbers
+// temperature; the effects and every number the same), when off_axis_compliance joined the
+// catalogue (its one untestable entry added: no loaded row) and when a candidate came to be fitted
+// within its physics' bounds (impossible_unbounded added). Strings, counts and flags must be
+// equal; numbers
 // within 1e-4 relative, a signed-rank z and its p-value within 1e-2 (one rank's step moves z by
 // 6e-4 relative, and p by 2e-4), held-out gains and reductions also within 1e-5 absolute (mm, or a
 // fraction of the held-out error), a self weight's masses and first moments also within 1e-6 kg or
@@ -744,11 +746,13 @@ TEST(Cli, TheDiagnosisOfUr10SeriesCIsTheStoredOne) {
 // the same), when the verdict gained its unexplained part (its `unexplained` object added), when
 // a time-order family had to be told apart from what moves with its driver (issue 43: the drift's
 // new fields and text, and its 7 candidates of rounds 1–3 no longer significant: a frame per load
-// block explains what they did; the effects the same), and when the extended model's GPR came to
+// block explains what they did; the effects the same), when the extended model's GPR came to
 // learn the residual per payload force (issue 43: not taken on this campaign, z 0.76, so its
-// extended+gpr figures are the extended model's; every other answer the same). Made again after a
-// change meant to change the answers: `stepcal-diagnose-stress --seeds 3`, then `stepcal diagnose
-// OUT/seed-3 --json` without timing_s.
+// extended+gpr figures are the extended model's), when off_axis_compliance joined the catalogue
+// (20 candidates added, none significant, and its untestable entry for the wrist's middle joint)
+// and when a candidate came to be fitted within its physics' bounds (impossible_unbounded added);
+// every other answer the same. Made again after a change meant to change the answers:
+// `stepcal-diagnose-stress --seeds 3`, then `stepcal diagnose OUT/seed-3 --json` without timing_s.
 TEST(Cli, TheDiagnosisOfATwinMixIsTheStoredOne) {
   const fs::path dir = scratch("twin_stress_seed_3");
   std::string simulate = kStepcal + " simulate --seed 3 --out " + dir.string();

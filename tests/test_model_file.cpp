@@ -706,20 +706,20 @@ TEST_F(ModelFileTest, NominalChainFollowsTheCalibratedChainAndDescribesTheSameRo
 
 TEST_F(ModelFileTest, MechanismsOfEveryKindRoundTripBetweenCompliancesAndGpr) {
   const CalibratedModel parsed = parse(bytes());
-  ASSERT_EQ(parsed.mechanisms.size(), 10u);
+  ASSERT_EQ(parsed.mechanisms.size(), 11u);
   for (size_t i = 0; i < parsed.mechanisms.size(); ++i) {
-    EXPECT_EQ(static_cast<uint32_t>(parsed.mechanisms[i].kind), uint32_t(i + 1)) << i;
+    EXPECT_EQ(parsed.mechanisms[i].kind, model().mechanisms[i].kind) << i;
   }
   // MECH follows COMP and precedes GPR, each with its 16-byte section header.
   const std::vector<uint8_t>& b = bytes();
   const size_t compliance = payloadOf(b, "COMP");
   const size_t mech = payloadOf(b, "MECH");
   EXPECT_EQ(mech, compliance + 4 + 2 * 8 * 6 + 16);
-  EXPECT_EQ(getU32(b, mech), 10u);
+  EXPECT_EQ(getU32(b, mech), 11u);
   // Record by record: header, parameters, sigmas, coverage (arc count, arcs, fade);
   // 4 + Σ (20 + 16 p + 4 + 16 a + 8) bytes in all.
   size_t length = 4;
-  for (size_t i = 0; i < 10; ++i) {
+  for (size_t i = 0; i < 11; ++i) {
     const Mechanism& m = model().mechanisms[i];
     const size_t at = mechanismAt(b, i);
     EXPECT_EQ(getU32(b, at), static_cast<uint32_t>(m.kind));
@@ -769,8 +769,8 @@ TEST_F(ModelFileTest, EachMalformedMechanismIsRefusedWithItsOffsetIndexAndProble
                nonlinear = mechanismAt(b, 3), coupling = mechanismAt(b, 6);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const std::vector<Case> cases = {
-      {[&](auto& e) { putU32(e, backlash, 14); }, backlash, "mechanisms[0]",
-       "mechanism kind 14; expected 1 to 13"},
+      {[&](auto& e) { putU32(e, backlash, 15); }, backlash, "mechanisms[0]",
+       "mechanism kind 15; expected 1 to 14"},
       {[&](auto& e) { putU32(e, backlash + 4, 6); }, backlash, "mechanisms[0]",
        "backlash joint index 6; expected 0 to 5"},
       {[&](auto& e) { putU32(e, backlash + 4, uint32_t(-1)); }, backlash, "mechanisms[0]",
@@ -837,7 +837,7 @@ TEST_F(ModelFileTest, MechanismsThatCannotBeTogetherOrLackTheirInputsAreRefused)
                                     std::pair{size_t(5), std::string("sensor_bias")}}) {
     const auto [b, at] = withRecordRepeated(bytes(), index);
     const std::string message = refusal(b);
-    EXPECT_NE(message.find("byte " + std::to_string(at) + ", mechanisms[10]: a second " + kind +
+    EXPECT_NE(message.find("byte " + std::to_string(at) + ", mechanisms[11]: a second " + kind +
                            " (the first is mechanisms[" + std::to_string(index) +
                            "]); expected at most one"),
               std::string::npos)
@@ -850,10 +850,11 @@ TEST_F(ModelFileTest, MechanismsThatCannotBeTogetherOrLackTheirInputsAreRefused)
        {std::tuple{size_t(2), std::string("transmission_error"), 3},
         std::tuple{size_t(7), std::string("profile_geometry"), 3},
         std::tuple{size_t(8), std::string("torsion_curve"), 5},
-        std::tuple{size_t(9), std::string("joint_zero_drift"), 2}}) {
+        std::tuple{size_t(9), std::string("joint_zero_drift"), 2},
+        std::tuple{size_t(10), std::string("off_axis_compliance"), 1}}) {
     const auto [b, at] = withRecordRepeated(bytes(), index);
     const std::string message = refusal(b);
-    EXPECT_NE(message.find("byte " + std::to_string(at) + ", mechanisms[10]: a second " + kind +
+    EXPECT_NE(message.find("byte " + std::to_string(at) + ", mechanisms[11]: a second " + kind +
                            " of joint " + std::to_string(joint) + " (the first is mechanisms[" +
                            std::to_string(index) +
                            "]); expected at most one per joint"),

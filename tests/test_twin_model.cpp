@@ -5,7 +5,9 @@
 // naming what is wrong.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -151,6 +153,45 @@ TEST(ModelTwin, PlannedPayloadsReadTheirWeightAtTheDeflectedPose) {
   double mean_c = 0.0;
   for (const Measurement& row : c.campaign.rows) mean_c += *row.temp_c;
   EXPECT_NEAR(*twin.rows[0].temp_c, mean_c / static_cast<double>(c.campaign.rows.size()), 1e-9);
+}
+
+TEST(ModelTwin, AnOffAxisComplianceIsSwitchedOnAtARealisticSize) {
+  // A base bearing 6e6 N·m/rad stiff across joint 1's axis: it moves the loaded rows by a tenth
+  // of a millimetre or two, the unloaded ones only by their reading's noise.
+  const test::TempDir dir;
+  const Calibrated c = calibrated(dir);
+  twin::ModelTwinOptions o = noiseless(c.model_path, c.campaign_dir);
+  const Campaign plain = twin::simulateFromModel(o, nullptr);
+  o.off_axis_compliance = {{0, 1.7e-7}};
+  nlohmann::json truth;
+  const Campaign tilted = twin::simulateFromModel(o, &truth);
+  ASSERT_EQ(plain.rows.size(), tilted.rows.size());
+  double sum_m = 0.0, largest_m = 0.0, largest_unloaded_m = 0.0;
+  int loaded_55 = 0;
+  for (size_t i = 0; i < plain.rows.size(); ++i) {
+    const double moved_m = (tilted.rows[i].p_TipInTracker_m - plain.rows[i].p_TipInTracker_m).norm();
+    if (plain.rows[i].load_kg == 0.0) {
+      largest_unloaded_m = std::max(largest_unloaded_m, moved_m);
+    } else if (plain.rows[i].load_kg == 55.0) {
+      sum_m += moved_m;
+      ++loaded_55;
+    }
+    largest_m = std::max(largest_m, moved_m);
+  }
+  ASSERT_GT(loaded_55, 0);
+  const double mean_55_m = sum_m / loaded_55;
+  EXPECT_GT(mean_55_m, 0.05e-3);
+  EXPECT_LT(largest_m, 1e-3);
+  EXPECT_LT(largest_unloaded_m, 0.01 * mean_55_m);
+  std::printf("[ off_axis ] joint 1, 1.7e-7 rad/(N·m): 55 kg rows move by %.3f mm mean, %.3f mm "
+              "at most, unloaded ones %.2g mm at most\n",
+              1e3 * mean_55_m, 1e3 * largest_m, 1e3 * largest_unloaded_m);
+  EXPECT_EQ(truth.at("added_mechanisms").at(0).at("joint"), 1);
+  // Not a tilt against the moment, and not a second one on a joint.
+  o.off_axis_compliance = {{0, -1e-7}};
+  expectRefused([&] { twin::simulateFromModel(o, nullptr); }, {"off_axis_compliance", "≥ 0"});
+  o.off_axis_compliance = {{0, 1e-7}, {0, 2e-7}};
+  expectRefused([&] { twin::simulateFromModel(o, nullptr); }, {"holds one already"});
 }
 
 TEST(ModelTwin, NoiseIsTheCampaignsStatedNoiseAndTheSeedsOwn) {

@@ -9,6 +9,7 @@
 #include "mechanisms/kinds.hpp"
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/lie.hpp"
+#include "stepcal/common/mechanisms/off_axis_compliance.hpp"
 #include "stepcal/common/mechanisms/sensor_bias.hpp"
 #include "stepcal/common/mechanisms/thermal_expansion.hpp"
 #include "stepcal/common/units.hpp"
@@ -223,16 +224,23 @@ uint32_t jointsOutsideCoverage(const PhysicalModel& model, const JointVector& q_
 
 namespace {
 
-/// The joint torques of a payload's weight at the pose in ws, N·m: every joint carries it, its
-/// weight at its centre of gravity (root axes).
+/// A payload's weight at the pose in ws as a wrench (root axes, about the root origin): its
+/// weight at its centre of gravity.
+Vec6 payloadWrenchInRoot(const KinematicChain& chain, const ChainWorkspace& ws,
+                         const Vec3& gravity_Root, const PointPayload& payload) noexcept {
+  Vec6 W_Root;
+  W_Root.head<3>() = payload.mass_kg * gravity_Root;
+  W_Root.tail<3>() = (ws.X_RootFrame[static_cast<size_t>(chain.dof())] * payload.p_CoGInLast_m)
+                         .cross(W_Root.head<3>());
+  return W_Root;
+}
+
+/// The joint torques of a payload's weight at the pose in ws, N·m: every joint carries it.
 void payloadTorques(const KinematicChain& chain, const ChainWorkspace& ws,
                                       const Vec3& gravity_Root, const PointPayload& payload,
                                       JointVector& tau_nm) noexcept {
   const int n = chain.dof();
-  Vec6 W_Root;
-  W_Root.head<3>() = payload.mass_kg * gravity_Root;
-  W_Root.tail<3>() =
-      (ws.X_RootFrame[static_cast<size_t>(n)] * payload.p_CoGInLast_m).cross(W_Root.head<3>());
+  const Vec6 W_Root = payloadWrenchInRoot(chain, ws, gravity_Root, payload);
   for (int k = 1; k <= n; ++k) tau_nm(k - 1) = jointTwistInRoot(chain, ws, k).dot(W_Root);
 }
 
@@ -358,6 +366,7 @@ class FixedPoint {
         trig_q_(trig_q),
         first_(first),
         keep_(first != nullptr && !first->kept),
+        tilting_(model.has(MechanismKind::kOffAxisCompliance)),
         out_(out) {
     // The frames at θ₀ another evaluation kept, where they are this one's.
     reuse_ = first_ != nullptr && first_->kept && first_->q_rad == q_rad_ &&
@@ -392,15 +401,16 @@ class FixedPoint {
         out_.tau_nm += tau_self_;
       }
       deflect(out_.tau_nm);
+      if (tilting_) tiltFrames(loadWrenchInRoot(has_sensor, payload));
     }
   }
 
   /// The frames at θ into out.ws: reused or kept at θ₀.
   void evaluate() noexcept {
-    at_theta0_ = out_.theta_rad == theta0_;
+    at_theta0_ = out_.theta_rad == theta0_ && !tilted_now_;
     if (!at_theta0_) {
       shiftedJointTrig(trig0_, theta0_, out_.theta_rad - theta0_, trig_);
-      forwardKinematics(chain_, out_.theta_rad, out_.ws, initial_, &trig_);
+      forwardKinematics(chain_, out_.theta_rad, out_.ws, tilted_now_ ? tilted_ : initial_, &trig_);
     } else if (reuse_) {
       out_.ws = first_->ws;
     } else {
@@ -436,6 +446,39 @@ class FixedPoint {
     }
   }
 
+  /// The load's wrench at the pass's frames (root axes, about the root origin): the measured
+  /// wrench at the sensor, or the payload's weight.
+  Vec6 loadWrenchInRoot(bool has_sensor, const PointPayload* payload) const noexcept {
+    if (has_sensor) {
+      return wrenchInRoot(framePose(chain_, out_.ws, model_.sensor_frame), side_.wrench_Sensor);
+    }
+    if (payload != nullptr) {
+      return payloadWrenchInRoot(chain_, out_.ws, model_.gravity_Tracker, *payload);
+    }
+    return Vec6::Zero();
+  }
+
+  /// Each off_axis_compliance's tilt of its joint's frame under the load's moment about the
+  /// frame's origin at this pass's frames, for the next evaluation: a turn of the joint's
+  /// initial pose by the tilt as the frame before the joint's motion (at the new θ) sees it, so
+  /// that the joint's frame, what hangs from it and everything beyond turn with it.
+  void tiltFrames(const Vec6& W_Root) noexcept {
+    std::copy(initial_.begin(), initial_.begin() + n_ + 1, tilted_.begin());
+    for (const Mechanism& m : model_.mechanisms) {
+      if (m.kind != MechanismKind::kOffAxisCompliance) continue;
+      const Pose& X_RootJoint = out_.ws.X_RootFrame[static_cast<size_t>(m.joint + 1)];
+      const Vec3 axis = chain_.joints()[static_cast<size_t>(m.joint)].twist_Local.tail<3>();
+      const Vec3 moment_Joint =
+          X_RootJoint.linear().transpose() *
+          (W_Root.tail<3>() - X_RootJoint.translation().cross(W_Root.head<3>()));
+      const Vec3 tilt_BeforeMotion = lie::expSO3(axis * out_.theta_rad(m.joint)) *
+                                     mechanism::frameTilt_rad(m, axis, moment_Joint);
+      Pose& T = tilted_[static_cast<size_t>(m.joint)];
+      T.linear() = T.linear() * lie::expSO3(tilt_BeforeMotion);
+    }
+    tilted_now_ = true;
+  }
+
   /// θ = θ₀ + Δθ(τ): the compliance, plus each joint's torque-deflection mechanism.
   void deflect(const JointVector& tau) noexcept {
     out_.theta_rad = theta0_ + model_.compliance_rad_per_nm.cwiseProduct(tau);
@@ -454,10 +497,13 @@ class FixedPoint {
   const JointTrig& trig_q_;
   FirstPass* const first_;
   const bool keep_;  ///< first_ keeps this evaluation's frames at θ₀
+  const bool tilting_;  ///< the model has an off_axis_compliance (tiltFrames)
   const PhysicalLinkAnglesOut& out_;
   bool reuse_ = false;        ///< the frames at θ₀ are first_'s
   bool at_theta0_ = false;    ///< out_.ws holds the frames at θ₀
   bool kept_frames_ = false;  ///< and first_ keeps them
+  bool tilted_now_ = false;   ///< the frames are evaluated with tilted_, not initial_
+  InitialPoses tilted_;       ///< initial_ with each off_axis_compliance's last tilt
   JointTrig trig0_, trig_;    ///< sin and cos of θ₀ and of the pass's θ
   Jacobian J_;
   JointVector tau_self_;

@@ -187,7 +187,8 @@ Pose physicalTip(const RuntimeModel& model, Workspace& ws, const JointVector& q_
                  Deflection deflection = Deflection::kModel) noexcept {
   FixedPointStart start;
   start.deflection_out_rad = &ws.deflection_rad;
-  if (deflection != Deflection::kModel) {
+  // A frame's tilt (off_axis_compliance) is not held between evaluations: the model itself.
+  if (deflection != Deflection::kModel && !model.tilts_frames) {
     start.passes = deflection == Deflection::kOnePass ? 1 : 0;
     start.deflection_rad = &ws.deflection_rad;
   }
@@ -411,7 +412,8 @@ double outOfDomainThreshold(const GprPredictor& gpr) {
 bool physicalNeedsWrench(const CalibratedModel& file) noexcept {
   if (file.sensor_frame < 0) return false;
   for (const Mechanism& m : file.mechanisms) {
-    if (m.kind == MechanismKind::kBacklash || m.kind == MechanismKind::kNonlinearStiffness) {
+    if (m.kind == MechanismKind::kBacklash || m.kind == MechanismKind::kNonlinearStiffness ||
+        m.kind == MechanismKind::kOffAxisCompliance) {
       return true;
     }
   }
@@ -523,6 +525,7 @@ std::unique_ptr<const RuntimeModel> build(CalibratedModel file, uint64_t model_i
   std::tie(model->p_ReachCentreInTracker_m, model->reach_radius_m) =
       reachSphere(file.chain_Tracker);
   model->needs_wrench = physicalNeedsWrench(file);
+  model->tilts_frames = model->physical.has(MechanismKind::kOffAxisCompliance);
   if (file.gpr && gprNeedsWrench(*file.gpr, n, model->unloaded_wrench_Sensor)) {
     model->needs_wrench = true;
   }

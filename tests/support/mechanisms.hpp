@@ -50,7 +50,8 @@ inline Mechanism mechanism(MechanismKind kind, int joint, int source_joint, int 
 /// [3] nonlinear_stiffness (joint 4, linear above 300 N·m), [4] thermal_expansion (T_ref 20 °C),
 /// [5] sensor_bias, [6] joint_coupling (joint 5 → joint 6), [7] profile_geometry (joint 3: tens
 /// of µm and µrad on every initial pose), [8] torsion_curve (joint 5: lost motion and two knees,
-/// linear above 400 N·m), [9] joint_zero_drift (joint 2: 30 µrad/K about 20 °C).
+/// linear above 400 N·m), [9] joint_zero_drift (joint 2: 30 µrad/K about 20 °C), [10]
+/// off_axis_compliance (joint 1: a base bearing 5e6 and 7e6 N·m/rad stiff across its axis).
 inline std::vector<Mechanism> mechanismOfEveryKind() {
   return {mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-4, 5.0}),
           mechanism(MechanismKind::kSelfWeight, -1, -1, 0, selfWeightParameters()),
@@ -63,7 +64,8 @@ inline std::vector<Mechanism> mechanismOfEveryKind() {
           mechanism(MechanismKind::kProfileGeometry, 2, -1, 0, profileGeometryParameters()),
           mechanism(MechanismKind::kTorsionCurve, 4, -1, 2,
                     {1.5e-4, 4.0, 3e-6, 40.0, 1e-6, 150.0, 400.0}),
-          mechanism(MechanismKind::kJointZeroDrift, 1, -1, 0, {3e-5, 20.0})};
+          mechanism(MechanismKind::kJointZeroDrift, 1, -1, 0, {3e-5, 20.0}),
+          mechanism(MechanismKind::kOffAxisCompliance, 0, -1, 0, {2e-7, 1.4e-7})};
 }
 
 }  // namespace stepcal::test

@@ -24,6 +24,7 @@ struct PlanArgs {
   std::string candidates_from;  ///< a campaign whose measured poses are the candidates
   std::string selection = "d-optimal";
   std::vector<double> tracker_m = {4.0, 0.0, 1.2};
+  std::vector<int> off_axis_joints;  ///< 1-based, as on the command line
   std::string out;
   trainer::PlanOptions options;
 };
@@ -97,6 +98,7 @@ void runPlan(PlanArgs a) {
                      "link a payload of known mass hangs from, with its --payload-cog");
   }
   if (!a.payload_cog_m.empty()) a.options.p_CoGInSensor_m = payloadCoG(a.payload_cog_m);
+  for (const int joint : a.off_axis_joints) a.options.off_axis_joints.push_back(joint - 1);
   std::vector<std::string> attached;
   if (sensor) attached.push_back(robot.sensor_link);
   const KinematicChain chain =
@@ -144,6 +146,10 @@ Subcommand addPlanCommand(CLI::App& app) {
   plan->add_option("--seed", plan_args.options.seed, "random seed of the candidates")
       ->capture_default_str();
   plan->add_option("--selection", plan_args.selection, "d-optimal | random")->capture_default_str();
+  plan->add_option("--off-axis-joints", plan_args.off_axis_joints,
+                   "joints (1-based) whose compliance across the axis (off_axis_compliance: "
+                   "bearing tilt, link bending) the poses should also identify, e.g. 1,2")
+      ->delimiter(',');
   plan->add_option("--out", plan_args.out, "pose list to write (poses.csv)")->required();
   return {plan, [args] { runPlan(*args); }};
 }

@@ -4,6 +4,9 @@
 #include <cmath>
 #include <iostream>
 #include <memory>
+#include <stdexcept>
+#include <string>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
@@ -19,6 +22,25 @@
 namespace stepcal::cli {
 namespace {
 
+// "J:C" of --off-axis-compliance: joint J (1-based) and c rad/(N·m), as (J − 1, c).
+std::pair<int, double> offAxisComplianceSpec(const std::string& spec) {
+  const size_t colon = spec.find(':');
+  try {
+    if (colon != std::string::npos) {
+      size_t used = 0;
+      const int joint = std::stoi(spec.substr(0, colon), &used);
+      const std::string c_text = spec.substr(colon + 1);
+      size_t c_used = 0;
+      const double c = std::stod(c_text, &c_used);
+      if (used == colon && c_used == c_text.size()) return {joint - 1, c};
+    }
+  } catch (const std::logic_error&) {
+  }
+  throw InputError("--off-axis-compliance '" + spec +
+                   "'; expected JOINT:C, a joint (1-based) and its tilt compliance across the "
+                   "axis in rad/(N·m) (hint: 1:1.7e-7, a heavy robot's base bearing)");
+}
+
 // The twin of a calibrated robot (model_twin.hpp): the model's physics on a campaign's rows.
 void runSimulateModel(const SimulateArgs& a) {
   twin::ModelTwinOptions options;
@@ -33,6 +55,9 @@ void runSimulateModel(const SimulateArgs& a) {
   if (!a.poses.empty()) {
     options.planned_fit_rows =
         readPoseList(a.poses, readModelFile(a.model).chain_Tracker.dof());
+  }
+  for (const std::string& spec : a.off_axis_compliance) {
+    options.off_axis_compliance.push_back(offAxisComplianceSpec(spec));
   }
   twin::writeModelSimulation(options, a.out);
 }
@@ -109,6 +134,12 @@ Subcommand addSimulateCommand(CLI::App& app) {
       "with --model: the campaign whose rows, robot description and tracker noise are used "
       "(default: the model's own, from its provenance)");
   campaign_option->needs(model_option);
+  simulate
+      ->add_option("--off-axis-compliance", sim.off_axis_compliance,
+                   "with --model: switch on a tilt of joint J across its axis in the twin, "
+                   "c M⊥ (off_axis_compliance, isotropic), J:C with C in rad/(N·m), e.g. "
+                   "1:1.7e-7; repeatable")
+      ->needs(model_option);
   for (const char* robot_only : {"--robot", "--base-link", "--tip-link", "--sensor-link",
                                  "--protocol", "--stiffness"}) {
     model_option->excludes(simulate->get_option(robot_only));

@@ -28,6 +28,8 @@ struct SimulateArgs {
   std::string load_order = "blocks";  ///< --load-order (TwinOptions::load_order)
   double temperature_swing_c = 3.0;   ///< --temperature-swing-c (TwinOptions)
   double temperature_ramp_c = 0.0;    ///< --temperature-ramp-c (TwinOptions)
+  /// --off-axis-compliance JOINT:C (with --model): ModelTwinOptions::off_axis_compliance
+  std::vector<std::string> off_axis_compliance;
 };
 
 /// Writes the campaign a.out (and its truth.json): of a robot drawn from its URDF, or with

@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 
 #include "stepcal/common/compliance.hpp"
+#include "stepcal/common/mechanisms/off_axis_compliance.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/common/text_number.hpp"
@@ -57,7 +58,8 @@ double segmentDistance(const Vec3& a0, const Vec3& a1, const Vec3& b0, const Vec
 }
 
 /// A visible candidate pose and its identification block (rows: unloaded position, then each
-/// payload's deflection; columns: 6(n+1) geometry, n compliance).
+/// payload's deflection; columns: 6(n+1) geometry, n compliance, two tilt compliances per
+/// PlanOptions::off_axis_joints).
 struct Candidate {
   JointVector q_rad;
   Eigen::MatrixXd block;
@@ -86,6 +88,31 @@ Visibility visibility(const ChainWorkspace& ws, const PlanOptions& o) {
   return Visibility::kVisible;
 }
 
+/// The tip's motion per unit tilt compliance of each off_axis joint under the payload's wrench
+/// W_Base (mechanisms/off_axis_compliance.hpp): the tilt c (d·M) d about direction d at the
+/// joint's origin, in the rows from `first`, the columns from `column`.
+void addTiltColumns(const KinematicChain& chain, const ChainWorkspace& ws, const Vec6& W_Base,
+                    const PlanOptions& o, int first, int column, Eigen::MatrixXd& block) {
+  const bool rotation = o.orientation_sigma_rad > 0.0;
+  const Vec3 p_TipInBase = tipPose(ws).translation();
+  for (const int joint : o.off_axis_joints) {
+    const Pose& X_BaseJoint = ws.X_RootFrame[static_cast<size_t>(joint + 1)];
+    const Vec3 moment_Base =
+        W_Base.tail<3>() - X_BaseJoint.translation().cross(W_Base.head<3>());
+    Vec3 u, v;
+    mechanism::tiltDirections(chain.joints()[static_cast<size_t>(joint)].twist_Local.tail<3>(), u,
+                              v);
+    for (const Vec3& direction : {u, v}) {
+      const Vec3 d_Base = X_BaseJoint.linear() * direction;
+      const Vec3 turn = d_Base.dot(moment_Base) * d_Base;  // rad per rad/(N·m)
+      block.block(first, column, 3, 1) =
+          turn.cross(p_TipInBase - X_BaseJoint.translation()) / o.position_sigma_m;
+      if (rotation) block.block(first + 3, column, 3, 1) = turn / o.orientation_sigma_rad;
+      ++column;
+    }
+  }
+}
+
 Eigen::MatrixXd identificationBlock(const KinematicChain& chain, int sensor_frame,
                                     const ChainWorkspace& ws, const std::vector<double>& payloads_kg,
                                     const PlanOptions& o) {
@@ -94,8 +121,9 @@ Eigen::MatrixXd identificationBlock(const KinematicChain& chain, int sensor_fram
   // Rows in units of the tracker's noise: position, then rotation when it is measured.
   const bool rotation = o.orientation_sigma_rad > 0.0;
   const int rows = rotation ? 6 : 3;
-  Eigen::MatrixXd block =
-      Eigen::MatrixXd::Zero(rows * (1 + static_cast<int>(payloads_kg.size())), geometry_columns + n);
+  const int tilt_columns = 2 * static_cast<int>(o.off_axis_joints.size());
+  Eigen::MatrixXd block = Eigen::MatrixXd::Zero(rows * (1 + static_cast<int>(payloads_kg.size())),
+                                                geometry_columns + n + tilt_columns);
   Eigen::Matrix<double, 6, Eigen::Dynamic> A(6, geometry_columns);
   parameterJacobian(chain, ws, A);
   const Vec3 p_TipInBase = tipPose(ws).translation();
@@ -113,7 +141,8 @@ Eigen::MatrixXd identificationBlock(const KinematicChain& chain, int sensor_fram
     wrench_Sensor.head<3>() =
         X_BaseSensor.linear().transpose() * (payloads_kg[l] * o.gravity_in_base_m_per_s2);
     wrench_Sensor.tail<3>() = o.p_CoGInSensor_m.cross(wrench_Sensor.head<3>());
-    const JointVector tau_nm = jointTorques(J_s, wrenchInRoot(X_BaseSensor, wrench_Sensor));
+    const Vec6 W_Base = wrenchInRoot(X_BaseSensor, wrench_Sensor);
+    const JointVector tau_nm = jointTorques(J_s, W_Base);
     const int first = rows * (1 + static_cast<int>(l));
     block.block(first, geometry_columns, 3, n) =
         J_tip.topRows<3>() * tau_nm.asDiagonal() / o.position_sigma_m;
@@ -121,6 +150,7 @@ Eigen::MatrixXd identificationBlock(const KinematicChain& chain, int sensor_fram
       block.block(first + 3, geometry_columns, 3, n) =
           J_tip.bottomRows<3>() * tau_nm.asDiagonal() / o.orientation_sigma_rad;
     }
+    addTiltColumns(chain, ws, W_Base, o, first, geometry_columns + n, block);
   }
   return block;
 }
@@ -140,6 +170,13 @@ void validate(const KinematicChain& chain, int sensor_frame, const PlanOptions& 
          "sensor's, or the flange for a payload of known mass and centre of gravity");
   }
   if (!o.p_CoGInSensor_m.allFinite()) fail("payload centre of gravity", "finite", "e.g. 0,0,0.1 m");
+  for (const int joint : o.off_axis_joints) {
+    if (joint < 0 || joint >= chain.dof() || sensor_frame < 0) {
+      fail("off-axis joint " + std::to_string(joint + 1),
+           "a joint 1 to " + std::to_string(chain.dof()) + " of a robot with a payload link",
+           "a tilt across a joint's axis is identified by a payload's moment");
+    }
+  }
   if (o.poses < 1) fail("poses = " + std::to_string(o.poses), ">= 1", "e.g. 30");
   if (!o.given_candidates.empty()) {
     if (static_cast<int>(o.given_candidates.size()) < o.poses) {

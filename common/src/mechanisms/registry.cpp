@@ -17,6 +17,7 @@ const MechanismTraits& jointZeroDriftTraits();      // 10
 const MechanismTraits& registrationDriftTraits();   // 11
 const MechanismTraits& sessionFramesTraits();       // 12
 const MechanismTraits& campaignJointZeroTraits();   // 13
+const MechanismTraits& offAxisComplianceTraits();   // 14
 }  // namespace stepcal::mechanism
 
 namespace stepcal {
@@ -28,7 +29,7 @@ const std::vector<const MechanismTraits*>& mechanismRegistry() {
       &nonlinearStiffnessTraits(), &thermalExpansionTraits(),  &sensorBiasTraits(),
       &jointCouplingTraits(),     &profileGeometryTraits(),    &torsionCurveTraits(),
       &jointZeroDriftTraits(),    &registrationDriftTraits(),  &sessionFramesTraits(),
-      &campaignJointZeroTraits(),
+      &campaignJointZeroTraits(), &offAxisComplianceTraits(),
   };
   return registry;
 }

@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "stepcal/common/mechanisms/campaign_joint_zero.hpp"
+#include "stepcal/common/mechanisms/off_axis_compliance.hpp"
 #include "stepcal/common/mechanisms/profile_geometry.hpp"
 #include "stepcal/common/mechanisms/registration_drift.hpp"
 #include "stepcal/common/mechanisms/self_weight.hpp"
@@ -113,6 +114,63 @@ std::string statisticsText(const char* title, const trainer::ResidualStatistics&
 // What the data can and cannot tell apart, and what the search changed, in sentences: the
 // model changes in the order done, then each effect's alternatives, then what each effect is on
 // the fit rows.
+/// The joints whose axis is parallel to joint's at every pose of the chain, within a calibrated
+/// chain's axis errors (tried at poses spread over the joints' ranges, ±π where unlimited),
+/// 0-based.
+std::vector<int> alwaysParallelJoints(const KinematicChain& chain, int joint) {
+  constexpr int kPoses = 64;
+  const int n = chain.dof();
+  std::vector<bool> parallel(static_cast<size_t>(n), true);
+  ChainWorkspace ws;
+  JointVector q(n);
+  for (int p = 0; p < kPoses; ++p) {
+    for (int i = 0; i < n; ++i) {
+      const ChainJoint& c = chain.joints()[static_cast<size_t>(i)];
+      const double lower = std::max(c.lower_rad, -kPi), upper = std::min(c.upper_rad, kPi);
+      const double share = std::fmod(0.5 + (p + 1) * 0.6180339887498949 * (i + 1), 1.0);
+      q(i) = lower + share * (upper - lower);
+    }
+    forwardKinematics(chain, q, ws);
+    const auto axisInRoot = [&](int k) -> Vec3 {
+      return ws.X_RootFrame[static_cast<size_t>(k + 1)].linear() *
+             chain.joints()[static_cast<size_t>(k)].twist_Local.tail<3>();
+    };
+    const Vec3 axis = axisInRoot(joint);
+    for (int k = 0; k < n; ++k) {
+      // Parallel within a calibration's axis errors (~1e-4 rad): 1 − cos 4.5 mrad = 1e-5.
+      if (1.0 - std::abs(axis.dot(axisInRoot(k))) > 1e-5) parallel[static_cast<size_t>(k)] = false;
+    }
+  }
+  std::vector<int> joints;
+  for (int k = 0; k < n; ++k) {
+    if (k != joint && parallel[static_cast<size_t>(k)]) joints.push_back(k);
+  }
+  return joints;
+}
+
+/// What the rows identify of a joint's compliance across its axis: each direction's size against
+/// its σ, and the joints with a parallel axis, whose tilts turn the arm about the same directions.
+std::string offAxisLine(const trainer::Diagnosis& d, const Mechanism& m) {
+  const KinematicChain& chain = d.extended_model.chain_Tracker;
+  Vec3 u, v;
+  mechanism::tiltDirections(chain.joints()[static_cast<size_t>(m.joint)].twist_Local.tail<3>(), u, v);
+  std::string text = describe(m) + format(": the tilt about u = (%.2f, %.2f, %.2f) and about v = "
+                                          "(%.2f, %.2f, %.2f) of the joint's frame, %.3g ± %.2g and "
+                                          "%.3g ± %.2g rad/(N·m), each from the load's moment about it",
+                                          u.x(), u.y(), u.z(), v.x(), v.y(), v.z(), m.parameter(0),
+                                          m.sigma[0], m.parameter(1), m.sigma[1]);
+  const std::vector<int> parallel = alwaysParallelJoints(chain, m.joint);
+  if (!parallel.empty()) {
+    text += "; joint(s)";
+    for (int k : parallel) text += format(" %d", k + 1);
+    text += " have a parallel axis at every pose: their tilts turn the arm about the same "
+            "directions, under moments that differ only by the load's force times the distance "
+            "between the joints, so the rows tell the joints apart by that alone (the σ above and "
+            "any alternative named say how well)";
+  }
+  return text;
+}
+
 std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
   std::vector<std::string> lines;
   for (const trainer::ModelChange& c : d.changes) {
@@ -184,6 +242,8 @@ std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
                         "together and the ridge keeps what they share small; what the geometry "
                         "took of the profile is its profile_geometry, switched with it");
       }
+    } else if (m.kind == MechanismKind::kOffAxisCompliance) {
+      lines.push_back(offAxisLine(d, m));
     } else if (m.kind == MechanismKind::kSelfWeight && !f.gravity_torque_std_nm.empty()) {
       std::string text =
           "self_weight: link masses and centres of mass from the URDF; the compliance of joint(s)";

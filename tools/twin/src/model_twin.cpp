@@ -62,8 +62,42 @@ void requireSameRobot(const CalibratedModel& model, const Campaign& campaign,
 
 }  // namespace
 
-ModelTwin::ModelTwin(const CalibratedModel& model)
-    : physical_(physicalModelOf(model)), constants_(physicalConstants(physical_)) {}
+namespace {
+
+PhysicalModel withAdded(PhysicalModel physical, const std::vector<Mechanism>& added) {
+  for (const Mechanism& m : added) {
+    const std::string problem = mechanismProblem(m, physical.chain_Tracker.dof());
+    if (!problem.empty()) throw InputError("added " + describe(m) + ": " + problem);
+    for (const Mechanism& own : physical.mechanisms) {
+      if (own.kind == m.kind && own.joint == m.joint) {
+        throw InputError("added " + describe(m) + ": the model holds one already; expected a " +
+                         "joint without one");
+      }
+    }
+    physical.mechanisms.push_back(m);
+  }
+  return physical;
+}
+
+/// The options' off_axis_compliance entries as mechanisms.
+std::vector<Mechanism> addedMechanisms(const ModelTwinOptions& options) {
+  std::vector<Mechanism> added;
+  for (const auto& [joint, compliance] : options.off_axis_compliance) {
+    Mechanism m;
+    m.kind = MechanismKind::kOffAxisCompliance;
+    m.joint = joint;
+    m.parameters = {compliance, compliance};
+    m.sigma = {0.0, 0.0};
+    added.push_back(std::move(m));
+  }
+  return added;
+}
+
+}  // namespace
+
+ModelTwin::ModelTwin(const CalibratedModel& model, const std::vector<Mechanism>& added)
+    : physical_(withAdded(physicalModelOf(model), added)),
+      constants_(physicalConstants(physical_)) {}
 
 Pose ModelTwin::X_TrackerTip(const JointVector& q_cmd_rad, const Vec6& wrench_Sensor,
                              double temp_c) const {
@@ -241,6 +275,12 @@ nlohmann::json truthOf(const ModelTwinOptions& options, const CalibratedModel& m
                        double sigma_r_rad) {
   nlohmann::json mechanisms = nlohmann::json::array();
   for (const Mechanism& m : model.mechanisms) mechanisms.push_back(describe(m));
+  nlohmann::json added = nlohmann::json::array();
+  for (const auto& [joint, compliance] : options.off_axis_compliance) {
+    added.push_back({{"name", "off_axis_compliance"},
+                     {"joint", joint + 1},
+                     {"compliance_rad_per_nm", compliance}});
+  }
   return {
       {"format", kFormat},
       {"model_path", options.model_path},
@@ -260,6 +300,7 @@ nlohmann::json truthOf(const ModelTwinOptions& options, const CalibratedModel& m
                            robot.physical().compliance_rad_per_nm.data() +
                                robot.physical().compliance_rad_per_nm.size())},
       {"mechanisms", mechanisms},
+      {"added_mechanisms", added},
   };
 }
 
@@ -277,7 +318,7 @@ Campaign simulateFromModel(const ModelTwinOptions& options, nlohmann::json* trut
       sigmaOrStated(options.tracker_orientation_sigma_rad, source.tracker.orientation_sigma_rad,
                     source.tracker.stated, "orientation", dir);
   requireValidFtNoise(options);
-  const ModelTwin robot(model);
+  const ModelTwin robot(model, addedMechanisms(options));
 
   Campaign campaign = campaignLike(source, sigma_p_m, sigma_r_rad);
   std::vector<Measurement> rows = rowsToMeasure(options, model, source);

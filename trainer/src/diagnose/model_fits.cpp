@@ -3,6 +3,7 @@
 
 #include <algorithm>
 
+#include "families/families.hpp"
 #include "profiles.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/mechanisms/torsion_curve.hpp"
@@ -25,6 +26,23 @@ bool wrongSign(const Mechanism& m) {
                      [&m](int i) { return m.parameter(i) < 0.0; });
 }
 
+namespace {
+
+// A parameter held at zero that is its direction's size (KindFit::parts_independent), the
+// mechanism's other sizes not all held with it: a result, not a wrong sign.
+bool heldAsSize(const GlobalFit& refit, const PhysicalModel& global, const Parameter& p) {
+  const Mechanism& m = global.mechanisms[static_cast<size_t>(p.mechanism)];
+  const KindFit* fit = findKindFit(m.kind);
+  if (fit == nullptr || !fit->parts_independent) return false;
+  const size_t held = static_cast<size_t>(
+      std::count_if(refit.held.begin(), refit.held.end(), [&p](const HeldAtBound& h) {
+        return h.parameter.mechanism == p.mechanism;
+      }));
+  return held < signConstrained(m).size();
+}
+
+}  // namespace
+
 void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOptions& options,
                    size_t base_globals, JointVector& compliance_sigma, Diagnosis& d,
                    bool hold_profiles) {
@@ -38,7 +56,8 @@ void refitPhysical(DiagnosisModel& model, const FitRows& fit, const DiagnoseOpti
       const Parameter& p = h.parameter;
       if (p.mechanism < 0) {
         compliance = &h;
-      } else if (static_cast<size_t>(p.mechanism) >= base_globals) {
+      } else if (static_cast<size_t>(p.mechanism) >= base_globals &&
+                 !heldAsSize(refit, model.global, p)) {
         if (dropped != static_cast<size_t>(p.mechanism)) held_parts.clear();
         dropped = static_cast<size_t>(p.mechanism);
         held_parts.push_back(p.index);

@@ -15,6 +15,10 @@
 //             above the largest torque they were fitted over with their slope there
 //   X_TrackerTip = FK(θ) with the links' lengths × (1 + α (T − T_ref))   (thermal_expansion)
 //                  and each initial pose T_k · exp(Σ_j g_j(q_j) δ̂_jk)          (profile_geometry)
+//                  and joint j's frame turned about its origin by t_j(M_j)  (off_axis_compliance:
+//                  M_j the load's moment about that origin; inside the fixed point, each pass's
+//                  tilt from the pass's frames, applied to the next: the joint's initial pose
+//                  T_{j-1} · exp(ω̂ θ_j) exp(t̂_j) exp(−ω̂ θ_j))
 // A registration_drift is not the robot's: the tracker's frame moving during a campaign. The
 // diagnosis fits it (X_TrackerTip measured = exp(ξ̂(s)) · X_TrackerTip, s the row's time order)
 // so that it does not pass for a property of the arm; a model file never holds one, and no
@@ -52,6 +56,7 @@ enum class MechanismKind : uint32_t {
   kRegistrationDrift = 11,  ///< the tracker's frame moves in time order: measurement, not robot
   kSessionFrames = 12,      ///< a campaign's own tracker station and tool: measurement, not robot
   kCampaignJointZero = 13,  ///< joint j: its zero in each later campaign against the first's
+  kOffAxisCompliance = 14,  ///< joint j: its frame tilts across its axis by the moment it carries
 };
 
 /// Snake-case name, e.g. "transmission_error".
@@ -275,6 +280,8 @@ struct FirstPass {
   bool has_J = false;
 };
 
+/// An off_axis_compliance's frame tilts start from zero whatever the start: with fewer passes than
+/// the model's, they lag behind (passes 0: none).
 struct FixedPointStart {
   int passes = kFixedPointPasses;  ///< 0: θ = θ₀ + deflection_rad, no pass (τ left zero)
   const JointVector* deflection_rad = nullptr;  ///< θ − θ₀ to start from (null: θ₀ itself)

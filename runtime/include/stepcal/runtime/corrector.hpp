@@ -119,6 +119,9 @@ struct RuntimeModel {
   /// GPR's training wrenches vary. When not, a call asking for the live sensor is answered with
   /// unloaded_wrench_Sensor and never STALE_WRENCH.
   bool needs_wrench = true;
+  /// Whether the physical model tilts joint frames (off_axis_compliance): its inverse then
+  /// evaluates every iterate with the model's fixed point (a tilt is not held between them).
+  bool tilts_frames = false;
   /// The wrench of a model that needs none: the GPR's training wrench (constant), else zero.
   Vec6 unloaded_wrench_Sensor = Vec6::Zero();
   /// Whether the model knows the robot's flange (an attached frame named kFlangeFrame).

@@ -47,6 +47,8 @@ std::string signatureXLabel(const trainer::EffectSignature& s) {
       return s.mechanism.kind == MechanismKind::kSelfWeight ? "links' gravity torque on joint " + joint + " (N·m)"
                                                             : "joint " + joint + " torque (N·m)";
     case trainer::SignatureVariable::kTemperature: return "temperature (°C)";
+    case trainer::SignatureVariable::kMomentAcrossAxis:
+      return "joint " + joint + " moment about " + (s.direction == 0 ? "u" : "v") + " (N·m)";
   }
   return "";
 }
@@ -57,9 +59,15 @@ double signatureX(const trainer::EffectSignature& s, double x) {
 }
 
 std::string signatureYLabel(const trainer::EffectSignature& s) {
-  return s.response == trainer::SignatureResponse::kLinkAngle
-             ? "joint " + std::to_string(s.joint + 1) + " link-angle offset (µrad)"
-             : "link length change (ppm)";
+  switch (s.response) {
+    case trainer::SignatureResponse::kLinkAngle:
+      return "joint " + std::to_string(s.joint + 1) + " link-angle offset (µrad)";
+    case trainer::SignatureResponse::kLengthScale: return "link length change (ppm)";
+    case trainer::SignatureResponse::kFrameTilt:
+      return "joint " + std::to_string(s.joint + 1) + " frame tilt about " +
+             (s.direction == 0 ? "u" : "v") + " (µrad)";
+  }
+  return "";
 }
 
 std::string signatureTitle(const trainer::EffectSignature& s) {

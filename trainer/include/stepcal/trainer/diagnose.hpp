@@ -371,11 +371,15 @@ enum class SignatureVariable {
   kJointAngle,   ///< a joint's commanded angle, rad
   kJointTorque,  ///< a joint's torque in the model, N·m (self_weight: the links' gravity torque)
   kTemperature,  ///< the row's temp_c, °C
+  /// off_axis_compliance: the load's moment about the joint's origin along one direction across
+  /// its axis (EffectSignature::direction), N·m
+  kMomentAcrossAxis,
 };
 
-/// What a signature's values are: the joint's link-angle offset, rad, or the links' length scale
-/// change (thermal expansion), dimensionless.
-enum class SignatureResponse { kLinkAngle, kLengthScale };
+/// What a signature's values are: the joint's link-angle offset, rad, the links' length scale
+/// change (thermal expansion), dimensionless, or the joint frame's tilt about one direction
+/// across its axis (off_axis_compliance), rad.
+enum class SignatureResponse { kLinkAngle, kLengthScale, kFrameTilt };
 
 /// A found effect against its own variable on the fit rows: a partial-residual plot. At each row
 /// the fitted effect, and the effect plus what the extended model leaves there along the
@@ -388,6 +392,8 @@ struct EffectSignature {
   SignatureVariable variable = SignatureVariable::kJointAngle;
   int variable_joint = -1;  ///< kJointAngle, kJointTorque: the variable's joint (0-based)
   SignatureResponse response = SignatureResponse::kLinkAngle;
+  /// kFrameTilt: the direction across the joint's axis, 0 u, 1 v (mechanism::tiltDirections)
+  int direction = -1;
   /// Per fit row kept: the variable, the fitted effect and the partial residual (SI).
   std::vector<double> x, effect, partial_residual;
   /// Fit rows left out: there the effect barely moves the tip (its direction's weighted norm

@@ -67,6 +67,11 @@ struct PlanOptions {
   double ridge = 1e-3;         ///< added to the normalised information's diagonal
   double spread_weight = 0.2;  ///< weight of new coverage against information
   int spread_bins = 8;         ///< bins per joint range for the coverage
+  /// Joints (0-based) whose compliance across the axis (off_axis_compliance) the poses should
+  /// identify besides geometry and compliance: each adds its two tilt compliances to the
+  /// information, so the plan seeks poses whose payload moment across the joint's axis varies
+  /// and moves the tip. Empty: geometry and compliance only.
+  std::vector<int> off_axis_joints;
 };
 
 /// A plan: the rows to measure and how it was found.

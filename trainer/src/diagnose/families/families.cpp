@@ -11,6 +11,7 @@ const std::vector<FamilyBuilder>& familyBuilders() {
       torqueDeflectionFamilies, jointCouplingFamilies,     selfWeightFamilies,
       sensorBiasFamilies,       thermalExpansionFamilies,  registrationDriftFamilies,
       jointZeroDriftFamilies,   campaignJointZeroFamilies, transmissionErrorFamilies,
+      offAxisComplianceFamilies,
   };
   return builders;
 }
@@ -20,6 +21,7 @@ const KindFit* findKindFit(MechanismKind kind) {
       &backlashFit(),         &nonlinearStiffnessFit(), &torsionCurveFit(),
       &selfWeightFit(),       &sensorBiasFit(),         &thermalExpansionFit(),
       &registrationDriftFit(), &jointZeroDriftFit(),    &sessionFramesFit(),
+      &offAxisComplianceFit(),
   };
   for (const KindFit* fit : fits) {
     if (fit->kind == kind) return fit;
@@ -31,7 +33,7 @@ const KindSignature* findKindSignature(MechanismKind kind) {
   static const std::vector<const KindSignature*> signatures = {
       &transmissionErrorSignature(), &backlashSignature(),        &nonlinearStiffnessSignature(),
       &torsionCurveSignature(),      &jointCouplingSignature(),   &selfWeightSignature(),
-      &thermalExpansionSignature(),  &jointZeroDriftSignature(),
+      &thermalExpansionSignature(),  &jointZeroDriftSignature(),   &offAxisComplianceSignature(),
   };
   for (const KindSignature* signature : signatures) {
     if (signature->kind == kind) return signature;

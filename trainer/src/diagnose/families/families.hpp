@@ -55,6 +55,7 @@ void registrationDriftFamilies(const FamilyContext& c);
 void jointZeroDriftFamilies(const FamilyContext& c);
 void campaignJointZeroFamilies(const FamilyContext& c);
 void transmissionErrorFamilies(const FamilyContext& c);
+void offAxisComplianceFamilies(const FamilyContext& c);
 
 /// How the diagnosis fits a kind's parameters, beyond its physics (MechanismTraits). One per
 /// kind that needs one, in families/<kind>.cpp, listed in findKindFit (families.cpp); a kind
@@ -70,6 +71,10 @@ struct KindFit {
   std::vector<int> (*free_parameters)(const Mechanism& m) = nullptr;
   /// Whether a parameter is a shape (a torque scale), not a size; null: none is.
   bool (*is_shape)(int index) = nullptr;
+  /// Whether its sign-constrained parameters are sizes of their own (a compliance per
+  /// direction): one the global refit holds at zero is that direction's size, zero, and the
+  /// cause is dropped only when all are held. Else a part held at zero drops the cause.
+  bool parts_independent = false;
 };
 /// A kind's fit; null: the defaults.
 const KindFit* findKindFit(MechanismKind kind);
@@ -84,6 +89,7 @@ const KindFit& thermalExpansionFit();
 const KindFit& registrationDriftFit();
 const KindFit& jointZeroDriftFit();
 const KindFit& sessionFramesFit();
+const KindFit& offAxisComplianceFit();
 
 /// How the diagnosis draws a found effect of a kind against its own variable (diagnose.hpp
 /// EffectSignature). One per kind that has one, in families/<kind>.cpp, listed in
@@ -106,6 +112,7 @@ const KindSignature& jointCouplingSignature();
 const KindSignature& selfWeightSignature();
 const KindSignature& thermalExpansionSignature();
 const KindSignature& jointZeroDriftSignature();
+const KindSignature& offAxisComplianceSignature();
 
 /// A mechanism of a kind at zero, sized for an n-joint chain.
 Mechanism blank(MechanismKind kind, int dof, int joint = -1, int source = -1, int order = 0);

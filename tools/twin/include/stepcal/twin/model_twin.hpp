@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -52,13 +53,18 @@ struct ModelTwinOptions {
   double ft_moment_sigma_nm = 0.01;
   /// The planned payloads' centre of gravity in the sensor frame, m.
   Vec3 p_CoGInSensor_m = Vec3(0.03, -0.02, 0.15);
+  /// Tilts switched on in the twin beside the model's own mechanisms: per entry (joint 0-based,
+  /// c rad/(N·m)) an isotropic off_axis_compliance of that joint (a bearing's tilt across its
+  /// axis, c M⊥; about 1e-7 on a heavy robot's base), where the model holds none.
+  std::vector<std::pair<int, double>> off_axis_compliance;
 };
 
 /// A robot that moves as a model's physical part says (no GPR). Noiseless.
 class ModelTwin {
  public:
-  /// The physical part of model (physicalModelOf).
-  explicit ModelTwin(const CalibratedModel& model);
+  /// The physical part of model (physicalModelOf), with the mechanisms added (each checked:
+  /// InputError naming it when it does not fit the model).
+  explicit ModelTwin(const CalibratedModel& model, const std::vector<Mechanism>& added = {});
 
   /// Tip pose in the tracker frame at commanded angles q_cmd_rad [rad], with the F/T sensor
   /// reading wrench_Sensor (f N, m N·m, sensor axes, as a campaign records it: a sensor_bias of

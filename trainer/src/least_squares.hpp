@@ -182,4 +182,97 @@ inline Eigen::VectorXd solveReducedBounded(const TallQr& system, double tol,
   return x;
 }
 
+/// min ½|Rs z − b|² under linear inequalities A z ≥ d (every d ≤ 0, so z = 0 is feasible), Rs
+/// already column-normalised: a primal active set (the bounds' method of solveReducedBounded for
+/// general rows, Gill–Murray–Wright's). The working rows W are held as equalities: the trial
+/// point is z_W + N y, z_W the least-norm point with A_W z = d_W, N an orthonormal basis of A_W's
+/// null space, y the truncated-SVD solution of Rs N y ≈ b − Rs z_W (with no row held, exactly
+/// truncatedSvdSolve's). From z = 0 it moves toward the trial point, stops at the first row that
+/// point violates and holds it; once the trial point is feasible it frees the held row whose
+/// multiplier (A_Wᵀ λ = the gradient) is most negative, until none is. active: per row, whether it
+/// ends held (A_i z = d_i).
+inline Eigen::VectorXd solveConstrainedScaled(const Eigen::MatrixXd& Rs, const Eigen::VectorXd& b,
+                                              double tol, const Eigen::MatrixXd& A,
+                                              const Eigen::VectorXd& d,
+                                              std::vector<bool>* active = nullptr) {
+  const Eigen::Index p = Rs.cols(), rows = A.rows();
+  std::vector<bool> held(static_cast<size_t>(rows), false);
+  Eigen::VectorXd z = Eigen::VectorXd::Zero(p);
+  const auto heldRows = [&] {
+    std::vector<Eigen::Index> w;
+    for (Eigen::Index i = 0; i < rows; ++i) {
+      if (held[static_cast<size_t>(i)]) w.push_back(i);
+    }
+    return w;
+  };
+  for (Eigen::Index pass = 0; pass < 3 * (rows + p) + 3; ++pass) {
+    const std::vector<Eigen::Index> w = heldRows();
+    Eigen::VectorXd z_w = Eigen::VectorXd::Zero(p);
+    Eigen::MatrixXd N = Eigen::MatrixXd::Identity(p, p);
+    if (!w.empty()) {
+      const Eigen::MatrixXd A_w = A(w, Eigen::all);
+      const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A_w, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      const Eigen::Index rank = svd.rank();
+      z_w = svd.solve(d(w));
+      N = svd.matrixV().rightCols(p - rank);
+    }
+    Eigen::VectorXd trial = z_w;
+    if (N.cols() > 0) {
+      SvdSolution s;
+      s.column_scale = Eigen::VectorXd::Ones(N.cols());
+      truncatedSvdSolve(Rs * N, b - Rs * z_w, tol, s);
+      trial += N * s.x;
+    }
+    // The first row not held that the way to the trial point crosses.
+    double alpha = 1.0;
+    Eigen::Index blocking = -1;
+    const Eigen::VectorXd at = A * z, towards = A * trial;
+    for (Eigen::Index i = 0; i < rows; ++i) {
+      if (held[static_cast<size_t>(i)] || towards(i) >= d(i) || towards(i) >= at(i)) continue;
+      const double a = (d(i) - at(i)) / (towards(i) - at(i));
+      if (a < alpha) {
+        alpha = std::max(0.0, a);
+        blocking = i;
+      }
+    }
+    if (blocking >= 0) {
+      z += alpha * (trial - z);
+      held[static_cast<size_t>(blocking)] = true;
+      continue;
+    }
+    z = trial;
+    if (w.empty()) break;
+    // KKT: the gradient is A_Wᵀ λ; λ_i < 0 at a held row: the residual falls as z leaves it.
+    const Eigen::VectorXd gradient = Rs.transpose() * (Rs * z - b);
+    const Eigen::VectorXd lambda =
+        A(w, Eigen::all).transpose().completeOrthogonalDecomposition().solve(gradient);
+    const double negligible = 1e-12 * (Rs.transpose() * b).cwiseAbs().maxCoeff();
+    Eigen::Index release = -1;
+    for (Eigen::Index k = 0; k < lambda.size(); ++k) {
+      if (lambda(k) < -negligible && (release < 0 || lambda(k) < lambda(release))) release = k;
+    }
+    if (release < 0) break;
+    held[static_cast<size_t>(w[static_cast<size_t>(release)])] = false;
+  }
+  if (active) *active = held;
+  return z;
+}
+
+/// solveReduced under linear inequalities C x ≥ d (every d ≤ 0: x = 0 is feasible), the exact
+/// constrained least-squares step (solveConstrainedScaled on the column-normalised system).
+/// active: per row of C, whether it ends held.
+inline Eigen::VectorXd solveReducedConstrained(const TallQr& system, double tol,
+                                               const Eigen::MatrixXd& C, const Eigen::VectorXd& d,
+                                               std::vector<bool>* active = nullptr) {
+  const Eigen::MatrixXd& R = system.R();
+  const Eigen::Index p = R.cols();
+  Eigen::VectorXd scale = R.colwise().norm().transpose();
+  for (Eigen::Index c = 0; c < p; ++c) {
+    if (!(scale(c) > 0.0)) scale(c) = 1.0;
+  }
+  const Eigen::MatrixXd Rs = R * scale.cwiseInverse().asDiagonal();
+  const Eigen::MatrixXd A = C * scale.cwiseInverse().asDiagonal();
+  return solveConstrainedScaled(Rs, system.qtr(), tol, A, d, active).cwiseQuotient(scale);
+}
+
 }  // namespace stepcal::trainer

@@ -112,6 +112,34 @@ std::string statisticsText(const char* title, const trainer::ResidualStatistics&
 // What the data can and cannot tell apart, and what the search changed, in sentences: the
 // model changes in the order done, then each effect's alternatives, then what each effect is on
 // the fit rows.
+// What a candidate's fit without the physics' bounds broke, and what the fit within them kept.
+std::string impossibleText(const trainer::CandidateScore& c) {
+  return format("%s: physically impossible unbounded (%s; held-out gain %.4f mm, z %.1f); within "
+                "bounds %s (gain %.4f mm, z %.1f)",
+                describe(c.mechanism).c_str(), c.impossible_unbounded.c_str(),
+                c.unbounded_cv_gain_mm, c.unbounded_z_statistic,
+                c.significant ? "significant" : "not significant", c.cv_gain_mm, c.z_statistic);
+}
+
+// The candidates not named because only their physically impossible fit explained the residual:
+// each one's last round, where its unbounded fit stood out (z ≥ 2) and the bounded one is not
+// significant.
+std::vector<std::string> impossibleLines(const trainer::Diagnosis& d) {
+  std::vector<std::string> lines;
+  for (size_t i = 0; i < d.candidates.size(); ++i) {
+    const trainer::CandidateScore& c = d.candidates[i];
+    if (c.impossible_unbounded.empty() || c.significant || c.unbounded_z_statistic < 2.0) continue;
+    bool later = false;
+    for (size_t k = i + 1; k < d.candidates.size(); ++k) {
+      const Mechanism& m = d.candidates[k].mechanism;
+      later = later || (m.kind == c.mechanism.kind && m.joint == c.mechanism.joint &&
+                        m.source_joint == c.mechanism.source_joint);
+    }
+    if (!later) lines.push_back(impossibleText(c));
+  }
+  return lines;
+}
+
 std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
   std::vector<std::string> lines;
   for (const trainer::ModelChange& c : d.changes) {
@@ -390,6 +418,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
                   describe(c->mechanism).c_str(), c->cv_gain_mm, 100.0 * c->relative_reduction,
                   c->z_statistic,
                   c->chosen ? "chosen" : c->significant ? "significant" : "");
+    if (!c->impossible_unbounded.empty()) out += "      " + impossibleText(*c) + "\n";
   }
   for (const auto& u : d.untestable) {
     out += format("  not tried: %s (%s)\n", u.name.c_str(), u.reason.c_str());
@@ -405,6 +434,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
     for (int j : e.compliance_joints) out += "    " + selfWeightComplianceText(d, j) + "\n";
     if (const std::string curve = torqueCurveText(e); !curve.empty()) out += "    " + curve + "\n";
   }
+  for (const std::string& line : impossibleLines(d)) out += "  not named: " + line + "\n";
   for (const std::string& line : identifiabilityLines(d)) out += "  identifiability: " + line + "\n";
   if (!d.drift.text.empty()) out += "  drift: " + d.drift.text + "\n";
   if (!d.unexplained_trend.empty()) {
@@ -502,6 +532,12 @@ nlohmann::json candidateJson(const trainer::CandidateScore& c) {
   x["p_value"] = c.p_value;
   x["significant"] = c.significant;
   x["chosen"] = c.chosen;
+  if (!c.physical) x["physical"] = false;
+  if (!c.impossible_unbounded.empty()) {
+    x["impossible_unbounded"] = {{"reason", c.impossible_unbounded},
+                                 {"cv_gain_mm", c.unbounded_cv_gain_mm},
+                                 {"z_statistic", c.unbounded_z_statistic}};
+  }
   return x;
 }
 

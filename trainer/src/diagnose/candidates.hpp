@@ -40,6 +40,8 @@ struct Family {
   int extends = -1;
   /// Fitted on every row it makes every compliance it frees negative: not a deflection.
   bool negative_compliance = false;
+  /// global: the linear bounds its physics puts on its mechanism's parameters (physicalBounds).
+  std::vector<PhysicalBound> bounds;
   /// A profile's difference in this later campaign (its columns zero on the other campaigns'
   /// rows), tested for the report and never added; 0: a family of the robot.
   int campaign = 0;

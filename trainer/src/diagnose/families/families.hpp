@@ -70,6 +70,10 @@ struct KindFit {
   std::vector<int> (*free_parameters)(const Mechanism& m) = nullptr;
   /// Whether a parameter is a shape (a torque scale), not a size; null: none is.
   bool (*is_shape)(int index) = nullptr;
+  /// The physics' linear bounds beyond the sign-constrained parameters ≥ 0 (model.hpp
+  /// PhysicalBound), and how a point breaking them is moved onto them; null: none.
+  std::vector<PhysicalBound> (*bounds)(const Mechanism& m, const KinematicChain& chain) = nullptr;
+  void (*make_feasible)(Mechanism& m, const KinematicChain& chain) = nullptr;
 };
 /// A kind's fit; null: the defaults.
 const KindFit* findKindFit(MechanismKind kind);

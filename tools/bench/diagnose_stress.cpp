@@ -13,7 +13,18 @@
 // Prints one line per seed and a summary table; --json FILE writes every seed's outcome. Exit
 // status 1 on any abort, and with --strict also on a wrong named set or a load above 1.5× the
 // floor; 2 on bad options.
+//
+// --foreign hides load effects outside the catalogue instead (twin::drawForeignMix, issue 43):
+// a bearing_tilt alone, an angle_dependent_stiffness alone, either beside one catalogued
+// mechanism, or both, payloads in time blocks as in the paper. Judged: a drift named
+// (registration_drift, joint_zero_drift: none is hidden), a cause named that is not in the data
+// (as above), a hidden catalogued one missed, a bearing_tilt of joint j not named as an
+// off_axis_compliance of joint j (an angle_dependent_stiffness has no catalogue kind to be named
+// as), the worst load; and what the verdict says is left (unexplained_trend, and `unexplained`
+// where the diagnosis writes it). The summary has a row per design.
 #include <algorithm>
+#include <array>
+#include <cstddef>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -75,16 +86,44 @@ std::string untestableName(const DrawnMechanism& h) {
   return name + " (joint " + std::to_string(h.joint + 1) + ")";
 }
 
+bool isDrift(const std::string& name) {
+  return name == "registration_drift" || name == "joint_zero_drift";
+}
+
+// A foreign effect's name as the table shows it, e.g. "bearing_tilt (joint 1)".
+std::string foreignName(const nlohmann::json& effect) {
+  return effect.at("name").get<std::string>() + " (joint " +
+         std::to_string(effect.at("joint").get<int>()) + ")";
+}
+
+// The catalogue kind that describes a foreign effect, when there is one: a bearing tilt is an
+// off-axis compliance of its joint (the kind issue 43 adds); a stiffness varying with the angle
+// has none.
+bool describes(const nlohmann::json& foreign, const Named& n) {
+  return foreign.at("name") == "bearing_tilt" && n.name == "off_axis_compliance" &&
+         n.joint == foreign.at("joint").get<int>();
+}
+
 struct Outcome {
   uint64_t seed = 0;
-  std::vector<DrawnMechanism> hidden;
+  std::string design;                  // --foreign: drawForeignMix's design
+  std::vector<nlohmann::json> foreign;  // --foreign: the effects outside the catalogue
+  std::vector<DrawnMechanism> hidden;   // the catalogued ones
   int status = 0;           // of stepcal diagnose
   std::string error;        // its last stderr line when it failed
   std::vector<std::string> named, missing, extra, untestable;
+  std::vector<std::string> foreign_found, foreign_missing;  // bearing tilts named or not
+  int drifts_named = 0;         // of extra, the drifts
+  std::string unexplained_trend;  // the verdict's text, "" when none
+  std::string unexplained;        // the diagnosis's `unexplained` field, compact JSON, if any
   double worst_over_floor = 0.0;
   double seconds = 0.0;
   bool abort() const { return status != 0; }
-  bool rightSet() const { return !abort() && missing.empty() && extra.empty(); }
+  // A cause named beside the drifts that is not in the data.
+  bool otherExtra() const { return static_cast<int>(extra.size()) > drifts_named; }
+  bool rightSet() const {
+    return !abort() && missing.empty() && extra.empty() && foreign_missing.empty();
+  }
   bool atFloor() const { return !abort() && worst_over_floor <= kFloorLimit; }
 };
 
@@ -102,10 +141,79 @@ std::string lastLine(const fs::path& file) {
   return last;
 }
 
-Outcome diagnoseSeed(uint64_t seed, const std::string& stepcal, const fs::path& work) {
+// The named set against the hidden one, and the worst load against the floor.
+void judge(const nlohmann::json& d, Outcome& o) {
+  std::vector<Named> named;
+  for (const nlohmann::json& e : d.at("effects")) {
+    Named n;
+    n.name = e.at("name");
+    if (!e.at("joint").is_null()) n.joint = e.at("joint");
+    if (!e.at("joints").is_null()) n.joints = e.at("joints").get<std::vector<int>>();
+    named.push_back(n);
+    o.named.push_back(describe(n));
+  }
+  std::vector<std::string> untestable;
+  for (const nlohmann::json& u : d.at("untestable")) untestable.push_back(u.at("name"));
+  std::vector<bool> used(named.size(), false);
+  for (const nlohmann::json& f : o.foreign) {
+    bool found = false;
+    for (size_t k = 0; k < named.size(); ++k) {
+      if (describes(f, named[k])) found = used[k] = true;
+    }
+    if (found) {
+      o.foreign_found.push_back(foreignName(f));
+    } else if (f.at("name") == "bearing_tilt") {
+      o.foreign_missing.push_back(foreignName(f));
+    }
+  }
+  for (const DrawnMechanism& h : o.hidden) {
+    bool found = false;
+    for (size_t k = 0; k < named.size(); ++k) {
+      if (matches(h, named[k])) found = used[k] = true;
+    }
+    if (found) continue;
+    const std::string u = untestableName(h);
+    if (std::find(untestable.begin(), untestable.end(), u) != untestable.end()) {
+      o.untestable.push_back(u);
+    } else {
+      o.missing.push_back(u);
+    }
+  }
+  for (size_t k = 0; k < named.size(); ++k) {
+    if (used[k]) continue;
+    o.extra.push_back(describe(named[k]));
+    o.drifts_named += isDrift(named[k].name);
+  }
+  const double floor = d.at("noise_floor_position_mm");
+  for (const nlohmann::json& g : d.at("gain")) {
+    if (g.contains("after_mean_position_mm") && !g.at("after_mean_position_mm").is_null()) {
+      o.worst_over_floor = std::max(o.worst_over_floor, g.at("after_mean_position_mm").get<double>() / floor);
+    }
+  }
+}
+
+// Reads what the diagnosis says is left: unexplained_trend, and `unexplained` when present.
+void readUnexplained(const nlohmann::json& d, Outcome& o) {
+  if (d.contains("unexplained_trend") && d.at("unexplained_trend").is_string()) {
+    o.unexplained_trend = d.at("unexplained_trend");
+  }
+  if (d.contains("unexplained") && !d.at("unexplained").is_null()) {
+    o.unexplained = d.at("unexplained").dump();
+  }
+}
+
+Outcome diagnoseSeed(uint64_t seed, const std::string& stepcal, const fs::path& work,
+                     bool foreign) {
   Outcome o;
   o.seed = seed;
-  o.hidden = stepcal::twin::drawMechanismMix(seed);
+  if (foreign) {
+    stepcal::twin::ForeignMix mix = stepcal::twin::drawForeignMix(seed);
+    o.design = mix.design;
+    o.foreign = std::move(mix.foreign);
+    o.hidden = std::move(mix.catalogued);
+  } else {
+    o.hidden = stepcal::twin::drawMechanismMix(seed);
+  }
   const fs::path dir = work / ("seed-" + std::to_string(seed));
   fs::remove_all(dir);
   fs::create_directories(work);
@@ -114,6 +222,10 @@ Outcome diagnoseSeed(uint64_t seed, const std::string& stepcal, const fs::path& 
   for (const DrawnMechanism& h : o.hidden) {
     simulate.push_back("--effect");
     simulate.push_back(h.effect.dump());
+  }
+  for (const nlohmann::json& f : o.foreign) {
+    simulate.push_back("--effect");
+    simulate.push_back(f.dump());
   }
   const fs::path log = work / ("seed-" + std::to_string(seed) + ".simulate.log");
   if (const int status = run(simulate, log, log); status != 0) {
@@ -137,40 +249,8 @@ Outcome diagnoseSeed(uint64_t seed, const std::string& stepcal, const fs::path& 
     o.error = std::string("unreadable diagnose.json: ") + e.what();
     return o;
   }
-  std::vector<Named> named;
-  for (const nlohmann::json& e : d.at("effects")) {
-    Named n;
-    n.name = e.at("name");
-    if (!e.at("joint").is_null()) n.joint = e.at("joint");
-    if (!e.at("joints").is_null()) n.joints = e.at("joints").get<std::vector<int>>();
-    named.push_back(n);
-    o.named.push_back(describe(n));
-  }
-  std::vector<std::string> untestable;
-  for (const nlohmann::json& u : d.at("untestable")) untestable.push_back(u.at("name"));
-  std::vector<bool> used(named.size(), false);
-  for (const DrawnMechanism& h : o.hidden) {
-    bool found = false;
-    for (size_t k = 0; k < named.size(); ++k) {
-      if (matches(h, named[k])) found = used[k] = true;
-    }
-    if (found) continue;
-    const std::string u = untestableName(h);
-    if (std::find(untestable.begin(), untestable.end(), u) != untestable.end()) {
-      o.untestable.push_back(u);
-    } else {
-      o.missing.push_back(u);
-    }
-  }
-  for (size_t k = 0; k < named.size(); ++k) {
-    if (!used[k]) o.extra.push_back(describe(named[k]));
-  }
-  const double floor = d.at("noise_floor_position_mm");
-  for (const nlohmann::json& g : d.at("gain")) {
-    if (g.contains("after_mean_position_mm") && !g.at("after_mean_position_mm").is_null()) {
-      o.worst_over_floor = std::max(o.worst_over_floor, g.at("after_mean_position_mm").get<double>() / floor);
-    }
-  }
+  judge(d, o);
+  readUnexplained(d, o);
   return o;
 }
 
@@ -183,11 +263,112 @@ std::string join(const std::vector<std::string>& v) {
 nlohmann::json toJson(const Outcome& o) {
   nlohmann::json hidden = nlohmann::json::array();
   for (const DrawnMechanism& h : o.hidden) hidden.push_back(h.effect);
-  return {{"seed", o.seed},          {"hidden", hidden},       {"status", o.status},
-          {"error", o.error},        {"named", o.named},       {"missing", o.missing},
-          {"extra", o.extra},        {"untestable", o.untestable},
-          {"worst_over_floor", o.worst_over_floor},            {"seconds", o.seconds},
-          {"right_set", o.rightSet()}, {"at_floor", o.atFloor()}};
+  nlohmann::json j = {{"seed", o.seed},          {"hidden", hidden},       {"status", o.status},
+                      {"error", o.error},        {"named", o.named},       {"missing", o.missing},
+                      {"extra", o.extra},        {"untestable", o.untestable},
+                      {"worst_over_floor", o.worst_over_floor},            {"seconds", o.seconds},
+                      {"right_set", o.rightSet()}, {"at_floor", o.atFloor()}};
+  if (!o.design.empty()) {
+    j["design"] = o.design;
+    j["foreign"] = o.foreign;
+    j["foreign_found"] = o.foreign_found;
+    j["foreign_missing"] = o.foreign_missing;
+    j["drift_named"] = o.drifts_named > 0;
+    j["unexplained_trend"] = o.unexplained_trend;
+    j["unexplained"] = o.unexplained.empty() ? nlohmann::json(nullptr) : nlohmann::json::parse(o.unexplained);
+  }
+  return j;
+}
+
+const char* verdict(const Outcome& o) {
+  if (o.abort()) return "ABORT";
+  if (o.design.empty()) return !o.rightSet() ? "WRONG-SET" : !o.atFloor() ? "ABOVE" : "ok";
+  if (o.drifts_named > 0) return "DRIFT";
+  if (o.otherExtra()) return "EXTRA";
+  if (!o.missing.empty() || !o.foreign_missing.empty()) return "MISSING";
+  return !o.atFloor() ? "ABOVE" : "ok";
+}
+
+void printSeed(const Outcome& o) {
+  std::string hidden;
+  for (const nlohmann::json& f : o.foreign) hidden += (hidden.empty() ? "" : ", ") + foreignName(f);
+  for (const DrawnMechanism& h : o.hidden) hidden += (hidden.empty() ? "" : ", ") + untestableName(h);
+  std::printf("seed %4llu  %-9s  hidden: %s | named: %s | missing: %s | extra: %s | worst %.2fx floor",
+              static_cast<unsigned long long>(o.seed), verdict(o), hidden.empty() ? "-" : hidden.c_str(),
+              join(o.named).c_str(), join(o.missing).c_str(), join(o.extra).c_str(), o.worst_over_floor);
+  if (!o.design.empty()) {
+    std::printf(" | bearing tilt not named: %s | unexplained_trend: %s | unexplained: %s",
+                join(o.foreign_missing).c_str(),
+                o.unexplained_trend.empty() ? "-" : o.unexplained_trend.c_str(),
+                o.unexplained.empty() ? "-" : o.unexplained.c_str());
+  }
+  std::printf("%s%s\n", o.error.empty() ? "" : " | ", o.error.c_str());
+  std::fflush(stdout);
+}
+
+// p50, p90 and max of the worst load over the floor of the outcomes that did not abort.
+std::array<double, 3> worstQuantiles(const std::vector<const Outcome*>& outcomes) {
+  std::vector<double> worst;
+  for (const Outcome* o : outcomes) {
+    if (!o->abort()) worst.push_back(o->worst_over_floor);
+  }
+  if (worst.empty()) return {0.0, 0.0, 0.0};
+  std::sort(worst.begin(), worst.end());
+  const auto quantile = [&](double q) {
+    return worst[std::min(worst.size() - 1, static_cast<size_t>(q * worst.size()))];
+  };
+  return {quantile(0.5), quantile(0.9), worst.back()};
+}
+
+void printSummary(const std::vector<Outcome>& outcomes) {
+  int aborts = 0, right = 0, at_floor = 0, clean = 0, clean_right = 0;
+  std::vector<const Outcome*> all;
+  for (const Outcome& o : outcomes) {
+    aborts += o.abort();
+    right += o.rightSet();
+    at_floor += o.atFloor();
+    if (o.hidden.empty()) {
+      ++clean;
+      clean_right += o.rightSet();
+    }
+    all.push_back(&o);
+  }
+  const auto [p50, p90, max] = worstQuantiles(all);
+  std::printf("\n| seeds | aborts | named set right | clean named nothing | every load <= 1.5x floor | worst/floor p50 | p90 | max |\n");
+  std::printf("|---|---|---|---|---|---|---|---|\n");
+  std::printf("| %zu | %d | %d | %d of %d | %d | %.2f | %.2f | %.2f |\n", outcomes.size(), aborts,
+              right, clean_right, clean, at_floor, p50, p90, max);
+}
+
+// --foreign: a row per design and one for all.
+void printForeignSummary(const std::vector<Outcome>& outcomes) {
+  std::printf("\n| design | seeds | aborts | no drift named | no other cause named that is not in the data "
+              "| catalogued found | bearing tilt named | every load <= 1.5x floor | worst/floor p50 | p90 | max |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const std::string design :
+       {"bearing_tilt", "angle_dependent_stiffness", "beside", "both", "all"}) {
+    std::vector<const Outcome*> rows;
+    for (const Outcome& o : outcomes) {
+      if (design == "all" || o.design == design) rows.push_back(&o);
+    }
+    if (rows.empty()) continue;
+    int aborts = 0, no_drift = 0, no_extra = 0, hidden = 0, missed = 0, tilts = 0, tilts_named = 0,
+        at_floor = 0;
+    for (const Outcome* o : rows) {
+      aborts += o->abort();
+      no_drift += !o->abort() && o->drifts_named == 0;
+      no_extra += !o->abort() && !o->otherExtra();
+      hidden += static_cast<int>(o->hidden.size());
+      missed += static_cast<int>(o->missing.size());
+      tilts += static_cast<int>(o->foreign_found.size() + o->foreign_missing.size());
+      tilts_named += static_cast<int>(o->foreign_found.size());
+      at_floor += o->atFloor();
+    }
+    const auto [p50, p90, max] = worstQuantiles(rows);
+    std::printf("| %s | %zu | %d | %d | %d | %d of %d | %d of %d | %d | %.2f | %.2f | %.2f |\n",
+                design.c_str(), rows.size(), aborts, no_drift, no_extra, hidden - missed, hidden,
+                tilts_named, tilts, at_floor, p50, p90, max);
+  }
 }
 
 // "1-200" or "1,5,9" (or a mix: "1-3,10").
@@ -213,13 +394,17 @@ int main(int argc, char** argv) {
   std::string seeds_text = "1-10", work = "out/diagnose-stress", json_out;
   std::string stepcal = stepcal::bench::stepcalBesideThis();
   int jobs = 1;
-  bool strict = false;
+  bool strict = false, foreign = false;
   app.add_option("--seeds", seeds_text, "seeds, e.g. 1-200 or 3,7,11")->capture_default_str();
   app.add_option("--out", work, "working folder (a campaign per seed)")->capture_default_str();
   app.add_option("--json", json_out, "file for every seed's outcome");
   app.add_option("--jobs", jobs, "seeds diagnosed at once")->check(CLI::Range(1, 64))->capture_default_str();
   app.add_option("--stepcal", stepcal, "the stepcal command to run")->capture_default_str();
   app.add_flag("--strict", strict, "also fail on a wrong named set or a load above 1.5x the floor");
+  app.add_flag("--foreign", foreign,
+               "hide load effects outside the catalogue (bearing_tilt, angle_dependent_stiffness, "
+               "alone, beside a catalogued mechanism, or both) and judge drifts and extra causes "
+               "named, and what the verdict leaves unexplained");
   CLI11_PARSE(app, argc, argv);
   std::vector<uint64_t> seeds;
   try {
@@ -236,18 +421,9 @@ int main(int argc, char** argv) {
   std::mutex print;
   const auto worker = [&] {
     for (size_t i = next++; i < seeds.size(); i = next++) {
-      outcomes[i] = diagnoseSeed(seeds[i], stepcal, work);
-      const Outcome& o = outcomes[i];
-      std::string hidden;
-      for (const DrawnMechanism& h : o.hidden) hidden += (hidden.empty() ? "" : ", ") + untestableName(h);
+      outcomes[i] = diagnoseSeed(seeds[i], stepcal, work, foreign);
       const std::lock_guard<std::mutex> lock(print);
-      std::printf("seed %4llu  %-9s  hidden: %s | named: %s | missing: %s | extra: %s | worst %.2fx floor%s%s\n",
-                  static_cast<unsigned long long>(o.seed),
-                  o.abort() ? "ABORT" : !o.rightSet() ? "WRONG-SET" : !o.atFloor() ? "ABOVE" : "ok",
-                  hidden.empty() ? "-" : hidden.c_str(), join(o.named).c_str(),
-                  join(o.missing).c_str(), join(o.extra).c_str(), o.worst_over_floor,
-                  o.error.empty() ? "" : " | ", o.error.c_str());
-      std::fflush(stdout);
+      printSeed(outcomes[i]);
     }
   };
   std::vector<std::thread> pool;
@@ -255,33 +431,22 @@ int main(int argc, char** argv) {
   worker();
   for (std::thread& t : pool) t.join();
 
-  int aborts = 0, right = 0, at_floor = 0, clean = 0, clean_right = 0;
-  std::vector<double> worst;
-  for (const Outcome& o : outcomes) {
-    aborts += o.abort();
-    right += o.rightSet();
-    at_floor += o.atFloor();
-    if (o.hidden.empty()) {
-      ++clean;
-      clean_right += o.rightSet();
-    }
-    if (!o.abort()) worst.push_back(o.worst_over_floor);
+  if (foreign) {
+    printForeignSummary(outcomes);
+  } else {
+    printSummary(outcomes);
   }
-  std::sort(worst.begin(), worst.end());
-  const auto quantile = [&](double q) {
-    return worst.empty() ? 0.0 : worst[std::min(worst.size() - 1, static_cast<size_t>(q * worst.size()))];
+  const auto count = [&](bool (Outcome::*test)() const) {
+    return std::count_if(outcomes.begin(), outcomes.end(), [&](const Outcome& o) { return (o.*test)(); });
   };
-  std::printf("\n| seeds | aborts | named set right | clean named nothing | every load <= 1.5x floor | worst/floor p50 | p90 | max |\n");
-  std::printf("|---|---|---|---|---|---|---|---|\n");
-  std::printf("| %zu | %d | %d | %d of %d | %d | %.2f | %.2f | %.2f |\n", outcomes.size(), aborts,
-              right, clean_right, clean, at_floor, quantile(0.5), quantile(0.9),
-              worst.empty() ? 0.0 : worst.back());
+  const auto aborts = count(&Outcome::abort), right = count(&Outcome::rightSet),
+             at_floor = count(&Outcome::atFloor);
   if (!json_out.empty()) {
     nlohmann::json all = nlohmann::json::array();
     for (const Outcome& o : outcomes) all.push_back(toJson(o));
     std::ofstream(json_out) << all.dump(2) << "\n";
   }
-  const bool failed = aborts > 0 || (strict && (right < static_cast<int>(outcomes.size()) ||
-                                                at_floor < static_cast<int>(outcomes.size())));
+  const auto seeds_run = static_cast<std::ptrdiff_t>(outcomes.size());
+  const bool failed = aborts > 0 || (strict && (right < seeds_run || at_floor < seeds_run));
   return failed ? 1 : 0;
 }

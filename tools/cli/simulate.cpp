@@ -54,6 +54,9 @@ void runSimulate(const SimulateArgs& a) {
   options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kRadPerDeg;
   if (!a.stiffness_nm_per_rad.empty()) options.stiffness_nm_per_rad = a.stiffness_nm_per_rad;
   if (!a.payload_cog_m.empty()) options.p_CoGInSensor_m = payloadCoG(a.payload_cog_m);
+  options.load_order = a.load_order;
+  options.temperature_swing_c = a.temperature_swing_c;
+  options.temperature_ramp_c = a.temperature_ramp_c;
   for (const std::string& spec : a.effects) {
     nlohmann::json effect;
     try {
@@ -130,8 +133,26 @@ Subcommand addSimulateCommand(CLI::App& app) {
                        "thermal_expansion {expansion_per_k, reference_temp_c}, sensor_bias "
                        "{force_n, moment_nm}, joint_zero_drift {joint, drift_rad_per_k, "
                        "reference_temp_c}, registration_drift {translation_m, rotation_rad, "
-                       "settling_rows}; joints and links 1 … n; a self_weight replaces the "
+                       "settling_rows}; outside the diagnosis's catalogue: bearing_tilt {joint, "
+                       "compliance_rad_per_nm}, angle_dependent_stiffness {joint, harmonic, "
+                       "amplitude, phase_rad}; joints and links 1 … n; a self_weight replaces the "
                        "URDF inertials' one")
+      ->excludes(model_option);
+  simulate->add_option("--load-order", sim.load_order,
+                       "blocks | mixed: the fit rows measured load block by load block (the "
+                       "paper's, the load rising with the time order) or shuffled (seeded), so "
+                       "that a drift in time can be told from a load effect")
+      ->capture_default_str()
+      ->excludes(model_option);
+  simulate->add_option("--temperature-swing-c", sim.temperature_swing_c,
+                       "amplitude of the true temperature's sinusoid, °C (period 300 rows)")
+      ->capture_default_str()
+      ->excludes(model_option);
+  simulate->add_option("--temperature-ramp-c", sim.temperature_ramp_c,
+                       "rise of the true temperature from the first row to the last, °C, on top "
+                       "of the sinusoid (with --temperature-swing-c 0: a steady ramp, "
+                       "temperature and time order correlated)")
+      ->capture_default_str()
       ->excludes(model_option);
   simulate->add_option("--poses", sim.poses,
                        "pose list (poses.csv, e.g. from stepcal plan) measured as the fit rows; "

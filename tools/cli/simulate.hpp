@@ -25,6 +25,9 @@ struct SimulateArgs {
   bool position_sigma_given = false, orientation_sigma_given = false;
   std::vector<std::string> effects;  ///< --effect: hidden mechanisms as JSON objects
   std::string poses;  ///< --poses: a pose list (poses.csv) to measure as the fit rows
+  std::string load_order = "blocks";  ///< --load-order (TwinOptions::load_order)
+  double temperature_swing_c = 3.0;   ///< --temperature-swing-c (TwinOptions)
+  double temperature_ramp_c = 0.0;    ///< --temperature-ramp-c (TwinOptions)
 };
 
 /// Writes the campaign a.out (and its truth.json): of a robot drawn from its URDF, or with

@@ -163,4 +163,47 @@ std::vector<DrawnMechanism> drawMechanismMix(uint64_t seed) {
   return mix;
 }
 
+nlohmann::json drawBearingTilt(std::mt19937_64& rng) {
+  const bool base = uniform(rng, 0.0, 1.0) < 2.0 / 3.0;
+  const double c = base ? uniform(rng, 1.2e-7, 2.2e-7) : uniform(rng, 0.8e-6, 1.6e-6);
+  return {{"name", "bearing_tilt"}, {"joint", base ? 1 : 2}, {"compliance_rad_per_nm", c}};
+}
+
+nlohmann::json drawAngleDependentStiffness(std::mt19937_64& rng) {
+  const int joint = pick(rng, {2, 3});
+  const int harmonic = std::uniform_int_distribution<int>(3, 12)(rng);
+  const double amplitude = uniform(rng, 0.1, 0.25);
+  const double phase = uniform(rng, -kPi, kPi);
+  return {{"name", "angle_dependent_stiffness"}, {"joint", joint}, {"harmonic", harmonic},
+          {"amplitude", amplitude}, {"phase_rad", phase}};
+}
+
+ForeignMix drawForeignMix(uint64_t seed) {
+  std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15u + 43);
+  ForeignMix mix;
+  switch (seed % 4) {
+    case 1:
+      mix.design = "bearing_tilt";
+      mix.foreign = {drawBearingTilt(rng)};
+      break;
+    case 2:
+      mix.design = "angle_dependent_stiffness";
+      mix.foreign = {drawAngleDependentStiffness(rng)};
+      break;
+    case 3: {
+      mix.design = "beside";
+      mix.foreign = {uniform(rng, 0.0, 1.0) < 0.5 ? drawBearingTilt(rng)
+                                                   : drawAngleDependentStiffness(rng)};
+      const int kind = std::uniform_int_distribution<int>(0, kDrawnKinds - 1)(rng);
+      mix.catalogued = {drawMechanism(kind, rng)};
+      break;
+    }
+    default:
+      mix.design = "both";
+      mix.foreign = {drawBearingTilt(rng), drawAngleDependentStiffness(rng)};
+      break;
+  }
+  return mix;
+}
+
 }  // namespace stepcal::twin

@@ -43,7 +43,7 @@ namespace {
 constexpr const char* kKnownEffects[] = {
     "joint_compliance", "backlash",    "transmission_error", "nonlinear_stiffness",
     "joint_coupling",   "self_weight", "thermal_expansion",  "sensor_bias", "torsion_curve",
-    "joint_zero_drift", "registration_drift"};
+    "joint_zero_drift", "registration_drift", "angle_dependent_stiffness", "bearing_tilt"};
 
 std::string show(double v) {
   std::ostringstream s;
@@ -219,6 +219,63 @@ nlohmann::json TorsionCurve::toJson() const {
           {"segment_end_torque_nm", segment_end_torque_nm_}};
 }
 
+AngleDependentStiffness::AngleDependentStiffness(int joint, int harmonic, double amplitude,
+                                                 double phase_rad, double stiffness_nm_per_rad,
+                                                 int dof)
+    : joint_(joint),
+      harmonic_(harmonic),
+      amplitude_(amplitude),
+      phase_rad_(phase_rad),
+      stiffness_nm_per_rad_(stiffness_nm_per_rad) {
+  requireJoint(name(), "joint", joint, dof);
+  if (harmonic < 1 || harmonic > 64) {
+    throw InputError(name() + ".harmonic = " + std::to_string(harmonic) +
+                     "; expected 1 … 64 (periods per revolution of the joint)");
+  }
+  if (!(std::isfinite(amplitude) && amplitude > 0.0 && amplitude < 1.0)) {
+    throw InputError(name() + ".amplitude = " + show(amplitude) +
+                     "; expected a finite value in (0, 1) (the compliance's relative variation)");
+  }
+  if (!std::isfinite(phase_rad)) {
+    throw InputError(name() + ".phase_rad = " + show(phase_rad) + " rad; expected a finite angle");
+  }
+  if (!(std::isfinite(stiffness_nm_per_rad) && stiffness_nm_per_rad > 0.0)) {
+    throw InputError(name() + " of joint " + std::to_string(joint) + ": its stiffness is " +
+                     show(stiffness_nm_per_rad) + " N·m/rad; expected a finite value > 0");
+  }
+}
+
+void AngleDependentStiffness::apply(const JointVector& q_cmd_rad, const JointVector& tau_nm,
+                                    JointVector& theta_rad) const {
+  const Eigen::Index j = joint_ - 1;
+  theta_rad(j) += amplitude_ * std::cos(harmonic_ * q_cmd_rad(j) + phase_rad_) * tau_nm(j) /
+                  stiffness_nm_per_rad_;
+}
+
+nlohmann::json AngleDependentStiffness::toJson() const {
+  return {{"name", name()},           {"joint", joint_},        {"harmonic", harmonic_},
+          {"amplitude", amplitude_}, {"phase_rad", phase_rad_}};
+}
+
+BearingTilt::BearingTilt(int joint, double compliance_rad_per_nm, int dof)
+    : joint_(joint), compliance_rad_per_nm_(compliance_rad_per_nm) {
+  requireJoint(name(), "joint", joint, dof);
+  if (!(std::isfinite(compliance_rad_per_nm) && compliance_rad_per_nm >= 0.0 &&
+        compliance_rad_per_nm < 1e-5)) {
+    throw InputError(name() + ".compliance_rad_per_nm = " + show(compliance_rad_per_nm) +
+                     " rad/(N·m); expected a finite value in [0, 1e-05) rad/(N·m) (a heavy "
+                     "robot's bearing: about 1e-07)");
+  }
+}
+
+Vec3 BearingTilt::tilt(const Vec3& moment_Joint, const Vec3& axis_Joint) const noexcept {
+  return compliance_rad_per_nm_ * (moment_Joint - axis_Joint * axis_Joint.dot(moment_Joint));
+}
+
+nlohmann::json BearingTilt::toJson() const {
+  return {{"name", name()}, {"joint", joint_}, {"compliance_rad_per_nm", compliance_rad_per_nm_}};
+}
+
 JointCoupling::JointCoupling(int from_joint, int to_joint, double ratio, int dof)
     : from_joint_(from_joint), to_joint_(to_joint), ratio_(ratio) {
   requireJoint(name(), "joints[0]", from_joint, dof);
@@ -269,13 +326,28 @@ void SelfWeight::addTorques(const ChainWorkspace& ws, const Jacobian& J_s,
   STEPCAL_INVARIANT(J_s.cols() == tau_nm.size() && ws.dof == tau_nm.size(),
                     "self weight: one torque per joint");
   for (const LinkMass& l : links_) {
-    const Vec3 p_ComInBase = ws.X_RootFrame[static_cast<size_t>(l.link)] * l.p_ComInLink_m;
-    Vec6 W;
-    W.head<3>() = l.mass_kg * gravity_in_base;
-    W.tail<3>() = p_ComInBase.cross(W.head<3>());
     // Joints 1 … k carry link k.
-    tau_nm.head(l.link) += J_s.leftCols(l.link).transpose() * W;
+    tau_nm.head(l.link) +=
+        J_s.leftCols(l.link).transpose() * linkWrench(l, ws, gravity_in_base);
   }
+}
+
+Vec6 SelfWeight::wrenchOfLinksFrom(int first_link, const ChainWorkspace& ws,
+                                   const Vec3& gravity_in_base) const {
+  Vec6 W = Vec6::Zero();
+  for (const LinkMass& l : links_) {
+    if (l.link >= first_link) W += linkWrench(l, ws, gravity_in_base);
+  }
+  return W;
+}
+
+Vec6 SelfWeight::linkWrench(const LinkMass& l, const ChainWorkspace& ws,
+                            const Vec3& gravity_in_base) {
+  const Vec3 p_ComInBase = ws.X_RootFrame[static_cast<size_t>(l.link)] * l.p_ComInLink_m;
+  Vec6 W;
+  W.head<3>() = l.mass_kg * gravity_in_base;
+  W.tail<3>() = p_ComInBase.cross(W.head<3>());
+  return W;
 }
 
 nlohmann::json SelfWeight::toJson() const {
@@ -398,6 +470,23 @@ void EffectSet::add(const nlohmann::json& j, int dof) {
     }
     link_angle.push_back(
         std::make_shared<JointCoupling>(joints[0], joints[1], j.at("ratio").get<double>(), dof));
+  } else if (name == "angle_dependent_stiffness") {
+    const int joint = j.at("joint").get<int>();
+    link_angle.push_back(std::make_shared<AngleDependentStiffness>(
+        joint, j.at("harmonic").get<int>(), j.at("amplitude").get<double>(),
+        j.at("phase_rad").get<double>(), jointStiffness(name, joint, dof), dof));
+  } else if (name == BearingTilt::name()) {
+    const BearingTilt tilt(j.at("joint").get<int>(), j.at("compliance_rad_per_nm").get<double>(),
+                           dof);
+    for (const BearingTilt& other : bearing_tilt) {
+      if (other.joint() == tilt.joint()) {
+        throw InputError(name + " of joint " + std::to_string(tilt.joint()) +
+                         " is given twice; expected at most one per joint");
+      }
+    }
+    bearing_tilt.push_back(tilt);
+    std::sort(bearing_tilt.begin(), bearing_tilt.end(),
+              [](const BearingTilt& a, const BearingTilt& b) { return a.joint() < b.joint(); });
   } else if (name == "joint_compliance") {
     auto stiffness = j.at("stiffness_nm_per_rad").get<std::vector<double>>();
     if (stiffness.size() != static_cast<size_t>(dof)) {
@@ -450,12 +539,25 @@ void EffectSet::add(const nlohmann::json& j, int dof) {
 nlohmann::json EffectSet::toJson() const {
   nlohmann::json all = nlohmann::json::array();
   for (const auto& e : link_angle) all.push_back(e->toJson());
+  for (const BearingTilt& t : bearing_tilt) all.push_back(t.toJson());
   if (self_weight) all.push_back(self_weight->toJson());
   if (thermal_expansion) all.push_back(thermal_expansion->toJson());
   if (sensor_bias) all.push_back(sensor_bias->toJson());
   for (const JointZeroDrift& d : zero_drift) all.push_back(d.toJson());
   if (registration_drift) all.push_back(registration_drift->toJson());
   return all;
+}
+
+double EffectSet::jointStiffness(const std::string& effect, int joint, int dof) const {
+  requireJoint(effect, "joint", joint, dof);
+  for (const auto& e : link_angle) {
+    if (const auto* compliance = dynamic_cast<const JointCompliance*>(e.get())) {
+      return compliance->stiffness().at(static_cast<size_t>(joint - 1));
+    }
+  }
+  throw InputError(effect + " of joint " + std::to_string(joint) +
+                   " varies the joint's stiffness, but the twin has no joint_compliance; "
+                   "expected the joints' compliance on (TwinOptions.compliance)");
 }
 
 double EffectSet::linkLengthScale(double temp_c) const noexcept {

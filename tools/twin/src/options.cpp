@@ -150,6 +150,17 @@ void validateOptions(const TwinOptions& options, const KinematicChain& nominal) 
                      "; expected a finite number of rows > 0 (hint: the default 300 gives 3.6 periods over "
                      "the paper protocol)");
   }
+  if (!(std::isfinite(options.temperature_ramp_c) && std::abs(options.temperature_ramp_c) < 30.0)) {
+    throw InputError("TwinOptions.temperature_ramp_c = " + show(options.temperature_ramp_c) +
+                     "; expected a finite rise over the campaign with |value| < 30 degrees "
+                     "Celsius (hint: 0 for none; a workshop warms a few degrees in a day)");
+  }
+  if (options.load_order != "blocks" && options.load_order != "mixed") {
+    throw InputError("TwinOptions.load_order = '" + options.load_order +
+                     "'; expected 'blocks' (the paper's: the payload changed once per block) or "
+                     "'mixed' (the fit rows shuffled, so that load and time order do not "
+                     "correlate)");
+  }
   requireNonNegative(options.joint_frame_translation_sigma_m, "joint_frame_translation_sigma_m",
                      "metres, e.g. 0.3e-3");
   requireNonNegative(options.joint_frame_rotation_sigma_rad, "joint_frame_rotation_sigma_rad",
@@ -231,6 +242,8 @@ nlohmann::json toJson(const TwinOptions& o) {
       {"temperature_c", o.temperature_c},
       {"temperature_swing_c", o.temperature_swing_c},
       {"temperature_period_rows", o.temperature_period_rows},
+      {"temperature_ramp_c", o.temperature_ramp_c},
+      {"load_order", o.load_order},
       {"temperature_sigma_c", o.temperature_sigma_c},
       {"tracker_distance_min_m", o.tracker_distance_min_m},
       {"tracker_distance_max_m", o.tracker_distance_max_m},

@@ -17,6 +17,7 @@ enum class Stream : uint32_t {
   kRandomPoseList = 4,
   kModelTwinNoise = 5,  ///< the twin of a calibrated robot (model_twin.hpp)
   kStation = 6,         ///< where tracker station k >= 1 stands (TwinOptions::station)
+  kLoadOrder = 7,       ///< the fit rows' order when TwinOptions::load_order is "mixed"
 };
 
 /// std::mt19937_64 with platform-independent uniform and normal variates.

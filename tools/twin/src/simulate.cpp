@@ -76,11 +76,31 @@ JointVector drawPose(Rng& rng, const KinematicChain& nominal, const TwinOptions&
                    "or lower min_tip_forward_m / min_tip_height_m)");
 }
 
-// True temperature of row seq: TwinOptions::temperature_c's sinusoid, °C.
-double trueTemperature_c(const TwinOptions& o, int64_t seq) {
-  return o.temperature_c + o.temperature_swing_c *
-                               std::sin(2.0 * kPi * static_cast<double>(seq) /
-                                        o.temperature_period_rows);
+// True temperature of row seq of rows: TwinOptions::temperature_c's sinusoid and ramp, °C.
+double trueTemperature_c(const TwinOptions& o, int64_t seq, int64_t rows) {
+  double t = o.temperature_c + o.temperature_swing_c *
+                                   std::sin(2.0 * kPi * static_cast<double>(seq) /
+                                            o.temperature_period_rows);
+  // Added only when on, so that a campaign without a ramp keeps its temperatures bit for bit.
+  if (o.temperature_ramp_c != 0.0 && rows > 1) {
+    t += o.temperature_ramp_c * static_cast<double>(seq - 1) / static_cast<double>(rows - 1);
+  }
+  return t;
+}
+
+// TwinOptions::load_order "mixed": the fit rows (every row not in set validation) shuffled
+// among their own places, Fisher–Yates on the twin's platform-independent uniforms.
+template <typename Row>
+void mixFitRows(std::vector<Row>& rows, const TwinOptions& o) {
+  std::vector<size_t> places;
+  for (size_t i = 0; i < rows.size(); ++i) {
+    if (rows[i].set != RowSet::kValidation) places.push_back(i);
+  }
+  Rng rng(o.seed, Stream::kLoadOrder, static_cast<uint32_t>(o.station));
+  for (size_t k = places.size(); k > 1; --k) {
+    const auto pick = std::min(k - 1, static_cast<size_t>(rng.uniform(0.0, static_cast<double>(k))));
+    std::swap(rows[places[k - 1]], rows[places[pick]]);
+  }
 }
 
 std::string poseId(const char* prefix, int index) {
@@ -145,15 +165,18 @@ Campaign simulateCampaign(const TwinOptions& options, nlohmann::json* truth_out)
     }
   }
 
+  if (options.load_order == "mixed") mixFitRows(rows_to_measure, options);
+
   Rng noise_rng(options.seed, Stream::kNoise, station);
+  const auto row_count = static_cast<int64_t>(rows_to_measure.size());
   int64_t seq = 1;
   for (const RowToMeasure& row : rows_to_measure) {
     const JointVector& q = row.q;
     const double load_kg = row.load_kg;
-    const double temp_c = trueTemperature_c(options, seq);
+    const double temp_c = trueTemperature_c(options, seq, row_count);
     Pose X_TrackerTip = robot.X_TrackerTip(q, load_kg, temp_c);
     if (const auto& drift = robot.effects().registration_drift) {
-      X_TrackerTip = lie::expSE3(drift->twist(seq, static_cast<int64_t>(rows_to_measure.size()))) *
+      X_TrackerTip = lie::expSE3(drift->twist(seq, row_count)) *
                      X_TrackerTip;
     }
     // Every noise draw happens whatever its sigma, so sigmas do not shift the stream.

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -130,34 +131,79 @@ Vec6 TwinRobot::payloadWrenchAtBase(const ChainWorkspace& ws, double load_kg) co
   return W;
 }
 
-JointVector TwinRobot::linkAngles(const JointVector& q_cmd_rad, double load_kg,
-                                  double temp_c) const {
+TwinRobot::Deflection TwinRobot::deflection(const JointVector& q_cmd_rad, double load_kg,
+                                            double temp_c) const {
   STEPCAL_INVARIANT(q_cmd_rad.size() == chain_.dof(), "one commanded angle per joint");
   const double scale = effects_.linkLengthScale(temp_c);
   ChainWorkspace ws;
   Jacobian J;
-  JointVector theta = q_cmd_rad;
+  Deflection d{q_cmd_rad, std::vector<Vec3>(static_cast<size_t>(chain_.dof()), Vec3::Zero())};
+  std::vector<Vec3> next_tilt = d.tilt_rad;
   for (int iteration = 0; iteration < kMaxFixedPointIterations; ++iteration) {
-    forwardKinematics(chain_, theta, ws, scale);
+    framesAt(d, scale, ws);
     spatialJacobian(chain_, ws, J);
-    JointVector tau = J.transpose() * payloadWrenchAtBase(ws, load_kg);
+    const Vec6 W_payload = payloadWrenchAtBase(ws, load_kg);
+    JointVector tau = J.transpose() * W_payload;
     if (effects_.self_weight) effects_.self_weight->addTorques(ws, J, gravity_in_base_, tau);
     JointVector next = q_cmd_rad;
     for (const auto& effect : effects_.link_angle) effect->apply(q_cmd_rad, tau, next);
     for (const JointZeroDrift& drift : effects_.zero_drift) drift.apply(temp_c, next);
-    const double step = (next - theta).cwiseAbs().maxCoeff();
-    theta = next;
-    if (step <= kFixedPointTolerance_rad) return theta;
+    double step = (next - d.link_angles_rad).cwiseAbs().maxCoeff();
+    d.link_angles_rad = next;
+    if (!effects_.bearing_tilt.empty()) {
+      bearingTilts(ws, W_payload, next_tilt);
+      for (size_t k = 0; k < next_tilt.size(); ++k) {
+        step = std::max(step, (next_tilt[k] - d.tilt_rad[k]).cwiseAbs().maxCoeff());
+      }
+      d.tilt_rad = next_tilt;
+    }
+    if (step <= kFixedPointTolerance_rad) return d;
   }
   throw InputError("the link angles under a " + std::to_string(load_kg) +
                    " kg payload did not converge; expected a structure stiff enough to carry it "
-                   "(hint: check stiffness_nm_per_rad, the payload and self_weight's masses)");
+                   "(hint: check stiffness_nm_per_rad, bearing_tilt's compliance, the payload "
+                   "and self_weight's masses)");
+}
+
+JointVector TwinRobot::linkAngles(const JointVector& q_cmd_rad, double load_kg,
+                                  double temp_c) const {
+  return deflection(q_cmd_rad, load_kg, temp_c).link_angles_rad;
+}
+
+void TwinRobot::framesAt(const Deflection& d, double scale, ChainWorkspace& ws) const {
+  forwardKinematics(chain_, d.link_angles_rad, ws, scale);
+  const size_t tip = static_cast<size_t>(chain_.dof() + 1);
+  for (const BearingTilt& bearing : effects_.bearing_tilt) {
+    const size_t j = static_cast<size_t>(bearing.joint());
+    if (d.tilt_rad[j - 1].isZero(0.0)) continue;  // unloaded: the frames exactly as they are
+    // X_0,k ← X_0,j · exp(δ̂) · X_0,j⁻¹ · X_0,k for k = j … tip: the frames beyond turn with j's.
+    Pose X_Tilt = Pose::Identity();
+    X_Tilt.linear() = lie::expSO3(d.tilt_rad[j - 1]);
+    const Pose moved = ws.X_RootFrame[j] * X_Tilt * ws.X_RootFrame[j].inverse();
+    for (size_t k = j; k <= tip; ++k) ws.X_RootFrame[k] = moved * ws.X_RootFrame[k];
+  }
+}
+
+void TwinRobot::bearingTilts(const ChainWorkspace& ws, const Vec6& W_payload,
+                             std::vector<Vec3>& tilt_rad) const {
+  for (const BearingTilt& bearing : effects_.bearing_tilt) {
+    const int j = bearing.joint();
+    Vec6 W = W_payload;
+    if (effects_.self_weight) {
+      W += effects_.self_weight->wrenchOfLinksFrom(j, ws, gravity_in_base_);
+    }
+    // The moment about the joint frame's origin, in its axes.
+    const Pose& X_BaseJoint = ws.X_RootFrame[static_cast<size_t>(j)];
+    const Vec3 moment_Base = W.tail<3>() - X_BaseJoint.translation().cross(W.head<3>());
+    const Vec3 moment_Joint = X_BaseJoint.linear().transpose() * moment_Base;
+    const Vec3 axis_Joint = chain_.joints()[static_cast<size_t>(j - 1)].twist_Local.tail<3>();
+    tilt_rad[static_cast<size_t>(j - 1)] = bearing.tilt(moment_Joint, axis_Joint);
+  }
 }
 
 void TwinRobot::deflectedFrames(const JointVector& q_cmd_rad, double load_kg, double temp_c,
                                 ChainWorkspace& ws) const {
-  forwardKinematics(chain_, linkAngles(q_cmd_rad, load_kg, temp_c), ws,
-                    effects_.linkLengthScale(temp_c));
+  framesAt(deflection(q_cmd_rad, load_kg, temp_c), effects_.linkLengthScale(temp_c), ws);
 }
 
 Pose TwinRobot::X_BaseTip(const JointVector& q_cmd_rad, double load_kg, double temp_c) const {

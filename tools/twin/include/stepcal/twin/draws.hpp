@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <random>
+#include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -38,5 +39,33 @@ DrawnMechanism drawMechanism(int kind, std::mt19937_64& rng);
 /// joint another already loads (then the two are one curve of its torque); self weight from a
 /// few kilograms up. The same seed gives the same mix.
 std::vector<DrawnMechanism> drawMechanismMix(uint64_t seed);
+
+/// A stress mix with load effects outside the diagnosis's catalogue (issue 43): what
+/// stepcal-diagnose-stress --foreign hides.
+struct ForeignMix {
+  /// "bearing_tilt", "angle_dependent_stiffness", "beside" (one of them beside a catalogued
+  /// mechanism) or "both".
+  std::string design;
+  /// bearing_tilt and angle_dependent_stiffness objects (stepcal simulate --effect).
+  std::vector<nlohmann::json> foreign;
+  /// The catalogued mechanism beside ("beside" only), one of drawMechanism's.
+  std::vector<DrawnMechanism> catalogued;
+};
+
+/// One bearing_tilt at a size a tracker sees: joint 1 (two draws in three) with c in
+/// [1.2e-7, 2.2e-7] rad/(N·m), 0.07–0.12 mm mean at 20 kg and 0.17–0.32 mm at 55 kg on the
+/// paper protocol, or joint 2 with c in [0.8e-6, 1.6e-6] (its bearing carries only the payload's
+/// moment out of the arm's plane), 0.025–0.05 mm and 0.07–0.14 mm.
+nlohmann::json drawBearingTilt(std::mt19937_64& rng);
+/// One angle_dependent_stiffness: joint 2 or 3, harmonic 3 … 12, ε in [0.1, 0.25], φ uniform:
+/// 0.025–0.085 mm mean at 20 kg, 0.06–0.22 mm at 55 kg (the sizes scale with c and ε from
+/// those TwinLoadEffects.SizesOnThePaperProtocol measures).
+nlohmann::json drawAngleDependentStiffness(std::mt19937_64& rng);
+
+/// The foreign mix of seed: the design by seed mod 4 (1 bearing_tilt, 2
+/// angle_dependent_stiffness, 3 one of the two beside one catalogued mechanism of any kind
+/// drawn by drawMechanism, 0 both), its draws from a stream of its own (drawMechanismMix's
+/// seeds keep theirs). The same seed gives the same mix.
+ForeignMix drawForeignMix(uint64_t seed);
 
 }  // namespace stepcal::twin

@@ -14,10 +14,14 @@
 // in the moved frame).
 // A mechanism that moves the link side away from the controller's angles is a LinkAngleEffect:
 // joint compliance (always, unless switched off) and the hidden mechanisms a campaign may carry
-// (backlash, transmission error, nonlinear stiffness, joint coupling), each on given joints with
+// (backlash, transmission error, nonlinear stiffness, a torsion curve, joint coupling, a
+// stiffness that varies with the joint angle), each on given joints with
 // given parameters. Three more act on the other stages: SelfWeight (the links' own gravity
 // torques join τ, so every effect that uses τ sees them, and unloaded rows deflect too),
 // ThermalExpansion (s) and SensorBias (the reading only; the robot's physics is unaffected).
+// BearingTilt turns the frames beyond a joint under the moment perpendicular to its axis: it
+// joins step 1's fixed point (every frame evaluated with the tilts, the tilts from the wrench
+// at those frames).
 // EffectSet holds one twin's mechanisms and builds them from their truth.json objects.
 // Joints and links are numbered 1 … n in names, parameters and truth.json.
 #pragma once
@@ -145,6 +149,53 @@ class TorsionCurve final : public LinkAngleEffect {
   std::vector<double> extra_compliance_rad_per_nm_, segment_end_torque_nm_;
 };
 
+/// A joint whose stiffness varies with its angle (gear mesh stiffness over the revolution): on
+/// top of the linear compliance, Δθ_j = ε cos(k q_j + φ) τ_j / K_j, with K_j the joint's
+/// stiffness in joint_compliance and q_j its commanded angle. ε 1, φ rad.
+class AngleDependentStiffness final : public LinkAngleEffect {
+ public:
+  /// joint 1 … dof; harmonic 1 … 64; amplitude ε finite in (0, 1); phase_rad finite;
+  /// stiffness_nm_per_rad K_j finite and > 0 (joint_compliance's). Throws InputError naming the
+  /// key and the value.
+  AngleDependentStiffness(int joint, int harmonic, double amplitude, double phase_rad,
+                          double stiffness_nm_per_rad, int dof);
+  std::string name() const override { return "angle_dependent_stiffness"; }
+  void apply(const JointVector& q_cmd_rad, const JointVector& tau_nm,
+             JointVector& theta_rad) const override;
+  /// {"name", "joint", "harmonic", "amplitude", "phase_rad"} (K_j is joint_compliance's).
+  nlohmann::json toJson() const override;
+
+ private:
+  int joint_, harmonic_;
+  double amplitude_, phase_rad_, stiffness_nm_per_rad_;
+};
+
+/// Joint j's compliance in its other directions (a virtual-joint / 6-D spring model of a heavy
+/// robot: its bearing tilts, its link bends): the frame after joint j's motion turns about its
+/// origin by δ = c M⊥, with M the moment about that origin of everything joint j carries (the
+/// payload's wrench and the weight of links j … n, the wrench whose component along the axis is
+/// τ_j), in that frame's axes, and M⊥ its part perpendicular to the joint's axis (the part along
+/// it is the joint's torsion, joint_compliance's). Every frame beyond turns with it. c rad/(N·m).
+class BearingTilt final {
+ public:
+  /// joint 1 … dof; compliance_rad_per_nm finite in [0, 1e-5) (0: no tilt). Throws InputError
+  /// naming the key and the value.
+  BearingTilt(int joint, double compliance_rad_per_nm, int dof);
+  /// Name of the mechanism; the "name" key of its truth.json object.
+  static std::string name() { return "bearing_tilt"; }
+  /// Joint 1 … n.
+  int joint() const noexcept { return joint_; }
+  /// δ = c (M − a (a·M)) [rad, rotation vector], from the moment moment_Joint [N·m] and the
+  /// joint's unit axis axis_Joint, both in the frame after the joint's motion.
+  Vec3 tilt(const Vec3& moment_Joint, const Vec3& axis_Joint) const noexcept;
+  /// {"name", "joint", "compliance_rad_per_nm"}.
+  nlohmann::json toJson() const;
+
+ private:
+  int joint_;
+  double compliance_rad_per_nm_;
+};
+
 /// Joint j's link angle moves with joint i's commanded angle (wrist coupling):
 /// Δθ_j = c q_i. c rad/rad.
 class JointCoupling final : public LinkAngleEffect {
@@ -182,10 +233,16 @@ class SelfWeight final {
   /// forwardKinematics) with J_s the spatial Jacobian there; gravity_in_base m/s².
   void addTorques(const ChainWorkspace& ws, const Jacobian& J_s, const Vec3& gravity_in_base,
                   JointVector& tau_nm) const;
+  /// The gravity wrench (f [N], m [N·m] about the base origin, base axes) of links
+  /// first_link … n, those joint first_link carries, at the frames in ws.
+  Vec6 wrenchOfLinksFrom(int first_link, const ChainWorkspace& ws,
+                         const Vec3& gravity_in_base) const;
   /// {"name", "links": [{"link", "mass_kg", "com_m"}, …]}.
   nlohmann::json toJson() const;
 
  private:
+  // One link's gravity wrench about the base origin, base axes.
+  static Vec6 linkWrench(const LinkMass& l, const ChainWorkspace& ws, const Vec3& gravity_in_base);
   std::vector<LinkMass> links_;
 };
 
@@ -278,22 +335,30 @@ struct EffectSet {
   std::optional<ThermalExpansion> thermal_expansion;
   std::optional<SensorBias> sensor_bias;
   std::vector<JointZeroDrift> zero_drift;  ///< at most one per joint
+  std::vector<BearingTilt> bearing_tilt;   ///< at most one per joint, by joint
   std::optional<RegistrationDrift> registration_drift;
 
   /// Adds the mechanism of a dof-joint chain described by its truth.json object ("name" and
   /// its parameters, joints and links numbered from 1). Throws InputError on an unknown name
   /// (listing the known ones), bad parameters, a second self_weight, thermal_expansion,
   /// sensor_bias or registration_drift, or a second joint_zero_drift of a joint;
-  /// nlohmann::json::exception on a missing key or a wrong type.
+  /// nlohmann::json::exception on a missing key or a wrong type. An angle_dependent_stiffness
+  /// needs joint_compliance added first (its K_j).
   void add(const nlohmann::json& j, int dof);
   /// Every mechanism as its truth.json object: the link-angle effects in pipeline order, then
-  /// self_weight, thermal_expansion, sensor_bias, the joint zero drifts, registration_drift.
+  /// the bearing tilts, self_weight, thermal_expansion, sensor_bias, the joint zero drifts,
+  /// registration_drift.
   nlohmann::json toJson() const;
   /// Link-length scale at the true temperature temp_c [°C]: 1 without thermal_expansion or
   /// when temp_c is NaN.
   double linkLengthScale(double temp_c) const noexcept;
   /// The sensor_bias offset (f [N], m [N·m]) in sensor_link axes; zero without.
   Vec6 sensorBias_Sensor() const noexcept;
+
+ private:
+  // K_j of joint_compliance, for an effect that scales the joint's compliance; throws
+  // InputError naming effect when the twin has none.
+  double jointStiffness(const std::string& effect, int joint, int dof) const;
 };
 
 }  // namespace stepcal::twin

@@ -100,8 +100,16 @@ struct TwinOptions {
   double ft_force_sigma_n = 0.2;
   /// F/T moment noise per axis, 1-σ, N·m.
   double ft_moment_sigma_nm = 0.01;
-  /// Mean ambient temperature, °C. The true temperature of row seq (1, 2, …) is
-  ///   T(seq) = temperature_c + temperature_swing_c · sin(2π seq / temperature_period_rows),
+  /// Order of the fit rows (set geometry, stiffness, residual; or planned_fit_rows): "blocks"
+  /// (the paper's: every pose at one load before the payload changes, so the load rises and
+  /// falls with the time order) or "mixed" (the same rows shuffled among the fit rows' places
+  /// in the time order, from a stream of their own for seed and station, so that the load and
+  /// the time order do not correlate and a tracker's drift can be told from a load effect).
+  /// The validation rows keep their blocks and places. Every other draw is unchanged.
+  std::string load_order = "blocks";
+  /// Mean ambient temperature, °C. The true temperature of row seq (1, 2, …, rows) is
+  ///   T(seq) = temperature_c + temperature_swing_c · sin(2π seq / temperature_period_rows)
+  ///            + temperature_ramp_c · (seq − 1) / (rows − 1),
   /// which drives thermal_expansion; temp_c reads it with noise. By default 2.7 periods over
   /// the paper protocol's 1070 rows: the temperature varies within the blocks (geometry,
   /// stiffness loads, residual loads, 55 kg) instead of being one value per block.
@@ -110,6 +118,11 @@ struct TwinOptions {
   double temperature_swing_c = 3.0;
   /// Period of the temperature's sinusoid in rows, > 0.
   double temperature_period_rows = 300.0;
+  /// Rise of the temperature over the campaign, first row to last, °C, finite with |ramp| < 30
+  /// (0: none). With temperature_swing_c 0 a steady ramp: temperature and time order then
+  /// correlate fully (a workshop warming through the day), which no thermal effect can be told
+  /// apart from a drift in time by.
+  double temperature_ramp_c = 0.0;
   /// Noise of the temperature reading, 1-σ, °C.
   double temperature_sigma_c = 0.05;
 
@@ -192,11 +205,26 @@ class TwinRobot {
   /// Everything true, SI, units in the key names (format "stepcal-twin-truth/1").
   nlohmann::json truthJson() const;
 
-  /// Link angles the robot reaches at commanded angles q_cmd_rad [rad] under a payload of
-  /// load_kg [kg] at the CoG and its own weight, at temp_c [°C]: the pipeline's fixed point,
-  /// to 1e-12 rad. rad.
+  /// The deflected robot at one measurement: the pipeline's fixed point (effects.hpp).
+  struct Deflection {
+    JointVector link_angles_rad;  ///< θ, rad
+    /// Per joint, its bearing_tilt δ: rotation vector in the frame after the joint's motion,
+    /// rad; zero for a joint without one.
+    std::vector<Vec3> tilt_rad;
+  };
+  /// The link angles and bearing tilts the robot reaches at commanded angles q_cmd_rad [rad]
+  /// under a payload of load_kg [kg] at the CoG and its own weight, at temp_c [°C]: the
+  /// pipeline's fixed point, to 1e-12 rad.
+  Deflection deflection(const JointVector& q_cmd_rad, double load_kg,
+                        double temp_c = kNoThermalExpansion) const;
+  /// deflection()'s link angles, rad. With a bearing_tilt they alone do not place the frames:
+  /// see deflectedFrames.
   JointVector linkAngles(const JointVector& q_cmd_rad, double load_kg,
                          double temp_c = kNoThermalExpansion) const;
+  /// Every chain frame of the deflected robot (link angles, bearing tilts, lengths scaled at
+  /// temp_c [°C]) into ws, base_link root, m.
+  void deflectedFrames(const JointVector& q_cmd_rad, double load_kg, double temp_c,
+                       ChainWorkspace& ws) const;
   /// True tip pose in base_link, deflected, at temp_c [°C], m.
   Pose X_BaseTip(const JointVector& q_cmd_rad, double load_kg,
                  double temp_c = kNoThermalExpansion) const;
@@ -231,9 +259,13 @@ class TwinRobot {
   TwinRobot() = default;
   // Payload wrench at the base origin, base axes, (f [N], m [N·m]), from frames in ws.
   Vec6 payloadWrenchAtBase(const ChainWorkspace& ws, double load_kg) const;
-  // Evaluates ws at the link angles of linkAngles (same arguments), lengths scaled at temp_c.
-  void deflectedFrames(const JointVector& q_cmd_rad, double load_kg, double temp_c,
-                       ChainWorkspace& ws) const;
+  // Evaluates ws at the deflection d with lengths scaled by scale: forward kinematics at its
+  // link angles, then each bearing tilt turns its joint's frame and every frame beyond.
+  void framesAt(const Deflection& d, double scale, ChainWorkspace& ws) const;
+  // Each bearing tilt's δ at the frames in ws, under the payload's wrench W_payload (at the
+  // base origin) and the links' weight beyond its joint; into tilt_rad (one per joint).
+  void bearingTilts(const ChainWorkspace& ws, const Vec6& W_payload,
+                    std::vector<Vec3>& tilt_rad) const;
 
   KinematicChain chain_;
   int sensor_frame_ = -1;
@@ -256,7 +288,8 @@ class TwinRobot {
 ///   stf  stiffness  80 × 0,20,30,40   stfv validation  30 × 0,20,30,40
 ///   res  residual  100 × 20,30,40     resv validation  50 × 20,30,40
 ///   ext  validation 50 × 55 (load extrapolation)
-/// Within a block every pose is measured at one load before the payload changes. With
+/// Within a block every pose is measured at one load before the payload changes
+/// (TwinOptions::load_order "blocks"; "mixed" shuffles the fit rows among their places). With
 /// planned_fit_rows, those rows come first and replace the geo, stf and res blocks; the
 /// validation blocks keep their poses (every block's poses are still drawn, in order). "geometry" is
 /// the first two blocks. Every row has a wrench: the sensor stays mounted and tared unloaded, so

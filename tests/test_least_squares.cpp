@@ -212,5 +212,23 @@ TEST(ConstrainedLeastSquares, AnUnseenMassCarriesItsFirstMoment) {
   EXPECT_NEAR((s.J * x - s.r).squaredNorm(), (s.J * free.x - s.r).squaredNorm(), 1e-9);
 }
 
+// The Gram form (the screening's folds) gives the reduced form's constrained step.
+TEST(ConstrainedLeastSquares, TheGramFormGivesTheSameStep) {
+  for (unsigned seed = 1; seed <= 10; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    System s = randomSystem(seed, 300, 4);
+    s.r += -2.0 * s.J.col(0) - 4.0 * s.J.col(1) + 1.0 * s.J.col(3);
+    reduce(s);
+    Eigen::MatrixXd C(3, 4);
+    C << 1.0, 0.0, 0.0, 0.0, 0.5, -1.0, 0.0, 0.0, 0.5, 1.0, 0.0, 0.0;
+    const Eigen::VectorXd d = Eigen::VectorXd::Zero(3);
+    const Eigen::VectorXd reduced = solveReducedConstrained(s.reduced, 1e-9, C, d);
+    const Eigen::VectorXd gram =
+        solveConstrainedGram(s.J.transpose() * s.J, s.J.transpose() * s.r, 1e-12, C, d);
+    EXPECT_LT((gram - reduced).norm(), 1e-8 * (1.0 + reduced.norm()));
+    EXPECT_LT((gram - bruteForce(s, C, d)).norm(), 1e-8 * (1.0 + reduced.norm()));
+  }
+}
+
 }  // namespace
 }  // namespace stepcal::trainer

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
@@ -182,47 +183,38 @@ inline Eigen::VectorXd solveReducedBounded(const TallQr& system, double tol,
   return x;
 }
 
-/// min ½|Rs z − b|² under linear inequalities A z ≥ d (every d ≤ 0, so z = 0 is feasible), Rs
-/// already column-normalised: a primal active set (the bounds' method of solveReducedBounded for
-/// general rows, Gill–Murray–Wright's). The working rows W are held as equalities: the trial
-/// point is z_W + N y, z_W the least-norm point with A_W z = d_W, N an orthonormal basis of A_W's
-/// null space, y the truncated-SVD solution of Rs N y ≈ b − Rs z_W (with no row held, exactly
-/// truncatedSvdSolve's). From z = 0 it moves toward the trial point, stops at the first row that
-/// point violates and holds it; once the trial point is feasible it frees the held row whose
-/// multiplier (A_Wᵀ λ = the gradient) is most negative, until none is. active: per row, whether it
-/// ends held (A_i z = d_i).
-inline Eigen::VectorXd solveConstrainedScaled(const Eigen::MatrixXd& Rs, const Eigen::VectorXd& b,
-                                              double tol, const Eigen::MatrixXd& A,
-                                              const Eigen::VectorXd& d,
-                                              std::vector<bool>* active = nullptr) {
-  const Eigen::Index p = Rs.cols(), rows = A.rows();
+/// The active set of a least-squares problem under linear inequalities A z ≥ d (every d ≤ 0, so
+/// z = 0 is feasible): the bounds' method of solveReducedBounded for general rows (primal, as in
+/// Gill, Murray and Wright). The rows held are kept as equalities: the trial point is z_W + N y,
+/// z_W the least-norm point with A_W z = d_W, N an orthonormal basis of A_W's null space, y the
+/// objective's truncated minimiser on that affine set, minimise(N, z_W). From z = 0 it moves toward
+/// the trial point, stops at the first row that point violates and holds it; once the trial point
+/// is feasible it frees the held row whose multiplier (A_Wᵀ λ = gradient(z)) is most negative,
+/// below −negligible, until none is. active: per row, whether it ends held (A_i z = d_i).
+template <class Minimise, class Gradient>
+Eigen::VectorXd activeSetSolve(Eigen::Index p, const Eigen::MatrixXd& A, const Eigen::VectorXd& d,
+                               const Minimise& minimise, const Gradient& gradient,
+                               double negligible, std::vector<bool>* active) {
+  const Eigen::Index rows = A.rows();
   std::vector<bool> held(static_cast<size_t>(rows), false);
   Eigen::VectorXd z = Eigen::VectorXd::Zero(p);
-  const auto heldRows = [&] {
+  // Each pass holds one more row or frees one from a feasible better point: a few passes; the
+  // cap only guards against cycling on rounding.
+  for (Eigen::Index pass = 0; pass < 3 * (rows + p) + 3; ++pass) {
     std::vector<Eigen::Index> w;
     for (Eigen::Index i = 0; i < rows; ++i) {
       if (held[static_cast<size_t>(i)]) w.push_back(i);
     }
-    return w;
-  };
-  for (Eigen::Index pass = 0; pass < 3 * (rows + p) + 3; ++pass) {
-    const std::vector<Eigen::Index> w = heldRows();
     Eigen::VectorXd z_w = Eigen::VectorXd::Zero(p);
     Eigen::MatrixXd N = Eigen::MatrixXd::Identity(p, p);
     if (!w.empty()) {
       const Eigen::MatrixXd A_w = A(w, Eigen::all);
-      const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A_w, Eigen::ComputeFullU | Eigen::ComputeFullV);
-      const Eigen::Index rank = svd.rank();
-      z_w = svd.solve(d(w));
-      N = svd.matrixV().rightCols(p - rank);
+      z_w = A_w.completeOrthogonalDecomposition().solve(d(w));
+      const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(A_w.transpose());
+      const Eigen::MatrixXd Q = qr.householderQ() * Eigen::MatrixXd::Identity(p, p);
+      N = Q.rightCols(p - qr.rank());
     }
-    Eigen::VectorXd trial = z_w;
-    if (N.cols() > 0) {
-      SvdSolution s;
-      s.column_scale = Eigen::VectorXd::Ones(N.cols());
-      truncatedSvdSolve(Rs * N, b - Rs * z_w, tol, s);
-      trial += N * s.x;
-    }
+    const Eigen::VectorXd trial = N.cols() > 0 ? Eigen::VectorXd(z_w + minimise(N, z_w)) : z_w;
     // The first row not held that the way to the trial point crosses.
     double alpha = 1.0;
     Eigen::Index blocking = -1;
@@ -242,11 +234,9 @@ inline Eigen::VectorXd solveConstrainedScaled(const Eigen::MatrixXd& Rs, const E
     }
     z = trial;
     if (w.empty()) break;
-    // KKT: the gradient is A_Wᵀ λ; λ_i < 0 at a held row: the residual falls as z leaves it.
-    const Eigen::VectorXd gradient = Rs.transpose() * (Rs * z - b);
+    // KKT: the gradient is A_Wᵀ λ; λ_i < 0 at a held row: the objective falls as z leaves it.
     const Eigen::VectorXd lambda =
-        A(w, Eigen::all).transpose().completeOrthogonalDecomposition().solve(gradient);
-    const double negligible = 1e-12 * (Rs.transpose() * b).cwiseAbs().maxCoeff();
+        A(w, Eigen::all).transpose().completeOrthogonalDecomposition().solve(gradient(z));
     Eigen::Index release = -1;
     for (Eigen::Index k = 0; k < lambda.size(); ++k) {
       if (lambda(k) < -negligible && (release < 0 || lambda(k) < lambda(release))) release = k;
@@ -256,6 +246,48 @@ inline Eigen::VectorXd solveConstrainedScaled(const Eigen::MatrixXd& Rs, const E
   }
   if (active) *active = held;
   return z;
+}
+
+/// min ½|Rs z − b|² under A z ≥ d (activeSetSolve), Rs already column-normalised: on each affine
+/// set the truncated-SVD solution of Rs N y ≈ b − Rs z_W (with no row held, exactly
+/// truncatedSvdSolve's).
+inline Eigen::VectorXd solveConstrainedScaled(const Eigen::MatrixXd& Rs, const Eigen::VectorXd& b,
+                                              double tol, const Eigen::MatrixXd& A,
+                                              const Eigen::VectorXd& d,
+                                              std::vector<bool>* active = nullptr) {
+  const auto minimise = [&](const Eigen::MatrixXd& N, const Eigen::VectorXd& z_w) {
+    SvdSolution s;
+    s.column_scale = Eigen::VectorXd::Ones(N.cols());
+    truncatedSvdSolve(Rs * N, b - Rs * z_w, tol, s);
+    return Eigen::VectorXd(N * s.x);
+  };
+  const auto gradient = [&](const Eigen::VectorXd& z) {
+    return Eigen::VectorXd(Rs.transpose() * (Rs * z - b));
+  };
+  const double negligible = 1e-12 * (Rs.transpose() * b).cwiseAbs().maxCoeff();
+  return activeSetSolve(Rs.cols(), A, d, minimise, gradient, negligible, active);
+}
+
+/// min ½ zᵀ G z − bᵀ z under A z ≥ d (activeSetSolve), G symmetric, ≥ 0 and normalised: on each
+/// affine set the eigenvalues of NᵀGN above tol times the largest (a truncated solve of the normal
+/// equations; with no row held, G's own truncated solve).
+inline Eigen::VectorXd solveConstrainedGram(const Eigen::MatrixXd& G, const Eigen::VectorXd& b,
+                                            double tol, const Eigen::MatrixXd& A,
+                                            const Eigen::VectorXd& d) {
+  const auto minimise = [&](const Eigen::MatrixXd& N, const Eigen::VectorXd& z_w) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(N.transpose() * G * N);
+    const Eigen::VectorXd& lambda = eig.eigenvalues();
+    const Eigen::VectorXd rhs = N.transpose() * (b - G * z_w);
+    const double cutoff = tol * lambda.maxCoeff();
+    Eigen::VectorXd y = Eigen::VectorXd::Zero(N.cols());
+    for (Eigen::Index i = 0; i < lambda.size(); ++i) {
+      if (lambda(i) > cutoff) y += eig.eigenvectors().col(i) * (eig.eigenvectors().col(i).dot(rhs) / lambda(i));
+    }
+    return Eigen::VectorXd(N * y);
+  };
+  const auto gradient = [&](const Eigen::VectorXd& z) { return Eigen::VectorXd(G * z - b); };
+  const double negligible = 1e-12 * b.cwiseAbs().maxCoeff();
+  return activeSetSolve(G.cols(), A, d, minimise, gradient, negligible, nullptr);
 }
 
 /// solveReduced under linear inequalities C x ≥ d (every d ≤ 0: x = 0 is feasible), the exact

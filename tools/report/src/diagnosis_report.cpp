@@ -122,18 +122,18 @@ std::string impossibleText(const trainer::CandidateScore& c) {
 }
 
 // The candidates not named because only their physically impossible fit explained the residual:
-// each one's last round, where its unbounded fit stood out (z ≥ 2) and the bounded one is not
-// significant.
+// each one's last round in which its unbounded fit was significant and the bounded one is not.
 std::vector<std::string> impossibleLines(const trainer::Diagnosis& d) {
   std::vector<std::string> lines;
   for (size_t i = 0; i < d.candidates.size(); ++i) {
     const trainer::CandidateScore& c = d.candidates[i];
-    if (c.impossible_unbounded.empty() || c.significant || c.unbounded_z_statistic < 2.0) continue;
+    if (!c.unbounded_significant || c.significant) continue;
     bool later = false;
     for (size_t k = i + 1; k < d.candidates.size(); ++k) {
-      const Mechanism& m = d.candidates[k].mechanism;
-      later = later || (m.kind == c.mechanism.kind && m.joint == c.mechanism.joint &&
-                        m.source_joint == c.mechanism.source_joint);
+      const trainer::CandidateScore& o = d.candidates[k];
+      later = later || (o.unbounded_significant && !o.significant &&
+                        o.mechanism.kind == c.mechanism.kind && o.mechanism.joint == c.mechanism.joint &&
+                        o.mechanism.source_joint == c.mechanism.source_joint);
     }
     if (!later) lines.push_back(impossibleText(c));
   }
@@ -418,7 +418,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
                   describe(c->mechanism).c_str(), c->cv_gain_mm, 100.0 * c->relative_reduction,
                   c->z_statistic,
                   c->chosen ? "chosen" : c->significant ? "significant" : "");
-    if (!c->impossible_unbounded.empty()) out += "      " + impossibleText(*c) + "\n";
+    if (c->unbounded_significant && !c->significant) out += "      " + impossibleText(*c) + "\n";
   }
   for (const auto& u : d.untestable) {
     out += format("  not tried: %s (%s)\n", u.name.c_str(), u.reason.c_str());
@@ -536,7 +536,8 @@ nlohmann::json candidateJson(const trainer::CandidateScore& c) {
   if (!c.impossible_unbounded.empty()) {
     x["impossible_unbounded"] = {{"reason", c.impossible_unbounded},
                                  {"cv_gain_mm", c.unbounded_cv_gain_mm},
-                                 {"z_statistic", c.unbounded_z_statistic}};
+                                 {"z_statistic", c.unbounded_z_statistic},
+                                 {"significant", c.unbounded_significant}};
   }
   return x;
 }

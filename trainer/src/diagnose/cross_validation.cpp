@@ -370,9 +370,8 @@ double CrossValidation::heldOutSse(int f, const std::vector<Eigen::Index>& colum
          x.dot(G(columns, columns) * x);
 }
 
-// solveRidged under C x_last ≥ d on the last C.cols() of the columns: the same normalised, ridged
-// Gram as its square root R = Λ^½ Vᵀ over the eigenvalues solveRidged keeps (RᵀR = G there, and
-// with no bound held the constrained solve is solveRidged's), in its scaled coordinates.
+// solveRidged under C x_last ≥ d on the last C.cols() of the columns: the same normalised,
+// ridged Gram and cut (with no bound held the constrained solve is solveRidged's).
 Eigen::VectorXd CrossValidation::solveRidgedBounded(int f, const std::vector<Eigen::Index>& columns,
                                                     const Eigen::MatrixXd& C,
                                                     const Eigen::VectorXd& d) const {
@@ -385,21 +384,9 @@ Eigen::VectorXd CrossValidation::solveRidgedBounded(int f, const std::vector<Eig
     s(a) = G(a, a) > 0.0 ? std::sqrt(G(a, a)) : 1.0;
   }
   const Eigen::MatrixXd Gs = s.cwiseInverse().asDiagonal() * G * s.cwiseInverse().asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Gs);
-  const Eigen::VectorXd& lambda = eig.eigenvalues();
-  const double cutoff = kGramRankTolerance * lambda.maxCoeff();
-  std::vector<Eigen::Index> kept;
-  for (Eigen::Index i = 0; i < m; ++i) {
-    if (lambda(i) > cutoff) kept.push_back(i);
-  }
-  const Eigen::MatrixXd V = eig.eigenvectors()(Eigen::all, kept);
-  const Eigen::VectorXd root = lambda(kept).cwiseSqrt();
-  const Eigen::MatrixXd R = root.asDiagonal() * V.transpose();
-  const Eigen::VectorXd rhs = root.cwiseInverse().asDiagonal() * (V.transpose() * b.cwiseQuotient(s));
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(C.rows(), m);
   A.rightCols(C.cols()) = C * s.tail(C.cols()).cwiseInverse().asDiagonal();
-  // Singular values are the eigenvalues' square roots: the same cut.
-  return solveConstrainedScaled(R, rhs, std::sqrt(kGramRankTolerance), A, d).cwiseQuotient(s);
+  return solveConstrainedGram(Gs, b.cwiseQuotient(s), kGramRankTolerance, A, d).cwiseQuotient(s);
 }
 
 CrossValidation::Correction CrossValidation::withGlobal(

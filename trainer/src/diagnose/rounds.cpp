@@ -96,9 +96,12 @@ void searchRounds(Search& search) {
     for (Family& family : sc.families) pruneNegativeCompliance(family, cv, sc.stage1.size(), dm);
     int tried = 0;  // configurations, for the family-wise level
     for (const Family& family : sc.families) tried += configurations(family, options);
+    const auto passes = [&](double p_value, double relative_reduction) {
+      return p_value < options.family_alpha / std::max(1, tried) &&
+             relative_reduction >= options.min_relative_reduction;
+    };
     const auto isSignificant = [&](const CandidateScore& s) {
-      return s.physical && s.p_value < options.family_alpha / std::max(1, tried) &&
-             s.relative_reduction >= options.min_relative_reduction;
+      return s.physical && passes(s.p_value, s.relative_reduction);
     };
     std::vector<Scored> scored =
         scoreFamilies(sc.families, cv, sc.stage1.size(), *grams, options, fit, isSignificant);
@@ -108,6 +111,8 @@ void searchRounds(Search& search) {
       CandidateScore& s = scored[k].score;
       s.round = round;
       s.significant = isSignificant(s);
+      s.unbounded_significant = !s.impossible_unbounded.empty() &&
+                                passes(s.unbounded_p_value, s.unbounded_relative_reduction);
       if (s.significant) significant.push_back(k);
     }
     d.seconds_screening += secondsSince(clock);

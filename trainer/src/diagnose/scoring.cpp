@@ -305,7 +305,9 @@ std::vector<Scored> scoreFamilies(const std::vector<Family>& families, const Cro
           const Comparison unbounded = compare(base, outcomes[i].back());
           scored[k].score.impossible_unbounded = global[k].impossible;
           scored[k].score.unbounded_cv_gain_mm = unbounded.gain_mm;
+          scored[k].score.unbounded_relative_reduction = unbounded.relative_reduction;
           scored[k].score.unbounded_z_statistic = unbounded.z;
+          scored[k].score.unbounded_p_value = unbounded.p;
         }
         kept(scored[k]);
         return;

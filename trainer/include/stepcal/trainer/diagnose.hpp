@@ -83,11 +83,14 @@ struct CandidateScore {
   /// bounds), and freeing its joints' compliance does not make them all negative.
   bool physical = true;
   /// When its fit without the physics' bounds was physically impossible: what made it so (e.g.
-  /// "link 3 mass -115 kg"), and that fit's held-out gain, mm, and z; the score above is then the
-  /// fit's within the bounds: a candidate that explains the residual only beyond them stands for
+  /// "link 3 mass -115 kg"), and that fit's held-out outcome; the score above is then the fit's
+  /// within the bounds: a candidate that explains the residual only beyond them stands for
   /// something else. Empty: the fit needed no bound.
   std::string impossible_unbounded;
-  double unbounded_cv_gain_mm = 0.0, unbounded_z_statistic = 0.0;
+  double unbounded_cv_gain_mm = 0.0, unbounded_relative_reduction = 0.0;
+  double unbounded_z_statistic = 0.0, unbounded_p_value = 1.0;
+  /// The unbounded fit passes the round's test (as `significant`, but for being possible).
+  bool unbounded_significant = false;
   bool significant = false;  ///< physical, p < family_alpha / (configurations in the round), enough removed
   bool chosen = false;
 };

@@ -96,10 +96,15 @@ std::vector<PhysicalBound> linkBounds(const Mechanism& m, const KinematicChain& 
         b.tolerance = 1e-3;
         b.broken = [k, mass, axis, L](const Mechanism& x) {
           char text[160];
+          if (x.parameter(mass) <= 0.0) {  // no centre of mass: the mass is what breaks
+            std::snprintf(text, sizeof text, "link %d mass %.3g kg with a first moment of %.3g kg·m",
+                          k, x.parameter(mass), x.parameter(mass + 1 + axis));
+            return std::string(text);
+          }
           std::snprintf(text, sizeof text,
                         "link %d centre of mass %.3g m along %c of its frame (%.3g kg·m over "
                         "%.3g kg), beyond its reach %.2g m",
-                        k, x.parameter(mass + 1 + axis) / std::max(x.parameter(mass), 1e-300),
+                        k, x.parameter(mass + 1 + axis) / x.parameter(mass),
                         "xyz"[axis], x.parameter(mass + 1 + axis), x.parameter(mass), L);
           return std::string(text);
         };

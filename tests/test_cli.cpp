@@ -733,7 +733,10 @@ TEST(Cli, TheDiagnosisOfUr10SeriesCIsTheStoredOne) {
 // wrote before its screening matrix was made chunk by chunk wherever its rows are needed instead
 // of stored (issue 32), tests/data/diagnosis/twin-stress-seed-3.json, the same tolerances; written
 // again when the drift candidates joined the catalogue (their scores added, every other answer
-// the same). Made again after a change meant to change the answers: `stepcal-diagnose-stress
+// the same); again when a candidate whose fit broke its physics' bounds was fitted within them
+// (those candidates' parameters and scores, with impossible_unbounded; every effect, verdict and
+// gain the same, as for ur10-series-c.json). Made again after a change meant to change the
+// answers: `stepcal-diagnose-stress
 // --seeds 3`, then `stepcal diagnose OUT/seed-3 --json` without timing_s.
 TEST(Cli, TheDiagnosisOfATwinMixIsTheStoredOne) {
   const fs::path dir = scratch("twin_stress_seed_3");

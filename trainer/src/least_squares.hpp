@@ -215,12 +215,19 @@ Eigen::VectorXd activeSetSolve(Eigen::Index p, const Eigen::MatrixXd& A, const E
       N = Q.rightCols(p - qr.rank());
     }
     const Eigen::VectorXd trial = N.cols() > 0 ? Eigen::VectorXd(z_w + minimise(N, z_w)) : z_w;
-    // The first row not held that the way to the trial point crosses.
+    // The first row not held that the way to the trial point crosses. A row the held ones span
+    // (at a vertex where more rows meet than there are variables, as at a lumped link's zero
+    // mass) is not held too, and one the way runs along only by rounding blocks nothing: the held
+    // rows stay independent, so their multipliers are unique and a stalled vertex is left.
     double alpha = 1.0;
     Eigen::Index blocking = -1;
     const Eigen::VectorXd at = A * z, towards = A * trial;
+    const double way = (trial - z).norm();
     for (Eigen::Index i = 0; i < rows; ++i) {
       if (held[static_cast<size_t>(i)] || towards(i) >= d(i) || towards(i) >= at(i)) continue;
+      const double size = A.row(i).norm();
+      if (towards(i) - at(i) > -1e-12 * size * way) continue;
+      if ((N.transpose() * A.row(i).transpose()).norm() <= 1e-10 * size) continue;
       const double a = (d(i) - at(i)) / (towards(i) - at(i));
       if (a < alpha) {
         alpha = std::max(0.0, a);

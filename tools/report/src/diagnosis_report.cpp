@@ -171,6 +171,34 @@ std::string offAxisLine(const trainer::Diagnosis& d, const Mechanism& m) {
   return text;
 }
 
+// What a candidate's fit without the physics' bounds broke, and what the fit within them kept.
+std::string impossibleText(const trainer::CandidateScore& c) {
+  return format("%s: physically impossible unbounded (%s; held-out gain %.4f mm, z %.1f); within "
+                "bounds %s (gain %.4f mm, z %.1f)",
+                describe(c.mechanism).c_str(), c.impossible_unbounded.c_str(),
+                c.unbounded_cv_gain_mm, c.unbounded_z_statistic,
+                c.significant ? "significant" : "not significant", c.cv_gain_mm, c.z_statistic);
+}
+
+// The candidates not named because only their physically impossible fit explained the residual:
+// each one's last round in which its unbounded fit was significant and the bounded one is not.
+std::vector<std::string> impossibleLines(const trainer::Diagnosis& d) {
+  std::vector<std::string> lines;
+  for (size_t i = 0; i < d.candidates.size(); ++i) {
+    const trainer::CandidateScore& c = d.candidates[i];
+    if (!c.unbounded_significant || c.significant) continue;
+    bool later = false;
+    for (size_t k = i + 1; k < d.candidates.size(); ++k) {
+      const trainer::CandidateScore& o = d.candidates[k];
+      later = later || (o.unbounded_significant && !o.significant &&
+                        o.mechanism.kind == c.mechanism.kind && o.mechanism.joint == c.mechanism.joint &&
+                        o.mechanism.source_joint == c.mechanism.source_joint);
+    }
+    if (!later) lines.push_back(impossibleText(c));
+  }
+  return lines;
+}
+
 std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
   std::vector<std::string> lines;
   for (const trainer::ModelChange& c : d.changes) {
@@ -451,6 +479,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
                   describe(c->mechanism).c_str(), c->cv_gain_mm, 100.0 * c->relative_reduction,
                   c->z_statistic,
                   c->chosen ? "chosen" : c->significant ? "significant" : "");
+    if (c->unbounded_significant && !c->significant) out += "      " + impossibleText(*c) + "\n";
   }
   for (const auto& u : d.untestable) {
     out += format("  not tried: %s (%s)\n", u.name.c_str(), u.reason.c_str());
@@ -466,6 +495,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
     for (int j : e.compliance_joints) out += "    " + selfWeightComplianceText(d, j) + "\n";
     if (const std::string curve = torqueCurveText(e); !curve.empty()) out += "    " + curve + "\n";
   }
+  for (const std::string& line : impossibleLines(d)) out += "  not named: " + line + "\n";
   for (const std::string& line : identifiabilityLines(d)) out += "  identifiability: " + line + "\n";
   if (!d.drift.text.empty()) out += "  drift: " + d.drift.text + "\n";
   if (!d.unexplained_trend.empty()) {
@@ -564,6 +594,13 @@ nlohmann::json candidateJson(const trainer::CandidateScore& c) {
   x["p_value"] = c.p_value;
   x["significant"] = c.significant;
   x["chosen"] = c.chosen;
+  if (!c.physical) x["physical"] = false;
+  if (!c.impossible_unbounded.empty()) {
+    x["impossible_unbounded"] = {{"reason", c.impossible_unbounded},
+                                 {"cv_gain_mm", c.unbounded_cv_gain_mm},
+                                 {"z_statistic", c.unbounded_z_statistic},
+                                 {"significant", c.unbounded_significant}};
+  }
   return x;
 }
 

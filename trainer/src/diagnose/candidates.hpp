@@ -50,6 +50,8 @@ struct Family {
     std::vector<Eigen::Index> columns;
   };
   std::vector<Confound> confounds;
+  /// global: the linear bounds its physics puts on its mechanism's parameters (physicalBounds).
+  std::vector<PhysicalBound> bounds;
   /// A profile's difference in this later campaign (its columns zero on the other campaigns'
   /// rows), tested for the report and never added; 0: a family of the robot.
   int campaign = 0;

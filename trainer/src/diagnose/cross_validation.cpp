@@ -1,5 +1,6 @@
 #include "cross_validation.hpp"
 
+#include "../least_squares.hpp"
 #include "chunked_gram.hpp"
 #include "parallel.hpp"
 #include "profiles.hpp"
@@ -369,15 +370,46 @@ double CrossValidation::heldOutSse(int f, const std::vector<Eigen::Index>& colum
          x.dot(G(columns, columns) * x);
 }
 
+// solveRidged under C x_last ≥ d on the last C.cols() of the columns: the same normalised,
+// ridged Gram and cut (with no bound held the constrained solve is solveRidged's).
+Eigen::VectorXd CrossValidation::solveRidgedBounded(int f, const std::vector<Eigen::Index>& columns,
+                                                    const Eigen::MatrixXd& C,
+                                                    const Eigen::VectorXd& d) const {
+  const Eigen::Index m = static_cast<Eigen::Index>(columns.size());
+  Eigen::MatrixXd G = trainingGram(f, columns, columns);
+  const Eigen::VectorXd b = trainingRhs(f, columns);
+  Eigen::VectorXd s(m);
+  for (Eigen::Index a = 0; a < m; ++a) {
+    G(a, a) += ridge_(columns[static_cast<size_t>(a)]);
+    s(a) = G(a, a) > 0.0 ? std::sqrt(G(a, a)) : 1.0;
+  }
+  const Eigen::MatrixXd Gs = s.cwiseInverse().asDiagonal() * G * s.cwiseInverse().asDiagonal();
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(C.rows(), m);
+  A.rightCols(C.cols()) = C * s.tail(C.cols()).cwiseInverse().asDiagonal();
+  return solveConstrainedGram(Gs, b.cwiseQuotient(s), kGramRankTolerance, A, d).cwiseQuotient(s);
+}
+
 CrossValidation::Correction CrossValidation::withGlobal(
     const std::vector<Eigen::Index>& columns) const {
+  return globalCorrection(columns, nullptr, nullptr);
+}
+
+CrossValidation::Correction CrossValidation::withGlobal(const std::vector<Eigen::Index>& columns,
+                                                        const Eigen::MatrixXd& C,
+                                                        const Eigen::VectorXd& d) const {
+  return globalCorrection(columns, &C, &d);
+}
+
+CrossValidation::Correction CrossValidation::globalCorrection(
+    const std::vector<Eigen::Index>& columns, const Eigen::MatrixXd* C,
+    const Eigen::VectorXd* d) const {
   Correction out;
   const std::vector<Eigen::Index> stage1 = joined(stage1_, columns);
   out.columns = joined(stage1, stage2_);
   out.x.resize(static_cast<size_t>(fit_.folds) + 1);
   for (int f = 0; f <= fit_.folds; ++f) {
     const size_t k = static_cast<size_t>(f);
-    const Eigen::VectorXd u = solveRidged(f, stage1);
+    const Eigen::VectorXd u = C ? solveRidgedBounded(f, stage1, *C, *d) : solveRidged(f, stage1);
     Eigen::VectorXd p(static_cast<Eigen::Index>(stage2_.size()));
     if (!stage2_.empty()) {
       p = H_[k].solve(trainingRhs(f, stage2_) - trainingGram(f, stage2_, stage1) * u);

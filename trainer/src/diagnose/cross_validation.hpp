@@ -133,6 +133,11 @@ class CrossValidation {
   const Correction& base() const { return base_; }
   /// The current model with global columns added to stage 1 (stage 2 refitted after it).
   Correction withGlobal(const std::vector<Eigen::Index>& columns) const;
+  /// The same, each fit (per fold and on every row) under linear bounds on the added columns'
+  /// changes, C x ≥ d (C: bounds × columns.size(), every d ≤ 0): the constrained least squares
+  /// of least_squares.hpp on the fold's ridged Gram (its square root, truncated as solveRidged).
+  Correction withGlobal(const std::vector<Eigen::Index>& columns, const Eigen::MatrixXd& C,
+                        const Eigen::VectorXd& d) const;
 
   /// A profile candidate's columns at its highest order, with what every order shares (per
   /// fold, T the training Gram, H the current profiles' ridged block).
@@ -181,6 +186,10 @@ class CrossValidation {
   Eigen::VectorXd trainingRhs(int f, const std::vector<Eigen::Index>& a) const;
   Eigen::VectorXd solveRidged(int f, const std::vector<Eigen::Index>& columns,
                               Eigen::VectorXd* unit_variance = nullptr) const;
+  Eigen::VectorXd solveRidgedBounded(int f, const std::vector<Eigen::Index>& columns,
+                                     const Eigen::MatrixXd& C, const Eigen::VectorXd& d) const;
+  Correction globalCorrection(const std::vector<Eigen::Index>& columns,
+                              const Eigen::MatrixXd* C, const Eigen::VectorXd* d) const;
   double heldOutSse(int f, const std::vector<Eigen::Index>& columns, const Eigen::VectorXd& x) const;
 
   const FoldGrams& grams_;

@@ -53,6 +53,71 @@ Eigen::VectorXd stepBounds(const PhysicalModel& model, const std::vector<Paramet
   return lower;
 }
 
+// The mechanisms whose kind bounds combinations of their parameters (KindFit::bounds: a lumped
+// self weight's masses and first moments) and that have free parameters in params.
+std::vector<size_t> combinationBounded(const PhysicalModel& model,
+                                       const std::vector<Parameter>& params) {
+  std::vector<size_t> out;
+  for (const Parameter& p : params) {
+    if (p.mechanism < 0) continue;
+    const size_t k = static_cast<size_t>(p.mechanism);
+    const KindFit* fit = findKindFit(model.mechanisms[k].kind);
+    if (fit == nullptr || fit->bounds == nullptr) continue;
+    if (std::find(out.begin(), out.end(), k) == out.end()) out.push_back(k);
+  }
+  return out;
+}
+
+// A step of the geometry and params under the physics' bounds: each bounded parameter's own
+// (stepBounds) by solveReducedBounded; with bounds on combinations too (combinationBounded), all
+// of them as rows C δ ≥ d (d = −the bound's value now ≤ 0, the model being feasible) by
+// solveReducedConstrained, the exact constrained step. at_bound: per variable, whether its own
+// bound ends held.
+Eigen::VectorXd boundedStep(const TallQr& system, const PhysicalModel& model,
+                            const std::vector<Parameter>& params, std::vector<bool>* at_bound) {
+  const Eigen::VectorXd lower = stepBounds(model, params);
+  const std::vector<size_t> combined = combinationBounded(model, params);
+  if (combined.empty()) return solveReducedBounded(system, kRankTolerance, lower, at_bound);
+  const Eigen::Index geometry = 6 * (model.chain_Tracker.dof() + 1), p = lower.size();
+  std::vector<Eigen::VectorXd> rows;
+  std::vector<double> floors;
+  std::vector<Eigen::Index> own;  // the variable of each of the first rows
+  for (Eigen::Index c = 0; c < p; ++c) {
+    if (!std::isfinite(lower(c))) continue;
+    rows.push_back(Eigen::VectorXd::Unit(p, c));
+    floors.push_back(lower(c));
+    own.push_back(c);
+  }
+  for (size_t k : combined) {
+    const Mechanism& m = model.mechanisms[k];
+    for (const PhysicalBound& b : findKindFit(m.kind)->bounds(m, model.chain_Tracker)) {
+      Eigen::VectorXd row = Eigen::VectorXd::Zero(p);
+      for (const auto& [index, coefficient] : b.terms) {
+        for (size_t c = 0; c < params.size(); ++c) {
+          if (params[c].mechanism == static_cast<int>(k) && params[c].index == index) {
+            row(geometry + static_cast<Eigen::Index>(c)) += coefficient;
+          }
+        }
+      }
+      rows.push_back(std::move(row));
+      floors.push_back(std::min(0.0, -b.value(m)));
+    }
+  }
+  Eigen::MatrixXd C(static_cast<Eigen::Index>(rows.size()), p);
+  Eigen::VectorXd d(static_cast<Eigen::Index>(rows.size()));
+  for (size_t r = 0; r < rows.size(); ++r) {
+    C.row(static_cast<Eigen::Index>(r)) = rows[r].transpose();
+    d(static_cast<Eigen::Index>(r)) = floors[r];
+  }
+  std::vector<bool> active;
+  const Eigen::VectorXd x = solveReducedConstrained(system, kRankTolerance, C, d, &active);
+  if (at_bound) {
+    at_bound->assign(static_cast<size_t>(p), false);
+    for (size_t r = 0; r < own.size(); ++r) (*at_bound)[static_cast<size_t>(own[r])] = active[r];
+  }
+  return x;
+}
+
 double priorCost(const DiagnosisModel& model, const PhysicalModel& global) {
   if (model.masses_from_urdf) return 0.0;
   double cost = 0.0;
@@ -206,13 +271,18 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
   for (const Parameter& p : parametersNow()) {
     if (boundedAtZero(global, p) && valueOf(global, p) < 0.0) shift(global, p, -valueOf(global, p));
   }
+  // And one breaking a bound on a combination (a lumped mass too small for its first moment) is
+  // moved onto it: every bounded step starts feasible.
+  for (size_t k : combinationBounded(global, parametersNow())) {
+    makeFeasible(global.mechanisms[k], global.chain_Tracker);
+  }
   GlobalFit out;
   out.r = residuals(global, fit);
   out.cost = out.r.squaredNorm() + priorCost(model, global);
   for (int it = 0; it < iterations; ++it) {
     const std::vector<Parameter> params = parametersNow();
-    const Eigen::VectorXd step = solveReducedBounded(linearSystem(model, global, fit, out.r, params),
-                                                     kRankTolerance, stepBounds(global, params));
+    const Eigen::VectorXd step =
+        boundedStep(linearSystem(model, global, fit, out.r, params), global, params, nullptr);
     bool improved = false;
     for (double fraction = 1.0; fraction > 1e-3; fraction *= 0.5) {
       PhysicalModel candidate;
@@ -240,7 +310,7 @@ GlobalFit refitGlobal(DiagnosisModel& model, const FitRows& fit, int iterations,
     const TallQr system = linearSystem(model, global, fit, out.r, params);
     const SvdSolution s = solveReduced(system, kRankTolerance);
     std::vector<bool> at_bound;
-    solveReducedBounded(system, kRankTolerance, stepBounds(global, params), &at_bound);
+    boundedStep(system, global, params, &at_bound);
     const int geometry = 6 * (global.chain_Tracker.dof() + 1);
     for (size_t c = 0; c < params.size(); ++c) {
       const Eigen::Index col = geometry + static_cast<Eigen::Index>(c);

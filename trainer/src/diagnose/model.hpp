@@ -11,7 +11,9 @@
 // the geometry goes with it: a row outside every profile sees exactly the global model.
 #pragma once
 
+#include <functional>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -75,6 +77,29 @@ bool isShape(const PhysicalModel& model, const Parameter& p);
 /// The parameters of a mechanism whose physics needs them ≥ 0: a lost motion, an extra
 /// compliance (backlash, nonlinear_stiffness, each of a torsion_curve's).
 std::vector<int> signConstrained(const Mechanism& m);
+
+/// One linear bound the physics puts on a mechanism's parameters, Σ coefficient · p[index] ≥ 0:
+/// a size (lost motion, extra compliance) ≥ 0; a lumped link mass ≥ 0 and its centre of mass
+/// within the link's reach (|h_a| ≤ m L per axis of the link's frame).
+struct PhysicalBound {
+  std::vector<std::pair<int, double>> terms;
+  double tolerance = 0.0;  ///< how far below zero is rounding, not physics, in its units
+  /// What m says when it breaks the bound, e.g. "link 3 mass −115 kg".
+  std::function<std::string(const Mechanism& m)> broken;
+  double value(const Mechanism& m) const;
+};
+
+/// Every bound of m's physics: its kind's (KindFit::bounds; a link's reach from the chain's
+/// initial poses), else each sign-constrained parameter ≥ 0.
+std::vector<PhysicalBound> physicalBounds(const Mechanism& m, const KinematicChain& chain);
+
+/// What makes m physically impossible under bounds (the bound it breaks furthest, in units of
+/// its tolerance), "" when it breaks none.
+std::string brokenBound(const Mechanism& m, const std::vector<PhysicalBound>& bounds);
+
+/// m moved onto its bounds where it breaks them (KindFit::make_feasible; else each
+/// sign-constrained parameter below zero set to zero): a bounded step starts from a feasible point.
+void makeFeasible(Mechanism& m, const KinematicChain& chain);
 
 /// A torsion_curve in its simplest kind: lost motion alone is a backlash; other mechanisms as
 /// they are.

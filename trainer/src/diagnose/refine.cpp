@@ -197,7 +197,11 @@ void finalFit(Search& search) {
       signs_hold = signs_hold && (!dm.compliance_free[static_cast<size_t>(j)] ||
                                   dm.global.compliance_rad_per_nm(j) >= 0.0);
     }
-    for (const Mechanism& m : dm.global.mechanisms) signs_hold = signs_hold && !wrongSign(m);
+    for (const Mechanism& m : dm.global.mechanisms) {
+      const bool lumped = m.kind != MechanismKind::kSelfWeight || !dm.masses_from_urdf;
+      signs_hold = signs_hold && !wrongSign(m) &&
+                   (!lumped || brokenBound(m, physicalBounds(m, dm.global.chain_Tracker)).empty());
+    }
     if (!signs_hold) {
       refitPhysical(dm, fit, options, base_globals, search.compliance_sigma, d, true);
     }

@@ -97,9 +97,12 @@ void searchRounds(Search& search) {
     for (Family& family : sc.families) pruneNegativeCompliance(family, cv, sc.stage1.size(), dm);
     int tried = 0;  // configurations, for the family-wise level
     for (const Family& family : sc.families) tried += configurations(family, options);
+    const auto passes = [&](double p_value, double relative_reduction) {
+      return p_value < options.family_alpha / std::max(1, tried) &&
+             relative_reduction >= options.min_relative_reduction;
+    };
     const auto isSignificant = [&](const CandidateScore& s) {
-      return s.physical && s.p_value < options.family_alpha / std::max(1, tried) &&
-             s.relative_reduction >= options.min_relative_reduction;
+      return s.physical && passes(s.p_value, s.relative_reduction);
     };
     std::vector<Scored> scored =
         scoreFamilies(sc.families, cv, sc.stage1.size(), *grams, options, fit, isSignificant);
@@ -107,6 +110,9 @@ void searchRounds(Search& search) {
     for (Scored& s : scored) {
       s.score.round = round;
       s.score.significant = isSignificant(s.score);
+      s.score.unbounded_significant =
+          !s.score.impossible_unbounded.empty() &&
+          passes(s.score.unbounded_p_value, s.score.unbounded_relative_reduction);
     }
     // A time-order family is named only where the rows tell it from what moves with its driver.
     testConfounds(scored, cv, isSignificant, round, d.drift.confound_tests);

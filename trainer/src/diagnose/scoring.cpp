@@ -3,6 +3,7 @@
 #include "scoring.hpp"
 
 #include <algorithm>
+#include <string>
 
 #include "parallel.hpp"
 #include "profiles.hpp"
@@ -17,6 +18,62 @@ void storeCoefficients(const Family& family, const CrossValidation::Correction& 
   for (size_t k = 0; k < family.free.size(); ++k) {
     m.parameter(family.free[k]) = x(static_cast<Eigen::Index>(offset + k));
   }
+}
+
+// The family's bounds on its candidate columns' values (a bounded parameter's value is its
+// column's x, as storeCoefficients reads it), C x ≥ d, over its columns (free, then compliance);
+// a bound on no free parameter is left out.
+void candidateBounds(const Family& family, Eigen::MatrixXd& C, Eigen::VectorXd& d) {
+  std::vector<Eigen::VectorXd> rows;
+  std::vector<double> floors;
+  for (const PhysicalBound& b : family.bounds) {
+    Eigen::VectorXd row = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(family.columns.size()));
+    double floor = 0.0;
+    bool touches = false;
+    for (const auto& [index, coefficient] : b.terms) {
+      const auto at = std::find(family.free.begin(), family.free.end(), index);
+      if (at == family.free.end()) {
+        floor -= coefficient * family.mechanism.parameter(index);
+      } else {
+        row(at - family.free.begin()) += coefficient;
+        touches = true;
+      }
+    }
+    if (touches && floor <= 0.0) {
+      rows.push_back(std::move(row));
+      floors.push_back(floor);
+    }
+  }
+  C.resize(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(family.columns.size()));
+  d.resize(static_cast<Eigen::Index>(rows.size()));
+  for (size_t r = 0; r < rows.size(); ++r) {
+    C.row(static_cast<Eigen::Index>(r)) = rows[r].transpose();
+    d(static_cast<Eigen::Index>(r)) = floors[r];
+  }
+}
+
+// A global family's correction: fitted freely, and when that fit is physically impossible
+// (brokenBound) fitted again within the bounds (the unbounded one kept for the report).
+struct GlobalCorrections {
+  CrossValidation::Correction fitted;     // within the bounds where they were needed
+  CrossValidation::Correction unbounded;  // only where they were
+  std::string impossible;                 // what the unbounded fit broke, "" none
+};
+
+GlobalCorrections globalCorrections(const Family& family, const CrossValidation& cv,
+                                    size_t stage1_size) {
+  GlobalCorrections g;
+  g.fitted = cv.withGlobal(family.columns);
+  Mechanism m = family.mechanism;
+  storeCoefficients(family, g.fitted, stage1_size, m);
+  g.impossible = brokenBound(m, family.bounds);
+  if (g.impossible.empty()) return g;
+  Eigen::MatrixXd C;
+  Eigen::VectorXd d;
+  candidateBounds(family, C, d);
+  g.unbounded = std::move(g.fitted);
+  g.fitted = cv.withGlobal(family.columns, C, d);
+  return g;
 }
 
 }  // namespace
@@ -194,10 +251,7 @@ Scored finishGlobal(const Family& family, const CrossValidation::Correction& c,
   s.score.relative_reduction = cmp.relative_reduction;
   s.score.z_statistic = cmp.z;
   s.score.p_value = cmp.p;
-  s.score.physical = !family.negative_compliance;
-  for (int i : signConstrained(s.score.mechanism)) {
-    s.score.physical = s.score.physical && s.score.mechanism.parameter(i) >= 0.0;
-  }
+  s.score.physical = !family.negative_compliance && brokenBound(s.score.mechanism, family.bounds).empty();
   s.spent = static_cast<int>(family.free.size() + family.compliance.size()) + family.chosen;
   return s;
 }
@@ -210,11 +264,11 @@ std::vector<Scored> scoreFamilies(const std::vector<Family>& families, const Cro
                                   const std::function<bool(const CandidateScore&)>& keep) {
   const size_t count = families.size();
   // Every configuration fitted from the Grams (on the cores).
-  std::vector<CrossValidation::Correction> global(count);
+  std::vector<GlobalCorrections> global(count);
   std::vector<ProfileScoring> profile(count);
   parallelFor(count, [&](size_t k) {
     if (families[k].stage == Stage::kGlobal) {
-      global[k] = cv.withGlobal(families[k].columns);
+      global[k] = globalCorrections(families[k], cv, stage1_size);
     } else {
       profile[k] = profileGrid(families[k], cv, grams, options);
     }
@@ -225,7 +279,8 @@ std::vector<Scored> scoreFamilies(const std::vector<Family>& families, const Cro
   groups[0] = {&cv.base()};
   for (size_t k = 0; k < count; ++k) {
     if (families[k].stage == Stage::kGlobal) {
-      groups[k + 1] = {&global[k]};
+      groups[k + 1] = {&global[k].fitted};
+      if (!global[k].impossible.empty()) groups[k + 1].push_back(&global[k].unbounded);
       continue;
     }
     for (size_t o = 0; o <= profile[k].top; ++o) groups[k + 1].push_back(&profile[k].bestOf(o).correction);
@@ -244,8 +299,16 @@ std::vector<Scored> scoreFamilies(const std::vector<Family>& families, const Cro
       if (first + i == 0) return;
       const size_t k = first + i - 1;
       if (families[k].stage == Stage::kGlobal) {
-        scored[k] = finishGlobal(families[k], global[k], std::move(outcomes[i].front()), base,
-                                 stage1_size);
+        scored[k] = finishGlobal(families[k], global[k].fitted, std::move(outcomes[i].front()),
+                                 base, stage1_size);
+        if (!global[k].impossible.empty()) {
+          const Comparison unbounded = compare(base, outcomes[i].back());
+          scored[k].score.impossible_unbounded = global[k].impossible;
+          scored[k].score.unbounded_cv_gain_mm = unbounded.gain_mm;
+          scored[k].score.unbounded_relative_reduction = unbounded.relative_reduction;
+          scored[k].score.unbounded_z_statistic = unbounded.z;
+          scored[k].score.unbounded_p_value = unbounded.p;
+        }
         kept(scored[k]);
         return;
       }

@@ -78,9 +78,19 @@ struct CandidateScore {
   /// configuration added, the simplest one not significantly worse)
   double z_statistic = 0.0;
   double p_value = 1.0;      ///< one-sided, normal approximation
-  /// Its fitted parameters have the sign its physics needs (lost motion, extra compliance ≥ 0);
-  /// a candidate that explains the residual only with the wrong sign is not that mechanism.
+  /// Its fitted parameters are physically possible (lost motion, extra compliance ≥ 0, a lumped
+  /// link mass ≥ 0 with its centre of mass within the link's reach: they are fitted within those
+  /// bounds), and freeing its joints' compliance does not make them all negative.
   bool physical = true;
+  /// When its fit without the physics' bounds was physically impossible: what made it so (e.g.
+  /// "link 3 mass -115 kg"), and that fit's held-out outcome; the score above is then the fit's
+  /// within the bounds: a candidate that explains the residual only beyond them stands for
+  /// something else. Empty: the fit needed no bound.
+  std::string impossible_unbounded;
+  double unbounded_cv_gain_mm = 0.0, unbounded_relative_reduction = 0.0;
+  double unbounded_z_statistic = 0.0, unbounded_p_value = 1.0;
+  /// The unbounded fit passes the round's test (as `significant`, but for being possible).
+  bool unbounded_significant = false;
   bool significant = false;  ///< physical, p < family_alpha / (configurations in the round), enough removed
   bool chosen = false;
 };

@@ -53,6 +53,7 @@ void FamilyContext::addGlobal(Family family, std::vector<Eigen::Index> columns,
   family.columns = std::move(columns);
   family.steps = std::move(steps);
   family.untestable_before = s.untestable.size();
+  family.bounds = physicalBounds(family.mechanism, global.chain_Tracker);
   s.families.push_back(std::move(family));
 }
 

@@ -75,6 +75,10 @@ struct KindFit {
   /// direction): one the global refit holds at zero is that direction's size, zero, and the
   /// cause is dropped only when all are held. Else a part held at zero drops the cause.
   bool parts_independent = false;
+  /// The physics' linear bounds beyond the sign-constrained parameters ≥ 0 (model.hpp
+  /// PhysicalBound), and how a point breaking them is moved onto them; null: none.
+  std::vector<PhysicalBound> (*bounds)(const Mechanism& m, const KinematicChain& chain) = nullptr;
+  void (*make_feasible)(Mechanism& m, const KinematicChain& chain) = nullptr;
 };
 /// A kind's fit; null: the defaults.
 const KindFit* findKindFit(MechanismKind kind);

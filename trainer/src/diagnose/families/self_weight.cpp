@@ -2,6 +2,10 @@
 // every joint their gravity loads enough is identified from the arm's own weight alone (no
 // payload needed); without them, the lumped masses act through a compliance the loads
 // identified.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
 #include "families.hpp"
 #include "stepcal/common/mechanisms/self_weight.hpp"
 
@@ -49,6 +53,82 @@ void lumpedMasses(const FamilyContext& c) {
               1.0 / (kSelfWeightPriorSigma * kSelfWeightPriorSigma));
 }
 
+using Links = mechanism::SelfWeight<double>;
+
+// Link k's reach, m: a box around its joint's origin (frame k) as wide as the way to the next
+// joint's origin (to the tip for the last link) plus a quarter of the arm's longest link (the
+// housings around the axes). Its centre of mass lies in it: |h_a| ≤ m L on each axis.
+std::vector<double> linkReaches(const KinematicChain& chain) {
+  const int n = chain.dof();
+  double longest = 0.0;
+  for (int k = 1; k <= n; ++k) longest = std::max(longest, chain.initialPose(k).translation().norm());
+  std::vector<double> reach;
+  for (int k = 1; k <= n; ++k) {
+    reach.push_back(chain.initialPose(k).translation().norm() + 0.25 * longest);
+  }
+  return reach;
+}
+
+// Per link its mass ≥ 0, then per link and axis m L ∓ h_a ≥ 0 (a gram, a gram-metre of rounding).
+std::vector<PhysicalBound> linkBounds(const Mechanism& m, const KinematicChain& chain) {
+  std::vector<PhysicalBound> bounds;
+  const std::vector<double> reach = linkReaches(chain);
+  const int n = static_cast<int>(m.parameters.size()) / Links::kPerLink;
+  for (int k = 1; k <= n; ++k) {
+    const int mass = Links::massIndex(k);
+    PhysicalBound b;
+    b.terms = {{mass, 1.0}};
+    b.tolerance = 1e-3;
+    b.broken = [k, mass](const Mechanism& x) {
+      char text[80];
+      std::snprintf(text, sizeof text, "link %d mass %.3g kg", k, x.parameter(mass));
+      return std::string(text);
+    };
+    bounds.push_back(std::move(b));
+  }
+  for (int k = 1; k <= n; ++k) {
+    const int mass = Links::massIndex(k);
+    const double L = reach[static_cast<size_t>(k - 1)];
+    for (int axis = 0; axis < 3; ++axis) {
+      for (const double sign : {1.0, -1.0}) {
+        PhysicalBound b;
+        b.terms = {{mass, L}, {mass + 1 + axis, -sign}};
+        b.tolerance = 1e-3;
+        b.broken = [k, mass, axis, L](const Mechanism& x) {
+          char text[160];
+          if (x.parameter(mass) <= 0.0) {  // no centre of mass: the mass is what breaks
+            std::snprintf(text, sizeof text, "link %d mass %.3g kg with a first moment of %.3g kg·m",
+                          k, x.parameter(mass), x.parameter(mass + 1 + axis));
+            return std::string(text);
+          }
+          std::snprintf(text, sizeof text,
+                        "link %d centre of mass %.3g m along %c of its frame (%.3g kg·m over "
+                        "%.3g kg), beyond its reach %.2g m",
+                        k, x.parameter(mass + 1 + axis) / x.parameter(mass),
+                        "xyz"[axis], x.parameter(mass + 1 + axis), x.parameter(mass), L);
+          return std::string(text);
+        };
+        bounds.push_back(std::move(b));
+      }
+    }
+  }
+  return bounds;
+}
+
+// Each link's mass at least zero and at least what its first moment needs within its reach.
+void linksFeasible(Mechanism& m, const KinematicChain& chain) {
+  const std::vector<double> reach = linkReaches(chain);
+  const int n = static_cast<int>(m.parameters.size()) / Links::kPerLink;
+  for (int k = 1; k <= n; ++k) {
+    double& mass = m.parameter(Links::massIndex(k));
+    mass = std::max(mass, 0.0);
+    for (int axis = 0; axis < 3; ++axis) {
+      mass = std::max(mass, std::abs(m.parameter(Links::massIndex(k) + 1 + axis)) /
+                                reach[static_cast<size_t>(k - 1)]);
+    }
+  }
+}
+
 }  // namespace
 
 void selfWeightFamilies(const FamilyContext& c) {
@@ -75,6 +155,8 @@ const KindFit& selfWeightFit() {
     f.typical_step = [](const Mechanism&, int index) {  // kg; kg·m
       return index % mechanism::SelfWeight<double>::kPerLink == 0 ? 1.0 : 0.5;
     };
+    f.bounds = linkBounds;
+    f.make_feasible = linksFeasible;
     return f;
   }();
   return fit;

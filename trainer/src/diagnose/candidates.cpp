@@ -68,9 +68,7 @@ void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, s
   for (size_t j = 0; j < recipe.scaled.size(); ++j) {
     Eigen::Index width = 0;
     for (const ScaledSource& source : recipe.scaled[j]) {
-      width = std::max(width, source.first + (source.kind == ScaledSource::Kind::kProfile
-                                                  ? 2 * source.order
-                                                  : 1));
+      width = std::max(width, source.first + (source.isProfile() ? 2 * source.order : 1));
     }
     Eigen::MatrixXd& out = chunk.scaled[j];
     out.resize(rows, width);
@@ -101,6 +99,13 @@ void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, s
             profileFeatures(source.coverage, source.order, fit.rows[i]->q_rad(joint), harmonics.data());
             if (source.campaign > 0 && fit.rows[i]->session != source.campaign) harmonics.setZero();
             out.row(r).segment(source.first, 2 * source.order) = harmonics.transpose();
+            break;
+          case ScaledSource::Kind::kProfileTorque:
+            harmonics.resize(2 * source.order);
+            profileFeatures(source.coverage, source.order, fit.rows[i]->q_rad(joint), harmonics.data());
+            out.row(r).segment(source.first, 2 * source.order) =
+                harmonics.transpose() *
+                (e.tau_nm[static_cast<size_t>(r)](joint) / source.torque_scale_nm);
             break;
         }
       }

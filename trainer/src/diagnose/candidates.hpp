@@ -43,6 +43,11 @@ struct Family {
   /// A profile's difference in this later campaign (its columns zero on the other campaigns'
   /// rows), tested for the report and never added; 0: a family of the robot.
   int campaign = 0;
+  /// A profile of the robot: the same profile's columns times the joint's torque (the
+  /// screening's kProfileTorque), what profile_load_check.cpp tells it apart from; empty where
+  /// the joint carries no torque.
+  std::vector<Eigen::Index> torque_modulated;
+  double torque_std_nm = 0.0;
 };
 
 /// One round's screening matrix: the current model's columns and every family's.

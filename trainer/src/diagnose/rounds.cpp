@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "model_fits.hpp"
+#include "profile_load_check.hpp"
 #include "scoring.hpp"
 #include "search.hpp"
 
@@ -110,6 +111,7 @@ void searchRounds(Search& search) {
       s.significant = isSignificant(s);
       if (s.significant) significant.push_back(k);
     }
+    setAsideLoadModulatedProfiles(scored, significant, cv, dm, options, round, d);
     d.seconds_screening += secondsSince(clock);
     if (significant.empty()) {
       for (Scored& s : scored) d.candidates.push_back(std::move(s.score));

@@ -1,10 +1,38 @@
 // transmission_error: a joint's transmission profile (families.hpp), screened at the highest
 // order (lower orders are its leading columns).
+#include <cmath>
+
 #include "../profiles.hpp"
 #include "families.hpp"
 #include "stepcal/common/units.hpp"
 
 namespace stepcal::trainer::diagnosis {
+
+namespace {
+
+// A joint whose torque over the fit rows has an RMS below this carries none: its profile has no
+// torque-modulated twin to be told apart from.
+constexpr double kNoTorqueNm = 1e-6;
+
+// The profile's columns times the joint's torque (scaled by its RMS over the fit rows, so that
+// the profile's ridge serves them too): a stiffness varying with the angle, the profile's
+// competitor (profile_load_check.cpp).
+void addTorqueModulated(const FamilyContext& c, Family& f) {
+  const int j = f.mechanism.joint;
+  std::vector<double> tau;
+  double squares = 0.0;
+  for (const JointVector& t : c.start.tau_nm) {
+    tau.push_back(t(j));
+    squares += t(j) * t(j);
+  }
+  const double rms = tau.empty() ? 0.0 : std::sqrt(squares / static_cast<double>(tau.size()));
+  if (rms < kNoTorqueNm) return;
+  f.torque_std_nm = stdOf(tau);
+  f.torque_modulated =
+      c.sink.torqueModulatedProfile(j, f.mechanism.coverage, f.mechanism.order, rms);
+}
+
+}  // namespace
 
 void transmissionErrorFamilies(const FamilyContext& c) {
   // Each current profile's difference in one later campaign: whether one profile serves them.
@@ -33,6 +61,7 @@ void transmissionErrorFamilies(const FamilyContext& c) {
     f.mechanism.coverage = coverageOfAngles(angles, c.options.coverage_gap_deg * kRadPerDeg,
                                             c.options.coverage_fade_deg * kRadPerDeg);
     f.columns = c.sink.profile(j, f.mechanism.coverage, c.max_order);
+    addTorqueModulated(c, f);
     c.s.families.push_back(std::move(f));
   }
 }

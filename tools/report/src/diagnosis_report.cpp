@@ -367,9 +367,10 @@ nlohmann::json frameJson(const Mechanism& m, size_t first) {
 
 std::string loadModulatedProfileText(const trainer::LoadModulatedProfile& f) {
   const std::string both = format(
-      "the same harmonics times joint %d's torque (std %.0f N·m over the fit rows) remove %.1f %% "
-      "of the held-out error beside the profile (z %.1f), the profile %.1f %% beside them (z %.1f)",
-      f.joint + 1, f.torque_std_nm, 100.0 * f.modulated_reduction, f.modulated_z,
+      "the profile's harmonics up to %d times joint %d's torque (std %.0f N·m over the fit rows) "
+      "remove %.1f %% of the held-out error beside the profile of order %d (z %.1f), the profile "
+      "%.1f %% beside them (z %.1f)",
+      f.modulated_order, f.joint + 1, f.torque_std_nm, 100.0 * f.modulated_reduction, f.order, f.modulated_z,
       100.0 * f.profile_reduction, f.profile_z);
   if (f.profile_named) {
     return format("transmission_error (joint %d) named, and a part that follows its angle in "
@@ -584,6 +585,7 @@ nlohmann::json campaignJson(const trainer::DiagnosedCampaign& c) {
 nlohmann::json loadModulatedProfileJson(const trainer::LoadModulatedProfile& f) {
   return {{"joint", f.joint + 1},
           {"order", f.order},
+          {"modulated_order", f.modulated_order},
           {"round", f.round},
           {"profile_named", f.profile_named},
           {"torque_std_nm", f.torque_std_nm},

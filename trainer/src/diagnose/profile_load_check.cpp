@@ -21,26 +21,47 @@ Addition addition(const CrossValidation::Outcome& base, const CrossValidation::O
   return a;
 }
 
-// The profile's leading 2·order columns and as many modulated ones, fitted in the profiles'
-// stage with the profile's ridge: the modulated block beside the profile, the profile beside it.
-std::pair<Addition, Addition> additions(const Family& family, int order, double lambda,
-                                        const CrossValidation& cv) {
-  const auto head = [order](const std::vector<Eigen::Index>& columns) {
-    return std::vector<Eigen::Index>(columns.begin(), columns.begin() + 2 * order);
-  };
-  const std::vector<Eigen::Index> profile = head(family.columns);
-  const std::vector<Eigen::Index> modulated = head(family.torque_modulated);
-  std::vector<Eigen::Index> profile_first = profile, modulated_first = modulated;
-  profile_first.insert(profile_first.end(), modulated.begin(), modulated.end());
-  modulated_first.insert(modulated_first.end(), profile.begin(), profile.end());
-  const CrossValidation::ProfileCandidate pm = cv.prepareProfile(profile_first);
-  const CrossValidation::ProfileCandidate mp = cv.prepareProfile(modulated_first);
-  const CrossValidation::Correction profile_alone = cv.withProfile(pm, 2 * order, lambda);
-  const CrossValidation::Correction both = cv.withProfile(pm, 4 * order, lambda);
-  const CrossValidation::Correction modulated_alone = cv.withProfile(mp, 2 * order, lambda);
-  const std::vector<CrossValidation::Outcome> o =
-      cv.heldOut({&cv.base(), &profile_alone, &modulated_alone, &both});
-  return {addition(o[0], o[1], o[3]), addition(o[0], o[2], o[3])};
+std::vector<Eigen::Index> leading(const std::vector<Eigen::Index>& columns, int order) {
+  return std::vector<Eigen::Index>(columns.begin(), columns.begin() + 2 * order);
+}
+
+// The profile at its order and the modulated columns at every order tried (their own, as a
+// profile's: a stiffness varying at harmonic 6 is not held by a profile of order 4), fitted in
+// the profiles' stage with the profile's ridge; at the modulated order whose fit alone is best
+// held out, the modulated block beside the profile and the profile beside it.
+struct Additions {
+  Addition modulated, profile;  // each beside the other
+  int modulated_order = 0;
+};
+
+Additions additions(const Family& family, int order, double lambda,
+                                        const CrossValidation& cv, const DiagnoseOptions& options) {
+  const std::vector<Eigen::Index> profile = leading(family.columns, order);
+  const CrossValidation::Correction profile_alone =
+      cv.withProfile(cv.prepareProfile(profile), 2 * order, lambda);
+  std::vector<CrossValidation::Correction> alone, both;  // per modulated order
+  std::vector<int> orders;
+  for (int m : options.profile_orders) {
+    if (2 * m > static_cast<int>(family.torque_modulated.size())) continue;
+    orders.push_back(m);
+    std::vector<Eigen::Index> columns = leading(family.torque_modulated, m);
+    columns.insert(columns.end(), profile.begin(), profile.end());
+    const CrossValidation::ProfileCandidate prepared = cv.prepareProfile(columns);
+    alone.push_back(cv.withProfile(prepared, 2 * m, lambda));
+    both.push_back(cv.withProfile(prepared, 2 * m + 2 * order, lambda));
+  }
+  std::vector<const CrossValidation::Correction*> corrections = {&cv.base(), &profile_alone};
+  for (size_t i = 0; i < alone.size(); ++i) {
+    corrections.push_back(&alone[i]);
+    corrections.push_back(&both[i]);
+  }
+  const std::vector<CrossValidation::Outcome> o = cv.heldOut(corrections);
+  size_t best = 2;
+  for (size_t i = 4; i < o.size(); i += 2) {
+    if (o[i].total() < o[best].total()) best = i;
+  }
+  return {addition(o[0], o[1], o[best + 1]), addition(o[0], o[best], o[best + 1]),
+          orders[(best - 2) / 2]};
 }
 
 }  // namespace
@@ -73,7 +94,9 @@ void setAsideLoadModulatedProfiles(const std::vector<Scored>& scored,
     }
     const int joint = family.mechanism.joint;
     const int order = scored[k].score.mechanism.order;
-    const auto [modulated, profile] = additions(family, order, scored[k].lambda, cv);
+    const Additions a = additions(family, order, scored[k].lambda, cv, options);
+    const Addition& modulated = a.modulated;
+    const Addition& profile = a.profile;
     found.erase(std::remove_if(found.begin(), found.end(),
                                [joint](const LoadModulatedProfile& f) { return f.joint == joint; }),
                 found.end());
@@ -85,6 +108,7 @@ void setAsideLoadModulatedProfiles(const std::vector<Scored>& scored,
     LoadModulatedProfile f;
     f.joint = joint;
     f.order = order;
+    f.modulated_order = a.modulated_order;
     f.round = round;
     f.profile_named = profile_adds;
     f.torque_std_nm = family.torque_std_nm;

@@ -15,7 +15,8 @@ namespace stepcal::trainer::diagnosis {
 
 /// Before a round chooses among its significant families: each significant profile of the robot
 /// that has torque-modulated columns (Family::torque_modulated) is fitted alone, beside them, and
-/// they alone, at its order and ridge, on held-out poses. When they explain significantly more
+/// they alone, on held-out poses, with its ridge: it at its order, they at the order of
+/// DiagnoseOptions::profile_orders that fits best alone. When they explain significantly more
 /// beside it and it adds nothing significant beside them, it leaves `significant` (the rows say
 /// its error follows the angle in proportion to the torque); when both add, it stays, with the
 /// modulated part reported as left; when neither adds beside the other, it stays unremarked.

@@ -234,13 +234,15 @@ struct DiagnosedCampaign {
 
 /// A joint's transmission profile tried against the same profile modulated by the joint's
 /// torque (each harmonic times the row's τ_j: a stiffness that varies with the angle, which the
-/// catalogue does not hold), both held out at the profile's order and ridge. The profile is not
+/// catalogue does not hold), held out with the profile's ridge: the profile at its order, the
+/// modulated columns at the order that fits best alone. The profile is not
 /// named when the modulated columns explain significantly more beside it and it adds nothing
 /// significant beside them; named, with the modulated part left, when both add. Rows that cannot
 /// tell them apart (neither adds beside the other) leave no entry.
 struct LoadModulatedProfile {
   int joint = 0;  ///< 0-based
-  int order = 0;
+  int order = 0;            ///< the profile's
+  int modulated_order = 0;  ///< the modulated columns', the best of the orders tried held out
   int round = 1;
   bool profile_named = false;
   double torque_std_nm = 0.0;  ///< the joint's torque over the fit rows

@@ -32,7 +32,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& diagnosis, double seconds_
 /// relative_reduction, z_statistic, p_value, significant, rms_difference_urad}]}], `gain` → [{load_kg, rows, before_mean_position_mm,
 /// after_mean_position_mm, gpr_mean_position_mm, …}], `timing_s`. Where a joint's profile was
 /// told apart from the same profile times the joint's torque: `load_modulated_profiles` →
-/// [{joint, order, round, profile_named, torque_std_nm, modulated: {cv_gain_mm,
+/// [{joint, order, modulated_order, round, profile_named, torque_std_nm, modulated: {cv_gain_mm,
 /// relative_reduction, z_statistic, p_value}, profile: {…}, text}] (absent when there is none).
 nlohmann::json diagnosisJson(const trainer::Diagnosis& diagnosis, double seconds_calibrate);
 

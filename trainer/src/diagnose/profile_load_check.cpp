@@ -41,14 +41,22 @@ Additions additions(const Family& family, int order, double lambda,
       cv.withProfile(cv.prepareProfile(profile), 2 * order, lambda);
   std::vector<CrossValidation::Correction> alone, both;  // per modulated order
   std::vector<int> orders;
+  const size_t width = std::max(family.torque_modulated.size(), family.weight_modulated.size());
   for (int m : options.profile_orders) {
-    if (2 * m > static_cast<int>(family.torque_modulated.size())) continue;
+    if (2 * m > static_cast<int>(width)) continue;
     orders.push_back(m);
-    std::vector<Eigen::Index> columns = leading(family.torque_modulated, m);
+    std::vector<Eigen::Index> columns;
+    for (const std::vector<Eigen::Index>* block : {&family.torque_modulated, &family.weight_modulated}) {
+      if (!block->empty()) {
+        const std::vector<Eigen::Index> head = leading(*block, m);
+        columns.insert(columns.end(), head.begin(), head.end());
+      }
+    }
+    const int modulated_width = static_cast<int>(columns.size());
     columns.insert(columns.end(), profile.begin(), profile.end());
     const CrossValidation::ProfileCandidate prepared = cv.prepareProfile(columns);
-    alone.push_back(cv.withProfile(prepared, 2 * m, lambda));
-    both.push_back(cv.withProfile(prepared, 2 * m + 2 * order, lambda));
+    alone.push_back(cv.withProfile(prepared, modulated_width, lambda));
+    both.push_back(cv.withProfile(prepared, modulated_width + 2 * order, lambda));
   }
   std::vector<const CrossValidation::Correction*> corrections = {&cv.base(), &profile_alone};
   for (size_t i = 0; i < alone.size(); ++i) {
@@ -88,7 +96,7 @@ void setAsideLoadModulatedProfiles(const std::vector<Scored>& scored,
   for (size_t k : significant) {
     const Family& family = *scored[k].family;
     if (family.stage != Stage::kProfile || family.campaign != 0 ||
-        family.torque_modulated.empty()) {
+        (family.torque_modulated.empty() && family.weight_modulated.empty())) {
       kept.push_back(k);
       continue;
     }

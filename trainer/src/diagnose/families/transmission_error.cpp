@@ -2,6 +2,7 @@
 // order (lower orders are its leading columns).
 #include <cmath>
 
+#include "../candidates.hpp"
 #include "../profiles.hpp"
 #include "families.hpp"
 #include "stepcal/common/units.hpp"
@@ -14,22 +15,42 @@ namespace {
 // torque-modulated twin to be told apart from.
 constexpr double kNoTorqueNm = 1e-6;
 
+// RMS of a series; 0 for none.
+double rmsOf(const std::vector<double>& v) {
+  double squares = 0.0;
+  for (double x : v) squares += x * x;
+  return v.empty() ? 0.0 : std::sqrt(squares / static_cast<double>(v.size()));
+}
+
 // The profile's columns times the joint's torque (scaled by its RMS over the fit rows, so that
 // the profile's ridge serves them too): a stiffness varying with the angle, the profile's
-// competitor (profile_load_check.cpp).
+// competitor (profile_load_check.cpp). Where the model holds a self weight, the torque without
+// its weight and its weight apart.
 void addTorqueModulated(const FamilyContext& c, Family& f) {
   const int j = f.mechanism.joint;
-  std::vector<double> tau;
-  double squares = 0.0;
-  for (const JointVector& t : c.start.tau_nm) {
-    tau.push_back(t(j));
-    squares += t(j) * t(j);
+  std::vector<double> masses;
+  for (const Mechanism& m : c.global.mechanisms) {
+    if (m.kind == MechanismKind::kSelfWeight) masses = m.parameters;
   }
-  const double rms = tau.empty() ? 0.0 : std::sqrt(squares / static_cast<double>(tau.size()));
-  if (rms < kNoTorqueNm) return;
-  f.torque_std_nm = stdOf(tau);
-  f.torque_modulated =
-      c.sink.torqueModulatedProfile(j, f.mechanism.coverage, f.mechanism.order, rms);
+  std::vector<double> rest, weight;
+  for (size_t i = 0; i < c.start.tau_nm.size(); ++i) {
+    weight.push_back(modelWeightTorque(c.whole, masses, c.start.theta_rad[i], j));
+    rest.push_back(c.start.tau_nm[i](j) - weight.back());
+  }
+  std::vector<double> whole = rest;
+  for (size_t i = 0; i < whole.size(); ++i) whole[i] += weight[i];
+  if (rmsOf(whole) < kNoTorqueNm) return;
+  f.torque_std_nm = stdOf(whole);
+  const AngleCoverage& coverage = f.mechanism.coverage;
+  const int order = f.mechanism.order;
+  if (rmsOf(rest) >= kNoTorqueNm) {
+    f.torque_modulated =
+        c.sink.torqueModulatedProfile(j, coverage, order, rmsOf(rest), masses, false);
+  }
+  if (rmsOf(weight) >= kNoTorqueNm) {
+    f.weight_modulated =
+        c.sink.torqueModulatedProfile(j, coverage, order, rmsOf(weight), masses, true);
+  }
 }
 
 }  // namespace

@@ -454,6 +454,26 @@ nlohmann::json frameJson(const Mechanism& m, size_t first) {
 
 }  // namespace
 
+std::string loadModulatedProfileText(const trainer::LoadModulatedProfile& f) {
+  const std::string both = format(
+      "the profile's harmonics up to %d times joint %d's torque (std %.0f N·m over the fit rows) "
+      "remove %.1f %% of the held-out error beside the profile of order %d (z %.1f), the profile "
+      "%.1f %% beside them (z %.1f)",
+      f.modulated_order, f.joint + 1, f.torque_std_nm, 100.0 * f.modulated_reduction, f.order, f.modulated_z,
+      100.0 * f.profile_reduction, f.profile_z);
+  if (f.profile_named) {
+    return format("transmission_error (joint %d) named, and a part that follows its angle in "
+                  "proportion to its torque is left: ",
+                  f.joint + 1) +
+           both;
+  }
+  return format("no transmission_error named on joint %d: its error follows the angle in "
+                "proportion to the joint's torque, a stiffness that varies with the angle, which "
+                "the catalogue does not hold (left to the residual): ",
+                f.joint + 1) +
+         both + ", not significant";
+}
+
 std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrate) {
   std::string out = format(
       "diagnosis on %d fit rows (%d poses, %d-fold cross-validation over poses), %d validation "
@@ -497,6 +517,9 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
   }
   for (const std::string& line : impossibleLines(d)) out += "  not named: " + line + "\n";
   for (const std::string& line : identifiabilityLines(d)) out += "  identifiability: " + line + "\n";
+  for (const trainer::LoadModulatedProfile& f : d.load_modulated_profiles) {
+    out += "  profile or load: " + loadModulatedProfileText(f) + "\n";
+  }
   if (!d.drift.text.empty()) out += "  drift: " + d.drift.text + "\n";
   if (!d.unexplained_trend.empty()) {
     out += "  " + std::string(d.verdict == trainer::Verdict::kUnexplained
@@ -690,6 +713,26 @@ nlohmann::json campaignJson(const trainer::DiagnosedCampaign& c) {
   return x;
 }
 
+nlohmann::json loadModulatedProfileJson(const trainer::LoadModulatedProfile& f) {
+  return {{"joint", f.joint + 1},
+          {"order", f.order},
+          {"modulated_order", f.modulated_order},
+          {"round", f.round},
+          {"profile_named", f.profile_named},
+          {"torque_std_nm", f.torque_std_nm},
+          {"modulated",
+           {{"cv_gain_mm", f.modulated_gain_mm},
+            {"relative_reduction", f.modulated_reduction},
+            {"z_statistic", f.modulated_z},
+            {"p_value", f.modulated_p}}},
+          {"profile",
+           {{"cv_gain_mm", f.profile_gain_mm},
+            {"relative_reduction", f.profile_reduction},
+            {"z_statistic", f.profile_z},
+            {"p_value", f.profile_p}}},
+          {"text", loadModulatedProfileText(f)}};
+}
+
 /// A validation load's row of the gain table; null where a model has no rows there.
 nlohmann::json gainRowJson(const trainer::GainRow& g) {
   auto optional_mm = [](const trainer::AccuracySummary& s, double v) {
@@ -731,6 +774,12 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
                        {"taken", d.extended_gpr_taken}};
   j["unexplained_trend"] =
       d.unexplained_trend.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.unexplained_trend);
+  if (!d.load_modulated_profiles.empty()) {
+    j["load_modulated_profiles"] = nlohmann::json::array();
+    for (const trainer::LoadModulatedProfile& f : d.load_modulated_profiles) {
+      j["load_modulated_profiles"].push_back(loadModulatedProfileJson(f));
+    }
+  }
   j["drift"] = driftJson(d.drift);
   j["unexplained"] = unexplainedJson(d.unexplained);
   j["residual"] = {{"before", residualStatisticsJson(d.before)},

@@ -19,6 +19,20 @@ namespace {
 // parameter step of typical size, has no effect on these rows and is not tried.
 constexpr double kNegligibleEffect = 1e-3;
 
+}  // namespace
+
+double modelWeightTorque(const PhysicalModel& whole, const std::vector<double>& masses,
+                         const JointVector& theta_rad, int joint) {
+  if (masses.empty()) return 0.0;
+  ChainWorkspace ws;
+  JointVector tau;
+  forwardKinematics(whole.chain_Tracker, theta_rad, ws);
+  selfWeightTorques(whole.chain_Tracker, ws, whole.gravity_Tracker, masses, tau);
+  return tau(joint);
+}
+
+namespace {
+
 // Fit rows [begin, end) of a screening matrix in its layout: the geometry's columns and the
 // finite differences that `dense` marks (the others zero), the link-angle columns, and each
 // scaled source per row. A row's values are those of evaluate, linearise and parameterColumn.
@@ -75,9 +89,7 @@ void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, s
   for (size_t j = 0; j < recipe.scaled.size(); ++j) {
     Eigen::Index width = 0;
     for (const ScaledSource& source : recipe.scaled[j]) {
-      width = std::max(width, source.first + (source.kind == ScaledSource::Kind::kProfile
-                                                  ? 2 * source.order
-                                                  : 1));
+      width = std::max(width, source.first + (source.isProfile() ? 2 * source.order : 1));
     }
     Eigen::MatrixXd& out = chunk.scaled[j];
     out.resize(rows, width);
@@ -112,6 +124,18 @@ void makeColumns(const ColumnRecipe& recipe, const FitRows& fit, size_t begin, s
             if (source.campaign > 0 && fit.rows[i]->session != source.campaign) harmonics.setZero();
             out.row(r).segment(source.first, 2 * source.order) = harmonics.transpose();
             break;
+          case ScaledSource::Kind::kProfileTorque: {
+            harmonics.resize(2 * source.order);
+            profileFeatures(source.coverage, source.order, fit.rows[i]->q_rad(joint), harmonics.data());
+            const double weight = modelWeightTorque(recipe.whole, source.self_weight_masses,
+                                                    e.theta_rad[static_cast<size_t>(r)], joint);
+            const double tau = source.weight_part
+                                   ? weight
+                                   : e.tau_nm[static_cast<size_t>(r)](joint) - weight;
+            out.row(r).segment(source.first, 2 * source.order) =
+                harmonics.transpose() * (tau / source.torque_scale_nm);
+            break;
+          }
         }
       }
     }

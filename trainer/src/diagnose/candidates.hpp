@@ -55,6 +55,13 @@ struct Family {
   /// A profile's difference in this later campaign (its columns zero on the other campaigns'
   /// rows), tested for the report and never added; 0: a family of the robot.
   int campaign = 0;
+  /// A profile of the robot: the same profile's columns times the joint's torque (the
+  /// screening's kProfileTorque), what profile_load_check.cpp tells it apart from; empty where
+  /// the joint carries no torque. Where the model holds a self weight, times the torque without
+  /// its weight, and weight_modulated times that weight (a self weight found in an early round
+  /// may stand in for part of a load effect: the two parts let the fit weigh it again).
+  std::vector<Eigen::Index> torque_modulated, weight_modulated;
+  double torque_std_nm = 0.0;
 };
 
 /// One round's screening matrix: the current model's columns and every family's.
@@ -101,6 +108,11 @@ Screening screening(const DiagnosisModel& model, const FitRows& fit, const Evalu
 /// in stage 2, and the global families that do not move the tip at these rows taken out into
 /// the untestable ones (in their places).
 void completeScreening(Screening& s, const FoldGrams& grams, Eigen::Index geometry);
+
+/// Joint `joint`'s gravity torque under self_weight parameters `masses` ((m, m·com) per link) at
+/// link angles theta_rad on the model's chain, N·m; 0 for no masses.
+double modelWeightTorque(const PhysicalModel& whole, const std::vector<double>& masses,
+                         const JointVector& theta_rad, int joint);
 
 /// Joints whose gravity torque under the given self_weight parameters varies enough over the
 /// fit rows to identify their compliance from it (std ≥ 1 N·m and ≥ 10 % of the largest), and the

@@ -6,6 +6,7 @@
 
 #include "confounds.hpp"
 #include "model_fits.hpp"
+#include "profile_load_check.hpp"
 #include "scoring.hpp"
 #include "search.hpp"
 
@@ -120,6 +121,7 @@ void searchRounds(Search& search) {
     for (size_t k = 0; k < scored.size(); ++k) {
       if (scored[k].score.significant) significant.push_back(k);
     }
+    setAsideLoadModulatedProfiles(scored, significant, cv, dm, options, round, d);
     d.seconds_screening += secondsSince(clock);
     if (significant.empty()) {
       for (Scored& s : scored) d.candidates.push_back(std::move(s.score));

@@ -20,6 +20,10 @@ struct ScaledSource {
     kJointAngle,     // another joint's angle (a coupling)
     kGravityTorque,  // the joint's gravity torque under the URDF's masses at the row's link angles
     kProfile,        // a profile's gated harmonics, 2·order columns
+    kProfileTorque,  // a profile's gated harmonics times a part of the row's torque of the
+                     // joint over torque_scale_nm, 2·order columns (a stiffness varying with
+                     // the angle): the model's torque less the weight of self_weight_masses,
+                     // or with weight_part that weight alone
     kTemperature,    // the row's temperature less a reference (0 where it is not known)
     kCampaign,       // 1 on the rows of one campaign, 0 on the others
     kConfounder,     // a function of a variable that moves with a time-order family's driver
@@ -33,9 +37,15 @@ struct ScaledSource {
   int order = 0;             // kProfile
   ConfounderPtr variable;    // kConfounder: the variable, and which of its functions
   int function = 0;
+  double torque_scale_nm = 1.0;  // kProfileTorque
+  // kProfileTorque: the model's self weight ((m, m·com) per link; empty: none), and whether the
+  // columns carry its gravity torque rather than the rest of the torque
+  std::vector<double> self_weight_masses;
+  bool weight_part = false;
+  bool isProfile() const { return kind == Kind::kProfile || kind == Kind::kProfileTorque; }
   Eigen::Index first = 0;    // its first column among the joint's scaled ones
   bool sameColumn(const ScaledSource& other) const {
-    return kind == other.kind && kind != Kind::kProfile && source_joint == other.source_joint &&
+    return kind == other.kind && !isProfile() && source_joint == other.source_joint &&
            reference_c == other.reference_c && campaign == other.campaign &&
            unit.kind == other.unit.kind && unit.parameters == other.unit.parameters &&
            variable == other.variable && function == other.function;
@@ -140,6 +150,27 @@ struct ColumnSink {
     source.coverage = coverage;
     source.order = order;
     source.campaign = campaign;
+    return profileBlock(joint, std::move(source));
+  }
+  // The same profile's harmonics times a part of the joint's torque over torque_scale_nm
+  // (columns of a size like the profile's, so that one ridge serves both).
+  std::vector<Eigen::Index> torqueModulatedProfile(int joint, const AngleCoverage& coverage,
+                                                   int order, double torque_scale_nm,
+                                                   std::vector<double> self_weight_masses,
+                                                   bool weight_part) {
+    ScaledSource source;
+    source.kind = ScaledSource::Kind::kProfileTorque;
+    source.coverage = coverage;
+    source.order = order;
+    source.torque_scale_nm = torque_scale_nm;
+    source.self_weight_masses = std::move(self_weight_masses);
+    source.weight_part = weight_part;
+    return profileBlock(joint, std::move(source));
+  }
+
+ private:
+  std::vector<Eigen::Index> profileBlock(int joint, ScaledSource source) {
+    const int order = source.order;
     source.first = layout_.scaled[static_cast<size_t>(joint)];
     layout_.scaled[static_cast<size_t>(joint)] += 2 * order;
     recipe_.scaled[static_cast<size_t>(joint)].push_back(source);
@@ -147,8 +178,6 @@ struct ColumnSink {
     for (int k = 0; k < 2 * order; ++k) columns.push_back(added({joint, source.first + k}, 0.0));
     return columns;
   }
-
- private:
   Eigen::Index added(ColumnLayout::Place place, double column_ridge) {
     layout_.place.push_back(place);
     ridge.push_back(column_ridge);

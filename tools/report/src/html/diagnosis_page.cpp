@@ -129,6 +129,9 @@ class DiagnosisPage {
     if (!d_.unexplained_trend.empty()) {
       out_ << "<p>Structure no catalogued mechanism explains: " << escape(d_.unexplained_trend) << "</p>\n";
     }
+    for (const trainer::LoadModulatedProfile& f : d_.load_modulated_profiles) {
+      out_ << "<p>A profile or a load effect: " << escape(loadModulatedProfileText(f)) << ".</p>\n";
+    }
     if (!d_.drift.text.empty()) out_ << "<p>What drifted: " << escape(d_.drift.text) << ".</p>\n";
     out_ << driftConfoundsSection(d_.drift);
     writeEffects();

@@ -341,6 +341,26 @@ struct GeometryPin {
   double f_statistic = 0.0;  ///< (Δcost / rank) / (cost_pinned / (equations − rank))
 };
 
+/// A joint's transmission profile tried against the same profile modulated by the joint's
+/// torque (each harmonic times the row's τ_j: a stiffness that varies with the angle, which the
+/// catalogue does not hold), held out with the profile's ridge: the profile at its order, the
+/// modulated columns at the order that fits best alone. The profile is not
+/// named when the modulated columns explain significantly more beside it and it adds nothing
+/// significant beside them; named, with the modulated part left, when both add. Rows that cannot
+/// tell them apart (neither adds beside the other) leave no entry.
+struct LoadModulatedProfile {
+  int joint = 0;  ///< 0-based
+  int order = 0;            ///< the profile's
+  int modulated_order = 0;  ///< the modulated columns', the best of the orders tried held out
+  int round = 1;
+  bool profile_named = false;
+  double torque_std_nm = 0.0;  ///< the joint's torque over the fit rows
+  /// The modulated columns added beside the profile: held-out gain, reduction, signed-rank z, p.
+  double modulated_gain_mm = 0.0, modulated_reduction = 0.0, modulated_z = 0.0, modulated_p = 1.0;
+  /// The profile added beside the modulated columns.
+  double profile_gain_mm = 0.0, profile_reduction = 0.0, profile_z = 0.0, profile_p = 1.0;
+};
+
 struct Diagnosis {
   Verdict verdict = Verdict::kNone;
   DriftVerdict drift;
@@ -350,6 +370,8 @@ struct Diagnosis {
   /// Compliances held at zero and causes dropped, in the order done (what the data can and
   /// cannot tell apart is in each effect: alternatives, geometry_share, harmonics_separable, …).
   std::vector<ModelChange> changes;
+  /// Profiles tried against the same profile times the joint's torque, where the rows tell them apart.
+  std::vector<LoadModulatedProfile> load_modulated_profiles;
   ResidualStatistics before, after;        ///< of the model without / with the effects
   std::string unexplained_trend;           ///< what the residual still follows, if anything
   /// What the catalogue does not explain, held out, and what it follows.

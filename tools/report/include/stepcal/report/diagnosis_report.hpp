@@ -30,8 +30,15 @@ std::string formatDiagnosis(const trainer::Diagnosis& diagnosis, double seconds_
 /// and after the first: station, tool → {translation_mm, translation_sigma_mm, rotation_deg,
 /// rotation_sigma_deg}, profile_differences → [{joint, order, ridge, cv_gain_mm,
 /// relative_reduction, z_statistic, p_value, significant, rms_difference_urad}]}], `gain` → [{load_kg, rows, before_mean_position_mm,
-/// after_mean_position_mm, gpr_mean_position_mm, …}], `timing_s`.
+/// after_mean_position_mm, gpr_mean_position_mm, …}], `timing_s`. Where a joint's profile was
+/// told apart from the same profile times the joint's torque: `load_modulated_profiles` →
+/// [{joint, order, modulated_order, round, profile_named, torque_std_nm, modulated: {cv_gain_mm,
+/// relative_reduction, z_statistic, p_value}, profile: {…}, text}] (absent when there is none).
 nlohmann::json diagnosisJson(const trainer::Diagnosis& diagnosis, double seconds_calibrate);
+
+/// A profile told apart from the same profile times its joint's torque, in one line
+/// (trainer::LoadModulatedProfile): not named, or named with the modulated part left, and why.
+std::string loadModulatedProfileText(const trainer::LoadModulatedProfile& finding);
 
 /// A mechanism's parameters as a JSON object keyed by their names (SI, units in the names).
 nlohmann::json parametersJson(const Mechanism& mechanism, const std::vector<double>& values);

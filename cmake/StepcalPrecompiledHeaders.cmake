@@ -1,7 +1,7 @@
 # Precompiled headers: Eigen and the large standard headers parsed once per library instead of
 # once per source file. Each of the ~110 files the `stepcal` command is built from spends about
 # 1 s of CPU parsing them (most files are small: the parse is the larger part of their compile);
-# figures in docs/install.md, "Build time". The code generated is the same (same flags).
+# figures in docs/install.md, "Building". The code generated is the same (same flags).
 #
 # Default ON, except where the compiler launcher is ccache: ccache hits a precompiled header only
 # with CCACHE_SLOPPINESS=pch_defines,time_macros (else it runs the compiler every time), so a

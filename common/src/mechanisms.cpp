@@ -286,6 +286,10 @@ namespace {
 
 /// What the fixed point takes from the mechanisms that act before it (physicalLinkAngles).
 struct CommandedSide {
+  /// θ₀ = q and the wrench as measured, copy-constructed (cheaper than assigned).
+  CommandedSide(const JointVector& q_rad, const Vec6& wrench) noexcept
+      : theta0_rad(q_rad), wrench_Sensor(wrench) {}
+
   JointVector theta0_rad;                  ///< θ₀: q and the commanded-angle mechanisms
   std::array<double, kMaxJoints> gate{};   ///< each profile's gate (0: no profile)
   bool gates_open = true;                  ///< every transmission_error's gate is 1
@@ -298,11 +302,9 @@ struct CommandedSide {
 /// profile's gate once (it switches the profile and its share of the geometry), and the wrench
 /// less the sensor's bias. profile_slope, when given, gets each profile's derivative by its
 /// commanded angle (zeroed before).
-void commandedSide(const PhysicalModel& model, const JointVector& q_rad, const JointTrig& trig_q,
-                   double temp_c, const Vec6& wrench_Sensor, JointVector* profile_slope,
-                   CommandedSide& side) noexcept {
-  side.theta0_rad = q_rad;
-  side.wrench_Sensor = wrench_Sensor;
+void addCommandedSide(const PhysicalModel& model, const JointVector& q_rad,
+                      const JointTrig& trig_q, double temp_c, JointVector* profile_slope,
+                      CommandedSide& side) noexcept {
   JointVector& theta0 = side.theta0_rad;
   for (const Mechanism& m : model.mechanisms) {
     const MechanismTraits* traits = findMechanismTraits(m.kind);
@@ -328,34 +330,51 @@ void commandedSide(const PhysicalModel& model, const JointVector& q_rad, const J
 }
 
 /// The initial poses of every pass (the thermal scale and the profiles' geometry hold for the
-/// whole fixed point): with every gate open from the constants, else evaluated into scratch.
-const InitialPoses& initialPosesOf(const PhysicalModel& model, double temp_c,
-                                   const PhysicalConstants* constants, const CommandedSide& side,
-                                   InitialPoses& scratch) noexcept {
-  const double link_length_scale = model.linkLengthScale(temp_c);
+/// whole fixed point) at this link-length scale: with every gate open, the constants' own at
+/// scale 1 (the usual call: returned, nothing evaluated), else null.
+const InitialPoses* constantInitialPoses(double link_length_scale,
+                                         const PhysicalConstants* constants,
+                                         const CommandedSide& side) noexcept {
+  const bool usual = constants != nullptr && side.gates_open && link_length_scale == 1.0;
+  return usual ? &constants->initial_open : nullptr;
+}
+
+/// The initial poses where constantInitialPoses has none, evaluated into initial.
+void evaluateInitialPosesOf(const PhysicalModel& model, double link_length_scale,
+                            const PhysicalConstants* constants, const CommandedSide& side,
+                            InitialPoses& initial) noexcept {
   if (constants != nullptr && side.gates_open) {
-    if (link_length_scale == 1.0) return constants->initial_open;
     evaluateInitialPoses(model.chain_Tracker, link_length_scale,
                          constants->has_open_geometry ? &constants->exp_open_geometry : nullptr,
-                         scratch);
-    return scratch;
+                         initial);
+    return;
   }
   std::array<double, 6 * (kMaxJoints + 1)> delta;
   const bool corrected = profileGeometryDelta(model, side.gate, delta);
   evaluateInitialPoses(model.chain_Tracker, link_length_scale, corrected ? delta.data() : nullptr,
-                       scratch);
-  return scratch;
+                       initial);
 }
 
 /// The fixed point θ = θ₀ + Δθ(τ(θ)) from θ as out holds it, and its frames, with what it
 /// reuses from or keeps for another evaluation at the same commanded angles (FirstPass). The
 /// passes move θ by the deflection only (~1e-3 rad): sin and cos of θ₀ once, then by the angle
 /// sum.
+///
+/// Its arrays are FixedPointScratch's, outside the object, and it refers to the outputs directly:
+/// its address then never escapes into the calls it makes, so the compiler keeps its members in
+/// registers across them (as it did when the steps were lambdas; bench answers identical).
+struct FixedPointScratch {
+  JointTrig trig0, trig;  ///< sin and cos of θ₀ and of the pass's θ
+  Jacobian J;
+  JointVector tau_self;
+  InitialPoses tilted;  ///< off_axis_compliance: the initial poses with the last pass's tilts
+};
+
 class FixedPoint {
  public:
   FixedPoint(const PhysicalModel& model, const JointVector& q_rad, const CommandedSide& side,
              const InitialPoses& initial, const JointTrig& trig_q, FirstPass* first,
-             const PhysicalLinkAnglesOut& out) noexcept
+             const PhysicalLinkAnglesOut& out, FixedPointScratch& scratch) noexcept
       : model_(model),
         chain_(model.chain_Tracker),
         n_(chain_.dof()),
@@ -367,7 +386,14 @@ class FixedPoint {
         first_(first),
         keep_(first != nullptr && !first->kept),
         tilting_(model.has(MechanismKind::kOffAxisCompliance)),
-        out_(out) {
+        ws_(out.ws),
+        theta_rad_(out.theta_rad),
+        tau_nm_(out.tau_nm),
+        trig0_(scratch.trig0),
+        trig_(scratch.trig),
+        J_(scratch.J),
+        tau_self_(scratch.tau_self),
+        tilted_(scratch.tilted) {
     // The frames at θ₀ another evaluation kept, where they are this one's.
     reuse_ = first_ != nullptr && first_->kept && first_->q_rad == q_rad_ &&
              first_->theta0_rad == theta0_ &&
@@ -386,37 +412,37 @@ class FixedPoint {
   void run(int passes, bool has_sensor, const PointPayload* payload) noexcept {
     for (int pass = 0; pass < passes; ++pass) {
       evaluate();
-      out_.tau_nm.setZero(n_);
+      tau_nm_.setZero(n_);
       if (has_sensor) {
         jacobian();
-        out_.tau_nm = jointTorques(
-            J_, wrenchInRoot(framePose(chain_, out_.ws, model_.sensor_frame), side_.wrench_Sensor));
+        tau_nm_ = jointTorques(
+            J_, wrenchInRoot(framePose(chain_, ws_, model_.sensor_frame), side_.wrench_Sensor));
       }
       if constexpr (kWithPayload) {
-        payloadTorques(chain_, out_.ws, model_.gravity_Tracker, *payload, out_.tau_nm);
+        payloadTorques(chain_, ws_, model_.gravity_Tracker, *payload, tau_nm_);
       }
       if (side_.self_weight != nullptr) {
-        selfWeightTorques(chain_, out_.ws, model_.gravity_Tracker, side_.self_weight->parameters,
+        selfWeightTorques(chain_, ws_, model_.gravity_Tracker, side_.self_weight->parameters,
                           tau_self_);
-        out_.tau_nm += tau_self_;
+        tau_nm_ += tau_self_;
       }
-      deflect(out_.tau_nm);
+      deflect(tau_nm_);
       if (tilting_) tiltFrames(loadWrenchInRoot(has_sensor, payload));
     }
   }
 
   /// The frames at θ into out.ws: reused or kept at θ₀.
   void evaluate() noexcept {
-    at_theta0_ = out_.theta_rad == theta0_ && !tilted_now_;
+    at_theta0_ = theta_rad_ == theta0_ && !tilted_now_;
     if (!at_theta0_) {
-      shiftedJointTrig(trig0_, theta0_, out_.theta_rad - theta0_, trig_);
-      forwardKinematics(chain_, out_.theta_rad, out_.ws, tilted_now_ ? tilted_ : initial_, &trig_);
+      shiftedJointTrig(trig0_, theta0_, theta_rad_ - theta0_, trig_);
+      forwardKinematics(chain_, theta_rad_, ws_, tilted_now_ ? tilted_ : initial_, &trig_);
     } else if (reuse_) {
-      out_.ws = first_->ws;
+      ws_ = first_->ws;
     } else {
-      forwardKinematics(chain_, out_.theta_rad, out_.ws, initial_, &trig0_);
+      forwardKinematics(chain_, theta_rad_, ws_, initial_, &trig0_);
       if (keep_ && !kept_frames_) {
-        first_->ws = out_.ws;
+        first_->ws = ws_;
         kept_frames_ = true;
       }
     }
@@ -439,7 +465,7 @@ class FixedPoint {
       J_ = first_->J;
       return;
     }
-    spatialJacobian(chain_, out_.ws, J_);
+    spatialJacobian(chain_, ws_, J_);
     if (at_theta0_ && keep_) {
       first_->J = J_;
       first_->has_J = true;
@@ -450,10 +476,10 @@ class FixedPoint {
   /// wrench at the sensor, or the payload's weight.
   Vec6 loadWrenchInRoot(bool has_sensor, const PointPayload* payload) const noexcept {
     if (has_sensor) {
-      return wrenchInRoot(framePose(chain_, out_.ws, model_.sensor_frame), side_.wrench_Sensor);
+      return wrenchInRoot(framePose(chain_, ws_, model_.sensor_frame), side_.wrench_Sensor);
     }
     if (payload != nullptr) {
-      return payloadWrenchInRoot(chain_, out_.ws, model_.gravity_Tracker, *payload);
+      return payloadWrenchInRoot(chain_, ws_, model_.gravity_Tracker, *payload);
     }
     return Vec6::Zero();
   }
@@ -466,12 +492,12 @@ class FixedPoint {
     std::copy(initial_.begin(), initial_.begin() + n_ + 1, tilted_.begin());
     for (const Mechanism& m : model_.mechanisms) {
       if (m.kind != MechanismKind::kOffAxisCompliance) continue;
-      const Pose& X_RootJoint = out_.ws.X_RootFrame[static_cast<size_t>(m.joint + 1)];
+      const Pose& X_RootJoint = ws_.X_RootFrame[static_cast<size_t>(m.joint + 1)];
       const Vec3 axis = chain_.joints()[static_cast<size_t>(m.joint)].twist_Local.tail<3>();
       const Vec3 moment_Joint =
           X_RootJoint.linear().transpose() *
           (W_Root.tail<3>() - X_RootJoint.translation().cross(W_Root.head<3>()));
-      const Vec3 tilt_BeforeMotion = lie::expSO3(axis * out_.theta_rad(m.joint)) *
+      const Vec3 tilt_BeforeMotion = lie::expSO3(axis * theta_rad_(m.joint)) *
                                      mechanism::frameTilt_rad(m, axis, moment_Joint);
       Pose& T = tilted_[static_cast<size_t>(m.joint)];
       T.linear() = T.linear() * lie::expSO3(tilt_BeforeMotion);
@@ -481,9 +507,9 @@ class FixedPoint {
 
   /// θ = θ₀ + Δθ(τ): the compliance, plus each joint's torque-deflection mechanism.
   void deflect(const JointVector& tau) noexcept {
-    out_.theta_rad = theta0_ + model_.compliance_rad_per_nm.cwiseProduct(tau);
+    theta_rad_ = theta0_ + model_.compliance_rad_per_nm.cwiseProduct(tau);
     for (const Mechanism& m : model_.mechanisms) {
-      if (isTorqueDeflection(m.kind)) out_.theta_rad(m.joint) += torqueDeflection(m, tau(m.joint));
+      if (isTorqueDeflection(m.kind)) theta_rad_(m.joint) += torqueDeflection(m, tau(m.joint));
     }
   }
 
@@ -498,28 +524,61 @@ class FixedPoint {
   FirstPass* const first_;
   const bool keep_;  ///< first_ keeps this evaluation's frames at θ₀
   const bool tilting_;  ///< the model has an off_axis_compliance (tiltFrames)
-  const PhysicalLinkAnglesOut& out_;
+  ChainWorkspace& ws_;  ///< the outputs (PhysicalLinkAnglesOut)
+  JointVector& theta_rad_;
+  JointVector& tau_nm_;
+  JointTrig& trig0_;  ///< the scratch (FixedPointScratch)
+  JointTrig& trig_;
+  Jacobian& J_;
+  JointVector& tau_self_;
+  InitialPoses& tilted_;  ///< initial_ with each off_axis_compliance's last tilt
   bool reuse_ = false;        ///< the frames at θ₀ are first_'s
-  bool at_theta0_ = false;    ///< out_.ws holds the frames at θ₀
+  bool at_theta0_ = false;    ///< ws_ holds the frames at θ₀
   bool kept_frames_ = false;  ///< and first_ keeps them
   bool tilted_now_ = false;   ///< the frames are evaluated with tilted_, not initial_
-  InitialPoses tilted_;       ///< initial_ with each off_axis_compliance's last tilt
-  JointTrig trig0_, trig_;    ///< sin and cos of θ₀ and of the pass's θ
-  Jacobian J_;
-  JointVector tau_self_;
 };
+
+/// physicalLinkAngles from θ₀ on: θ's start, the passes (with a payload's torques or the
+/// measured wrench's), the frames at the last θ, and what is kept for the next evaluation.
+void solveFixedPoint(const PhysicalModel& model, const JointVector& q_rad,
+                     const CommandedSide& side, const InitialPoses& initial,
+                     const JointTrig& trig_q, const PhysicalLinkAnglesOut& out,
+                     const PhysicalEvaluation& how) noexcept {
+  const int n = model.chain_Tracker.dof();
+  // The wrench's torques: a measured wrench needs the sensor's frame, a payload none.
+  const bool has_sensor =
+      how.payload == nullptr && model.sensor_frame >= 0 &&
+      model.sensor_frame < static_cast<int>(model.chain_Tracker.frames().size());
+  const bool has_payload = how.payload != nullptr && how.payload->mass_kg != 0.0;
+  // Without a wrench or self weight every torque is zero and θ = θ₀: no passes.
+  const bool loaded = has_sensor || has_payload || side.self_weight != nullptr;
+  const int passes = !loaded ? 0 : how.start != nullptr ? how.start->passes : kFixedPointPasses;
+  out.theta_rad = side.theta0_rad;
+  if (loaded && how.start != nullptr && how.start->deflection_rad != nullptr) {
+    out.theta_rad += *how.start->deflection_rad;
+  }
+  out.tau_nm.setZero(n);
+  FirstPass* const first = how.start != nullptr ? how.start->first_pass : nullptr;
+  FixedPointScratch scratch;
+  FixedPoint fixed_point(model, q_rad, side, initial, trig_q, first, out, scratch);
+  if (has_payload) {
+    fixed_point.run<true>(passes, has_sensor, how.payload);
+  } else {
+    fixed_point.run<false>(passes, has_sensor, how.payload);
+  }
+  fixed_point.evaluate();
+  if (how.start != nullptr && how.start->deflection_out_rad != nullptr) {
+    *how.start->deflection_out_rad = out.theta_rad - side.theta0_rad;
+  }
+  fixed_point.keepFirstPass();
+}
 
 }  // namespace
 
 bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
                         const Vec6& wrench_Sensor, double temp_c, const PhysicalLinkAnglesOut& out,
                         const PhysicalEvaluation& how) noexcept {
-  const KinematicChain& chain = model.chain_Tracker;
-  const int n = chain.dof();
-  // The wrench's torques: a measured wrench needs the sensor's frame, a payload none.
-  const bool has_sensor = how.payload == nullptr && model.sensor_frame >= 0 &&
-                          model.sensor_frame < static_cast<int>(chain.frames().size());
-  const bool has_payload = how.payload != nullptr && how.payload->mass_kg != 0.0;
+  const int n = model.chain_Tracker.dof();
   if (q_rad.size() != n || model.compliance_rad_per_nm.size() != n) return false;
 
   if (out.profile_slope) out.profile_slope->setZero(n);
@@ -531,29 +590,17 @@ bool physicalLinkAngles(const PhysicalModel& model, const JointVector& q_rad,
   } else {
     jointTrig(q_rad, trig_q);
   }
-  CommandedSide side;
-  commandedSide(model, q_rad, trig_q, temp_c, wrench_Sensor, out.profile_slope, side);
+  CommandedSide side(q_rad, wrench_Sensor);
+  addCommandedSide(model, q_rad, trig_q, temp_c, out.profile_slope, side);
+  const double link_length_scale = model.linkLengthScale(temp_c);
+  // Constructing 9 poses costs on the hot path: only where they are evaluated here.
+  if (const InitialPoses* initial = constantInitialPoses(link_length_scale, how.constants, side)) {
+    solveFixedPoint(model, q_rad, side, *initial, trig_q, out, how);
+    return true;
+  }
   InitialPoses initial_here;
-  const InitialPoses& initial = initialPosesOf(model, temp_c, how.constants, side, initial_here);
-  // Without a wrench or self weight every torque is zero and θ = θ₀: no passes.
-  const bool loaded = has_sensor || has_payload || side.self_weight != nullptr;
-  const int passes = !loaded ? 0 : how.start != nullptr ? how.start->passes : kFixedPointPasses;
-  out.theta_rad = side.theta0_rad;
-  if (loaded && how.start != nullptr && how.start->deflection_rad != nullptr) {
-    out.theta_rad += *how.start->deflection_rad;
-  }
-  out.tau_nm.setZero(n);
-  FixedPoint fixed_point(model, q_rad, side, initial, trig_q, first, out);
-  if (has_payload) {
-    fixed_point.run<true>(passes, has_sensor, how.payload);
-  } else {
-    fixed_point.run<false>(passes, has_sensor, how.payload);
-  }
-  fixed_point.evaluate();
-  if (how.start != nullptr && how.start->deflection_out_rad != nullptr) {
-    *how.start->deflection_out_rad = out.theta_rad - side.theta0_rad;
-  }
-  fixed_point.keepFirstPass();
+  evaluateInitialPosesOf(model, link_length_scale, how.constants, side, initial_here);
+  solveFixedPoint(model, q_rad, side, initial_here, trig_q, out, how);
   return true;
 }
 

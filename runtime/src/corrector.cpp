@@ -711,12 +711,20 @@ struct InverseIteration {
         X_TrackerTcp_desired(the_call.in_tracker
                                  ? X_FrameTcp_desired
                                  : Pose(the_call.X_TrackerFrame * X_FrameTcp_desired)),
-        q_rad(q_seed_rad),
-        exp_frozen_tcp(the_call.X_TipTcp) {
-    clampToLimits(chain, q_rad);
-    q_best_rad = q_rad;
-    q_twist_rad = q_rad;
+        q_rad(seedInLimits(the_model.file.chain_Tracker, q_seed_rad)),
+        q_best_rad(q_rad),
+        exp_frozen_tcp(the_call.X_TipTcp),
+        q_twist_rad(q_rad) {
     ws.deflection_rad.setZero(chain.dof());
+  }
+
+  /// The seed clamped into the joint limits. The iterates are copy-constructed from it
+  /// (cheaper than assigned on the hot path).
+  static JointVector seedInLimits(const KinematicChain& chain,
+                                  const JointVector& q_seed_rad) noexcept {
+    JointVector q_rad = q_seed_rad;
+    clampToLimits(chain, q_rad);
+    return q_rad;
   }
 
   /// The desired tip farther from the reach sphere's centre than its radius: no step is taken.

@@ -87,13 +87,17 @@ TEST(DiagnoseSessions, OneBacklashForBothAndTheMovedZeroAreNamed) {
   const Diagnosis& d = together().d;
   SCOPED_TRACE("named: " + trainer::test_support::effectsText(d));
   EXPECT_EQ(d.effects.size(), 2u);
+  // Joint 2's torque–deflection curve: a backlash (0.3008 ± 0.0008 mrad for a truth of 0.3 before
+  // issue 43's bounded screening), or a torsion curve whose one knee takes up the same lost
+  // motion over a few tens of N·m (since: 8.58e-6 rad/(N·m) up to a knee at 35.0 N·m, 0.300
+  // mrad). On one joint the two are one curve of its torque (docs/diagnosis.md), judged here by
+  // the motion it takes up at 500 N·m, beyond the knee and the smoothing, below τ_lin.
   const trainer::FoundEffect* backlash = effectOf(d, MechanismKind::kBacklash);
-  ASSERT_NE(backlash, nullptr);
-  const Mechanism& b = backlash->mechanism;
+  const trainer::FoundEffect* curve = effectOf(d, MechanismKind::kTorsionCurve);
+  ASSERT_TRUE(backlash != nullptr || curve != nullptr);
+  const Mechanism& b = backlash != nullptr ? backlash->mechanism : curve->mechanism;
   EXPECT_EQ(b.joint, 1);
-  // Measured 0.3008 ± 0.0008 mrad for a truth of 0.3.
-  EXPECT_NEAR(view<mechanism::Backlash>(b).lostMotion_rad(), kLostMotionRad, 0.1 * kLostMotionRad);
-  EXPECT_NEAR(view<mechanism::Backlash>(b).lostMotion_rad(), kLostMotionRad, 4.0 * b.sigma[0] + 1e-6);
+  EXPECT_NEAR(torqueDeflection(b, 500.0), kLostMotionRad, 0.1 * kLostMotionRad);
   const trainer::FoundEffect* zero = effectOf(d, MechanismKind::kCampaignJointZero);
   ASSERT_NE(zero, nullptr);
   const Mechanism& z = zero->mechanism;

@@ -170,6 +170,25 @@ void retuneProfiles(Search& search) {
   d.seconds_screening += secondsSince(clock);
 }
 
+// Whether every compliance the fit frees and every global mechanism keeps its physics' signs and
+// bounds (a linear joint step may leave one beyond them).
+bool boundsHold(const DiagnosisModel& dm) {
+  const int n = dm.global.chain_Tracker.dof();
+  for (int j = 0; j < n; ++j) {
+    if (dm.compliance_free[static_cast<size_t>(j)] && dm.global.compliance_rad_per_nm(j) < 0.0) {
+      return false;
+    }
+  }
+  for (const Mechanism& m : dm.global.mechanisms) {
+    const bool lumped = m.kind != MechanismKind::kSelfWeight || !dm.masses_from_urdf;
+    if (wrongSign(m) ||
+        (lumped && !brokenBound(m, physicalBounds(m, dm.global.chain_Tracker)).empty())) {
+      return false;
+    }
+  }
+  return true;
+}
+
 // The final fit: the profiles at their orders, then twice the global part refitted under its
 // signs (refitPhysical) and the whole model fitted jointly from there (the joint step is
 // linear); the σ of every parameter are the joint fit's. Should the last joint step have taken a
@@ -181,7 +200,6 @@ void finalFit(Search& search) {
   DiagnosisModel& dm = search.model;
   Diagnosis& d = search.d;
   const size_t base_globals = search.base_globals;
-  const int n = dm.global.chain_Tracker.dof();
   const auto clock = std::chrono::steady_clock::now();
   if (dm.profiles.empty()) {
     refitPhysical(dm, fit, options, base_globals, search.compliance_sigma, d, true);
@@ -192,17 +210,7 @@ void finalFit(Search& search) {
       buildScreening(dm, fit, options, search.body_masses, search.screening, search.grams,
                      search.compliance_sigma, {false, nullptr});
     }
-    bool signs_hold = true;
-    for (int j = 0; j < n; ++j) {
-      signs_hold = signs_hold && (!dm.compliance_free[static_cast<size_t>(j)] ||
-                                  dm.global.compliance_rad_per_nm(j) >= 0.0);
-    }
-    for (const Mechanism& m : dm.global.mechanisms) {
-      const bool lumped = m.kind != MechanismKind::kSelfWeight || !dm.masses_from_urdf;
-      signs_hold = signs_hold && !wrongSign(m) &&
-                   (!lumped || brokenBound(m, physicalBounds(m, dm.global.chain_Tracker)).empty());
-    }
-    if (!signs_hold) {
+    if (!boundsHold(dm)) {
       refitPhysical(dm, fit, options, base_globals, search.compliance_sigma, d, true);
     }
   }
@@ -268,6 +276,11 @@ void refine(Search& search) {
   if (!search.model.profiles.empty()) {
     retuneProfiles(search);
     finalFit(search);
+  } else if (!boundsHold(search.model)) {
+    // The last round's joint step is linear: where it left a cause beyond its physics, the
+    // global refit brings it back (without profiles nothing else refits it).
+    refitPhysical(search.model, search.fit, search.options, search.base_globals,
+                  search.compliance_sigma, search.d, true);
   }
   dropCausesWithoutSize(search);
   globalSigma(search.model, search.fit, search.compliance_sigma);

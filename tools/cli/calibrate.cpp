@@ -46,9 +46,7 @@ void runCalibrate(const std::vector<std::string>& dirs, const std::string& model
   }
   const std::string note = report::residualNote(campaign, outcome);
   if (json) {
-    nlohmann::json j = report::reportJson(campaign, outcome);
-    j["residual_note"] = note.empty() ? nlohmann::json(nullptr) : nlohmann::json(note);
-    std::cout << j.dump(2) << "\n";
+    std::cout << report::reportJson(campaign, outcome).dump(2) << "\n";
   } else {
     std::cout << report::formatReport(campaign, outcome);
     if (!note.empty()) std::cout << "\n" << note << "\n";

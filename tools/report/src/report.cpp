@@ -10,6 +10,7 @@
 #include "stepcal/common/units.hpp"
 #include "stepcal/report/diagnosis_report.hpp"
 #include "stepcal/report/session_report.hpp"
+#include "stepcal/report/unexplained_report.hpp"
 #include "stepcal/report/text_format.hpp"
 
 namespace stepcal::report {
@@ -390,6 +391,9 @@ nlohmann::json reportJson(const Campaign& campaign, const trainer::CalibrationOu
           {"validation", validation},
           {"fit", fit}};
   addCampaignDifferencesJson(campaign, outcome, report);
+  // The one line calibrate adds when its residual stands far above the noise (null: none).
+  const std::string note = residualNote(campaign, outcome);
+  report["residual_note"] = note.empty() ? nlohmann::json(nullptr) : nlohmann::json(note);
   return report;
 }
 

@@ -563,6 +563,23 @@ TEST(Runtime, SensorBiasIsTakenOffTheMeasuredWrenchButNotOffTheGprInput) {
   EXPECT_GT(smallest_effect_m, 1e-8) << "the bias must change the deflection";
 }
 
+// A model whose only load effect is a kind that deflects with the joint's torque (no linear
+// compliance) still needs the live wrench: without it the service would answer unloaded.
+TEST(Runtime, EveryKindThatFollowsTheTorqueNeedsTheWrench) {
+  const std::vector<Mechanism> load_kinds = {
+      mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-4, 5.0}),
+      mechanism(MechanismKind::kNonlinearStiffness, 1, -1, 0, {4e-6, 60.0, 0.0}),
+      mechanism(MechanismKind::kTorsionCurve, 1, -1, 1, {0.0, 0.0, 2e-6, 30.0, 0.0})};
+  for (const Mechanism& kind : load_kinds) {
+    CalibratedModel file = withMechanisms({kind}, false);
+    file.compliance_rad_per_nm.setZero();
+    EXPECT_TRUE(RuntimeModel::fromModel(file, 31)->needs_wrench) << toString(kind.kind);
+  }
+  CalibratedModel rigid = withMechanisms({}, false);
+  rigid.compliance_rad_per_nm.setZero();
+  EXPECT_FALSE(RuntimeModel::fromModel(rigid, 32)->needs_wrench);
+}
+
 // A GPR per payload force (docs/method.md eq. 30a): at a wrench without force the corrected
 // pose is the physical model's exactly, with a zero std (in domain); with a force, the same GP's
 // output times ‖f‖ / f_ref, read in the tracker's axes.

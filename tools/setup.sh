@@ -14,6 +14,8 @@ packages=(
   liblcm-dev liblcm-bin jq
   # The runtime's message authentication (--key-file): libsodium's crypto_auth.
   libsodium-dev
+  # The code-shape check's reader of functions (tests/system/check_code_shape.py).
+  universal-ctags
   # check_urdf, which the calibrated URDF export's test runs on its output.
   liburdfdom-tools
   # The bench's side-by-side with KDL (stepcal-bench --compare-kdl) and the machine's own

@@ -82,7 +82,7 @@ Pose rigidFit(const std::vector<Vec3>& measured, const std::vector<Vec3>& nomina
 double planarity(const std::vector<Vec3>& points) {
   Vec3 mean = Vec3::Zero();
   for (const Vec3& p : points) mean += p / double(points.size());
-  Eigen::MatrixXd centred(3, Eigen::Index(points.size()));
+  Eigen::Matrix3Xd centred(3, Eigen::Index(points.size()));
   for (size_t i = 0; i < points.size(); ++i) centred.col(Eigen::Index(i)) = points[i] - mean;
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(centred);
   const auto& values = svd.singularValues();

@@ -8,14 +8,21 @@
 #include <cmath>
 #include <map>
 #include <cstdio>
+#include <filesystem>
 #include <random>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
 
 #include "stepcal/common/lie.hpp"
+#include "stepcal/report/text_format.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/trainer/cell.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
+#include "support/command.hpp"
+#include "support/files.hpp"
 
 namespace stepcal {
 namespace {
@@ -23,6 +30,7 @@ namespace {
 using trainer::FrameFit;
 using trainer::FramePoint;
 using trainer::ToolPointFit;
+using report::format;
 
 Pose poseOf(const Vec3& p_m, const Vec3& axis, double angle_rad) {
   Pose X = Pose::Identity();
@@ -180,9 +188,9 @@ const Pose kTargetTcp = poseOf(Vec3(0.0, 0.0, 0.3), Vec3(1, 1, 0), 0.4);
 /// What an operator's jog does: joints at which the TRUE TCP sits at p (tracker frame, within
 /// 1 µm) with the orientation R, found with the model's inverse (turning from R_from in steps,
 /// each from the last one's joints) and corrected on the truth.
-JointVector jogTo(const TwinCell& c, const twin::TwinRobot& truth, const Vec3& p, const Mat3& R_from,
-                  const Mat3& R, const JointVector& seed) {
-  runtime::Workspace ws = runtime::makeWorkspace(*c.model);
+JointVector jogTo(const runtime::RuntimeModel& model, const twin::TwinRobot& truth, const Vec3& p,
+                  const Mat3& R_from, const Mat3& R, const JointVector& seed) {
+  runtime::Workspace ws = runtime::makeWorkspace(model);
   runtime::CallTerms terms;
   terms.X_Tool = kTargetTcp;
   Pose desired = Pose::Identity();
@@ -194,7 +202,7 @@ JointVector jogTo(const TwinCell& c, const twin::TwinRobot& truth, const Vec3& p
     desired.linear() = R_from * lie::expSO3(turn * std::min(1.0, double(pass) / kSteps));
     terms.wrench_Sensor = truth.sensorReading(q, 0.0);
     const runtime::InverseResult inverse = runtime::solveInverse(
-        *c.model, ws, desired, terms, runtime::kUnknownTemperature_c, q,
+        model, ws, desired, terms, runtime::kUnknownTemperature_c, q,
         runtime::Clock::time_point::max());
     EXPECT_TRUE(inverse.status == runtime::Status::kOk ||
                 inverse.status == runtime::Status::kOutOfDomain)
@@ -214,9 +222,10 @@ JointVector touchHome() {
 }
 
 /// The calibrated model's target at joints q under the unloaded robot's sensor reading.
-Pose modelTarget(const TwinCell& c, const twin::TwinRobot& truth, const JointVector& q) {
-  runtime::Workspace ws = runtime::makeWorkspace(*c.model);
-  return runtime::correctForward(*c.model, ws, q, truth.sensorReading(q, 0.0),
+Pose modelTarget(const runtime::RuntimeModel& model, const twin::TwinRobot& truth,
+                 const JointVector& q) {
+  runtime::Workspace ws = runtime::makeWorkspace(model);
+  return runtime::correctForward(model, ws, q, truth.sensorReading(q, 0.0),
                                  runtime::kUnknownTemperature_c)
       .X_TrackerTip;
 }
@@ -265,7 +274,7 @@ struct ToolOnTwin {
   Mat3 R0;
 };
 
-ToolOnTwin toolOnTwin(uint64_t seed) {
+ToolOnTwin fitToolOnTwin(uint64_t seed) {
   const TwinCell& c = twinCell(seed);
   const twin::TwinRobot truth(c.options);
   std::mt19937 random(uint32_t(seed) + 100);
@@ -277,7 +286,7 @@ ToolOnTwin toolOnTwin(uint64_t seed) {
   std::vector<Vec3> p;
   for (size_t i = 0; i < rows.size() && X.size() < 8; i += rows.size() / 8) {
     const JointVector& q = rows[i]->q_rad;
-    X.push_back(modelTarget(c, truth, q));
+    X.push_back(modelTarget(*c.model, truth, q));
     p.push_back(truth.X_TrackerTip(q, 0.0) * kTargetTcp.translation() +
                 kTrackerSigma_m * Vec3(normal(random), normal(random), normal(random)));
   }
@@ -290,11 +299,18 @@ ToolOnTwin toolOnTwin(uint64_t seed) {
   X.clear();
   for (const Mat3& R : touchOrientations()) {
     const Vec3 off = kTouchSigma_m * Vec3(normal(random), normal(random), normal(random));
-    X.push_back(modelTarget(c, truth, jogTo(c, truth, X_tcp0.translation() + off, out.R0, out.R0 * R, out.q0)));
+    X.push_back(modelTarget(*c.model, truth, jogTo(*c.model, truth, X_tcp0.translation() + off, out.R0, out.R0 * R, out.q0)));
   }
   out.four_point = trainer::fitToolFromFixedPoint(X, 0.0);
   out.four_point_errors = tcpErrors(c, truth, out.four_point.p_TcpInTip_m);
   return out;
+}
+
+const ToolOnTwin& toolOnTwin(uint64_t seed) {
+  static std::map<uint64_t, ToolOnTwin> tools;
+  auto found = tools.find(seed);
+  if (found == tools.end()) found = tools.emplace(seed, fitToolOnTwin(seed)).first;
+  return found->second;
 }
 
 // The TCP from 8 tracker shots and from 7 four-point touches (0.02 mm touch scatter), over 4
@@ -302,7 +318,7 @@ ToolOnTwin toolOnTwin(uint64_t seed) {
 // from the flange with the true tool data; printed for docs/cell.md.
 TEST(CellOnTwin, ToolFromTrackerAndFourPoint) {
   for (const uint64_t seed : {1, 2, 3, 4}) {
-    const ToolOnTwin t = toolOnTwin(seed);
+    const ToolOnTwin& t = toolOnTwin(seed);
     const Vec3 e_tracker = t.tracker.p_TcpInTip_m - kTargetTcp.translation();
     const Vec3 e_four = t.four_point.p_TcpInTip_m - kTargetTcp.translation();
     std::printf("seed %d: TCP mean error over the validation poses: tracker %.4f mm (sigma %.4f), "
@@ -324,6 +340,154 @@ TEST(CellOnTwin, ToolFromTrackerAndFourPoint) {
       EXPECT_LT(std::abs(e_four[a]), 3 * std::sqrt(t.four_point.covariance_TcpInTip_m2(a, a)) + 0.02e-3);
     }
   }
+}
+
+/// A frame's error against the truth in its own axes: (origin shift, rotation), as FrameFit's
+/// covariance is.
+Vec6 frameError(const Pose& X_fit, const Pose& X_true) {
+  Vec6 d;
+  d.head<3>() = X_fit.linear().transpose() * (X_true.translation() - X_fit.translation());
+  d.tail<3>() = lie::logSO3(X_fit.linear().transpose() * X_true.linear());
+  return d;
+}
+
+/// Each component of the error within 3σ plus a floor (the model's own target error, which
+/// no σ of the points carries: 0.01 mm, 0.001°).
+void expectWithinSigma(const FrameFit& fit, const Pose& X_true, const char* what, int seed) {
+  ASSERT_TRUE(fit.note.empty()) << fit.note;
+  const Vec6 e = frameError(fit.X_TrackerFrame, X_true);
+  std::printf("seed %d, %s: origin error %.4f %.4f %.4f mm (1-sigma %.4f %.4f %.4f), rotation "
+              "error %.5f %.5f %.5f deg (1-sigma %.5f %.5f %.5f)\n",
+              seed, what, e[0] * 1e3, e[1] * 1e3, e[2] * 1e3, std::sqrt(fit.covariance(0, 0)) * 1e3,
+              std::sqrt(fit.covariance(1, 1)) * 1e3, std::sqrt(fit.covariance(2, 2)) * 1e3,
+              e[3] / kRadPerDeg, e[4] / kRadPerDeg, e[5] / kRadPerDeg,
+              std::sqrt(fit.covariance(3, 3)) / kRadPerDeg, std::sqrt(fit.covariance(4, 4)) / kRadPerDeg,
+              std::sqrt(fit.covariance(5, 5)) / kRadPerDeg);
+  for (int k = 0; k < 6; ++k) {
+    const double floor = k < 3 ? 0.01e-3 : 0.001 * kRadPerDeg;
+    EXPECT_LT(std::abs(e[k]), 3 * std::sqrt(fit.covariance(k, k)) + floor)
+        << what << ", seed " << seed << ", component " << k;
+  }
+}
+
+// A work object 0.4 × 0.3 m: five fiducials touched with the four-point TCP (0.02 mm touch
+// scatter) and fitted by least squares, its first three by the three-point method, and the five
+// measured by the tracker; each frame within 3σ of the truth (plus a floor), over 4 seeds.
+TEST(CellOnTwin, WorkObjectWithinItsSigma) {
+  const std::vector<Vec3> nominal = {Vec3(0, 0, 0), Vec3(0.4, 0, 0), Vec3(0, 0.3, 0),
+                                     Vec3(0.4, 0.3, 0.02), Vec3(0.2, 0.15, 0.01)};
+  for (const uint64_t seed : {1, 2, 3, 4}) {
+    const ToolOnTwin& tool = toolOnTwin(seed);
+    const TwinCell& c = twinCell(seed);
+    const twin::TwinRobot truth(c.options);
+    std::mt19937 random(uint32_t(seed) + 200);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    const Vec3 p_tcp0 = truth.X_TrackerTip(tool.q0, 0.0) * kTargetTcp.translation();
+    const Pose X_true = poseOf(p_tcp0 + Vec3(-0.1, -0.1, -0.05), Vec3(0.1, 0.2, 1.0), 0.5);
+    std::vector<FramePoint> touched, measured;
+    for (const Vec3& n : nominal) {
+      const Vec3 p = X_true * n;
+      const Vec3 off = kTouchSigma_m * Vec3(normal(random), normal(random), normal(random));
+      const Pose X = modelTarget(*c.model, truth, jogTo(*c.model, truth, p + off, tool.R0, tool.R0, tool.q0));
+      touched.push_back({X * tool.four_point.p_TcpInTip_m, X.linear()});
+      measured.push_back({p + kTrackerSigma_m * Vec3(normal(random), normal(random), normal(random)),
+                          Mat3::Zero()});
+    }
+    const double sigma = tool.four_point.point_sigma_m;
+    const Mat3& covariance_tool = tool.four_point.covariance_TcpInTip_m2;
+    expectWithinSigma(trainer::fitFrameToFiducials(touched, nominal, sigma, covariance_tool),
+                      X_true, "fiducials touched", int(seed));
+    expectWithinSigma(trainer::fitFrameFromThreePoints(touched[0], touched[1], touched[2], sigma,
+                                                       covariance_tool),
+                      X_true, "three points touched", int(seed));
+    expectWithinSigma(trainer::fitFrameToFiducials(measured, nominal, kTrackerSigma_m, Mat3::Zero()),
+                      X_true, "fiducials by the tracker", int(seed));
+  }
+}
+
+// ---- The commands ----
+
+const std::string kStepcal = std::string(STEPCAL_BIN_DIR) + "/stepcal";
+
+std::string touchLine(const JointVector& q, const twin::TwinRobot& truth) {
+  std::string line;
+  for (Eigen::Index j = 0; j < q.size(); ++j) line += format("%.12f,", q[j] * kDegPerRad);
+  const Vec6 w = truth.sensorReading(q, 0.0);
+  for (int k = 0; k < 6; ++k) line += format(k < 5 ? "%.9f," : "%.9f", w[k]);
+  return line;
+}
+
+const char* const kTouchHeader =
+    "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,fx_n,fy_n,fz_n,mx_nm,my_nm,mz_nm";
+
+// `stepcal tool` on four-point touches of the twin written as a touch file, then `stepcal
+// frame` on fiducials touched with that TCP: the TCP is the library's fit on the same joints,
+// within 0.1 mm of the truth, in the four brands' terms; the frame's origin within 0.1 mm of the
+// truth in the base frame; a bad field is refused by file, line and column.
+TEST(CellCommands, ToolAndFrameOnTheTwin) {
+  const test::TempDir dir;
+  const std::string d = dir.path().string();
+  const test::CommandResult made = test::run(kStepcal + " simulate --seed 1 --out " + d + "/cell && " +
+                                             kStepcal + " calibrate " + d + "/cell --out " + d + "/model.stepcal");
+  ASSERT_EQ(made.status, 0) << made.out;
+  const auto model = runtime::RuntimeModel::load(d + "/model.stepcal");
+  const twin::TwinRobot truth =
+      twin::TwinRobot::fromTruthJson(nlohmann::json::parse(test::readText(d + "/cell/truth.json")));
+  const JointVector q0 = touchHome();
+  const Pose X_tcp0 = truth.X_TrackerTip(q0, 0.0) * kTargetTcp;
+  std::string touches = std::string(kTouchHeader) + "\n";
+  std::vector<Pose> X;
+  for (const Mat3& R : touchOrientations()) {
+    const JointVector q = jogTo(*model, truth, X_tcp0.translation(), X_tcp0.linear(), X_tcp0.linear() * R, q0);
+    touches += touchLine(q, truth) + "\n";
+    X.push_back(modelTarget(*model, truth, q));
+  }
+  test::writeText(d + "/touches.csv", touches);
+  const test::CommandResult tool = test::run(kStepcal + " tool " + d + "/model.stepcal " + d +
+                                             "/touches.csv --out " + d + "/tool.json");
+  ASSERT_EQ(tool.status, 0) << tool.out;
+  std::printf("%s", tool.out.c_str());
+  const nlohmann::json j = nlohmann::json::parse(test::readText(d + "/tool.json"));
+  const ToolPointFit fit = trainer::fitToolFromFixedPoint(X, 0.0);
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_NEAR(j["tcp_in_target_mm"][size_t(a)].get<double>(), fit.p_TcpInTip_m[a] * 1e3, 1e-6);
+    EXPECT_NEAR(fit.p_TcpInTip_m[a], kTargetTcp.translation()[a], 0.1e-3);
+  }
+  for (const char* brand : {"kuka", "abb", "ur", "fanuc"}) EXPECT_TRUE(j["controller"].contains(brand));
+  EXPECT_NE(tool.out.find("KUKA   {X "), std::string::npos);
+
+  // Four fiducials of a frame touched with the TCP.
+  const Pose X_true = poseOf(X_tcp0.translation() + Vec3(-0.1, -0.1, -0.05), Vec3(0.1, 0.2, 1.0), 0.5);
+  std::string points = std::string(kTouchHeader) + ",nx_mm,ny_mm,nz_mm\n";
+  for (const Vec3& n : {Vec3(0, 0, 0), Vec3(0.4, 0, 0), Vec3(0, 0.3, 0), Vec3(0.4, 0.3, 0.02)}) {
+    const JointVector q = jogTo(*model, truth, X_true * n, X_tcp0.linear(), X_tcp0.linear(), q0);
+    points += touchLine(q, truth) + format(",%.3f,%.3f,%.3f\n", n.x() * 1e3, n.y() * 1e3, n.z() * 1e3);
+  }
+  test::writeText(d + "/points.csv", points);
+  const test::CommandResult frame = test::run(kStepcal + " frame " + d + "/model.stepcal " + d +
+                                              "/points.csv --tool " + d + "/tool.json --out " + d + "/frame.json");
+  ASSERT_EQ(frame.status, 0) << frame.out;
+  std::printf("%s", frame.out.c_str());
+  const nlohmann::json f = nlohmann::json::parse(test::readText(d + "/frame.json"));
+  std::istringstream user(f["user_frame"].get<std::string>());
+  double x_mm, y_mm, z_mm;
+  user >> x_mm >> y_mm >> z_mm;
+  const Vec3 p_true_mm = (model->file.X_TrackerBase.inverse() * X_true).translation() * 1e3;
+  EXPECT_NEAR(x_mm, p_true_mm.x(), 0.1);
+  EXPECT_NEAR(y_mm, p_true_mm.y(), 0.1);
+  EXPECT_NEAR(z_mm, p_true_mm.z(), 0.1);
+
+  // A bad field: file, line and column named, nothing written.
+  std::string bad = touches;
+  bad.replace(bad.find('\n', bad.find('\n') + 1) + 1, 0, "1,2,x30,4,5,6,0,0,0,0,0,0\n");
+  test::writeText(d + "/bad.csv", bad);
+  const test::CommandResult refused = test::run(kStepcal + " tool " + d + "/model.stepcal " + d +
+                                                "/bad.csv --out " + d + "/bad.json");
+  EXPECT_EQ(refused.status, 2) << refused.out;
+  EXPECT_NE(refused.out.find("bad.csv:3"), std::string::npos) << refused.out;
+  EXPECT_NE(refused.out.find("q3_deg"), std::string::npos) << refused.out;
+  EXPECT_NE(refused.out.find("'x30' is not a number"), std::string::npos) << refused.out;
+  EXPECT_FALSE(std::filesystem::exists(d + "/bad.json"));
 }
 
 }  // namespace

@@ -157,10 +157,10 @@ int runFrame(const FrameArgs& a) {
             << "  ABB wobjdata.uframe " << abbText(toAbb(X_BaseFrame)) << "\n"
             << "  UR feature       " << urText(toUr(X_BaseFrame)) << "\n"
             << "  FANUC UFRAME     " << fanucText(toFanuc(X_BaseFrame)) << "\n";
-  double p_m[3], q[4];
-  toPositionQuaternion(X_BaseFrame, p_m, q);
-  const std::string user_frame = format("%.4f %.4f %.4f %.9f %.9f %.9f %.9f", p_m[0] * kMmPerM,
-                                        p_m[1] * kMmPerM, p_m[2] * kMmPerM, q[0], q[1], q[2], q[3]);
+  const AbbFrame abb = toAbb(X_BaseFrame);  // mm and the quaternion with qw ≥ 0
+  const std::string user_frame =
+      format("%.4f %.4f %.4f %.9f %.9f %.9f %.9f", abb.trans_mm[0], abb.trans_mm[1],
+             abb.trans_mm[2], abb.rot_q1234[0], abb.rot_q1234[1], abb.rot_q1234[2], abb.rot_q1234[3]);
   std::cout << "for the runtime and stepcal correct: --frame user --user-frame " << user_frame << "\n";
   if (!a.out.empty()) {
     nlohmann::json out = {

@@ -490,5 +490,72 @@ TEST(CellCommands, ToolAndFrameOnTheTwin) {
   EXPECT_FALSE(std::filesystem::exists(d + "/bad.json"));
 }
 
+// The other inputs of the commands: tracker shots at the TCP (joints and x_mm …), touches too
+// alike (a result with a warning, exit status 0), and a three-point frame the tracker measured
+// (no joint columns at all).
+TEST(CellCommands, TrackerShotsSimilarTouchesAndATrackerFrame) {
+  const test::TempDir dir;
+  const std::string d = dir.path().string();
+  const test::CommandResult made = test::run(kStepcal + " simulate --seed 2 --out " + d + "/cell && " +
+                                             kStepcal + " calibrate " + d + "/cell --out " + d + "/model.stepcal");
+  ASSERT_EQ(made.status, 0) << made.out;
+  const std::string model_path = d + "/model.stepcal";
+  const auto model = runtime::RuntimeModel::load(model_path);
+  const twin::TwinRobot truth =
+      twin::TwinRobot::fromTruthJson(nlohmann::json::parse(test::readText(d + "/cell/truth.json")));
+  const JointVector q0 = touchHome();
+  const Pose X_tcp0 = truth.X_TrackerTip(q0, 0.0) * kTargetTcp;
+
+  std::string shots = std::string(kTouchHeader) + ",x_mm,y_mm,z_mm\n";
+  const std::vector<Mat3> orientations = touchOrientations();
+  for (size_t k = 0; k < orientations.size(); ++k) {  // the SMR in 3 places, 50 mm apart
+    const Vec3 p = X_tcp0.translation() + Vec3(0.0, 0.05 * double(k % 3), 0.0);
+    const JointVector q = jogTo(*model, truth, p, X_tcp0.linear(), X_tcp0.linear() * orientations[k], q0);
+    const Vec3 p_mm = truth.X_TrackerTip(q, 0.0) * kTargetTcp.translation() * 1e3;
+    shots += touchLine(q, truth) + format(",%.4f,%.4f,%.4f\n", p_mm.x(), p_mm.y(), p_mm.z());
+  }
+  test::writeText(d + "/shots.csv", shots);
+  const test::CommandResult tracker = test::run(kStepcal + " tool " + model_path + " " + d +
+                                                "/shots.csv --out " + d + "/tool.json");
+  ASSERT_EQ(tracker.status, 0) << tracker.out;
+  EXPECT_NE(tracker.out.find("TCP by the tracker method from 7 tracker rows"), std::string::npos) << tracker.out;
+  const nlohmann::json j = nlohmann::json::parse(test::readText(d + "/tool.json"));
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_NEAR(j["tcp_in_target_mm"][size_t(a)].get<double>(), kTargetTcp.translation()[a] * 1e3, 0.05);
+  }
+
+  std::string alike = std::string(kTouchHeader) + "\n";
+  for (const Vec3& axis : {Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1), Vec3(-1, 0, 0)}) {
+    const Mat3 R = Eigen::AngleAxisd(5.0 * kRadPerDeg, axis).toRotationMatrix();
+    alike += touchLine(jogTo(*model, truth, X_tcp0.translation(), X_tcp0.linear(), X_tcp0.linear() * R, q0), truth) + "\n";
+  }
+  test::writeText(d + "/alike.csv", alike);
+  const test::CommandResult weak = test::run(kStepcal + " tool " + model_path + " " + d + "/alike.csv");
+  EXPECT_EQ(weak.status, 0) << weak.out;
+  EXPECT_NE(weak.out.find("WARNING: the orientations differ by only"), std::string::npos) << weak.out;
+
+  std::string corners = "point,x_mm,y_mm,z_mm\n";
+  const Pose X_true = poseOf(Vec3(1.8, -0.3, 0.4), Vec3(0, 0, 1), 0.3);
+  const char* const roles[] = {"origin", "x", "xy"};
+  const Vec3 nominal[] = {Vec3(0, 0, 0), Vec3(0.5, 0, 0), Vec3(0.2, 0.4, 0)};
+  for (int k = 0; k < 3; ++k) {
+    const Vec3 p_mm = X_true * nominal[k] * 1e3;
+    corners += format("%s,%.4f,%.4f,%.4f\n", roles[k], p_mm.x(), p_mm.y(), p_mm.z());
+  }
+  test::writeText(d + "/corners.csv", corners);
+  const test::CommandResult frame = test::run(kStepcal + " frame " + model_path + " " + d +
+                                              "/corners.csv --out " + d + "/frame.json");
+  ASSERT_EQ(frame.status, 0) << frame.out;
+  EXPECT_NE(frame.out.find("work object by three-point from 3 points"), std::string::npos) << frame.out;
+  const nlohmann::json f = nlohmann::json::parse(test::readText(d + "/frame.json"));
+  std::istringstream user(f["user_frame"].get<std::string>());
+  double x_mm, y_mm, z_mm;
+  user >> x_mm >> y_mm >> z_mm;
+  const Vec3 p_true_mm = (model->file.X_TrackerBase.inverse() * X_true).translation() * 1e3;
+  EXPECT_NEAR(x_mm, p_true_mm.x(), 1e-3);  // exact points: the registration's frame to the text's 0.1 µm
+  EXPECT_NEAR(y_mm, p_true_mm.y(), 1e-3);
+  EXPECT_NEAR(z_mm, p_true_mm.z(), 1e-3);
+}
+
 }  // namespace
 }  // namespace stepcal

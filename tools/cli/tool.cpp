@@ -56,6 +56,14 @@ nlohmann::json controllerJson(const Pose& X) {
           {"fanuc", fanucText(toFanuc(X))}};
 }
 
+/// A pose as a correction program's tool columns take it: x,y,z (mm),qw,qx,qy,qz.
+std::string toolColumns(const Pose& X) {
+  double p_m[3], q[4];
+  toPositionQuaternion(X, p_m, q);
+  return format("%.4f,%.4f,%.4f,%.9f,%.9f,%.9f,%.9f", p_m[0] * kMmPerM, p_m[1] * kMmPerM,
+                p_m[2] * kMmPerM, q[0], q[1], q[2], q[3]);
+}
+
 void printController(const char* what, const Pose& X) {
   std::cout << what << ":\n"
             << "  KUKA   " << kukaText(toKuka(X)) << "\n"
@@ -134,15 +142,9 @@ int runTool(const ToolArgs& a) {
                         {"least_spread_deg", fit.least_spread_rad * kDegPerRad},
                         {"well_conditioned", fit.well_conditioned}, {"note", fit.note},
                         {"tool_from_target", poseJson(X_TipTcp)}};
-  const Pose X_TargetTcp = X_TipTcp;
-  std::cout << format("for the runtime and stepcal correct (from the target): tool_from target, "
-                      "tool_x_mm … tool_qz = %s\n",
-                      [&] {
-                        double p[3], q[4];
-                        toPositionQuaternion(X_TargetTcp, p, q);
-                        return format("%.4f,%.4f,%.4f,%.9f,%.9f,%.9f,%.9f", p[0] * kMmPerM,
-                                      p[1] * kMmPerM, p[2] * kMmPerM, q[0], q[1], q[2], q[3]);
-                      }().c_str());
+  std::cout << "for the runtime and stepcal correct (from the target): tool_from target, "
+               "tool_x_mm … tool_qz = "
+            << toolColumns(X_TipTcp) << "\n";
   if (model->has_flange) {
     const Pose X_FlangeTcp = model->X_TipFlange.inverse() * X_TipTcp;
     const Mat3 R_FlangeTip = X_FlangeTcp.linear() * X_TipTcp.linear().transpose();

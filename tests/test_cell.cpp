@@ -134,8 +134,53 @@ TEST(ToolFit, TrackerSigmaMatchesTheScatter) {
   }
   // 400 draws of a χ²₃ scaled by s²/σ² (s on 18 degrees of freedom): mean near 3·18/16 = 3.4;
   // a covariance off by a factor 2 gives 1.7 or 6.8.
+  std::printf("mean chi2: %.2f (3 parameters)\n", chi2 / draws);
   EXPECT_GT(chi2 / draws, 2.5);
   EXPECT_LT(chi2 / draws, 4.5);
+}
+
+// Noisy four-point touches and noisy fiducials: each fit's error against its stated covariance
+// over many draws (the mean of e' Σ⁻¹ e is the dimension, 3 and 6, within its spread; the σ
+// here is the residuals' own, so a little above: s² on ν degrees of freedom).
+TEST(ToolFit, FourPointAndFrameSigmaMatchTheScatter) {
+  std::mt19937 random(11);
+  std::normal_distribution<double> noise(0.0, 20e-6);
+  const Vec3 t(0.04, -0.03, 0.56), p_fixed(1.2, 0.3, 0.4);
+  const Pose X_frame = poseOf(Vec3(1.5, -0.2, 0.3), Vec3(0.3, -0.2, 1.0), 0.8);
+  const std::vector<Vec3> nominal = {Vec3(0, 0, 0), Vec3(0.4, 0, 0), Vec3(0.1, 0.3, 0),
+                                     Vec3(0.4, 0.3, 0.02), Vec3(0.2, 0.1, -0.01), Vec3(0.3, 0.2, 0.0)};
+  double chi2_tool = 0.0, chi2_frame = 0.0;
+  const int draws = 400;
+  for (int d = 0; d < draws; ++d) {
+    std::vector<Pose> X;
+    for (const Mat3& R : touchOrientations()) {
+      Pose x = Pose::Identity();
+      x.linear() = R;
+      x.translation() = p_fixed - R * t + Vec3(noise(random), noise(random), noise(random));
+      X.push_back(x);
+    }
+    const ToolPointFit fit = trainer::fitToolFromFixedPoint(X, 0.0);
+    const Vec3 e = fit.p_TcpInTip_m - t;
+    chi2_tool += e.dot(fit.covariance_TcpInTip_m2.inverse() * e);
+    std::vector<FramePoint> points;
+    for (const Vec3& n : nominal) {
+      points.push_back({X_frame * n + Vec3(noise(random), noise(random), noise(random)), Mat3::Zero()});
+    }
+    const FrameFit frame = trainer::fitFrameToFiducials(points, nominal, 0.0, Mat3::Zero());
+    Vec6 ef;
+    ef.head<3>() = frame.X_TrackerFrame.linear().transpose() *
+                   (X_frame.translation() - frame.X_TrackerFrame.translation());
+    ef.tail<3>() = lie::logSO3(frame.X_TrackerFrame.linear().transpose() * X_frame.linear());
+    chi2_frame += ef.dot(frame.covariance.inverse() * ef);
+  }
+  // Tool: ν = 15, E = 3 · 15/13 = 3.5; frame: ν = 12, E = 6 · 12/10 = 7.2. A covariance off by
+  // a factor 2 gives half or twice these.
+  std::printf("mean chi2: tool %.2f (3 parameters), frame %.2f (6)\n", chi2_tool / draws,
+              chi2_frame / draws);
+  EXPECT_GT(chi2_tool / draws, 2.6);
+  EXPECT_LT(chi2_tool / draws, 4.6);
+  EXPECT_GT(chi2_frame / draws, 5.4);
+  EXPECT_LT(chi2_frame / draws, 9.2);
 }
 
 // Exact points: the three-point frame and the fiducial fit return the frame; points on a line

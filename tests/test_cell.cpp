@@ -91,6 +91,8 @@ TEST(ToolFit, FourPointSaysWhenOrientationsAreTooSimilar) {
   EXPECT_FALSE(flat.well_conditioned);
   EXPECT_NE(flat.note.find("not determined"), std::string::npos) << flat.note;
   EXPECT_NEAR(std::abs(flat.least_spread_direction.z()), 1.0, 1e-9);
+  EXPECT_GT(std::sqrt(flat.covariance_TcpInTip_m2(2, 2)), 1.0);  // metres: not determined
+  EXPECT_LT(std::sqrt(flat.covariance_TcpInTip_m2(0, 0)), 1e-4);  // across z it is
 
   std::vector<Mat3> close;
   for (const Vec3& axis : {Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1)}) {

@@ -103,15 +103,18 @@ ToolPointFit fitToolFromFixedPoint(const std::vector<Pose>& X_TrackerTip, double
     rhs -= dR.transpose() * (X.translation() - p_mean);
   }
   spreadOf(S, n, fit);
-  // The pseudo-inverse: a direction the orientations do not see gets no step and infinite σ.
+  // The pseudo-inverse steps nowhere along a direction the orientations do not see; its
+  // variance there is the floor's (σ² / (1e-12 n): metres for any touch scatter), not zero.
   const Eigen::SelfAdjointEigenSolver<Mat3> eigen(S);
-  Vec3 inverse_values;
+  const double floor = 1e-12 * n;
+  Vec3 inverse_values, variance_values;
   for (int k = 0; k < 3; ++k) {
     const double lambda = eigen.eigenvalues()[k];
-    inverse_values[k] = lambda > 1e-12 * n ? 1.0 / lambda : 0.0;
+    inverse_values[k] = lambda > floor ? 1.0 / lambda : 0.0;
+    variance_values[k] = 1.0 / std::max(lambda, floor);
   }
-  const Mat3 S_inverse = eigen.eigenvectors() * inverse_values.asDiagonal() *
-                         eigen.eigenvectors().transpose();
+  const Mat3& V = eigen.eigenvectors();
+  const Mat3 S_inverse = V * inverse_values.asDiagonal() * V.transpose();
   fit.p_TcpInTip_m = S_inverse * rhs;
   fit.p_FixedInTracker_m = R_mean * fit.p_TcpInTip_m + p_mean;
   double rss = 0.0;
@@ -122,7 +125,7 @@ ToolPointFit fitToolFromFixedPoint(const std::vector<Pose>& X_TrackerTip, double
   fit.rms_residual_m = std::sqrt(rss / n);
   fit.point_sigma_m = pointSigma(rss, fit.redundancy, stated_sigma_m);
   const double s2 = fit.point_sigma_m * fit.point_sigma_m;
-  fit.covariance_TcpInTip_m2 = s2 * S_inverse;
+  fit.covariance_TcpInTip_m2 = s2 * V * variance_values.asDiagonal() * V.transpose();
   if (fit.least_spread_rad < kLeastOrientationSpread_rad) {
     fit.well_conditioned = false;
     fit.note = inverse_values[0] == 0.0

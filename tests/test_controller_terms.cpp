@@ -44,6 +44,9 @@ TEST(ControllerTerms, KukaAbcIsZyxEuler) {
   EXPECT_NEAR(k.c_deg, 60.0, 1e-9);
   EXPECT_LT((fromKuka(k).matrix() - X.matrix()).norm(), 1e-12);
   EXPECT_EQ(kukaText(k), "{X 100.000, Y -200.000, Z 350.000, A 30.0000, B 45.0000, C 60.0000}");
+  // A value that prints as zero prints unsigned, as a pendant takes it.
+  EXPECT_EQ(kukaText({1e-12, -1e-12, 0, -1e-9, 0, -0.0}),
+            "{X 0.000, Y 0.000, Z 0.000, A 0.0000, B 0.0000, C 0.0000}");
   // A alone turns about z: x goes to y.
   const Pose Z90 = fromKuka({0, 0, 0, 90, 0, 0});
   EXPECT_LT((Z90.linear() * Vec3::UnitX() - Vec3::UnitY()).norm(), 1e-12);

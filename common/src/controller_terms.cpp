@@ -1,5 +1,6 @@
 #include "stepcal/common/controller_terms.hpp"
 
+#include <cmath>
 #include <cstdio>
 
 #include "stepcal/common/lie.hpp"
@@ -13,6 +14,14 @@ Pose poseAt(double x_m, double y_m, double z_m, const Mat3& R) {
   X.linear() = R;
   X.translation() = Vec3(x_m, y_m, z_m);
   return X;
+}
+
+/// v rounded to `decimals` places, so that a value that prints as zero prints without a sign
+/// ("0.0000", never "-0.0000", which a pendant would take as typed).
+double shown(double v, int decimals) {
+  const double scale = std::pow(10.0, decimals);
+  const double rounded = std::round(v * scale) / scale;
+  return rounded == 0.0 ? 0.0 : rounded;
 }
 
 }  // namespace
@@ -73,31 +82,34 @@ Pose fromFanuc(const FanucFrame& f) {
 
 std::string kukaText(const KukaFrame& f) {
   char text[200];
-  std::snprintf(text, sizeof text, "{X %.3f, Y %.3f, Z %.3f, A %.4f, B %.4f, C %.4f}", f.x_mm,
-                f.y_mm, f.z_mm, f.a_deg, f.b_deg, f.c_deg);
+  std::snprintf(text, sizeof text, "{X %.3f, Y %.3f, Z %.3f, A %.4f, B %.4f, C %.4f}",
+                shown(f.x_mm, 3), shown(f.y_mm, 3), shown(f.z_mm, 3), shown(f.a_deg, 4),
+                shown(f.b_deg, 4), shown(f.c_deg, 4));
   return text;
 }
 
 std::string abbText(const AbbFrame& f) {
   char text[200];
-  std::snprintf(text, sizeof text, "[[%.3f,%.3f,%.3f],[%.9f,%.9f,%.9f,%.9f]]", f.trans_mm[0],
-                f.trans_mm[1], f.trans_mm[2], f.rot_q1234[0], f.rot_q1234[1], f.rot_q1234[2],
-                f.rot_q1234[3]);
+  std::snprintf(text, sizeof text, "[[%.3f,%.3f,%.3f],[%.9f,%.9f,%.9f,%.9f]]",
+                shown(f.trans_mm[0], 3), shown(f.trans_mm[1], 3), shown(f.trans_mm[2], 3),
+                shown(f.rot_q1234[0], 9), shown(f.rot_q1234[1], 9), shown(f.rot_q1234[2], 9),
+                shown(f.rot_q1234[3], 9));
   return text;
 }
 
 std::string urText(const UrFrame& f) {
   const auto& v = f.pose_m_rad;
   char text[200];
-  std::snprintf(text, sizeof text, "p[%.6f, %.6f, %.6f, %.6f, %.6f, %.6f]", v[0], v[1], v[2], v[3],
-                v[4], v[5]);
+  std::snprintf(text, sizeof text, "p[%.6f, %.6f, %.6f, %.6f, %.6f, %.6f]", shown(v[0], 6),
+                shown(v[1], 6), shown(v[2], 6), shown(v[3], 6), shown(v[4], 6), shown(v[5], 6));
   return text;
 }
 
 std::string fanucText(const FanucFrame& f) {
   char text[200];
-  std::snprintf(text, sizeof text, "X %.3f Y %.3f Z %.3f W %.4f P %.4f R %.4f", f.x_mm, f.y_mm,
-                f.z_mm, f.w_deg, f.p_deg, f.r_deg);
+  std::snprintf(text, sizeof text, "X %.3f Y %.3f Z %.3f W %.4f P %.4f R %.4f", shown(f.x_mm, 3),
+                shown(f.y_mm, 3), shown(f.z_mm, 3), shown(f.w_deg, 4), shown(f.p_deg, 4),
+                shown(f.r_deg, 4));
   return text;
 }
 

@@ -537,7 +537,8 @@ TEST(CellCommands, ToolAndFrameOnTheTwin) {
   EXPECT_FALSE(std::filesystem::exists(d + "/bad.json"));
 }
 
-// The other inputs of the commands: tracker shots at the TCP (joints and x_mm …), touches too
+// The other inputs of the commands: tracker shots at the TCP (joints and x_mm …, and a
+// campaign folder), touches too
 // alike (a result with a warning, exit status 0), and a three-point frame the tracker measured
 // (no joint columns at all).
 TEST(CellCommands, TrackerShotsSimilarTouchesAndATrackerFrame) {
@@ -570,6 +571,15 @@ TEST(CellCommands, TrackerShotsSimilarTouchesAndATrackerFrame) {
   for (int a = 0; a < 3; ++a) {
     EXPECT_NEAR(j["tcp_in_target_mm"][size_t(a)].get<double>(), kTargetTcp.translation()[a] * 1e3, 0.05);
   }
+
+  // The calibration's own campaign as tracker shots: its measured point is the target itself,
+  // so the TCP comes out at the target's origin (within 0.005 mm: the model's error averaged
+  // over its 1070 rows).
+  const test::CommandResult itself = test::run(kStepcal + " tool " + model_path + " " + d +
+                                               "/cell --out " + d + "/itself.json");
+  ASSERT_EQ(itself.status, 0) << itself.out;
+  const nlohmann::json k = nlohmann::json::parse(test::readText(d + "/itself.json"));
+  for (int a = 0; a < 3; ++a) EXPECT_NEAR(k["tcp_in_target_mm"][size_t(a)].get<double>(), 0.0, 0.005);
 
   std::string alike = std::string(kTouchHeader) + "\n";
   for (const Vec3& axis : {Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1), Vec3(-1, 0, 0)}) {

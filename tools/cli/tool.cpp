@@ -1,7 +1,8 @@
-// `stepcal tool MODEL TOUCHES [--out TOOL.json]`: the tool's centre point (TCP) with the calibrated
+// `stepcal tool MODEL TOUCHES|CAMPAIGN [--out TOOL.json]`: the tool's centre point (TCP) with the calibrated
 // robot, from tracker shots at it or from the four-point method, in every controller's terms
 // with its 1-σ (docs/cell.md).
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
@@ -100,7 +101,10 @@ trainer::ToolPointFit fitTouches(const ToolArgs& a, const runtime::RuntimeModel&
 
 int runTool(const ToolArgs& a) {
   const std::unique_ptr<const runtime::RuntimeModel> model = runtime::RuntimeModel::load(a.model);
-  const std::vector<Touch> touches = readTouchFile(a.touches, int(model->file.chain_Tracker.dof()));
+  const std::vector<Touch> touches =
+      std::filesystem::is_directory(a.touches)
+          ? readCampaignShots(a.touches, model->file, a.model)
+          : readTouchFile(a.touches, int(model->file.chain_Tracker.dof()));
   const Eigen::Quaterniond q_FlangeTcp(a.rotation[0], a.rotation[1], a.rotation[2], a.rotation[3]);
   if (!isUnitQuaternion(q_FlangeTcp)) {
     throw InputError("--rotation " + format("%g %g %g %g", a.rotation[0], a.rotation[1],
@@ -179,7 +183,10 @@ Subcommand addToolCommand(CLI::App& app) {
               "4 or more orientations); KUKA, ABB, UR and FANUC tool data with 1-sigma "
               "(docs/cell.md)");
   cmd->add_option("model", a.model, "model file")->required();
-  cmd->add_option("touches", a.touches, "touch file (CSV: q1_deg … [, x_mm,y_mm,z_mm])")->required();
+  cmd->add_option("touches", a.touches,
+                  "touch file (CSV: q1_deg … [, x_mm,y_mm,z_mm]), or a campaign folder of tracker "
+                  "shots at the TCP")
+      ->required();
   cmd->add_option("--out", a.out, "tool file to write (JSON: the TCP, its covariance, the "
                                   "controller terms; `stepcal frame --tool` reads it)");
   cmd->add_option("--rotation", a.rotation,

@@ -6,8 +6,10 @@
 #include <map>
 #include <sstream>
 
+#include "stepcal/common/campaign.hpp"
 #include "stepcal/common/csv.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/model_robot.hpp"
 #include "stepcal/common/text_number.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/trainer/pipeline.hpp"
@@ -168,6 +170,24 @@ std::vector<Pose> touchPoses(const runtime::RuntimeModel& model, const std::vect
     poses.push_back(forward.X_TrackerTip);
   }
   return poses;
+}
+
+std::vector<Touch> readCampaignShots(const std::string& path, const CalibratedModel& model,
+                                     const std::string& model_path) {
+  const Campaign campaign = readCampaign(path);
+  requireCampaignOfModelRobot(model, campaign, model_path);
+  std::vector<Touch> touches;
+  for (const Measurement& row : campaign.rows) {
+    Touch touch;
+    touch.line = row.source_line;
+    touch.id = row.pose_id;
+    touch.q_rad = row.q_rad;
+    touch.p_InTracker_m = row.p_TipInTracker_m;
+    if (row.has_wrench) touch.wrench_Sensor = row.wrench_Sensor;
+    touches.push_back(touch);
+  }
+  if (touches.empty()) throw InputError("the campaign has no rows", path);
+  return touches;
 }
 
 std::vector<Touch> readTouchFile(const std::string& path, int joints) {

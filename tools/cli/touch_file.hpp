@@ -29,6 +29,12 @@ struct Touch {
 /// both. Throws InputError naming the file, line and column.
 std::vector<Touch> readTouchFile(const std::string& path, int joints);
 
+/// Tracker shots at the TCP as a campaign (docs/campaign-format.md): every row's joints, wrench
+/// and measured point (its tip_link is then the reflector at the TCP). Throws InputError when the
+/// campaign is of another robot than the model's.
+std::vector<Touch> readCampaignShots(const std::string& path, const CalibratedModel& model,
+                                     const std::string& model_path);
+
 /// The mean norm of a 3-D normal error of per-axis σ is 2 √(2/π) σ ≈ 1.596 σ.
 inline constexpr double kMeanNormPerAxisSigma = 1.5957691216057308;
 

@@ -43,5 +43,7 @@ Subcommand addExportCommand(CLI::App& app);     ///< export.cpp: export urdf
 Subcommand addDiagnoseCommand(CLI::App& app);   ///< diagnose.cpp
 Subcommand addDemoCommand(CLI::App& app);       ///< demo.cpp
 Subcommand addCorrectCommand(CLI::App& app);    ///< correct.cpp
+Subcommand addToolCommand(CLI::App& app);       ///< tool.cpp
+Subcommand addFrameCommand(CLI::App& app);      ///< frame.cpp
 
 }  // namespace stepcal::cli

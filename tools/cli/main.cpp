@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
       addDiagnoseCommand(app),
       addDemoCommand(app),
       addCorrectCommand(app),
+      addCertifyCommand(app),
   };
   for (const Subcommand& subcommand : subcommands) {  // `import` as well as `import ipa`
     for (CLI::App* c = subcommand.command; c != nullptr; c = c->get_parent()) {

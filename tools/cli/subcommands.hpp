@@ -43,5 +43,6 @@ Subcommand addExportCommand(CLI::App& app);     ///< export.cpp: export urdf
 Subcommand addDiagnoseCommand(CLI::App& app);   ///< diagnose.cpp
 Subcommand addDemoCommand(CLI::App& app);       ///< demo.cpp
 Subcommand addCorrectCommand(CLI::App& app);    ///< correct.cpp
+Subcommand addCertifyCommand(CLI::App& app);    ///< certify.cpp
 
 }  // namespace stepcal::cli

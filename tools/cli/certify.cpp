@@ -80,7 +80,7 @@ Subcommand addCertifyCommand(CLI::App& app) {
   certify->add_option("model", a.model, "model file")->required();
   certify->add_option("campaign", a.campaign,
                       "campaign folder: the rows of a stepcal plan --iso9283 where it has any, "
-                      "else every row, grouped into poses by commanded pose (1 mm, 0.5°) and load")
+                      "else every row, grouped into poses by load, commanded pose (1 mm, 0.5°) and joints (0.01 rad)")
       ->required();
   certify->add_option("--set", a.set,
                       "only the rows of this set (geometry, stiffness, residual, validation)");

@@ -64,7 +64,9 @@ std::map<double, std::vector<PoseRows>> posesByLoad(const CalibratedModel& model
     const Pose X = commandedPose(model, *row, ws);
     std::vector<PoseRows>& poses = by_load[row->load_kg];
     auto same = std::find_if(poses.begin(), poses.end(), [&](const PoseRows& pose) {
-      return (pose.X_BaseTip_commanded.translation() - X.translation()).norm() <=
+      return (pose.rows.front()->q_rad - row->q_rad).cwiseAbs().maxCoeff() <=
+                 options.same_pose_joints_rad &&
+             (pose.X_BaseTip_commanded.translation() - X.translation()).norm() <=
                  options.same_pose_position_m &&
              lie::angleBetween(pose.X_BaseTip_commanded.linear(), X.linear()) <=
                  options.same_pose_orientation_rad;
@@ -128,6 +130,7 @@ void poseAccuracyAndRepeatability(const std::vector<Deviation>& cycles, IsoPoseF
   for (const Deviation& d : cycles) distances.push_back((d.position_m - mean).norm());
   const auto [l_mean, l_sd] = meanAndSd(distances);
   out.rp_position = {l_mean + 3.0 * l_sd, ""};
+  out.repeat_distances_m = distances;
   if (oriented) {
     Vec3 rp;
     for (int axis = 0; axis < 3; ++axis) {
@@ -254,6 +257,32 @@ IsoFigure largest(const std::vector<IsoPoseFigures>& poses, IsoFigure IsoPoseFig
   return out;
 }
 
+/// The median of values (not empty).
+double median(std::vector<double> values) {
+  std::sort(values.begin(), values.end());
+  const size_t middle = values.size() / 2;
+  return values.size() % 2 == 1 ? values[middle] : 0.5 * (values[middle - 1] + values[middle]);
+}
+
+/// The median of the poses' AP; RP pooled over the poses' cycles and the median of the poses'
+/// RP (when any has cycles).
+void pooledAndMedianFigures(IsoMethodFigures& out) {
+  std::vector<double> ap, pooled, per_pose;
+  for (const IsoPoseFigures& pose : out.poses) {
+    ap.push_back(*pose.ap_position.value);
+    pooled.insert(pooled.end(), pose.repeat_distances_m.begin(), pose.repeat_distances_m.end());
+    if (pose.rp_position.value) per_pose.push_back(*pose.rp_position.value);
+  }
+  out.ap_position_median = {median(ap), ""};
+  if (per_pose.empty()) {
+    out.rp_position_pooled = out.rp_position_median = out.rp_position_max;
+    return;
+  }
+  const auto [l_mean, l_sd] = meanAndSd(pooled);
+  out.rp_position_pooled = {l_mean + 3.0 * l_sd, ""};
+  out.rp_position_median = {median(per_pose), ""};
+}
+
 IsoMethodFigures methodFigures(const std::string& method, const PoseModel& predictor,
                                const Mat3& R_TrackerBase, const std::vector<PoseRows>& poses,
                                bool iso_plan) {
@@ -273,6 +302,7 @@ IsoMethodFigures methodFigures(const std::string& method, const PoseModel& predi
         "no commanded pose was measured more than once at this load: repeatability needs "
         "repeated cycles of one pose (ISO 9283: 30)";
   }
+  pooledAndMedianFigures(out);
   out.vap_position_max = largest(out.poses, &IsoPoseFigures::vap_position);
   distanceFigures(poses, deviations, iso_plan, out);
   return out;

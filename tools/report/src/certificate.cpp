@@ -58,7 +58,10 @@ nlohmann::json poseJson(const trainer::IsoPoseFigures& pose) {
 void methodText(const trainer::IsoMethodFigures& m, std::ostringstream& out) {
   out << "  " << m.method << ":\n"
       << "    AP_P (largest over the poses)  " << figureText(m.ap_position_max) << "\n"
+      << "    AP_P (median of the poses)     " << figureText(m.ap_position_median) << "\n"
       << "    RP_l (largest over the poses)  " << figureText(m.rp_position_max) << "\n"
+      << "    RP_l (median of the poses)     " << figureText(m.rp_position_median) << "\n"
+      << "    RP_l (cycles pooled)           " << figureText(m.rp_position_pooled) << "\n"
       << "    vAP_P (largest)                " << figureText(m.vap_position_max) << "\n"
       << "    AD_P (P2–P4, " << m.distance_cycles << " cycles)        "
       << figureText(m.ad_position) << "\n"
@@ -181,7 +184,10 @@ nlohmann::json certificateJson(const trainer::IsoCertificate& c) {
       nlohmann::json mj;
       mj["method"] = m.method;
       putFigure(mj, "ap_position_max", m.ap_position_max);
+      putFigure(mj, "ap_position_median", m.ap_position_median);
       putFigure(mj, "rp_position_max", m.rp_position_max);
+      putFigure(mj, "rp_position_median", m.rp_position_median);
+      putFigure(mj, "rp_position_pooled", m.rp_position_pooled);
       putFigure(mj, "vap_position_max", m.vap_position_max);
       putFigure(mj, "ad_position", m.ad_position);
       putFigure(mj, "rd_position", m.rd_position);

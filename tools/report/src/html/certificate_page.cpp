@@ -77,12 +77,15 @@ std::string loadSection(const trainer::IsoLoadFigures& load, html::MarkerIds& id
   out << "<h2 id=\"load-" << format("%g", load.load_kg) << "\">" << html::loadLabel(load.load_kg)
       << "</h2>\n<p>" << load.rows << " rows, " << load.poses_with_cycles
       << " poses measured more than once.</p>\n<table><tr><th class=\"l\">method</th>"
-         "<th>AP_P max, mm</th><th>RP_l max, mm</th><th>vAP_P max, mm</th><th>AD_P, mm</th>"
+         "<th>AP_P max, mm</th><th>AP_P median, mm</th><th>RP_l max, mm</th><th>RP_l median, mm</th><th>RP_l pooled, mm</th>"
+         "<th>vAP_P max, mm</th><th>AD_P, mm</th>"
          "<th>RD_P, mm</th></tr>\n";
   for (const trainer::IsoMethodFigures& m : load.methods) {
     out << "<tr><td class=\"l\">" << html::escape(m.method) << "</td><td>"
-        << figureCell(m.ap_position_max) << "</td><td>" << figureCell(m.rp_position_max)
-        << "</td><td>" << figureCell(m.vap_position_max) << "</td><td>"
+        << figureCell(m.ap_position_max) << "</td><td>" << figureCell(m.ap_position_median)
+        << "</td><td>" << figureCell(m.rp_position_max)
+        << "</td><td>" << figureCell(m.rp_position_median) << "</td><td>"
+        << figureCell(m.rp_position_pooled) << "</td><td>" << figureCell(m.vap_position_max) << "</td><td>"
         << figureCell(m.ad_position) << "</td><td>" << figureCell(m.rd_position) << "</td></tr>\n";
   }
   out << "</table>\n<div class=\"panels\">" << perPoseBars(load, false) << perPoseBars(load, true)

@@ -3,13 +3,15 @@
 // model's last layer: where the robot goes when its joints are corrected, attained − predicted).
 //
 // A pose is the rows of one load whose commanded poses (the nominal tip at their joints) agree
-// to 1 mm and 0.5°: its cycles. Each row's deviation is the attained pose against the commanded
+// to 1 mm and 0.5° and whose joints agree to 0.01 rad: its cycles (one pose reached in another
+// joint configuration, as Series B of the real UR10 does, is another pose). Each row's deviation is the attained pose against the commanded
 // (or predicted) one, in base_link's axes: e = p_attained − p_commanded, (a, b, c) the rotation
 // vector of R_attained·R_commandedᵀ (small angles about x, y, z). Per pose, with x̄ the
 // barycentre of the n cycles' deviations:
 //   AP_P = ‖ē‖, AP_a/b/c = ā, b̄, c̄                       (pose accuracy)
 //   RP_l = l̄ + 3 S_l, l_j = ‖e_j − ē‖, S_l = √(Σ(l_j − l̄)²/(n−1)); RP_a/b/c = 3 S_a/b/c
-//                                                          (pose repeatability, n ≥ 2)
+//                                                          (pose repeatability, n ≥ 2; with
+//                                                          n = 2, l₁ = l₂ and RP_l = l̄)
 //   vAP_P = max over approach directions h, k of ‖ē_h − ē_k‖; vAP_a/b/c likewise
 //                                                          (multi-directional, ≥ 2 directions)
 //   AD_P = D̄ − D_c, RD_P = 3 S_D with D_j = ‖p_P2,j − p_P4,j‖ attained in cycle j and D_c
@@ -48,6 +50,7 @@ struct IsoPoseFigures {
   IsoFigure vap_position;                    ///< vAP_P, m
   std::optional<Vec3> vap_orientation_rad;   ///< vAP_a/b/c, rad
   std::vector<Vec3> deviations_Base_m;       ///< every cycle's e, for the charts
+  std::vector<double> repeat_distances_m;    ///< l_j of the pose-test cycles (n ≥ 2), m
 };
 
 /// Every characteristic of one method at one load.
@@ -55,7 +58,12 @@ struct IsoMethodFigures {
   std::string method;  ///< "commanded" or the model layer's name
   std::vector<IsoPoseFigures> poses;
   IsoFigure ap_position_max;  ///< largest AP_P over the poses, m
+  IsoFigure ap_position_median;  ///< median of the poses' AP_P, m
   IsoFigure rp_position_max;  ///< largest RP_l over the poses with cycles, m
+  /// l̄ + 3 S_l of every pose's cycles about their own barycentre, pooled over the poses with
+  /// cycles (ANSI/RIA R15.05-1 pools; ISO 9283 states RP per pose), m.
+  IsoFigure rp_position_pooled;
+  IsoFigure rp_position_median;  ///< median of the poses' RP_l, m
   IsoFigure vap_position_max;
   IsoFigure ad_position;      ///< AD_P, m
   IsoFigure rd_position;      ///< RD_P, m
@@ -92,6 +100,7 @@ struct IsoCertifyOptions {
   std::optional<RowSet> set;  ///< only the rows of this set; none: every row
   double same_pose_position_m = 1e-3;   ///< commanded poses this close are one pose's cycles
   double same_pose_orientation_rad = 0.5 * 3.14159265358979323846 / 180.0;
+  double same_pose_joints_rad = 0.01;  ///< and joints this close (one joint configuration)
 };
 
 /// The characteristics of the campaign's rows (those of an ISO plan where it has any, else all

@@ -27,13 +27,16 @@ struct CertifyArgs {
   std::string html_out;
 };
 
-/// CRC-32 of the file's bytes as 8 hex digits (the file was read by readModelFile already).
-std::string fileCrc32(const std::string& path) {
+/// The model file's own checksum as 8 hex digits: the CRC-32 of everything before its last 4
+/// bytes, which hold it (readModelFile has checked the file, so it has them).
+std::string modelChecksum(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
                                    std::istreambuf_iterator<char>());
+  constexpr size_t kCrcBytes = 4;
+  if (bytes.size() < kCrcBytes) throw InputError("the model file changed while being read", path);
   char hex[16];
-  std::snprintf(hex, sizeof hex, "%08x", crc32Ieee(bytes.data(), bytes.size()));
+  std::snprintf(hex, sizeof hex, "%08x", crc32Ieee(bytes.data(), bytes.size() - kCrcBytes));
   return hex;
 }
 
@@ -56,7 +59,7 @@ void runCertify(const CertifyArgs& a) {
   options.set = rowSet(a.set);
   trainer::IsoCertificate certificate = trainer::certifyIso9283(model, campaign, options);
   certificate.model_path = a.model;
-  certificate.model_crc32 = fileCrc32(a.model);
+  certificate.model_crc32 = modelChecksum(a.model);
   if (!a.html_out.empty()) {
     writeReport(a.html_out, report::certificateHtml(certificate));
     std::cerr << "wrote " << a.html_out << "\n";

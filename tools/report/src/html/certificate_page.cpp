@@ -34,9 +34,11 @@ std::vector<size_t> chartedPoses(const trainer::IsoMethodFigures& m) {
 
 std::string perPoseBars(const trainer::IsoLoadFigures& load, bool repeatability) {
   html::BarChart chart;
+  // RP in micrometres: a few tens of them, where AP is millimetres.
+  const double scale = repeatability ? 1e6 : kMmPerM;
   chart.title = format("%s per pose at %g kg", repeatability ? "RP_l" : "AP_P", load.load_kg);
   chart.x_label = "pose";
-  chart.y_label = "mm";
+  chart.y_label = repeatability ? "µm" : "mm";
   const std::vector<size_t> poses = chartedPoses(load.methods.front());
   for (const size_t p : poses) chart.categories.push_back(load.methods.front().poses[p].label);
   for (size_t m = 0; m < load.methods.size(); ++m) {
@@ -44,7 +46,7 @@ std::string perPoseBars(const trainer::IsoLoadFigures& load, bool repeatability)
     for (const size_t p : poses) {
       const trainer::IsoFigure& f = repeatability ? load.methods[m].poses[p].rp_position
                                                   : load.methods[m].poses[p].ap_position;
-      bars.values.push_back(f.value.value_or(0.0) * kMmPerM);
+      bars.values.push_back(f.value.value_or(0.0) * scale);
     }
     chart.bars.push_back(bars);
   }

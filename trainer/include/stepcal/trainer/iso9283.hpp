@@ -81,7 +81,7 @@ struct IsoCertificate {
   std::string campaign_directory;
   std::string robot_name;      ///< the URDF's <robot name>
   std::string model_path;
-  std::string model_crc32;     ///< CRC-32 of the model file's bytes, hex; set by the caller that read it
+  std::string model_crc32;     ///< the model file's own CRC-32 (of all but its last 4 bytes), hex; set by the caller
   std::string campaign_hash;   ///< campaignHash
   std::string corrected_method;
   bool iso_plan_rows = false;  ///< the rows are a `stepcal plan --iso9283` campaign's

@@ -1,5 +1,6 @@
 // `stepcal plan`: the poses of a campaign (trainer/plan.hpp), written as a pose list.
 #include <algorithm>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <set>
@@ -72,6 +73,14 @@ std::vector<PlannedMeasurement> measuredPoses(const std::string& dir, const Kine
   return poses;
 }
 
+// Writes the pose list, creating its folder first (a plan is often the first thing written).
+void writePlannedRows(const std::vector<PlannedMeasurement>& rows, const std::string& path) {
+  const std::filesystem::path folder = std::filesystem::path(path).parent_path();
+  std::error_code ignored;  // writePoseList names the file when its folder cannot be made
+  if (!folder.empty()) std::filesystem::create_directories(folder, ignored);
+  writePoseList(rows, path);
+}
+
 // The test of ISO 9283 for the robot (trainer/iso9283_plan.hpp), written as a pose list.
 void runIsoPlan(const PlanArgs& a) {
   const Robot robot = resolveRobot(a.robot);
@@ -88,7 +97,7 @@ void runIsoPlan(const PlanArgs& a) {
   trainer::Iso9283PlanOptions options = a.iso;
   options.seed = a.options.seed;
   const trainer::Iso9283Plan plan = trainer::planIso9283(chain, options);
-  writePoseList(plan.rows, a.out);
+  writePlannedRows(plan.rows, a.out);
   std::cerr << "wrote " << a.out << "\n";
   std::cout << report::formatIsoPlan(plan);
 }
@@ -141,7 +150,7 @@ void runPlan(PlanArgs a) {
     a.options.given_candidates = measuredPoses(a.candidates_from, chain, a.options);
   }
   const trainer::CampaignPlan plan = trainer::planCampaign(chain, sensor ? 0 : -1, a.options);
-  writePoseList(plan.rows, a.out);
+  writePlannedRows(plan.rows, a.out);
   std::cerr << "wrote " << a.out << "\n";
   std::cout << report::formatPlan(plan, a.options);
 }

@@ -156,9 +156,7 @@ void expectApAgreesWithTheTruthAndRpWithTheNoise(const TwinCertification& t, siz
         const double tolerance_m = 4.0 * std::sqrt(3.0) * t.position_sigma_m / std::sqrt(n);
         EXPECT_NEAR(*meas.poses[p].ap_position.value, *tru.poses[p].ap_position.value, tolerance_m)
             << meas.method << " " << meas.poses[p].label << " at " << measured.loads[l].load_kg;
-        // The twin repeats exactly; the corrected prediction moves with the F/T noise of each
-        // row's wrench (0.2 N per axis), by a few micrometres at the payloads.
-        EXPECT_LT(*tru.poses[p].rp_position.value, m == 0 ? 1e-9 : 10e-6)
+        EXPECT_LT(*tru.poses[p].rp_position.value, 1e-9) << "the twin repeats exactly: "
             << meas.method << " " << meas.poses[p].label << " at " << measured.loads[l].load_kg;
         if (m == 0) {
           rp_sum_m += *meas.poses[p].rp_position.value;

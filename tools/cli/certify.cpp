@@ -25,6 +25,7 @@ struct CertifyArgs {
   bool refit_frames = false;
   std::string set;  ///< empty: every row
   std::string html_out;
+  double same_pose_mm = 0.2;
 };
 
 /// The model file's own checksum as 8 hex digits: the CRC-32 of everything before its last 4
@@ -57,6 +58,12 @@ void runCertify(const CertifyArgs& a) {
   trainer::IsoCertifyOptions options;
   options.refit_frames = a.refit_frames;
   options.set = rowSet(a.set);
+  if (!(a.same_pose_mm > 0.0 && a.same_pose_mm < 1e3)) {
+    throw InputError("--same-pose-mm " + std::to_string(a.same_pose_mm) +
+                     "; expected a distance > 0 mm (hint: the largest difference between the "
+                     "commanded positions of one pose's cycles, 0.2)");
+  }
+  options.same_pose_position_m = a.same_pose_mm * 1e-3;
   trainer::IsoCertificate certificate = trainer::certifyIso9283(model, campaign, options);
   certificate.model_path = a.model;
   certificate.model_crc32 = modelChecksum(a.model);
@@ -83,7 +90,7 @@ Subcommand addCertifyCommand(CLI::App& app) {
   certify->add_option("model", a.model, "model file")->required();
   certify->add_option("campaign", a.campaign,
                       "campaign folder: the rows of a stepcal plan --iso9283 where it has any, "
-                      "else every row, grouped into poses by load, commanded pose (1 mm, 0.5°) and joints (0.01 rad)")
+                      "else every row, grouped into poses by load, commanded pose (--same-pose-mm, 0.5°) and joints (0.01 rad)")
       ->required();
   certify->add_option("--set", a.set,
                       "only the rows of this set (geometry, stiffness, residual, validation)");
@@ -91,6 +98,12 @@ Subcommand addCertifyCommand(CLI::App& app) {
                     "place the commanded poses by registering the nominal robot on these rows and "
                     "fit the model's tracker and tool frames on them (a campaign measured with "
                     "the tracker moved; the fit takes up part of the accuracy it is judged on)");
+  certify
+      ->add_option("--same-pose-mm", a.same_pose_mm,
+                   "rows whose commanded positions (the nominal tip at their joints) lie this "
+                   "close, with orientations within 0.5° and joints within 0.01 rad, are cycles "
+                   "of one pose, mm")
+      ->capture_default_str();
   certify->add_flag("--json", a.json, "print the certificate as JSON (SI units)");
   certify->add_option("--html", a.html_out, "self-contained HTML certificate to write");
   return {certify, [args] { runCertify(*args); }};

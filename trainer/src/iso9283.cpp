@@ -25,6 +25,8 @@ constexpr const char* kCommanded = "commanded";
 struct Deviation {
   Vec3 position_m = Vec3::Zero();
   std::optional<Vec3> orientation_rad;  ///< (a, b, c); absent for a position-only row
+  Vec3 p_Attained_m = Vec3::Zero();     ///< the attained position itself, base axes
+  Mat3 R_Attained = Mat3::Identity();   ///< the attained orientation, base axes
 };
 
 /// The rows of one pose: the cycles of one commanded pose at one load.
@@ -85,6 +87,8 @@ Deviation deviationOf(const Pose& X_TrackerTip_predicted, const Measurement& row
   Deviation d;
   d.position_m =
       R_TrackerBase.transpose() * (row.p_TipInTracker_m - X_TrackerTip_predicted.translation());
+  d.p_Attained_m = R_TrackerBase.transpose() * row.p_TipInTracker_m;
+  d.R_Attained = R_TrackerBase.transpose() * row.X_TrackerTip().linear();
   if (row.has_orientation) {
     d.orientation_rad = R_TrackerBase.transpose() *
                         lie::logSO3(row.X_TrackerTip().linear() *
@@ -126,16 +130,23 @@ void poseAccuracyAndRepeatability(const std::vector<Deviation>& cycles, IsoPoseF
                                     "cycles of one commanded pose (ISO 9283: 30)");
     return;
   }
+  // Repeatability is the attained poses' own spread: the rows' joints as recorded may differ
+  // between cycles of one command by more than the tip does (read back, as the UR10's are).
+  Vec3 attained_mean = Vec3::Zero();
+  for (const Deviation& d : cycles) attained_mean += d.p_Attained_m;
+  attained_mean /= static_cast<double>(cycles.size());
   std::vector<double> distances;
-  for (const Deviation& d : cycles) distances.push_back((d.position_m - mean).norm());
+  for (const Deviation& d : cycles) distances.push_back((d.p_Attained_m - attained_mean).norm());
   const auto [l_mean, l_sd] = meanAndSd(distances);
   out.rp_position = {l_mean + 3.0 * l_sd, ""};
   out.repeat_distances_m = distances;
   if (oriented) {
     Vec3 rp;
     for (int axis = 0; axis < 3; ++axis) {
-      std::vector<double> angle;
-      for (const Deviation& d : cycles) angle.push_back((*d.orientation_rad)(axis));
+      std::vector<double> angle;  // about the first cycle's orientation (S does not see it)
+      for (const Deviation& d : cycles) {
+        angle.push_back(lie::logSO3(d.R_Attained * cycles.front().R_Attained.transpose())(axis));
+      }
       rp(axis) = 3.0 * meanAndSd(angle).second;
     }
     out.rp_orientation_rad = rp;

@@ -3,15 +3,17 @@
 // model's last layer: where the robot goes when its joints are corrected, attained − predicted).
 //
 // A pose is the rows of one load whose commanded poses (the nominal tip at their joints) agree
-// to 1 mm and 0.5° and whose joints agree to 0.01 rad: its cycles (one pose reached in another
+// to 0.2 mm and 0.5° and whose joints agree to 0.01 rad: its cycles (one pose reached in another
 // joint configuration, as Series B of the real UR10 does, is another pose). Each row's deviation is the attained pose against the commanded
 // (or predicted) one, in base_link's axes: e = p_attained − p_commanded, (a, b, c) the rotation
 // vector of R_attained·R_commandedᵀ (small angles about x, y, z). Per pose, with x̄ the
 // barycentre of the n cycles' deviations:
 //   AP_P = ‖ē‖, AP_a/b/c = ā, b̄, c̄                       (pose accuracy)
-//   RP_l = l̄ + 3 S_l, l_j = ‖e_j − ē‖, S_l = √(Σ(l_j − l̄)²/(n−1)); RP_a/b/c = 3 S_a/b/c
+//   RP_l = l̄ + 3 S_l, l_j = ‖x_j − x̄‖ of the attained positions x_j themselves,
+//   S_l = √(Σ(l_j − l̄)²/(n−1)); RP_a/b/c = 3 S_a/b/c of the attained orientations
 //                                                          (pose repeatability, n ≥ 2; with
-//                                                          n = 2, l₁ = l₂ and RP_l = l̄)
+//                                                          n = 2, l₁ = l₂ and RP_l = l̄; the
+//                                                          same for every method)
 //   vAP_P = max over approach directions h, k of ‖ē_h − ē_k‖; vAP_a/b/c likewise
 //                                                          (multi-directional, ≥ 2 directions)
 //   AD_P = D̄ − D_c, RD_P = 3 S_D with D_j = ‖p_P2,j − p_P4,j‖ attained in cycle j and D_c
@@ -98,7 +100,7 @@ struct IsoCertifyOptions {
   /// of the pose accuracy it is then judged on.
   bool refit_frames = false;
   std::optional<RowSet> set;  ///< only the rows of this set; none: every row
-  double same_pose_position_m = 1e-3;   ///< commanded poses this close are one pose's cycles
+  double same_pose_position_m = 0.2e-3;  ///< commanded poses this close are one pose's cycles
   double same_pose_orientation_rad = 0.5 * 3.14159265358979323846 / 180.0;
   double same_pose_joints_rad = 0.01;  ///< and joints this close (one joint configuration)
 };

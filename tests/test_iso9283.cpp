@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <string>
 
 #include "stepcal/common/error.hpp"
@@ -14,6 +15,7 @@
 #include "stepcal/trainer/iso9283_plan.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
+#include "support/command.hpp"
 
 namespace stepcal {
 namespace {
@@ -249,6 +251,25 @@ TEST(IsoCertify, RefusesASetWithoutRows) {
   trainer::IsoCertifyOptions options;
   options.set = RowSet::kResidual;  // the plan's rows are geometry and stiffness
   EXPECT_THROW(trainer::certifyIso9283(t.model, t.measured, options), InputError);
+}
+
+// The command line: bad input exits 2 with what was expected.
+TEST(IsoCommand, BadInputExitsTwoAndSaysWhy) {
+  const std::string stepcal = std::string(STEPCAL_BIN_DIR) + "/stepcal";
+  const std::string out = (std::filesystem::temp_directory_path() / "stepcal_iso_ur10.csv").string();
+  const test::CommandResult loaded =
+      test::run(stepcal + " plan --robot ur10 --iso9283 --rated-load-kg 10 --out " + out);
+  EXPECT_EQ(loaded.status, 2) << loaded.out;
+  EXPECT_NE(loaded.out.find("no F/T sensor link"), std::string::npos) << loaded.out;
+  const test::CommandResult both =
+      test::run(stepcal + " plan --robot ur10 --iso9283 --poses 5 --out " + out);
+  EXPECT_EQ(both.status, 2) << both.out;
+  const test::CommandResult none = test::run(stepcal + " plan --robot ur10 --out " + out);
+  EXPECT_EQ(none.status, 2) << none.out;
+  EXPECT_NE(none.out.find("--poses is missing"), std::string::npos) << none.out;
+  const test::CommandResult missing = test::run(stepcal + " certify no-such.stepcal no-campaign");
+  EXPECT_EQ(missing.status, 2) << missing.out;
+  EXPECT_NE(missing.out.find("no-such.stepcal"), std::string::npos) << missing.out;
 }
 
 }  // namespace

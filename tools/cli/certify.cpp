@@ -90,7 +90,8 @@ Subcommand addCertifyCommand(CLI::App& app) {
   certify->add_option("model", a.model, "model file")->required();
   certify->add_option("campaign", a.campaign,
                       "campaign folder: the rows of a stepcal plan --iso9283 where it has any, "
-                      "else every row, grouped into poses by load, commanded pose (--same-pose-mm, 0.5°) and joints (0.01 rad)")
+                      "else every row, grouped into poses by load, commanded pose "
+                      "(--same-pose-mm, 0.5°) and joints (0.01 rad)")
       ->required();
   certify->add_option("--set", a.set,
                       "only the rows of this set (geometry, stiffness, residual, validation)");

@@ -146,9 +146,9 @@ std::string formatCertificate(const trainer::IsoCertificate& c) {
          "uncorrected); corrected: attained - the model's prediction (where the corrected robot "
          "lands about its target)\n"
          "  AP_P distance of the cycles' barycentre from the commanded position; RP_l = l̄ + 3 S_l "
-         "of the cycles' distances from it; vAP_P largest distance between the barycentres of "
-         "the approach directions; AD_P mean attained minus commanded distance P2-P4; RD_P 3 S "
-         "of it; AP_a/b/c and RP_a/b/c about base x/y/z\n";
+         "of the attained positions' distances from their barycentre (both methods alike); "
+         "vAP_P largest distance between the barycentres of the approach directions; AD_P mean "
+         "attained minus commanded distance P2-P4; RD_P 3 S of it; AP_a/b/c and RP_a/b/c about base x/y/z\n";
   for (const trainer::IsoLoadFigures& load : c.loads) {
     out << format("load %g kg: %d rows, %d poses measured more than once\n", load.load_kg,
                   load.rows, load.poses_with_cycles);

@@ -40,7 +40,11 @@ std::string perPoseBars(const trainer::IsoLoadFigures& load, bool repeatability)
   chart.x_label = "pose";
   chart.y_label = repeatability ? "µm" : "mm";
   const std::vector<size_t> poses = chartedPoses(load.methods.front());
-  for (const size_t p : poses) chart.categories.push_back(load.methods.front().poses[p].label);
+  for (const size_t p : poses) {
+    // "pose 12" as "12": the axis says pose, and long labels do not fit thirty bars.
+    const std::string& label = load.methods.front().poses[p].label;
+    chart.categories.push_back(label.rfind("pose ", 0) == 0 ? label.substr(5) : label);
+  }
   for (size_t m = 0; m < load.methods.size(); ++m) {
     html::BarSeries bars{load.methods[m].method, kMethodColours[m % 2], {}};
     for (const size_t p : poses) {
@@ -79,16 +83,16 @@ std::string loadSection(const trainer::IsoLoadFigures& load, html::MarkerIds& id
   out << "<h2 id=\"load-" << format("%g", load.load_kg) << "\">" << html::loadLabel(load.load_kg)
       << "</h2>\n<p>" << load.rows << " rows, " << load.poses_with_cycles
       << " poses measured more than once.</p>\n<table><tr><th class=\"l\">method</th>"
-         "<th>AP_P max, mm</th><th>AP_P median, mm</th><th>RP_l max, mm</th><th>RP_l median, mm</th><th>RP_l pooled, mm</th>"
-         "<th>vAP_P max, mm</th><th>AD_P, mm</th>"
+         "<th>AP_P max, mm</th><th>AP_P median, mm</th><th>RP_l max, mm</th>"
+         "<th>RP_l median, mm</th><th>RP_l pooled, mm</th><th>vAP_P max, mm</th><th>AD_P, mm</th>"
          "<th>RD_P, mm</th></tr>\n";
   for (const trainer::IsoMethodFigures& m : load.methods) {
     out << "<tr><td class=\"l\">" << html::escape(m.method) << "</td><td>"
         << figureCell(m.ap_position_max) << "</td><td>" << figureCell(m.ap_position_median)
         << "</td><td>" << figureCell(m.rp_position_max)
         << "</td><td>" << figureCell(m.rp_position_median) << "</td><td>"
-        << figureCell(m.rp_position_pooled) << "</td><td>" << figureCell(m.vap_position_max) << "</td><td>"
-        << figureCell(m.ad_position) << "</td><td>" << figureCell(m.rd_position) << "</td></tr>\n";
+        << figureCell(m.rp_position_pooled) << "</td><td>" << figureCell(m.vap_position_max)
+        << "</td><td>" << figureCell(m.ad_position) << "</td><td>" << figureCell(m.rd_position) << "</td></tr>\n";
   }
   out << "</table>\n<div class=\"panels\">" << perPoseBars(load, false) << perPoseBars(load, true)
       << cyclesScatter(load, ids) << "</div>\n";
@@ -119,9 +123,9 @@ std::string certificateHtml(const trainer::IsoCertificate& c) {
          "robot at the rows' joints, what the controller aims at (uncorrected). <b>corrected</b>: "
          "the attained pose minus the model's prediction, where the corrected robot lands about "
          "its target. <b>AP_P</b>: distance of the barycentre of a pose's cycles from the "
-         "commanded position. <b>RP_l</b> = l̄ + 3 S_l, l the cycles' distances from their "
-         "barycentre. <b>vAP_P</b>: largest distance between the barycentres of one pose "
-         "approached from different directions. <b>AD_P</b>: mean attained distance P2–P4 minus "
+         "commanded position. <b>RP_l</b> = l̄ + 3 S_l, l the distances of the cycles' attained "
+         "positions from their barycentre (the same for both methods). <b>vAP_P</b>: largest "
+         "distance between the barycentres of one pose approached from different directions. <b>AD_P</b>: mean attained distance P2–P4 minus "
          "the commanded one; <b>RD_P</b>: 3 S of it. A figure the rows cannot give says why.</p>\n";
   html::MarkerIds ids;
   for (const trainer::IsoLoadFigures& load : c.loads) out << loadSection(load, ids);

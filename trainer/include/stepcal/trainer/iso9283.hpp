@@ -4,8 +4,8 @@
 //
 // A pose is the rows of one load whose commanded poses (the nominal tip at their joints) agree
 // to 0.2 mm and 0.5° and whose joints agree to 0.01 rad: its cycles (one pose reached in another
-// joint configuration, as Series B of the real UR10 does, is another pose). Each row's deviation is the attained pose against the commanded
-// (or predicted) one, in base_link's axes: e = p_attained − p_commanded, (a, b, c) the rotation
+// joint configuration, as Series B of the real UR10 does, is another pose). Each row's deviation
+// is the attained pose against the commanded (or predicted) one, in base_link's axes: e = p_attained − p_commanded, (a, b, c) the rotation
 // vector of R_attained·R_commandedᵀ (small angles about x, y, z). Per pose, with x̄ the
 // barycentre of the n cycles' deviations:
 //   AP_P = ‖ē‖, AP_a/b/c = ā, b̄, c̄                       (pose accuracy)
@@ -83,7 +83,8 @@ struct IsoCertificate {
   std::string campaign_directory;
   std::string robot_name;      ///< the URDF's <robot name>
   std::string model_path;
-  std::string model_crc32;     ///< the model file's own CRC-32 (of all but its last 4 bytes), hex; set by the caller
+  /// The model file's own CRC-32 (of all but its last 4 bytes), hex; set by the caller.
+  std::string model_crc32;
   std::string campaign_hash;   ///< campaignHash
   std::string corrected_method;
   bool iso_plan_rows = false;  ///< the rows are a `stepcal plan --iso9283` campaign's

@@ -2,6 +2,7 @@
 
 #include <sstream>
 
+#include "stepcal/common/lie.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/report/text_format.hpp"
 
@@ -97,9 +98,10 @@ std::string formatIsoPlan(const trainer::Iso9283Plan& plan) {
       << "  test plane: the cube's diagonal plane through its two edges along base y "
          "(x - x_c = z - z_c); P1 at its centre, P2-P5 on its diagonals at 10 % of the diagonal's "
          "length from its corners\n";
-  const Vec3 rpy = plan.R_BaseTip.eulerAngles(2, 1, 0).reverse() / kRadPerDeg;
-  out << format("  tool orientation at every pose: yaw-pitch-roll %.1f, %.1f, %.1f deg (Z-Y-X "
-                "of base_link)\n", rpy.z(), rpy.y(), rpy.x());
+  const Vec3 rpy = lie::rpyFromRotation(plan.R_BaseTip) / kRadPerDeg;
+  out << format("  tool orientation at every pose: roll, pitch, yaw %.1f, %.1f, %.1f deg "
+                "(URDF's: R = Rz(yaw) Ry(pitch) Rx(roll) in base_link)\n",
+                rpy.x(), rpy.y(), rpy.z());
   out << "  pose  position in base_link (mm)          joints (deg)\n";
   for (size_t k = 0; k < plan.p_PoseInBase_m.size(); ++k) {
     const Vec3& p = plan.p_PoseInBase_m[k];

@@ -12,6 +12,7 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/model_robot.hpp"
 #include "stepcal/report/certificate.hpp"
 #include "stepcal/trainer/iso9283.hpp"
 #include "subcommands.hpp"
@@ -55,6 +56,7 @@ std::optional<RowSet> rowSet(const std::string& name) {
 void runCertify(const CertifyArgs& a) {
   const CalibratedModel model = readModelFile(a.model);
   const Campaign campaign = readCampaign(a.campaign);
+  requireCampaignOfModelRobot(model, campaign, a.model);
   trainer::IsoCertifyOptions options;
   options.refit_frames = a.refit_frames;
   options.set = rowSet(a.set);

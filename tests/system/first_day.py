@@ -130,6 +130,28 @@ RUNS = [
         "build/bin/stepcal calibrate out/ur10-C-twin",  # the doc's comment holds the figures
         "build/bin/stepcal calibrate out/ur10-C",
     ], slow=True, needs="ur10_C_diagnose"),
+    Run("iso9283", "docs/certify.md", [
+        "build/bin/stepcal plan --robot irb4400 --iso9283 --rated-load-kg 60 --out out/iso-irb4400.csv",
+        "build/bin/stepcal plan --robot ur10 --iso9283 --out out/iso-ur10.csv",
+        "build/bin/stepcal simulate --robot irb4400 --seed 1 --out out/camp",
+        "build/bin/stepcal calibrate out/camp --out out/model.stepcal",
+        "build/bin/stepcal simulate --robot irb4400 --seed 1 --poses out/iso-irb4400.csv --out out/iso-camp",
+        "build/bin/stepcal certify out/model.stepcal out/iso-camp --html out/certificate.html",
+    ]),
+    Run("iso9283_ur10", "docs/certify.md", [
+        D,
+        "build/bin/stepcal import ipa $D/Series_A/measurements_grid.csv --out out/ur10-A",
+        "build/bin/stepcal import ipa $D/Series_D/measurements_iso_cubes.csv --out out/ur10-D",
+        "build/bin/stepcal import ipa $D/Series_B/measurements_joint_configurations.csv --out out/ur10-B",
+        "build/bin/stepcal calibrate out/ur10-A --out out/ur10-A.stepcal",
+        "build/bin/stepcal certify out/ur10-A.stepcal out/ur10-D --refit-frames",
+        "build/bin/stepcal certify out/ur10-A.stepcal out/ur10-B --refit-frames",
+    ]),
+    Run("iso9283_readme", "README.md", [
+        "build/bin/stepcal plan --robot irb4400 --iso9283 --rated-load-kg 60 --out out/iso-irb4400.csv",
+        "build/bin/stepcal simulate --robot irb4400 --seed 1 --poses out/iso-irb4400.csv --out out/iso-camp",
+        "build/bin/stepcal certify out/model.stepcal out/iso-camp --html out/certificate.html",
+    ], needs="paper"),
     Run("ur10_series", "README.md", [
         "tools/ur10_series.sh                            # the across-series table (needs jq)",
     ], slow=True),
@@ -266,6 +288,39 @@ PLAN_KEPT = r"from (\d+) visible of (\d+) candidates \(\d+ out of range, (\d+) b
 # ---- the figures -----------------------------------------------------------------------------
 # Fig(doc, words, run, value, …): in doc, the words with {} for each figure; per figure a function
 # of no argument giving the code's value (a string as printed, or a float at full precision).
+
+
+def iso_figure(run, i, load, method, label):
+    """A figure of `stepcal certify`'s text: at a load, the method's (0 commanded, 1 corrected)
+    line `label … N mm`."""
+    section = out(run, i).split(f"load {load} kg:")[1].split("\nload ")[0]
+    block = re.split(r"\n  (?=\S)", section)[1 + method]
+    return grep(re.escape(label) + r"\s+(-?[\d.]+) mm", block)
+
+
+def iso_plan_cube(i, k):
+    """The plan's cube: edge, then the centre's x, y, z (mm)."""
+    return grep(r"cube: edge ([\d.]+) mm.*centre \((-?[\d.]+), (-?[\d.]+), (-?[\d.]+)\) mm",
+                out("iso9283", i), k)
+
+
+def iso_twin_row(load):
+    ap, rp, ad = "AP_P (largest over the poses)", "RP_l (cycles pooled)", "AD_P (P2–P4, 30 cycles)"
+    return Fig("docs/certify.md", f"| {load} kg | {{}} mm | {{}} mm | {{}} mm | {{}} / {{}} mm |", "iso9283",
+               lambda: iso_figure("iso9283", 5, load, 0, ap), lambda: iso_figure("iso9283", 5, load, 1, ap),
+               lambda: iso_figure("iso9283", 5, load, 0, rp), lambda: iso_figure("iso9283", 5, load, 0, ad),
+               lambda: iso_figure("iso9283", 5, load, 1, ad))
+
+
+def iso_ur10_row(series, i):
+    ap_med, ap_max = "AP_P (median of the poses)", "AP_P (largest over the poses)"
+    rp_med, rp_pool = "RP_l (median of the poses)", "RP_l (cycles pooled)"
+    f = lambda m, label: (lambda: iso_figure("iso9283_ur10", i, 0, m, label))
+    return Fig("docs/certify.md", f"| {series} | {{}} ({{}}) | {{}} / {{}} mm | {{}} / {{}} mm | {{}} / {{}} mm |",
+               "iso9283_ur10",
+               lambda: grep(r"\((\d+) poses: per pose", out("iso9283_ur10", i)),
+               lambda: grep(r"(\d+) poses measured more than once", out("iso9283_ur10", i)),
+               f(0, ap_med), f(0, ap_max), f(1, ap_med), f(1, ap_max), f(0, rp_med), f(0, rp_pool))
 
 
 class Fig:
@@ -576,6 +631,28 @@ FIGS = [
     drift_row("| A→B, frames refitted on B (1495; 687)", "A:B"),
     drift_row("| B→C, frames refitted on C (2773; 1)", "B:C"),
     drift_row("| C→D, frames refitted on D (632; 6)", "C:D"),
+    # docs/certify.md and README: ISO 9283
+    Fig("docs/certify.md", "The IRB 4400 gets a cube of edge {} mm centred at\n({}, {}, {}) mm", "iso9283",
+        *(lambda k=k: iso_plan_cube(0, k) for k in (1, 2, 3, 4))),
+    Fig("docs/certify.md", "the UR10 one of {} mm at ({}, {}, {}) mm", "iso9283",
+        *(lambda k=k: iso_plan_cube(1, k) for k in (1, 2, 3, 4))),
+    Fig("docs/certify.md", "rated load ({} and {} kg for the IRB 4400/60: {} rows)", "iso9283",
+        lambda: grep(r"loads: 0 kg ([\d.]+) kg", out("iso9283", 0)),
+        lambda: grep(r"loads: 0 kg [\d.]+ kg ([\d.]+) kg", out("iso9283", 0)),
+        lambda: grep(r"rows: (\d+);", out("iso9283", 0))),
+    Fig("docs/certify.md", "unloaded only\n({} rows for the UR10", "iso9283",
+        lambda: grep(r"rows: (\d+);", out("iso9283", 1))),
+    *(iso_twin_row(load) for load in (0, 6, 60)),
+    iso_ur10_row("D", 5), iso_ur10_row("B", 6),
+    Fig("README.md", "misses by {} mm at its rated 60 kg as\ncommanded and by {} mm corrected, with RP_l (cycles pooled) {} mm",
+        "iso9283_readme",
+        lambda: iso_figure("iso9283_readme", 2, 60, 0, "AP_P (largest over the poses)"),
+        lambda: iso_figure("iso9283_readme", 2, 60, 1, "AP_P (largest over the poses)"),
+        lambda: iso_figure("iso9283_readme", 2, 60, 0, "RP_l (cycles pooled)")),
+    Fig("README.md", "median AP_P is {} mm as commanded and {} mm corrected, the median RP_l {} mm", "iso9283_ur10",
+        lambda: iso_figure("iso9283_ur10", 5, 0, 0, "AP_P (median of the poses)"),
+        lambda: iso_figure("iso9283_ur10", 5, 0, 1, "AP_P (median of the poses)"),
+        lambda: iso_figure("iso9283_ur10", 5, 0, 0, "RP_l (median of the poses)")),
 ]
 
 # ---- comparing ------------------------------------------------------------------------------

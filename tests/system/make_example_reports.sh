@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The reports the browser tests open (ctest label browser), made with the stepcal command:
 #   calibration.html, diagnosis.html              the simulated IRB4400, paper protocol, seed 1
+#   certificate.html                              its ISO 9283 certificate (stepcal plan --iso9283)
 #   diagnosis-backlash.html                       the same robot hiding a backlash of joint 2 (seed 3)
 #   calibration-ur10C.html, diagnosis-ur10C.html  the real UR10, Series C (rows from 2000 held out)
 #   tests/system/make_example_reports.sh STEPCAL OUT_DIR UR10_DATA_DIR   (tests/data/ipa-robot-accuracy)
@@ -16,6 +17,9 @@ rm -rf "$out"/*
 "$stepcal" simulate --robot irb4400 --protocol paper --seed 1 --out "$out/paper" >/dev/null
 "$stepcal" calibrate "$out/paper" --out "$out/paper.stepcal" --report "$out/calibration.html" >/dev/null
 "$stepcal" diagnose "$out/paper" --model "$out/paper.stepcal" --report "$out/diagnosis.html" >/dev/null
+"$stepcal" plan --robot irb4400 --iso9283 --rated-load-kg 60 --out "$out/iso.csv" >/dev/null
+"$stepcal" simulate --robot irb4400 --protocol paper --seed 1 --poses "$out/iso.csv" --out "$out/iso" >/dev/null
+"$stepcal" certify "$out/paper.stepcal" "$out/iso" --html "$out/certificate.html" >/dev/null
 
 "$stepcal" simulate --robot irb4400 --protocol paper --seed 3 --out "$out/backlash" \
   --effect '{"name": "backlash", "joint": 2, "lost_motion_rad": 2e-4}' >/dev/null

@@ -1,5 +1,6 @@
 // `stepcal plan`: the poses of a campaign (trainer/plan.hpp), written as a pose list.
 #include <algorithm>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <set>
@@ -10,7 +11,9 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/urdf.hpp"
+#include "stepcal/report/certificate.hpp"
 #include "stepcal/report/report.hpp"
+#include "stepcal/trainer/iso9283_plan.hpp"
 #include "stepcal/trainer/plan.hpp"
 #include "subcommands.hpp"
 
@@ -27,6 +30,9 @@ struct PlanArgs {
   std::vector<int> off_axis_joints;  ///< 1-based, as on the command line
   std::string out;
   trainer::PlanOptions options;
+  bool iso9283 = false;
+  bool poses_given = false;
+  trainer::Iso9283PlanOptions iso;
 };
 
 /// "a, b, c": the joints' names.
@@ -67,8 +73,45 @@ std::vector<PlannedMeasurement> measuredPoses(const std::string& dir, const Kine
   return poses;
 }
 
+// Writes the pose list, creating its folder first (a plan is often the first thing written).
+void writePlannedRows(const std::vector<PlannedMeasurement>& rows, const std::string& path) {
+  const std::filesystem::path folder = std::filesystem::path(path).parent_path();
+  std::error_code ignored;  // writePoseList names the file when its folder cannot be made
+  if (!folder.empty()) std::filesystem::create_directories(folder, ignored);
+  writePoseList(rows, path);
+}
+
+// The test of ISO 9283 for the robot (trainer/iso9283_plan.hpp), written as a pose list.
+void runIsoPlan(const PlanArgs& a) {
+  const Robot robot = resolveRobot(a.robot);
+  if (a.iso.rated_load_kg > 0.0 && robot.sensor_link.empty()) {
+    throw InputError("--rated-load-kg " + std::to_string(a.iso.rated_load_kg) + ", but " +
+                     robot.urdf_path + " has no F/T sensor link ('" + kDefaultSensorLink +
+                     "'); expected --rated-load-kg 0 (unloaded test), or --sensor-link LINK: the "
+                     "link the test load hangs from");
+  }
+  std::vector<std::string> attached;
+  if (!robot.sensor_link.empty()) attached.push_back(robot.sensor_link);
+  const KinematicChain chain =
+      chainFromUrdfFile(robot.urdf_path, robot.base_link, robot.tip_link, attached);
+  trainer::Iso9283PlanOptions options = a.iso;
+  options.seed = a.options.seed;
+  const trainer::Iso9283Plan plan = trainer::planIso9283(chain, options);
+  writePlannedRows(plan.rows, a.out);
+  std::cerr << "wrote " << a.out << "\n";
+  std::cout << report::formatIsoPlan(plan);
+}
+
 // Plans a campaign (trainer/plan.hpp), writes its pose list and says what was found.
 void runPlan(PlanArgs a) {
+  if (a.iso9283) {
+    runIsoPlan(a);
+    return;
+  }
+  if (!a.poses_given) {
+    throw InputError("--poses is missing; expected the number of poses to plan (hint: --poses "
+                     "60), or --iso9283 for the standard's test");
+  }
   if (a.selection == "random") {
     a.options.selection = trainer::PoseSelection::kRandom;
   } else if (a.selection != "d-optimal") {
@@ -107,7 +150,7 @@ void runPlan(PlanArgs a) {
     a.options.given_candidates = measuredPoses(a.candidates_from, chain, a.options);
   }
   const trainer::CampaignPlan plan = trainer::planCampaign(chain, sensor ? 0 : -1, a.options);
-  writePoseList(plan.rows, a.out);
+  writePlannedRows(plan.rows, a.out);
   std::cerr << "wrote " << a.out << "\n";
   std::cout << report::formatPlan(plan, a.options);
 }
@@ -121,7 +164,23 @@ Subcommand addPlanCommand(CLI::App& app) {
       "plan", "choose the poses of a campaign, each measured at the given loads: D-optimal for geometry and "
               "compliance, spread over every joint's range, visible to the tracker");
   addRobotOptions(plan, plan_args.robot);
-  plan->add_option("--poses", plan_args.options.poses, "number of poses N")->required();
+  CLI::Option* poses =
+      plan->add_option("--poses", plan_args.options.poses, "number of poses N (not with --iso9283)");
+  CLI::Option* iso = plan->add_flag(
+      "--iso9283", plan_args.iso9283,
+      "lay out the test of ISO 9283 instead: the largest cube the robot reaches with one tool "
+      "orientation, its poses P1-P5 in its diagonal plane, cycles, approach directions along "
+      "+x/+y/+z for P1, P2, P4, loads unloaded, 10 % of rated and rated (docs/certify.md)");
+  poses->excludes(iso);
+  plan->add_option("--rated-load-kg", plan_args.iso.rated_load_kg,
+                   "with --iso9283: the robot's rated payload, kg (0: unloaded test only)")
+      ->needs(iso)->capture_default_str();
+  plan->add_option("--cycles", plan_args.iso.cycles,
+                   "with --iso9283: cycles per pose and approach direction (the standard's 30)")
+      ->needs(iso)->capture_default_str();
+  plan->add_option("--iso-candidates", plan_args.iso.centre_candidates,
+                   "with --iso9283: joint configurations drawn as candidate cube centres")
+      ->needs(iso)->capture_default_str();
   plan->add_option("--loads", plan_args.loads_kg,
                    "payloads every pose is measured at, kg, with 0 (default: 0,20,40 with a "
                    "sensor link, else 0)")
@@ -151,7 +210,10 @@ Subcommand addPlanCommand(CLI::App& app) {
                    "bearing tilt, link bending) the poses should also identify, e.g. 1,2")
       ->delimiter(',');
   plan->add_option("--out", plan_args.out, "pose list to write (poses.csv)")->required();
-  return {plan, [args] { runPlan(*args); }};
+  return {plan, [args, poses] {
+            args->poses_given = poses->count() > 0;
+            runPlan(*args);
+          }};
 }
 
 }  // namespace stepcal::cli

@@ -45,5 +45,6 @@ Subcommand addDemoCommand(CLI::App& app);       ///< demo.cpp
 Subcommand addCorrectCommand(CLI::App& app);    ///< correct.cpp
 Subcommand addToolCommand(CLI::App& app);       ///< tool.cpp
 Subcommand addFrameCommand(CLI::App& app);      ///< frame.cpp
+Subcommand addCertifyCommand(CLI::App& app);    ///< certify.cpp
 
 }  // namespace stepcal::cli

@@ -57,15 +57,17 @@ JointVector randomJoints(const KinematicChain& chain, std::mt19937_64& rng) {
   return q;
 }
 
-/// Every solution of solveAll reaches X to 1e-12 and has the branch it is listed with; returns
-/// how many there were.
-int checkAllBranches(const KinematicChain& chain, const ClosedFormInverse& inverse, const Pose& X) {
+/// Every solution of solveAll reaches X to 1e-12 and (away from singularities) has the branch
+/// it is listed with; returns how many there were.
+int checkAllBranches(const KinematicChain& chain, const ClosedFormInverse& inverse, const Pose& X,
+                     bool check_branches = false) {
   std::array<JointVector, 8> q;
   std::array<ArmBranch, 8> branch;
   const int count = inverse.solveAll(X, q, branch);
   for (int k = 0; k < count; ++k) {
     EXPECT_TRUE(q[size_t(k)].allFinite());
     EXPECT_LT(poseError(forward(chain, q[size_t(k)]), X), 1e-12) << "branch " << branch[size_t(k)].index();
+    if (check_branches) EXPECT_EQ(inverse.branchOf(q[size_t(k)]), branch[size_t(k)]);
   }
   return count;
 }
@@ -76,7 +78,7 @@ void expectEightBranchesAtRandomPoses(const KinematicChain& chain, const ClosedF
   for (int trial = 0; trial < 500; ++trial) {
     const JointVector q = randomJoints(chain, rng);
     const Pose X = forward(chain, q);
-    const int count = checkAllBranches(chain, inverse, X);
+    const int count = checkAllBranches(chain, inverse, X, true);
     EXPECT_GE(count, 2);  // at least the branch of q itself and its wrist flip
     full += count == 8;
     // The branch of q gives q back (up to whole turns) from q as the nearest joints.
@@ -136,6 +138,25 @@ void expectNearSingular(const KinematicChain& chain, const JointVector& q,
   EXPECT_LT(poseError(forward(chain, q_out), X), 1e-12);
 }
 
+/// q with joint `joint` set, by bisection within [lo, hi], where the shoulder branch changes:
+/// the wrist point on joint 1's axis (or, with a lateral offset, its cylinder).
+JointVector shoulderSingular(const KinematicChain& chain, JointVector q, int joint, double lo,
+                             double hi) {
+  const ClosedFormInverse inverse = ClosedFormInverse::recognise(chain);
+  const auto back = [&](double angle) {
+    q(joint) = angle;
+    return inverse.branchOf(q).shoulder_back;
+  };
+  EXPECT_NE(back(lo), back(hi));
+  const bool back_lo = back(lo);
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (back(mid) == back_lo ? lo : hi) = mid;
+  }
+  q(joint) = 0.5 * (lo + hi);
+  return q;
+}
+
 TEST(ClosedFormIk, Irb4400AtItsSingularities) {
   const KinematicChain chain = withoutLimits(irbChain());
   JointVector q(6);
@@ -145,28 +166,11 @@ TEST(ClosedFormIk, Irb4400AtItsSingularities) {
   expectNearSingular(chain, q, ClosedFormStatus::kSingular);
   q(4) = 1e-4;
   expectNearSingular(chain, q, ClosedFormStatus::kOk);
-  // Shoulder: the wrist point on axis 1 (a1 = 0.2 m forward, so the arm leans back over it).
-  const ClosedFormInverse inverse = ClosedFormInverse::recognise(chain);
+  // Shoulder: the wrist point on axis 1 (a1 = 0.2 m forward, so the arm leaning back).
   JointVector q_over(6);
   q_over << 0.4, -0.6, 0.0, 0.3, 0.5, 0.2;
-  // Find q3 that puts the wrist point over axis 1 by bisection on its forward coordinate.
-  double lo = -1.0, hi = 1.1;
-  const auto ahead = [&](double q3) {
-    JointVector qq = q_over;
-    qq(2) = q3;
-    ChainWorkspace ws;
-    forwardKinematics(chain, qq, ws);
-    const Vec3 p = ws.X_RootFrame[5].translation();  // joint 5's frame sits on the wrist point
-    return Vec3(std::cos(qq(0)), std::sin(qq(0)), 0.0).dot(p);
-  };
-  ASSERT_LT(ahead(lo) * ahead(hi), 0.0);
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (ahead(mid) * ahead(lo) > 0.0 ? lo : hi) = mid;
-  }
-  q_over(2) = 0.5 * (lo + hi);
-  expectNearSingular(chain, q_over, ClosedFormStatus::kSingular);
-  (void)inverse;
+  expectNearSingular(chain, shoulderSingular(chain, q_over, 2, -1.0, 1.1),
+                     ClosedFormStatus::kSingular);
   // Elbow stretched: the wrist point on the line through axes 2 and 3.
   JointVector q_stretched(6);
   // The forearm (0.88, 0, 0.15) m turned about y onto the upper arm's z: q3 = atan2(−0.88, 0.15).
@@ -183,6 +187,9 @@ TEST(ClosedFormIk, Ur10AtItsSingularities) {
   expectNearSingular(chain, q, ClosedFormStatus::kOk);
   q << 0.3, -1.2, 0.0, 0.7, 1.1, -0.5;  // elbow stretched
   expectNearSingular(chain, q, ClosedFormStatus::kSingular);
+  // Shoulder: the point where axes 5 and 6 meet on the cylinder of radius d4 about axis 1.
+  q << 0.3, -1.2, 1.4, 0.7, 1.1, -0.5;
+  expectNearSingular(chain, shoulderSingular(chain, q, 1, -2.5, -0.5), ClosedFormStatus::kSingular);
 }
 
 TEST(ClosedFormIk, BeyondReachIsUnreachableNeverNaN) {
@@ -270,6 +277,113 @@ TEST(ClosedFormIk, SolvingAllocatesNothing) {
   }
   EXPECT_EQ(counter.count(), 0);
   EXPECT_GT(solved, 0);
+}
+
+// The configuration words, against examples worked by hand from the vendors' definitions.
+
+JointVector degrees(double a1, double a2, double a3, double a4, double a5, double a6) {
+  JointVector q(6);
+  q << a1, a2, a3, a4, a5, a6;
+  return q * kRadPerDeg;
+}
+
+TEST(RobotConfiguration, KukaStatusAndTurn) {
+  // KUKA's home pose {A1 0, A2 -90, A3 90, A4 0, A5 45, A6 0}: basic area, A3 ≥ 0, A5 > 0:
+  // S 'B010' = 2; only A2 negative: T 'B000010' = 2.
+  const KukaStatusTurn home = kukaStatusTurn(ArmBranch{false, false, false}, degrees(0, -90, 90, 0, 45, 0));
+  EXPECT_EQ(home.status, 2);
+  EXPECT_EQ(home.turn, 2);
+  // Overhead, elbow down, A5 < 0: S = 1 + 4 = 5; A1, A2, A4, A5 negative: T = 1+2+8+16 = 27.
+  const KukaStatusTurn over = kukaStatusTurn(ArmBranch{true, true, true}, degrees(-30, -100, 20, -10, -20, 100));
+  EXPECT_EQ(over.status, 5);
+  EXPECT_EQ(over.turn, 27);
+  // Back from S: every branch, with joint 5 counted as the chain counts it (and reversed).
+  ControllerJoints same, reversed;
+  reversed.direction[4] = -1.0;
+  for (int index = 0; index < 8; ++index) {
+    const ArmBranch branch = ArmBranch::fromIndex(index);
+    const JointVector q = degrees(10, -80, 70, 0, joint5Negative(branch, same) ? -30 : 30, 0);
+    EXPECT_EQ(branchOfKukaStatus(kukaStatusTurn(branch, q).status, same), branch);
+    const JointVector q_reversed = degrees(10, -80, 70, 0, joint5Negative(branch, reversed) ? -30 : 30, 0);
+    EXPECT_EQ(branchOfKukaStatus(kukaStatusTurn(branch, q_reversed).status, reversed), branch);
+  }
+}
+
+TEST(RobotConfiguration, AbbConfData) {
+  EXPECT_EQ(abbQuadrant(0.0), 0);
+  EXPECT_EQ(abbQuadrant(89.9 * kRadPerDeg), 0);
+  EXPECT_EQ(abbQuadrant(90.1 * kRadPerDeg), 1);
+  EXPECT_EQ(abbQuadrant(-0.1 * kRadPerDeg), -1);
+  EXPECT_EQ(abbQuadrant(-90.1 * kRadPerDeg), -2);
+  EXPECT_EQ(abbQuadrant(270.5 * kRadPerDeg), 3);
+  EXPECT_EQ(abbQuadrant(-181.0 * kRadPerDeg), -3);
+  // Axis 1 at 100° (quadrant 1), axis 4 at −45° (−1), axis 6 at 200° (2); in front of axis 1
+  // and of the lower arm, axis 5 negative: cfx 1.
+  const AbbConfData conf = abbConfData(ArmBranch{false, false, true}, degrees(100, 10, 20, -45, -30, 200));
+  EXPECT_EQ(conf.cf1, 1);
+  EXPECT_EQ(conf.cf4, -1);
+  EXPECT_EQ(conf.cf6, 2);
+  EXPECT_EQ(conf.cfx, 1);
+  // Behind axis 1, behind the lower arm, axis 5 positive: cfx 6 (the manual's table row 6).
+  EXPECT_EQ(abbConfData(ArmBranch{true, true, false}, degrees(0, 0, 0, 0, 30, 0)).cfx, 6);
+  const ControllerJoints same;
+  for (int cfx = 0; cfx < 8; ++cfx) {
+    const ArmBranch branch = branchOfAbbCfx(cfx, same);
+    EXPECT_EQ(abbConfData(branch, degrees(0, 0, 0, 0, joint5Negative(branch, same) ? -30 : 30, 0)).cfx, cfx);
+  }
+  // Quadrants applied by whole turns: axis 6 at −160° (−2) asked for quadrant 2 goes to 200°.
+  JointVector q = degrees(10, 0, 0, 0, 30, -160);
+  applyAbbQuadrants(AbbConfData{0, 0, 2, 0}, q);
+  EXPECT_NEAR(q(5), 200.0 * kRadPerDeg, 1e-12);
+  EXPECT_NEAR(q(0), 10.0 * kRadPerDeg, 1e-12);
+}
+
+TEST(RobotConfiguration, FanucConfig) {
+  EXPECT_EQ(fanucTurn(0.0), 0);
+  EXPECT_EQ(fanucTurn(M_PI), 0);
+  EXPECT_EQ(fanucTurn(180.5 * kRadPerDeg), 1);
+  EXPECT_EQ(fanucTurn(-M_PI), -1);
+  EXPECT_EQ(fanucTurn(-179.0 * kRadPerDeg), 0);
+  EXPECT_EQ(fanucTurn(541.0 * kRadPerDeg), 2);
+  // The tool-down pose J4 = 0, J5 = −90°: 'N U T, 0, 0, 0'.
+  const FanucConfig down = fanucConfig(ArmBranch{false, false, false}, degrees(0, 0, 0, 0, -90, 0));
+  EXPECT_FALSE(down.flip);
+  EXPECT_TRUE(down.up);
+  EXPECT_TRUE(down.front);
+  EXPECT_EQ(down.turn1 + down.turn4 + down.turn6, 0);
+  // J4 = 180°, J5 = +90°, J6 = −270°, back, elbow down: 'F D B, 0, 0, -1'.
+  const FanucConfig flipped = fanucConfig(ArmBranch{true, true, true}, degrees(170, 0, 0, 180, 90, -270));
+  EXPECT_TRUE(flipped.flip);
+  EXPECT_FALSE(flipped.up);
+  EXPECT_FALSE(flipped.front);
+  EXPECT_EQ(flipped.turn1, 0);
+  EXPECT_EQ(flipped.turn4, 0);
+  EXPECT_EQ(flipped.turn6, -1);
+  // A Fanuc URDF counted as Fanuc counts (J5 = the chain's q5): non-flip is q5 ≤ 0, the chain's
+  // wrist_flipped side.
+  ControllerJoints fanuc;
+  EXPECT_TRUE(branchOfFanucConfig(down, fanuc).wrist_flipped);
+  fanuc.direction[4] = -1.0;  // an ABB-like URDF: J5 = −q5
+  EXPECT_FALSE(branchOfFanucConfig(down, fanuc).wrist_flipped);
+  JointVector q = degrees(0, 0, 0, 0, -90, -270);
+  applyFanucTurn(5, 0, q);
+  EXPECT_NEAR(q(5), 90.0 * kRadPerDeg, 1e-12);
+}
+
+TEST(RobotConfiguration, TheIrb4400sBranchIsAbbsCfx) {
+  // The IRB4400's URDF is in ABB's convention: cfx's axis-5 bit is the chain's wrist flip.
+  const KinematicChain chain = irbChain();
+  const ClosedFormInverse inverse = ClosedFormInverse::recognise(chain);
+  ControllerJoints abb;
+  ASSERT_TRUE(shippedControllerJoints("irb4400", abb));
+  std::mt19937_64 rng(3);
+  for (int trial = 0; trial < 200; ++trial) {
+    const JointVector q = randomJoints(chain, rng);
+    const ArmBranch branch = inverse.branchOf(q);
+    const AbbConfData conf = abbConfData(branch, controllerFromChain(abb, q));
+    EXPECT_EQ(branchOfAbbCfx(conf.cfx, abb), branch);
+  }
+  EXPECT_FALSE(shippedControllerJoints("kr210", abb));
 }
 
 }  // namespace

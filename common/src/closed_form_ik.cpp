@@ -356,7 +356,7 @@ ClosedFormStatus ClosedFormInverse::solveUniversal(const Pose& X_BaseTip, ArmBra
 }
 
 ClosedFormStatus ClosedFormInverse::solveBranch(const Pose& X_BaseTip, ArmBranch branch,
-                                                const JointVector* q_near,
+                                                const JointVector* q_near, bool within_limits,
                                                 JointVector& q_out) const noexcept {
   if (layout_ == ArmLayout::kOther) return ClosedFormStatus::kNoClosedForm;
   if (!finitePose(X_BaseTip) || (q_near && (q_near->size() != 6 || !q_near->allFinite()))) {
@@ -373,10 +373,12 @@ ClosedFormStatus ClosedFormInverse::solveBranch(const Pose& X_BaseTip, ArmBranch
       q(j) = wrapped(q(j));
       continue;
     }
-    // The whole turn nearest q_near within the limits, else nearest q_near.
+    // The whole turn nearest q_near within the limits (when asked), else nearest q_near.
     const double base = q(j) + kTwoPi * std::round(((*q_near)(j) - q(j)) / kTwoPi);
+    const bool inside = base >= lower_rad_[size_t(j)] - kDegenerate &&
+                        base <= upper_rad_[size_t(j)] + kDegenerate;
     double best = base, best_distance = HUGE_VAL;
-    for (int k = -2; k <= 2; ++k) {
+    for (int k = -2; k <= 2 && within_limits; ++k) {
       const double candidate = base + k * kTwoPi;
       const double distance = std::abs(candidate - (*q_near)(j));
       if (candidate >= lower_rad_[size_t(j)] - kDegenerate &&
@@ -385,7 +387,7 @@ ClosedFormStatus ClosedFormInverse::solveBranch(const Pose& X_BaseTip, ArmBranch
         best_distance = distance;
       }
     }
-    beyond = beyond || best_distance == HUGE_VAL;
+    beyond = beyond || (within_limits ? best_distance == HUGE_VAL : !inside);
     q(j) = best;
   }
   q_out = q;
@@ -397,7 +399,7 @@ int ClosedFormInverse::solveAll(const Pose& X_BaseTip, std::array<JointVector, 8
   int count = 0;
   for (int index = 0; index < 8; ++index) {
     const ArmBranch branch = ArmBranch::fromIndex(index);
-    const ClosedFormStatus status = solveBranch(X_BaseTip, branch, nullptr, q_out[size_t(count)]);
+    const ClosedFormStatus status = solveBranch(X_BaseTip, branch, nullptr, true, q_out[size_t(count)]);
     if (status == ClosedFormStatus::kOk || status == ClosedFormStatus::kSingular) {
       branch_out[size_t(count++)] = branch;
     }
@@ -408,7 +410,13 @@ int ClosedFormInverse::solveAll(const Pose& X_BaseTip, std::array<JointVector, 8
 ClosedFormStatus ClosedFormInverse::solve(const Pose& X_BaseTip, ArmBranch branch,
                                           const JointVector& q_near,
                                           JointVector& q_out) const noexcept {
-  return solveBranch(X_BaseTip, branch, &q_near, q_out);
+  return solveBranch(X_BaseTip, branch, &q_near, true, q_out);
+}
+
+ClosedFormStatus ClosedFormInverse::solveNearest(const Pose& X_BaseTip, ArmBranch branch,
+                                                 const JointVector& q_near,
+                                                 JointVector& q_out) const noexcept {
+  return solveBranch(X_BaseTip, branch, &q_near, false, q_out);
 }
 
 ArmBranch ClosedFormInverse::branchOf(const JointVector& q) const noexcept {

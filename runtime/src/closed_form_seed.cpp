@@ -25,12 +25,12 @@ ClosedFormStatus closedFormSeed(const RuntimeModel& model, Workspace& ws,
   // X_TrackerCmd): a fixed point whose error shrinks by the geometry's change over the move.
   Pose X_BaseCommanded = X_TrackerBase.inverse() * X_TrackerTip_desired;
   ClosedFormStatus status =
-      model.nominal_inverse.solve(X_BaseCommanded, branch, q_near_rad, q_seed_rad);
+      model.nominal_inverse.solveNearest(X_BaseCommanded, branch, q_near_rad, q_seed_rad);
   for (int round = 0; round < kGeometryRounds && seeded(status); ++round) {
     forwardKinematics(model.file.chain_Tracker, q_seed_rad, ws.chain);
     X_BaseCommanded = X_TrackerBase.inverse() * X_TrackerTip_desired *
                       tipPose(ws.chain).inverse() * X_TrackerBase * X_BaseCommanded;
-    status = model.nominal_inverse.solve(X_BaseCommanded, branch, q_seed_rad, q_seed_rad);
+    status = model.nominal_inverse.solveNearest(X_BaseCommanded, branch, q_seed_rad, q_seed_rad);
   }
   return status;
 }

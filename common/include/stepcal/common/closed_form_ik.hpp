@@ -105,6 +105,13 @@ class ClosedFormInverse {
   ClosedFormStatus solve(const Pose& X_BaseTip, ArmBranch branch, const JointVector& q_near,
                          JointVector& q_out) const noexcept;
 
+  /// As solve, each joint the whole turn nearest q_near whether or not within its limits
+  /// (kBeyondLimits when outside): the seed of a numeric inverse that clamps into the limits on
+  /// its own. Near the wrist singularity joints 4 and 6 of a nominal answer may lie a radian
+  /// from the real arm's, and the turn within the limits then another 2π away.
+  ClosedFormStatus solveNearest(const Pose& X_BaseTip, ArmBranch branch, const JointVector& q_near,
+                                JointVector& q_out) const noexcept;
+
   /// The branch of joints q (6 entries; the chain's convention).
   ArmBranch branchOf(const JointVector& q) const noexcept;
 
@@ -115,7 +122,7 @@ class ClosedFormInverse {
     double c = 1.0, s = 0.0;
   };
   ClosedFormStatus solveBranch(const Pose& X_BaseTip, ArmBranch branch, const JointVector* q_near,
-                               JointVector& q_out) const noexcept;
+                               bool within_limits, JointVector& q_out) const noexcept;
   ClosedFormStatus solveSpherical(const Pose& X_BaseTip, ArmBranch branch,
                                   const JointVector* q_near, JointVector& q_out) const noexcept;
   ClosedFormStatus solveUniversal(const Pose& X_BaseTip, ArmBranch branch,

@@ -18,8 +18,8 @@
 namespace stepcal::runtime {
 
 /// The seed [rad] for the desired target pose in the tracker frame (ws.chain is scratch), in
-/// branch, each joint the whole turn nearest q_near_rad within its limits (q_near also gives a
-/// singularity's free joint). q_seed_rad is written when the status is kOk, kSingular or
+/// branch, each joint the whole turn nearest q_near_rad (ClosedFormInverse::solveNearest: within
+/// the limits or not, solveInverse clamps it; q_near also gives a singularity's free joint). q_seed_rad is written when the status is kOk, kSingular or
 /// kBeyondLimits; kNoClosedForm for an arm the closed form does not solve (then seed otherwise).
 ClosedFormStatus closedFormSeed(const RuntimeModel& model, Workspace& ws,
                                 const Pose& X_TrackerTip_desired, ArmBranch branch,

@@ -67,7 +67,9 @@ int checkAllBranches(const KinematicChain& chain, const ClosedFormInverse& inver
   for (int k = 0; k < count; ++k) {
     EXPECT_TRUE(q[size_t(k)].allFinite());
     EXPECT_LT(poseError(forward(chain, q[size_t(k)]), X), 1e-12) << "branch " << branch[size_t(k)].index();
-    if (check_branches) EXPECT_EQ(inverse.branchOf(q[size_t(k)]), branch[size_t(k)]);
+    if (check_branches) {
+      EXPECT_EQ(inverse.branchOf(q[size_t(k)]), branch[size_t(k)]);
+    }
   }
   return count;
 }

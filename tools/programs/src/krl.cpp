@@ -61,6 +61,7 @@ class KrlReader {
     std::string first = lowerCase(s_.word());
     if (first == "global") first = lowerCase(s_.word());
     if (!first.empty()) last_word_ = first;
+    reported_ = false;
     size_t name_start = start;
     if (first == "decl") {
       s_.word();  // the type
@@ -168,6 +169,7 @@ class KrlReader {
     if (!plain) {
       program_.not_literals.push_back({s_.lineOf(start), s_.columnOf(start),
                                        keyword + " " + std::string(rest)});
+      reported_ = true;
     }
     s_.seek(start);
   }
@@ -184,7 +186,7 @@ class KrlReader {
     const size_t start = s_.pos();
     const int line = s_.line(), column = s_.column();
     const Aggregate a = aggregate();
-    if (!a.pose() && !a.axes()) return;
+    if ((!a.pose() && !a.axes()) || reported_) return;
     const bool tool = assigned == "$TOOL" || assigned.rfind("TOOL_DATA[", 0) == 0;
     const bool base = assigned == "$BASE" || assigned.rfind("BASE_DATA[", 0) == 0;
     if (isRelativeMotion(first)) {
@@ -284,12 +286,11 @@ class KrlReader {
         if (s_.word().empty()) s_.fail("an empty enumeration value in an aggregate");
       } else {
         NumberField f;
+        const size_t at = s_.pos();
         const double value = s_.number("an aggregate's component", &f, false);
+        if (a.numbers.count(name)) s_.failAt(at, "'" + name + "' twice in an aggregate");
         a.numbers[name] = {f, value};
         if (name == "s" || name == "t") a.words[name] = std::string(s_.text().substr(f.begin, f.end - f.begin));
-      }
-      if (a.numbers.count(name) + a.words.count(name) > 1 && name != "s" && name != "t") {
-        s_.fail("'" + name + "' twice in an aggregate");
       }
     } while (s_.accept(',', false));
     if (s_.atEnd()) s_.failAt(a.begin, "an aggregate that the file ends in; expected '}'");
@@ -310,6 +311,7 @@ class KrlReader {
   Program program_;
   int current_tool_ = -1, current_base_ = -1;
   std::string last_word_;
+  bool reported_ = false;  ///< the statement's motion is already reported as not a literal
 };
 
 }  // namespace

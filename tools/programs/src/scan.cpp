@@ -44,6 +44,7 @@ int Scanner::lineOf(size_t offset) const {
 
 int Scanner::columnOf(size_t offset) const {
   offset = std::min(offset, text_.size());
+  if (offset == 0) return 1;
   const size_t line_start = offset == 0 ? 0 : text_.rfind('\n', offset - 1);
   return int(offset - (line_start == std::string_view::npos ? 0 : line_start + 1)) + 1;
 }

@@ -27,6 +27,7 @@
 #include "stepcal/common/text_number.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
+#include "stepcal/programs/configuration.hpp"
 #include "stepcal/programs/program.hpp"
 #include "stepcal/report/text_format.hpp"
 #include "stepcal/runtime/corrector.hpp"
@@ -721,35 +722,103 @@ struct TargetOutcome {
   std::string detail;
 };
 
-/// A corrected joint solution more than this far from the controller's own (nominal) one on any
-/// joint is in another branch (a wrist flip, an elbow down): reported, not written.
+/// Without a closed form (an arm of another layout), a corrected joint solution more than this
+/// far from the controller's own (nominal) one on any joint is in another branch (a wrist flip,
+/// an elbow down): reported, not written.
 constexpr double kSameBranch_rad = 20.0 * kRadPerDeg;
+
+/// What places a Cartesian target's joints in the branch its program names: the nominal chain's
+/// closed-form inverse (closed_form_ik.hpp), the controller's joint convention (the URDF's own:
+/// docs/runtime.md), and the chain's tip from the flange.
+struct Branching {
+  ClosedFormInverse closed;
+  ControllerJoints joints;
+  const KinematicChain* chain = nullptr;
+  Pose X_FlangeTip = Pose::Identity();
+  programs::Language language = programs::Language::kKrl;
+  std::string path;
+};
+
+Branching branching(const runtime::RuntimeModel& model, programs::Language language, const std::string& path) {
+  Branching b;
+  b.chain = &model.file.nominal_Base;
+  b.closed = ClosedFormInverse::recognise(*b.chain);
+  const int n = b.chain->dof();
+  b.X_FlangeTip = model.X_LastFlange_nominal.inverse() * b.chain->initialPose(n);
+  b.language = language;
+  b.path = path;
+  return b;
+}
+
+/// The controller's joints for a Cartesian target: the closed form in the branch and turns its
+/// word names, nearest where the robot was (`previous`), when the arm has a closed form and the
+/// target a word; else the numeric nominal inverse from `previous` (the branch it is in).
+std::optional<JointVector> controllerJoints(const Branching& b, const runtime::RuntimeModel& nominal,
+                                            runtime::Workspace& nominal_ws, const ProgramLine& p,
+                                            const std::optional<programs::ConfigurationWord>& word,
+                                            const JointVector& previous, std::string& why_not) {
+  JointVector seed = previous;
+  if (word && b.closed.solvable()) {
+    const Pose X_BaseTcp = p.terms.frame == runtime::PoseFrame::kUser ? p.terms.X_BaseUser * p.X_FrameTcp : p.X_FrameTcp;
+    const Pose X_BaseTip = X_BaseTcp * p.terms.X_Tool.inverse() * b.X_FlangeTip;
+    JointVector q_closed(6);
+    const ClosedFormStatus status = b.closed.solve(X_BaseTip, programs::branchNamed(*word, b.joints), previous, q_closed);
+    if (status != ClosedFormStatus::kOk && status != ClosedFormStatus::kSingular) {
+      why_not = std::string("the nominal chain in the program's configuration: ") + toString(status);
+      return std::nullopt;
+    }
+    JointVector q_controller = controllerFromChain(b.joints, q_closed);
+    programs::applyTurns(*word, *b.chain, b.joints, q_controller);
+    seed = chainFromController(b.joints, q_controller);
+  }
+  const runtime::InverseResult n = runtime::solveInverse(nominal, nominal_ws, p.X_FrameTcp, p.terms, p.temp_c, seed,
+                                                         runtime::Clock::time_point::max());
+  if (n.status != runtime::Status::kOk && n.status != runtime::Status::kNearSingular) {
+    why_not = std::string("the nominal chain itself: ") + runtime::toString(n.status);
+    return std::nullopt;
+  }
+  return n.q_target_rad;
+}
+
+/// Why corrected joints cannot be written in the target's configuration; empty when they can.
+std::string configurationChange(const Branching& b, const std::optional<programs::ConfigurationWord>& word,
+                                const JointVector& q_controller, const JointVector& q_corrected) {
+  if (word && b.closed.solvable()) {
+    std::string theirs;
+    const JointVector q = controllerFromChain(b.joints, q_corrected);
+    if (programs::sameConfiguration(*word, b.closed.branchOf(q_corrected), q, theirs)) return "";
+    return "the corrected joints have the configuration " + theirs;
+  }
+  if (b.closed.solvable()) {
+    if (b.closed.branchOf(q_corrected) == b.closed.branchOf(q_controller)) return "";
+    return "the corrected joints are in branch " + std::to_string(b.closed.branchOf(q_corrected).index()) +
+           ", the controller's in " + std::to_string(b.closed.branchOf(q_controller).index());
+  }
+  const double moved = (q_corrected - q_controller).cwiseAbs().maxCoeff();
+  if (moved <= kSameBranch_rad) return "";
+  return "the corrected joints leave the controller's by " + number(moved / kRadPerDeg, "%.1f") + " deg";
+}
 
 /// One target corrected: its outcome and, where written, its replacement. `previous_rad` is
 /// where the robot is before it (the last target's joints) and becomes where it is after.
 TargetOutcome correctTarget(const runtime::RuntimeModel& model, runtime::Workspace& ws,
                             const runtime::RuntimeModel& nominal, runtime::Workspace& nominal_ws,
-                            const ProgramLine& p, std::optional<JointVector>& previous_rad,
-                            std::optional<TwinTruth>& truth, Tally& tally,
+                            const Branching& b, const programs::Target& t, const ProgramLine& p,
+                            JointVector& previous_rad, std::optional<TwinTruth>& truth, Tally& tally,
                             programs::Replacement& replacement) {
   TargetOutcome o;
   const Pose X_desired = p.joint_target ? runtime::nominalTcp(model, ws, p.q_rad, p.terms) : p.X_FrameTcp;
-  JointVector seed = p.joint_target ? p.q_rad : *previous_rad;
-  JointVector q_controller = seed;
-  if (!p.joint_target) {
-    const runtime::InverseResult n = runtime::solveInverse(nominal, nominal_ws, X_desired, p.terms, p.temp_c, seed,
-                                                           runtime::Clock::time_point::max());
-    if (n.status != runtime::Status::kOk && n.status != runtime::Status::kNearSingular) {
-      o.outcome = "unreachable";
-      o.detail = std::string("the nominal chain itself: ") + runtime::toString(n.status);
-      return o;
-    }
-    q_controller = n.q_target_rad;
+  const std::optional<programs::ConfigurationWord> word = programs::readConfiguration(b.language, t, b.path);
+  std::optional<JointVector> q_controller = p.q_rad;
+  if (!p.joint_target) q_controller = controllerJoints(b, nominal, nominal_ws, p, word, previous_rad, o.detail);
+  if (!q_controller) {
+    o.outcome = "unreachable";
+    return o;
   }
-  const runtime::InverseResult r = runtime::solveInverse(model, ws, X_desired, p.terms, p.temp_c, q_controller,
+  previous_rad = *q_controller;
+  const runtime::InverseResult r = runtime::solveInverse(model, ws, X_desired, p.terms, p.temp_c, *q_controller,
                                                          runtime::Clock::time_point::max());
   ++tally.statuses[size_t(r.status)];
-  previous_rad = q_controller;
   const bool answered = r.status == runtime::Status::kOk || r.status == runtime::Status::kOutOfDomain;
   if (!answered) {
     o.outcome = r.status == runtime::Status::kUnreachable    ? "unreachable"
@@ -757,10 +826,9 @@ TargetOutcome correctTarget(const runtime::RuntimeModel& model, runtime::Workspa
                                                              : "not converged";
     return o;
   }
-  if ((r.q_target_rad - q_controller).cwiseAbs().maxCoeff() > kSameBranch_rad) {
-    o.outcome = "changed branch";
-    o.detail = "the corrected joints leave the branch the controller takes by " +
-               number((r.q_target_rad - q_controller).cwiseAbs().maxCoeff() / kRadPerDeg, "%.1f") + " deg";
+  o.detail = p.joint_target ? "" : configurationChange(b, word, *q_controller, r.q_target_rad);
+  if (!o.detail.empty()) {
+    o.outcome = "changed configuration";
     return o;
   }
   replacement.X_FrameTcp = r.X_ControllerTcp_commanded;
@@ -776,24 +844,25 @@ TargetOutcome correctTarget(const runtime::RuntimeModel& model, runtime::Workspa
   tally.in_coverage += runtime::withinDomain(model, r.gpr_std) && r.uncovered_joints == 0;
   if (truth) {
     std::string ignored;
-    appendTwinErrors(ignored, *truth, model, p, X_desired, seed, r.q_target_rad, tally);
+    appendTwinErrors(ignored, *truth, model, p, X_desired, p.joint_target ? p.q_rad : *q_controller, r.q_target_rad, tally);
   }
   return o;
 }
 
-/// The first Cartesian target's seed: the last joint target before it, else --seed.
-std::optional<JointVector> firstSeed(const programs::Program& program, const std::optional<JointVector>& seed_option,
-                                     const std::string& path) {
-  for (const programs::Target& t : program.targets) {
-    if (t.kind == programs::TargetKind::kJoint) return seed_option ? seed_option : std::optional<JointVector>(t.q_rad);
-    if (!seed_option) {
-      throw InputError("a Cartesian target before any joint target: its inverse needs a seed where the search "
-                       "starts; expected --seed q1 … qn (deg)",
-                       path, t.line, std::to_string(t.column));
-    }
-    return seed_option;
+/// Where the robot is before the program's first target, for the first Cartesian target's
+/// search: --seed, else the first joint target when it comes first, else (a first target whose
+/// configuration word the closed form places) the zero pose; else a clear error.
+JointVector firstSeed(const programs::Program& program, const std::optional<JointVector>& seed_option,
+                      const Branching& b, int dof) {
+  if (seed_option) return *seed_option;
+  if (program.targets.empty() || program.targets[0].kind == programs::TargetKind::kJoint) {
+    return program.targets.empty() ? JointVector::Zero(dof) : program.targets[0].q_rad;
   }
-  return seed_option;
+  const programs::Target& t = program.targets[0];
+  if (b.closed.solvable() && programs::readConfiguration(program.language, t, b.path)) return JointVector::Zero(dof);
+  throw InputError("the first target is a pose without a configuration word the closed form can place: its "
+                   "inverse needs a seed where the search starts; expected --seed q1 … qn (deg)",
+                   b.path, t.line, std::to_string(t.column));
 }
 
 /// The outcome of every target, each on its line, and the targets the program computes at run time.
@@ -855,7 +924,9 @@ int runCorrectRobotProgram(const CorrectArgs& args, programs::Language language)
                      args.program);
   }
   const std::map<std::string, Pose> given = commandLineFrames(args);
-  std::optional<JointVector> previous_rad = firstSeed(program, seedOption(args, model->file.chain_Tracker.dof()), args.program);
+  const Branching b = branching(*model, language, args.program);
+  const int dof = model->file.chain_Tracker.dof();
+  JointVector previous_rad = firstSeed(program, seedOption(args, dof), b, dof);
   std::optional<TwinTruth> truth = readTruth(args.truth, *model);
   Tally tally;
   std::vector<TargetOutcome> outcomes;
@@ -865,7 +936,7 @@ int runCorrectRobotProgram(const CorrectArgs& args, programs::Language language)
     const ProgramLine p = programLine(program, t, given, args.program);
     programs::Replacement replacement;
     replacement.target = i;
-    TargetOutcome o = correctTarget(*model, ws, *nominal, nominal_ws, p, previous_rad, truth, tally, replacement);
+    TargetOutcome o = correctTarget(*model, ws, *nominal, nominal_ws, b, t, p, previous_rad, truth, tally, replacement);
     o.target = &t;
     if (o.written && programs::unchangedWithinTolerance(t, replacement)) o.outcome = "unchanged";
     if (o.written) replacements.push_back(replacement);

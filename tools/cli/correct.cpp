@@ -615,21 +615,24 @@ nlohmann::json summaryJson(const CorrectArgs& args, size_t lines, const Tally& t
   return summary;
 }
 
+/// --truth: the targets' errors on the twin as commanded and as corrected.
+void printTwinErrors(const Tally& tally) {
+  for (const auto& [name, stats] : {std::pair{"as commanded", &tally.before}, std::pair{"as corrected", &tally.after}}) {
+    const nlohmann::json j = stats->toJson();
+    std::cout << format("on the twin, %s: mean %.4f mm, max %.4f mm, mean %.4f deg over %d targets\n",
+                        name, j["mean_position_mm"].get<double>(),
+                        j["max_position_mm"].get<double>(),
+                        j["mean_orientation_deg"].get<double>(), stats->count);
+  }
+}
+
 void printSummary(const CorrectArgs& args, size_t lines, const Tally& tally, bool with_truth) {
   const std::array<long, kStatusCount>& statuses = tally.statuses;
   std::cout << "wrote " << args.out << ": " << lines << " lines: " << statuses[0]
             << " OK, " << statuses[3] << " OUT_OF_DOMAIN, " << statuses[4] << " UNREACHABLE, "
             << statuses[1] << " NOT_CONVERGED, " << statuses[5] << " NEAR_SINGULAR, "
             << statuses[6] << " BAD_REQUEST; " << tally.in_coverage << " in the model's coverage\n";
-  if (with_truth) {
-    for (const auto& [name, stats] : {std::pair{"as commanded", &tally.before}, std::pair{"as corrected", &tally.after}}) {
-      const nlohmann::json j = stats->toJson();
-      std::cout << format("on the twin, %s: mean %.4f mm, max %.4f mm, mean %.4f deg over %d targets\n",
-                          name, j["mean_position_mm"].get<double>(),
-                          j["max_position_mm"].get<double>(),
-                          j["mean_orientation_deg"].get<double>(), stats->count);
-    }
-  }
+  if (with_truth) printTwinErrors(tally);
 }
 
 /// Says on stderr how many lines were not corrected (status not OK): exit status 3 then, 0 when
@@ -883,6 +886,21 @@ void printProgramOutcomes(const std::string& path, const programs::Program& prog
   }
 }
 
+void printProgramSummary(const CorrectArgs& args, const programs::Program& program,
+                         const std::vector<TargetOutcome>& outcomes, const Tally& tally) {
+  std::map<std::string, int> counts;
+  for (const TargetOutcome& o : outcomes) ++counts[o.outcome];
+  std::cout << "wrote " << args.out << " (" << programs::languageName(program.language) << "): "
+            << outcomes.size() << " targets:";
+  std::string separator = " ";
+  for (const auto& [outcome, count] : counts) {
+    std::cout << separator << count << " " << outcome;
+    separator = ", ";
+  }
+  std::cout << "; " << program.not_literals.size() << " not a literal; " << tally.in_coverage
+            << " in the model's coverage\n";
+}
+
 nlohmann::json programSummaryJson(const CorrectArgs& args, const programs::Program& program,
                                   const std::vector<TargetOutcome>& outcomes, const Tally& tally,
                                   bool with_truth, const runtime::RuntimeModel& model) {
@@ -948,7 +966,8 @@ int runCorrectRobotProgram(const CorrectArgs& args, programs::Language language)
     std::cout << programSummaryJson(args, program, outcomes, tally, truth.has_value(), *model).dump(2) << "\n";
   } else {
     printProgramOutcomes(args.program, program, outcomes);
-    printSummary(args, outcomes.size(), tally, truth.has_value());
+    printProgramSummary(args, program, outcomes, tally);
+    if (truth) printTwinErrors(tally);
   }
   long not_corrected = long(program.not_literals.size());
   for (const TargetOutcome& o : outcomes) not_corrected += !o.written;

@@ -173,6 +173,12 @@ TEST(Programs, EachLanguageReadsItsFramesAndKeepsWhatItDoesNotCorrect) {
   EXPECT_EQ(krl.frames[size_t(krl.targets[1].tool)].name, "TOOL_DATA[3]");
   EXPECT_EQ(krl.not_literals.size(), 2u);
 
+  const programs::Program dat = read(Language::kKrl, test::readText(kPrograms + "twin/twin.dat"));
+  ASSERT_EQ(dat.targets.size(), 1u);
+  EXPECT_EQ(dat.targets[0].name, "XP1");
+  EXPECT_EQ(dat.targets[0].configuration, "S 6 T 27");
+  EXPECT_EQ(dat.targets[0].tool, -1);
+
   const programs::Program rapid = read(Language::kRapid,
       "MODULE m\n PERS tooldata t1:=[TRUE,[[0,0,300],[1,0,0,0]],[12.5,[0,0,100],[1,0,0,0],0,0,0]];\n"
       " TASK PERS wobjdata w1 := [FALSE,TRUE,\"\",[[1000,0,0],[1,0,0,0]],[[0,0,50],[1,0,0,0]]];\n"

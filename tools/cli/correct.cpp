@@ -686,9 +686,10 @@ const Pose& framePose(const programs::Program& program, int index, const std::ma
                    path, target.line, std::to_string(target.column));
 }
 
-/// A target as a line of the CSV driver: its pose or joints, its tool (flange frame; the
-/// flange itself when the program names none), its base (a user frame; the robot's base when
-/// none) and the tool's load where the program gives it.
+/// A target as a line of the CSV driver: its pose or joints, its tool (flange frame; when the
+/// program names none, --program-frame TOOL=…, else the flange itself), its base (a user frame;
+/// when none, --program-frame BASE=…, else the robot's base) and the tool's load where the
+/// program gives it.
 ProgramLine programLine(const programs::Program& program, const programs::Target& t,
                         const std::map<std::string, Pose>& given, const std::string& path) {
   ProgramLine p;
@@ -712,6 +713,14 @@ ProgramLine programLine(const programs::Program& program, const programs::Target
   if (t.base >= 0) {
     p.terms.frame = runtime::PoseFrame::kUser;
     p.terms.X_BaseUser = framePose(program, t.base, given, t, path);
+  }
+  // A target whose program names no tool or base (a KRL .dat's points): --program-frame TOOL=…
+  // and BASE=… where given.
+  const auto default_tool = given.find("TOOL"), default_base = given.find("BASE");
+  if (t.tool < 0 && default_tool != given.end()) p.terms.X_Tool = default_tool->second;
+  if (t.base < 0 && default_base != given.end()) {
+    p.terms.frame = runtime::PoseFrame::kUser;
+    p.terms.X_BaseUser = default_base->second;
   }
   return p;
 }
@@ -1039,7 +1048,9 @@ Subcommand addCorrectCommand(CLI::App& app) {
   correct->add_option("--program-frame", args.program_frames,
                       "a tool or base the program names without its values: NAME=x,y,z,qw,qx,qy,qz "
                       "(mm; a tool in the flange frame, a base in the robot's base frame), e.g. "
-                      "'TOOL_DATA[1]=0,0,300,1,0,0,0' or 'UF 2=900,0,40,1,0,0,0'; repeatable");
+                      "'TOOL_DATA[1]=0,0,300,1,0,0,0' or 'UF 2=900,0,40,1,0,0,0'; TOOL=… and BASE=… "
+                      "for the targets whose program names none (else the flange and the robot's "
+                      "base); repeatable");
   return {correct, [args_owned] { return runCorrect(*args_owned); }};
 }
 

@@ -5,7 +5,9 @@
 // positional argument after the zone, its work object \WObj:=…; a declared target takes those of
 // the first Move that uses it. Keywords in any case; '!' starts a comment, left alone; 9E9 and
 // 9E+09 mark unused axes and are never rewritten. Positions in mm, the quaternion w, x, y, z.
+#include <algorithm>
 #include <map>
+#include <set>
 
 #include "scan.hpp"
 #include "stepcal/common/units.hpp"
@@ -82,6 +84,8 @@ class RapidReader {
     if (c == '!' || c == '%') return skipLine();
     if (c == '"') return quoted();
     if (c == '[') return strayLiteral();
+    if (c == '(') ++parentheses_;
+    if (c == ')') parentheses_ = std::max(0, parentheses_ - 1);
     if (!isWordChar(c)) return s_.advance();
     const size_t start = s_.pos();
     const std::string w = lowerCase(s_.word());
@@ -90,7 +94,7 @@ class RapidReader {
       ended_ = true;
     } else if (isMove(w)) {
       move(w, start);
-    } else if (w == "const" || w == "pers" || w == "var") {
+    } else if ((w == "const" || w == "pers" || w == "var") && parentheses_ == 0) {
       declaration();
     } else if (s_.skipBlanks(), s_.peek() == ':' && s_.peek(1) == '=') {
       assignment(std::string(s_.text().substr(start, s_.pos() - start)));
@@ -124,14 +128,61 @@ class RapidReader {
     } else if (s_.peek() == '"') {
       quoted();
       n.word = std::string(s_.text().substr(n.begin, s_.pos() - n.begin));
-    } else if (std::isalpha(static_cast<unsigned char>(s_.peek()))) {
-      n.word = std::string(s_.word());
     } else {
-      n.number = true;
-      n.value = s_.number("a literal", &n.field);
+      const std::string_view item = itemText();
+      if (isNumberText(item)) {
+        n.number = true;
+        n.value = s_.number("a literal", &n.field);
+      } else {
+        n.word = std::string(item);  // a name (TRUE, tool0) or an expression (message.joints)
+        s_.seek(n.begin + item.size());
+      }
     }
     n.end = s_.pos();
     return n;
+  }
+
+  /// A list item's text: up to the ',' or ']' that ends it (brackets and strings inside read
+  /// whole), without trailing blanks.
+  std::string_view itemText() const {
+    const std::string_view text = s_.text();
+    size_t at = s_.pos(), end = at;
+    int depth = 0;
+    while (at < text.size()) {
+      const char c = text[at];
+      if (depth == 0 && (c == ',' || c == ']' || c == ';' || c == '\n')) break;
+      if (c == '(' || c == '[') ++depth;
+      if (c == ')' || c == ']') --depth;
+      if (c == '"') {
+        const size_t close = text.find('"', at + 1);
+        at = close == std::string_view::npos ? text.size() : close;
+      }
+      ++at;
+      if (c != ' ' && c != '\t' && c != '\r') end = at;
+    }
+    return text.substr(s_.pos(), end - s_.pos());
+  }
+
+  static bool isNumberText(std::string_view t) {
+    size_t i = (!t.empty() && (t[0] == '-' || t[0] == '+')) ? 1 : 0;
+    const size_t digits = i;
+    while (i < t.size() && (std::isdigit(static_cast<unsigned char>(t[i])) || t[i] == '.')) ++i;
+    if (i == digits) return false;
+    if (i < t.size() && (t[i] == 'e' || t[i] == 'E')) {
+      ++i;
+      if (i < t.size() && (t[i] == '+' || t[i] == '-')) ++i;
+      while (i < t.size() && std::isdigit(static_cast<unsigned char>(t[i]))) ++i;
+    }
+    return i == t.size();
+  }
+
+  /// Whether a literal holds an expression (a name or a computation where a number goes).
+  static bool holdsExpression(const Node& n) {
+    if (!n.list) return !n.number && !n.word.empty() && n.word[0] != '"';
+    for (const Node& i : n.items) {
+      if (holdsExpression(i)) return true;
+    }
+    return false;
   }
 
   /// Everything up to the statement's ';' (strings and lists read whole).
@@ -204,6 +255,7 @@ class RapidReader {
       while (!s_.atEnd() && s_.peek() != '}' && s_.peek() != '\n') s_.advance();
       s_.expect('}', "an array's size", false);
     }
+    if (type == "robtarget" || type == "jointtarget") declared_.insert(lowerCase(name));
     if (!s_.accept(':', false)) return toSemicolon(start);
     s_.expect('=', "a declaration");
     s_.skipSpace();
@@ -219,6 +271,10 @@ class RapidReader {
   }
 
   void declared(const std::string& type, const std::string& name, const Node& value) {
+    if ((type == "robtarget" || type == "jointtarget") && holdsExpression(value)) {
+      program_.not_literals.push_back({s_.lineOf(value.begin), s_.columnOf(value.begin), name + " := a value computed from names"});
+      return;
+    }
     if (type == "robtarget" || type == "jointtarget") {
       const bool robot = type == "robtarget";
       const bool one = robot ? isRobtarget(value) : isJointtarget(value);
@@ -387,6 +443,10 @@ class RapidReader {
     const bool joints = keyword == "moveabsj";
     if (a.value) {
       const bool fits = joints ? isJointtarget(*a.value) : isRobtarget(*a.value);
+      if (!fits && holdsExpression(*a.value)) {
+        program_.not_literals.push_back({s_.lineOf(a.begin), s_.columnOf(a.begin), keyword + " " + a.text});
+        return;
+      }
       if (!fits) {
         s_.failAt(a.begin, keyword + "'s target is not a " + (joints ? "jointtarget" : "robtarget") + " literal");
       }
@@ -407,13 +467,16 @@ class RapidReader {
       return;
     }
     const bool plain = name.size() == a.text.size();
-    program_.not_literals.push_back({s_.lineOf(a.begin), s_.columnOf(a.begin),
-                                     keyword + " " + a.text + (plain ? " (declared in another module)" : "")});
+    const std::string why = !plain ? "" : declared_.count(lowerCase(name)) ? " (its value is set at run time)"
+                                                                         : " (declared in another module)";
+    program_.not_literals.push_back({s_.lineOf(a.begin), s_.columnOf(a.begin), keyword + " " + a.text + why});
   }
 
   Scanner s_;
   Program program_;
   std::map<std::string, size_t> named_;
+  std::set<std::string> declared_;  ///< every robtarget and jointtarget name, with a literal or not
+  int parentheses_ = 0;             ///< inside a routine's parameter list: no declarations there
   bool ended_ = false;
 };
 

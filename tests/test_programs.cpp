@@ -119,6 +119,19 @@ TEST(Programs, AReplacedTargetChangesItsNumbersAndNothingElse) {
   }
 }
 
+// A number written against its name (A4-0.5, found by mutating the real files) that loses its
+// sign is written apart from the name, not merged into it (A40.5 would be another component).
+TEST(Programs, ANumberThatLosesItsSignStaysApartFromItsName) {
+  const std::string text = "DEF a()\nPTP {A1 1,A2 -90,A3 90,A4-0.5,A5 45,A6 0}\nEND\n";
+  const programs::Program p = read(Language::kKrl, text);
+  ASSERT_EQ(p.targets.size(), 1u);
+  programs::Replacement r{0, Pose::Identity(), p.targets[0].q_rad};
+  r.q_rad[3] = 0.5 * kRadPerDeg;
+  const std::string out = programs::writeProgram(p, text, {r});
+  EXPECT_EQ(out, "DEF a()\nPTP {A1 1,A2 -90,A3 90,A4 0.5000,A5 45,A6 0}\nEND\n");
+  EXPECT_EQ(read(Language::kKrl, out).targets.size(), 1u);
+}
+
 /// The refusal of `text`: its line and column, "line:column" ("" when it is read).
 std::string refusal(Language language, const std::string& text) {
   try {

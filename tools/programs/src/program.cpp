@@ -191,7 +191,10 @@ std::string writeProgram(const Program& program, std::string_view text,
       const int decimals = std::max(
           f.decimals, minimumDecimals(program, target.kind == TargetKind::kCartesian && k < 3,
                                       target.kind == TargetKind::kJoint));
-      edits.push_back({f.begin, f.end, formatFixed(values[k], decimals)});
+      std::string number = formatFixed(values[k], decimals);
+      // A4-0.5 written as A4 0.5, never as A40.5: a number that lost its sign stays a token apart.
+      if (f.begin > 0 && detail::isWordChar(text[f.begin - 1]) && number[0] != '-') number.insert(0, " ");
+      edits.push_back({f.begin, f.end, number});
     }
   }
   std::sort(edits.begin(), edits.end(), [](const Edit& a, const Edit& b) { return a.begin < b.begin; });

@@ -128,7 +128,7 @@ TEST(Programs, ANumberThatLosesItsSignStaysApartFromItsName) {
   programs::Replacement r{0, Pose::Identity(), p.targets[0].q_rad};
   r.q_rad[3] = 0.5 * kRadPerDeg;
   const std::string out = programs::writeProgram(p, text, {r});
-  EXPECT_EQ(out, "DEF a()\nPTP {A1 1,A2 -90,A3 90,A4 0.5000,A5 45,A6 0}\nEND\n");
+  EXPECT_EQ(out, "DEF a()\nPTP {A1 1.0000,A2 -90.0000,A3 90.0000,A4 0.5000,A5 45.0000,A6 0.0000}\nEND\n");
   EXPECT_EQ(read(Language::kKrl, out).targets.size(), 1u);
 }
 

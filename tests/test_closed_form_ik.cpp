@@ -234,6 +234,13 @@ TEST(ClosedFormIk, TurnsNearestTheGivenJointsWithinTheLimits) {
   ASSERT_EQ(irb_inverse.solve(forward(irb, qi), irb_inverse.branchOf(qi), qi_near, q_out),
             ClosedFormStatus::kOk);
   EXPECT_NEAR(q_out(0), qi(0), 1e-9);
+  // solveNearest keeps the nearest turn and says it is beyond the limits.
+  ASSERT_EQ(irb_inverse.solveNearest(forward(irb, qi), irb_inverse.branchOf(qi), qi_near, q_out),
+            ClosedFormStatus::kBeyondLimits);
+  EXPECT_NEAR(q_out(0), qi(0) + 2 * M_PI, 1e-9);
+  ASSERT_EQ(irb_inverse.solveNearest(forward(irb, qi), irb_inverse.branchOf(qi), qi, q_out),
+            ClosedFormStatus::kOk);
+  EXPECT_LT((q_out - qi).cwiseAbs().maxCoeff(), 1e-9);
 }
 
 TEST(ClosedFormIk, TheIrb4400sZeroPoseIsShoulderFrontElbowUpWristNotFlipped) {

@@ -531,6 +531,7 @@ std::unique_ptr<const RuntimeModel> build(CalibratedModel file, uint64_t model_i
   }
   if (model->needs_wrench) model->unloaded_wrench_Sensor.setZero();
   model->X_LastTip = file.chain_Tracker.initialPose(n);
+  model->nominal_inverse = ClosedFormInverse::recognise(file.nominal_Base);
   const int flange = file.nominal_Base.findFrame(kFlangeFrame);
   if (flange >= 0) {
     const AttachedFrame& frame = file.nominal_Base.frames()[static_cast<size_t>(flange)];
@@ -765,9 +766,9 @@ struct InverseIteration {
 
   /// The frozen twist evaluated again (without its std) after the first step and after long
   /// moves. The seed's own twist would serve one step only (the first step is the long one): the
-  /// first step goes without.
+  /// first step goes without, unless options.twist_at_seed (a seed close to the answer).
   void refreezeTwist() noexcept {
-    if ((!have_twist && iterations > 0) ||
+    if ((!have_twist && (iterations > 0 || options.twist_at_seed)) ||
         (have_twist && (q_rad - q_twist_rad).cwiseAbs().maxCoeff() > kFrozenTwistDistance_rad)) {
       xi_frozen = residualTwist(model, ws, q_rad, loadReading(model, ws, call, wrench_Sensor),
                                 X_TrackerTip_physical.linear(), false);

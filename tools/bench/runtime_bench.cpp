@@ -12,6 +12,10 @@
 // correction of the same (q, wrench) from a seed 2° off on every joint (alternating sign), with a
 // deadline far away so that the solver's own tolerances end it. Each call is timed alone with
 // std::chrono::steady_clock after a warm-up; heap allocations are counted over the timed calls.
+// Beside it, the same inverse seeded by the nominal chain's closed form in the pose's branch
+// (`inverse_closed_form_seed`: runtime/closed_form_seed.hpp, the 2°-off joints only choosing the
+// turns; the seed's own cost is timed with it), and each inverse's step count at p50 and p99
+// (a step costs about one forward call).
 // Beside them, the machine's own spread: the inverse at one pose (its iteration count the bench
 // poses' most common) timed the same number of times (`inverse_one_pose`): identical work, so its
 // p99 ÷ p50 is the machine's, and what the bench poses' tail has beyond it is theirs.
@@ -58,6 +62,7 @@
 #include <stepcal_lcm/correction_request_t.hpp>
 
 #include "stepcal/common/units.hpp"
+#include "stepcal/runtime/closed_form_seed.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/service/auth.hpp"
 #include "stepcal/service/latency.hpp"
@@ -89,6 +94,7 @@ struct BenchPose {
   Pose X_TrackerTip_target;  ///< forward correction at (q, wrench), m
   JointVector seed_q_rad;    ///< q ± 2°, rad
   Pose X_FrameTcp_target;    ///< forward correction at q in benchTerms, m
+  ArmBranch branch;          ///< the nominal closed form's branch of q (a program's configuration)
 };
 
 /// A controller's terms for inverse_terms: a user frame, a TCP 0.3 m beyond the target (from
@@ -129,6 +135,7 @@ std::optional<BenchPose> benchPoseAt(const runtime::RuntimeModel& model, runtime
       runtime::correctForward(model, ws, pose.q_rad, pose.wrench_Sensor, temp_c);
   if (forward.status != runtime::Status::kOk) return std::nullopt;
   pose.X_TrackerTip_target = forward.X_TrackerTip;
+  pose.branch = model.nominal_inverse.branchOf(pose.q_rad);
   pose.X_FrameTcp_target =
       runtime::correctForward(model, ws, pose.q_rad, benchTerms(model), temp_c).X_FrameTcp;
   return pose;
@@ -139,6 +146,7 @@ struct BenchPoses {
   std::vector<BenchPose> poses;
   std::string source;       ///< "gpr_training_inputs", "joint_limits_uniform" or "campaign"
   std::string description;  ///< the same in words, for the text report
+  ArmLayout layout = ArmLayout::kOther;  ///< the nominal chain's closed form
 };
 
 /// The model's GPR training inputs de-normalised (joints q and wrench): the model's workspace.
@@ -254,6 +262,16 @@ nlohmann::json latencyJson(std::vector<double> latency_us) {  // a copy: summari
           {"p50_quietest_batch_us", s.samples ? quietest_p50_us : 0.0}};
 }
 
+/// The smallest step count at or below which a fraction `quantile` of the calls ended.
+long iterationQuantile(const std::vector<long>& histogram, long calls, double quantile) {
+  long below = 0;
+  for (size_t k = 0; k < histogram.size(); ++k) {
+    below += histogram[k];
+    if (double(below) >= quantile * double(calls)) return long(k);
+  }
+  return long(histogram.size()) - 1;
+}
+
 nlohmann::json toJson(CallStats& stats, bool inverse) {
   nlohmann::json j = latencyJson(stats.latency_us);
   nlohmann::json statuses = nlohmann::json::object();
@@ -274,6 +292,8 @@ nlohmann::json toJson(CallStats& stats, bool inverse) {
     }
     j["mean_iterations"] = double(sum) / double(std::max(1L, calls));
     j["iterations"] = histogram;
+    j["iterations_p50"] = iterationQuantile(stats.iterations, calls, 0.50);
+    j["iterations_p99"] = iterationQuantile(stats.iterations, calls, 0.99);
   }
   return j;
 }
@@ -481,6 +501,16 @@ struct BenchCalls {
     iterations = r.iterations;
     return r.status;
   }
+  /// The inverse seeded by the nominal closed form in the pose's branch (the 2°-off joints as
+  /// the nearest turns), the seed's cost included.
+  runtime::Status inverseClosedForm(int call) {
+    const BenchPose& p = pose(call);
+    const runtime::InverseResult r = runtime::solveInverseInBranch(
+        model, ws, p.X_TrackerTip_target, p.wrench_Sensor, temp_c, p.branch, p.seed_q_rad,
+        runtime::Clock::now() + std::chrono::seconds(1));
+    iterations = r.iterations;
+    return r.status;
+  }
   runtime::Status inverseTerms(int call) {
     const BenchPose& p = pose(call);
     const runtime::InverseResult r =
@@ -499,15 +529,17 @@ struct BenchCalls {
 
 /// Every series' calls, and the heap allocations of ours.
 struct BenchSeries {
-  CallStats forward, inverse, one_pose, kdl, inverse_terms, authentication;
+  CallStats forward, inverse, inverse_closed_form, one_pose, kdl, inverse_terms, authentication;
   long allocations = 0;
 
   explicit BenchSeries(int calls) {
-    for (CallStats* stats : {&forward, &inverse, &one_pose, &kdl, &inverse_terms, &authentication}) {
+    for (CallStats* stats : {&forward, &inverse, &inverse_closed_form, &one_pose, &kdl,
+                             &inverse_terms, &authentication}) {
       stats->latency_us.resize(static_cast<size_t>(calls));
     }
     inverse.iterations.resize(static_cast<size_t>(runtime::InverseOptions{}.max_iterations) + 1);
     one_pose.iterations.resize(inverse.iterations.size());
+    inverse_closed_form.iterations.resize(inverse.iterations.size());
     inverse_terms.iterations.resize(inverse.iterations.size());
   }
 };
@@ -520,6 +552,7 @@ int warmUpAndFindBaseline(BenchCalls& calls, bool compare_kdl, size_t iteration_
     calls.forward(call);
     calls.inverse(call);
     ++warmup_iterations[size_t(calls.iterations)];
+    calls.inverseClosedForm(call);
     calls.inverseTerms(call);
     calls.authentication(call);
     if (compare_kdl) calls.kdl(call);
@@ -561,6 +594,8 @@ void timeSeries(BenchCalls& calls, BenchSeries& series, int call_count, int base
                 [&](int call) { return calls.forward(call); });
       timeCalls(series.inverse, first, last, iterations,
                 [&](int call) { return calls.inverse(call); });
+      timeCalls(series.inverse_closed_form, first, last, iterations,
+                [&](int call) { return calls.inverseClosedForm(call); });
       timeCalls(series.one_pose, first, last, iterations,
                 [&](int) { return calls.inverse(baseline_call); });
       timeCalls(series.inverse_terms, first, last, iterations,
@@ -585,6 +620,8 @@ nlohmann::json makeReport(const BenchOptions& options, const BenchPoses& drawn,
                                                          : nlohmann::json(temp_c)},
                            {"forward", toJson(series.forward, false)},
                            {"inverse", toJson(series.inverse, true)},
+                           {"inverse_closed_form_seed", toJson(series.inverse_closed_form, true)},
+                           {"closed_form_layout", toString(drawn.layout)},
                            {"inverse_one_pose", toJson(series.one_pose, true)},
                            {"inverse_terms", toJson(series.inverse_terms, true)},
                            {"authentication", toJson(series.authentication, false)},
@@ -605,17 +642,21 @@ nlohmann::json makeReport(const BenchOptions& options, const BenchPoses& drawn,
 void printText(const nlohmann::json& report, const std::string& pose_description) {
   std::cout << "poses: " << report["poses"] << ", " << pose_description << "\n";
   for (const char* name :
-       {"forward", "inverse", "inverse_one_pose", "inverse_terms", "authentication"}) {
+       {"forward", "inverse", "inverse_closed_form_seed", "inverse_one_pose", "inverse_terms",
+        "authentication"}) {
     const nlohmann::json& r = report[name];
     std::cout << name << ": " << r["calls"] << " calls, p50 " << r["p50_us"].get<double>()
               << " us, p99 " << r["p99_us"].get<double>() << " us, max "
               << r["max_us"].get<double>() << " us, p50 of the quietest " << kQuietBatchCalls
               << " " << r["p50_quietest_batch_us"].get<double>() << " us";
     if (r.contains("mean_iterations")) {
-      std::cout << ", mean iterations " << r["mean_iterations"].get<double>();
+      std::cout << ", iterations mean " << r["mean_iterations"].get<double>() << " p50 "
+                << r["iterations_p50"] << " p99 " << r["iterations_p99"];
     }
     std::cout << ", statuses " << r["statuses"].dump() << "\n";
   }
+  std::cout << "closed-form layout of the nominal chain: " << report["closed_form_layout"]
+            << "\n";
   std::cout << "allocations during the timed calls: " << report["allocations"] << "\n";
   std::cout << "real-time settings: " << report["realtime"].dump() << "\n";
   if (report.contains("kdl")) {
@@ -634,8 +675,9 @@ void runBench(const BenchOptions& options) {
   const std::unique_ptr<const runtime::RuntimeModel> model =
       runtime::RuntimeModel::load(options.model_path);
   runtime::Workspace ws = runtime::makeWorkspace(*model);
-  const BenchPoses drawn =
+  BenchPoses drawn =
       benchPoses(*model, ws, options.temp_c, options.model_path, options.campaign_path);
+  drawn.layout = model->nominal_inverse.layout();
   KdlSide kdl_side;
   if (options.compare_kdl) kdl_side = kdlSide(*model, drawn.poses);
   const nlohmann::json realtime_report = enterRealtimeIfAsked(options.realtime);

@@ -105,23 +105,35 @@ class ClosedFormInverse {
   ClosedFormStatus solve(const Pose& X_BaseTip, ArmBranch branch, const JointVector& q_near,
                          JointVector& q_out) const noexcept;
 
+  /// As solve, each joint the whole turn nearest q_near whether or not within its limits
+  /// (kBeyondLimits when outside): the seed of a numeric inverse that clamps into the limits on
+  /// its own. Near the wrist singularity joints 4 and 6 of a nominal answer may lie a radian
+  /// from the real arm's, and the turn within the limits then another 2π away.
+  ClosedFormStatus solveNearest(const Pose& X_BaseTip, ArmBranch branch, const JointVector& q_near,
+                                JointVector& q_out) const noexcept;
+
   /// The branch of joints q (6 entries; the chain's convention).
   ArmBranch branchOf(const JointVector& q) const noexcept;
 
  private:
+  /// An angle as its cosine and sine: the solve composes angles without sin, cos or acos and
+  /// takes atan2 once per joint.
+  struct Angle {
+    double c = 1.0, s = 0.0;
+  };
   ClosedFormStatus solveBranch(const Pose& X_BaseTip, ArmBranch branch, const JointVector* q_near,
-                               JointVector& q_out) const noexcept;
+                               bool within_limits, JointVector& q_out) const noexcept;
   ClosedFormStatus solveSpherical(const Pose& X_BaseTip, ArmBranch branch,
                                   const JointVector* q_near, JointVector& q_out) const noexcept;
   ClosedFormStatus solveUniversal(const Pose& X_BaseTip, ArmBranch branch,
                                   const JointVector* q_near, JointVector& q_out) const noexcept;
   ClosedFormStatus solveJoint1(const Vec3& p_WristInBase, bool shoulder_back, double q_near1,
-                               double& q1) const noexcept;
+                               Angle& q1) const noexcept;
   ClosedFormStatus solveArmPlane(const Vec3& p_TargetAfterJoint1, const Vec3& p_Arm,
-                                 bool elbow_down, double& q2, double& q3) const noexcept;
+                                 bool elbow_down, Angle& q2, Angle& q3) const noexcept;
   bool shoulderBack(const Vec3& p_WristAfterJoint1) const noexcept;
   /// a₂ · (upper arm × forearm) at q3, p_Arm the forearm's point at q = 0: < 0 is elbow down.
-  double elbowSide(double q3, const Vec3& p_Arm) const noexcept;
+  double elbowSide(const Angle& q3, const Vec3& p_Arm) const noexcept;
 
   ArmLayout layout_ = ArmLayout::kOther;
   std::array<Vec3, 6> axis_{};   ///< ω_i at q = 0, root frame, unit
@@ -129,11 +141,13 @@ class ClosedFormInverse {
   Pose M_ = Pose::Identity();    ///< X_BaseTip at q = 0
   /// The spherical wrist's wrist point, or the UR's meeting point of axes 5 and 6, at q = 0, m.
   Vec3 p_Wrist_ = Vec3::Zero();
+  Vec3 p_WristInTip_ = Vec3::Zero();  ///< the same in the tip frame (fixed: joint 6 keeps it)
   Vec3 forward_ = Vec3::UnitX();  ///< ⟂ axes 1 and 2, towards the wrist at q = 0
   Vec3 arm_axis_ = Vec3::UnitY(); ///< a₂ oriented as up × forward (the elbow's sign)
   /// The wrist's reference axis (axis 4, the UR: axis 2) and φ₀ (see the file comment).
   Vec3 wrist_reference_ = Vec3::UnitX();
   double wrist_phi0_rad_ = 0.0;
+  Angle wrist_phi0_;
   std::array<double, 6> lower_rad_{}, upper_rad_{};
 };
 

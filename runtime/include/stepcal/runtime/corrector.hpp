@@ -17,6 +17,7 @@
 #include <string>
 
 #include "stepcal/common/chain.hpp"
+#include "stepcal/common/closed_form_ik.hpp"
 #include "stepcal/common/gpr_predictor.hpp"
 #include "stepcal/common/mechanisms.hpp"
 #include "stepcal/common/model_file.hpp"
@@ -137,6 +138,9 @@ struct RuntimeModel {
   Pose X_LastFlange_nominal = Pose::Identity();
   /// The calibrated T_{n,tip}(0): the target in the calibrated joint-n frame, m.
   Pose X_LastTip = Pose::Identity();
+  /// The closed-form inverse of the nominal chain (file.nominal_Base), recognised at load: the
+  /// seeds of closed_form_seed.hpp; ArmLayout::kOther for an arm it does not solve.
+  ClosedFormInverse nominal_inverse;
 
   /// Loads and validates a model file. Throws InputError.
   static std::unique_ptr<const RuntimeModel> load(const std::string& path);
@@ -213,6 +217,11 @@ struct InverseOptions {
   double singular_value_threshold = 1e-2;
   /// Largest change of any joint in one step, rad (longer steps are scaled down).
   double max_step_rad = 0.2;
+  /// Evaluate the GPR's twist at the seed and hold it from the first step on (else the first
+  /// step goes without it): for a seed within about a millimetre of the answer, as the nominal
+  /// closed form gives (closed_form_seed.hpp), where the seed's twist is the answer's to well
+  /// within the tolerance and the first step then aims at the full model.
+  bool twist_at_seed = false;
 };
 
 struct InverseResult {

@@ -614,6 +614,23 @@ TEST(Programs, RealFilesComeBackByteIdenticalThroughCorrectWithNoCorrection) {
   }
 }
 
+// A program `stepcal correct` does not fully understand is refused with its file, line and
+// column (exit status 2), and nothing is written: never a half-corrected program.
+TEST(Programs, CorrectRefusesAProgramItDoesNotUnderstandAndWritesNothing) {
+  const TwinCell& cell = twinCell();
+  const test::TempDir dir;
+  const std::string program = (dir.path() / "cut.mod").string(), out = (dir.path() / "out.mod").string();
+  const std::string text = test::readText(kPrograms + "twin/twin.mod");
+  {
+    std::ofstream f(program, std::ios::binary);
+    f << text.substr(0, text.find("],[9E9", text.find("MoveL")));  // cut after the first MoveL's confdata
+  }
+  const test::CommandResult r = test::run(kStepcal + " correct " + cell.model + " " + program + " --out " + out);
+  EXPECT_EQ(r.status, 2) << r.out;
+  EXPECT_NE(r.out.find(program + ":6: column '84': a list that the file ends in; expected ']'"), std::string::npos) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(out));
+}
+
 const char* const kTwinNames[] = {"Krl", "Rapid", "UrScript", "FanucTp"};
 INSTANTIATE_TEST_SUITE_P(Programs, TwinProgram, ::testing::Values(size_t(0), size_t(1), size_t(2), size_t(3)),
                          [](const ::testing::TestParamInfo<size_t>& info) { return kTwinNames[info.param]; });

@@ -236,6 +236,17 @@ TEST(Programs, EachLanguageReadsItsFramesAndKeepsWhatItDoesNotCorrect) {
   EXPECT_EQ(ur.targets.size(), 2u);
   EXPECT_EQ(ur.not_literals.size(), 1u);
 
+  const programs::Program loaded = read(Language::kUrScript,
+      "def a():\n  set_payload(2.5, [0, 0, 0.05])\n  set_tcp(p[0,0,0.3,0,0,0])\n  movel(p[0.1,0.2,0.3,0,3.14159,0])\n"
+      "  set_payload(mass)\n  movej([0,-1.57,1.57,0,1.2,0])\nend\n");
+  ASSERT_EQ(loaded.targets.size(), 2u);
+  const programs::Frame& tool = loaded.frames[size_t(loaded.targets[0].tool)];
+  EXPECT_EQ(tool.mass_kg, 2.5);
+  EXPECT_EQ(tool.p_CoG_m.z(), 0.05);
+  EXPECT_NEAR(tool.X->translation().z(), 0.3, 1e-15);
+  EXPECT_EQ(loaded.targets[1].tool, loaded.targets[0].tool);  // set_payload(mass) is reported
+  EXPECT_EQ(loaded.not_literals.size(), 1u);
+
   const programs::Program tp = read(Language::kFanucTp,
       "/PROG a\n/MN\n 1:L P[1] 100mm/sec FINE ;\n 2:L P[2] 100mm/sec FINE Offset,PR[1] ;\n/POS\n"
       "P[1:\"pick\"]{\n   GP1:\n\tUF : 1, UT : 2,\t\tCONFIG : 'F U T, 0, 0, 0',\n\tX = .5 mm,\tY = -12.25 mm,"

@@ -1,6 +1,7 @@
 // URScript (.script): pose literals p[x, y, z, rx, ry, rz] (m, rotation vector in rad) in
 // movel/movej/movep/movec or assigned to a variable (global or local); joint lists [q1, …, q6]
-// (rad) as the first argument of movej/movel/movep; set_tcp(p[…]) as the tool from there on.
+// (rad) as the first argument of movej/movel/movep; set_tcp(p[…]) as the tool from there on,
+// set_payload(m, [cx, cy, cz]) as its load.
 // A pose inside any other call (pose_trans, pose_add,
 // get_inverse_kin, …) is composed at run time: reported, not corrected. '#' starts a comment,
 // left alone (poses in comments too). Blocks (def, if, while, for, thread … end) must close.
@@ -62,6 +63,7 @@ class UrReader {
         const size_t w = s_.pos();
         last_word = lowerCase(s_.word());
         if (last_word == "p" && s_.peek() == '[') pose(w, calls, assigned);
+        if (last_word == "set_payload" && s_.peek() == '(') payload(w);
         continue;
       }
       if (c == '"' || c == '\'') {
@@ -139,8 +141,13 @@ class UrReader {
     }
     const bool outermost = calls.size() == 1 || (calls.empty() && assigned);
     if (call == "set_tcp" && calls.size() == 1) {
-      program_.frames.push_back(Frame{"set_tcp line " + std::to_string(s_.lineOf(start)),
-                                      poseFromWritten(values, Orientation::kRotationVector, 1.0)});
+      Frame tool{"set_tcp line " + std::to_string(s_.lineOf(start)),
+                 poseFromWritten(values, Orientation::kRotationVector, 1.0)};
+      if (current_tool_ >= 0) {  // the load in force stays
+        tool.mass_kg = program_.frames[size_t(current_tool_)].mass_kg;
+        tool.p_CoG_m = program_.frames[size_t(current_tool_)].p_CoG_m;
+      }
+      program_.frames.push_back(tool);
       current_tool_ = int(program_.frames.size() - 1);
       return;
     }
@@ -153,6 +160,37 @@ class UrReader {
     program_.not_literals.push_back({s_.lineOf(start), s_.columnOf(start),
                                      "a pose inside " + (call.empty() ? std::string("an expression") : call + "(…)") +
                                          ": composed at run time"});
+  }
+
+  /// set_payload(m[, [cx, cy, cz]]) (kg, m from the flange): the load of the targets after it,
+  /// on the tool in force. Values computed at run time are reported: the targets after it are
+  /// corrected with the load before.
+  void payload(size_t start) {
+    const size_t open = s_.pos();
+    s_.advance();
+    s_.skipBlanks();
+    const char c = s_.peek();
+    Frame load{"set_payload line " + std::to_string(s_.lineOf(start)), Pose::Identity()};
+    if (current_tool_ >= 0) load.X = program_.frames[size_t(current_tool_)].X;
+    bool literal = c == '-' || c == '.' || std::isdigit(static_cast<unsigned char>(c));
+    if (literal) {
+      load.mass_kg = s_.number("set_payload's mass", nullptr, false);
+      if (s_.accept(',', false)) {
+        std::vector<double> cog;
+        s_.skipBlanks();
+        literal = s_.peek() == '[' && numbers(cog).size() == 3;
+        if (literal) load.p_CoG_m = Vec3(cog[0], cog[1], cog[2]);
+      }
+      literal = literal && s_.accept(')', false);
+    }
+    if (!literal) {
+      program_.not_literals.push_back({s_.lineOf(start), s_.columnOf(start),
+                                       "set_payload with values computed at run time: the targets after it keep the load before"});
+      s_.seek(open);
+      return;
+    }
+    program_.frames.push_back(load);
+    current_tool_ = int(program_.frames.size() - 1);
   }
 
   /// A list: a movej/movel/movep's joint targets, or another list left alone.

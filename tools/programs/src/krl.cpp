@@ -29,7 +29,6 @@ bool isRelativeMotion(const std::string& w) {
 /// An aggregate's items: each name (lower case) with its number's field where it is one.
 struct Aggregate {
   size_t begin = 0;
-  std::string type;  ///< {FRAME: …}: "frame"; else empty
   std::map<std::string, std::pair<NumberField, double>> numbers;
   std::map<std::string, std::string> words;  ///< S/T and other non-numbers as written
   bool pose() const { return numbers.count("x") || numbers.count("y") || numbers.count("z") || numbers.count("c"); }
@@ -253,7 +252,10 @@ class KrlReader {
     for (size_t i = 0; i < program_.frames.size(); ++i) {
       if (program_.frames[i].name == name) return int(i);
     }
-    program_.frames.push_back(Frame{name, std::nullopt});
+    Frame f{name, std::nullopt};
+    // Tool 0 is the flange, base 0 the world (taken as the robot's base: $WORLD = $ROBROOT).
+    if (name == "TOOL_DATA[0]" || name == "BASE_DATA[0]") f.X = Pose::Identity();
+    program_.frames.push_back(f);
     return int(program_.frames.size() - 1);
   }
 
@@ -263,12 +265,8 @@ class KrlReader {
     s_.expect('{', "an aggregate");
     s_.skipBlanks();
     const size_t after_brace = s_.pos();
-    const std::string_view type = s_.word();
-    if (!type.empty() && s_.accept(':', false)) {
-      a.type = lowerCase(type);
-    } else {
-      s_.seek(after_brace);
-    }
+    const std::string_view type = s_.word();  // {E6POS: …}, {FRAME: …}
+    if (type.empty() || !s_.accept(':', false)) s_.seek(after_brace);
     if (s_.accept('}', false)) return a;
     do {
       const std::string name = lowerCase(s_.word());

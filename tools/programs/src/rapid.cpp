@@ -361,7 +361,7 @@ class RapidReader {
 
   struct Argument {
     size_t begin = 0;
-    std::string text;           ///< as written, without comments
+    std::string text;           ///< as written
     std::optional<Node> value;  ///< a literal list
   };
 

@@ -575,6 +575,7 @@ TEST_P(TwinProgram, IsCorrectedInItsConfigurationToTheModelsError) {
     ++reported;
   }
   EXPECT_EQ(r.status, reported == 0 ? 0 : 3);
+  EXPECT_EQ(summary["not_corrected"], reported);
   EXPECT_LE(reported, 3);
   EXPECT_EQ(summary["outcomes"].value("corrected", 0), int(2 * pairs.size()) - reported) << summary["outcomes"].dump();
   const std::string corrected = test::readText(out);

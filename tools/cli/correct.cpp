@@ -895,6 +895,13 @@ void printProgramOutcomes(const std::string& path, const programs::Program& prog
   }
 }
 
+/// The targets not written (reported) and those the program computes at run time.
+long notCorrected(const programs::Program& program, const std::vector<TargetOutcome>& outcomes) {
+  long count = long(program.not_literals.size());
+  for (const TargetOutcome& o : outcomes) count += !o.written;
+  return count;
+}
+
 void printProgramSummary(const CorrectArgs& args, const programs::Program& program,
                          const std::vector<TargetOutcome>& outcomes, const Tally& tally) {
   std::map<std::string, int> counts;
@@ -925,6 +932,7 @@ nlohmann::json programSummaryJson(const CorrectArgs& args, const programs::Progr
   }
   counts["not a literal"] = program.not_literals.size();
   summary["outcomes"] = counts;
+  summary["not_corrected"] = notCorrected(program, outcomes);
   summary["targets"] = targets;
   nlohmann::json not_literals = nlohmann::json::array();
   for (const programs::NotLiteral& n : program.not_literals) {
@@ -978,8 +986,7 @@ int runCorrectRobotProgram(const CorrectArgs& args, programs::Language language)
     printProgramSummary(args, program, outcomes, tally);
     if (truth) printTwinErrors(tally);
   }
-  long not_corrected = long(program.not_literals.size());
-  for (const TargetOutcome& o : outcomes) not_corrected += !o.written;
+  const long not_corrected = notCorrected(program, outcomes);
   if (not_corrected == 0) return exit_code::kDone;
   std::cerr << "stepcal correct: " << not_corrected << " targets not corrected (see each target's line)\n";
   return exit_code::kDoneInPart;

@@ -671,6 +671,24 @@ std::map<std::string, Pose> commandLineFrames(const CorrectArgs& args) {
   return frames;
 }
 
+/// Says on stderr which --program-frame names the program never names (a typo: UF1 for UF 1).
+void warnOfUnusedFrames(const programs::Program& program, const std::map<std::string, Pose>& given) {
+  for (const auto& [name, pose] : given) {
+    bool named = name == "TOOL" || name == "BASE";
+    for (const programs::Frame& f : program.frames) {
+      std::string upper = f.name;
+      for (char& c : upper) c = char(std::toupper(static_cast<unsigned char>(c)));
+      named = named || upper == name;
+    }
+    if (!named) {
+      std::string names;
+      for (const programs::Frame& f : program.frames) names += (names.empty() ? "" : ", ") + f.name;
+      std::cerr << "stepcal correct: warning: --program-frame " << name << ": the program names no such frame"
+                << (names.empty() ? std::string(" (it names none)") : " (it names " + names + ")") << "\n";
+    }
+  }
+}
+
 /// A frame the program names: its values from the program, else from --program-frame.
 const Pose& framePose(const programs::Program& program, int index, const std::map<std::string, Pose>& given,
                       const programs::Target& target, const std::string& path) {
@@ -959,6 +977,7 @@ int runCorrectRobotProgram(const CorrectArgs& args, programs::Language language)
                      args.program);
   }
   const std::map<std::string, Pose> given = commandLineFrames(args);
+  warnOfUnusedFrames(program, given);
   const Branching b = branching(*model, language, args.program);
   const int dof = model->file.chain_Tracker.dof();
   JointVector previous_rad = firstSeed(program, seedOption(args, dof), b, dof);

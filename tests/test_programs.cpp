@@ -252,6 +252,15 @@ TEST(Programs, EachLanguageReadsItsFramesAndKeepsWhatItDoesNotCorrect) {
       "P[1:\"pick\"]{\n   GP1:\n\tUF : 1, UT : 2,\t\tCONFIG : 'F U T, 0, 0, 0',\n\tX = .5 mm,\tY = -12.25 mm,"
       "\tZ = 300.000 mm,\n\tW = 180.000 deg,\tP = 0 deg,\tR = -.5 deg\n   GP2:\n\tUF : 1, UT : 2,\n\tJ1 = 12.000 mm\n};\n"
       "P[2]{\n   GP1:\n\tUF : 1, UT : 2,\n\tJ1 = 0 deg, J2 = 0 deg, J3 = 0 deg, J4 = 0 deg, J5 = -90 deg, J6 = 0 deg\n};\n/END\n");
+  // RoboDK's tool: PR[9,1..6] = -30, 0, 40, 0, -60, 0 and UTOOL[9]=PR[9]; UF 2 only in a comment.
+  const programs::Program robodk = read(Language::kFanucTp, test::readText(kPrograms + "Program.LS"));
+  const programs::Frame& ut9 = robodk.frames[size_t(robodk.targets[0].tool)];
+  ASSERT_EQ(ut9.name, "UT 9");
+  ASSERT_TRUE(ut9.X.has_value());
+  EXPECT_LT((ut9.X->translation() - Vec3(-0.03, 0.0, 0.04)).norm(), 1e-15);
+  EXPECT_LT(lie::angleBetween(ut9.X->linear(), Eigen::AngleAxisd(-60.0 * kRadPerDeg, Vec3::UnitY()).toRotationMatrix()), 1e-12);
+  EXPECT_FALSE(robodk.frames[size_t(robodk.targets[0].base)].X.has_value());
+
   ASSERT_EQ(tp.targets.size(), 1u);  // P[2] is moved by an offset at run time
   EXPECT_EQ(tp.targets[0].configuration, "F U T, 0, 0, 0");
   EXPECT_NEAR(tp.targets[0].X_FrameTcp.translation().x(), 0.5e-3, 1e-15);

@@ -2,11 +2,15 @@
 // CONFIG : 'N U T, 0, 0, 0', X = … mm, Y, Z, W = … deg, P, R } (W, P, R about the fixed X, Y, Z)
 // or { GP1: UF : u, UT : t, J1 = … deg, …, J6 } (joints; extended axes E1 … kept). Group 1 is
 // the robot: its numbers are the target; every other group is read and kept. The user and tool
-// frames are named by number (UF 2, UT 9): their values come from the command line. A motion
+// frames are named by number (UF 2, UT 9): their values from UTOOL[n]=PR[i] / UFRAME[n]=PR[i]
+// after PR[i,1..6]=… in /MN (as RoboDK writes them), else from the command line. A motion
 // in /MN to a position register (PR[…]) or with Offset, Tool_Offset or INC is moved at run time:
 // reported, and its P[n] is not corrected. Tabs, leading-dot numbers and P[n:"comment"] are
 // read; the file must end with /END.
+#include <array>
+#include <cstdio>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "scan.hpp"
@@ -65,6 +69,7 @@ class TpReader {
     const size_t colon = line.find(':');
     if (colon == std::string_view::npos) return;
     std::string body = lowerCase(line.substr(colon + 1));
+    if (frameAssignment(body)) return;
     const size_t first = body.find_first_not_of(" \t");
     if (first == std::string::npos || std::string("jlca").find(body[first]) == std::string::npos ||
         (body.size() > first + 1 && body[first + 1] != ' ' && body[first + 1] != '\t')) {
@@ -79,6 +84,38 @@ class TpReader {
     if (!register_target && p != std::string::npos) {
       moved_.insert(std::atoi(body.c_str() + p + 2));
     }
+  }
+
+  /// PR[i,j]=value and UTOOL[n]=PR[i] / UFRAME[n]=PR[i] (as RoboDK writes a tool and a frame):
+  /// UT n and UF n from the register's X, Y, Z, W, P, R. A frame assigned twice with other values
+  /// is left to the command line (a position would depend on where it runs).
+  bool frameAssignment(const std::string& body) {
+    int i = 0, j = 0, n = 0;
+    double value = 0.0;
+    char close = 0;
+    if (std::sscanf(body.c_str(), " pr[%d,%d]=%lf %c", &i, &j, &value, &close) == 4 && close == ';' && j >= 1 && j <= 6) {
+      registers_[i][size_t(j - 1)] = value;
+      return true;
+    }
+    const bool tool = std::sscanf(body.c_str(), " utool[%d]=pr[%d] %c", &n, &i, &close) == 3;
+    if (!tool && std::sscanf(body.c_str(), " uframe[%d]=pr[%d] %c", &n, &i, &close) != 3) return false;
+    const auto found = registers_.find(i);
+    if (close != ';' || found == registers_.end()) return true;
+    const std::array<std::optional<double>, 6>& r = found->second;
+    std::vector<double> xyzwpr;
+    for (const std::optional<double>& v : r) {
+      if (!v) return true;
+      xyzwpr.push_back(*v);
+    }
+    const std::string name = (tool ? "UT " : "UF ") + std::to_string(n);
+    Frame& f = program_.frames[size_t(frameIndex(name, false))];
+    const Pose X = poseFromWritten(xyzwpr, Orientation::kFixedXyzDeg, 1000.0);
+    if (assigned_.insert(name).second) {
+      f.X = X;
+    } else if (f.X && !f.X->isApprox(X, 1e-12)) {
+      f.X.reset();
+    }
+    return true;
   }
 
   /// P[n] or P[n:"comment"] { GP1: … , GP2: … };
@@ -186,6 +223,8 @@ class TpReader {
   Scanner s_;
   Program program_;
   std::set<int> moved_;
+  std::map<int, std::array<std::optional<double>, 6>> registers_;  ///< PR[i,1..6] as assigned
+  std::set<std::string> assigned_;  ///< UT n and UF n assigned from a register
   bool ended_ = false;
 };
 

@@ -67,7 +67,9 @@ int checkAllBranches(const KinematicChain& chain, const ClosedFormInverse& inver
   for (int k = 0; k < count; ++k) {
     EXPECT_TRUE(q[size_t(k)].allFinite());
     EXPECT_LT(poseError(forward(chain, q[size_t(k)]), X), 1e-12) << "branch " << branch[size_t(k)].index();
-    if (check_branches) EXPECT_EQ(inverse.branchOf(q[size_t(k)]), branch[size_t(k)]);
+    if (check_branches) {
+      EXPECT_EQ(inverse.branchOf(q[size_t(k)]), branch[size_t(k)]);
+    }
   }
   return count;
 }
@@ -304,6 +306,14 @@ TEST(RobotConfiguration, KukaStatusAndTurn) {
   const KukaStatusTurn over = kukaStatusTurn(ArmBranch{true, true, true}, degrees(-30, -100, 20, -10, -20, 100));
   EXPECT_EQ(over.status, 5);
   EXPECT_EQ(over.turn, 27);
+  // Turn applied: A6 at −90° asked positive (bit 5 clear) goes to 270°; A4 at 30° asked negative
+  // (bit 3) to −330°; A1 keeps its sign.
+  JointVector q_turned = degrees(-30, -90, 90, 30, 45, -90);
+  applyKukaTurn(1 | 2 | 8, q_turned);
+  EXPECT_NEAR(q_turned(5), 270.0 * kRadPerDeg, 1e-12);
+  EXPECT_NEAR(q_turned(3), -330.0 * kRadPerDeg, 1e-12);
+  EXPECT_NEAR(q_turned(0), -30.0 * kRadPerDeg, 1e-12);
+  EXPECT_EQ(kukaStatusTurn(ArmBranch{}, q_turned).turn, 1 | 2 | 8);
   // Back from S: every branch, with joint 5 counted as the chain counts it (and reversed).
   ControllerJoints same, reversed;
   reversed.direction[4] = -1.0;

@@ -49,6 +49,15 @@ KukaStatusTurn kukaStatusTurn(const ArmBranch& branch,
   return st;
 }
 
+void applyKukaTurn(int turn, JointVector& q_controller_rad) noexcept {
+  for (Eigen::Index j = 0; j < q_controller_rad.size() && j < 6; ++j) {
+    double& q = q_controller_rad(j);
+    const bool negative = (turn >> j) & 1;
+    while (negative && q >= 0.0) q -= kTwoPi;
+    while (!negative && q < 0.0) q += kTwoPi;
+  }
+}
+
 ArmBranch branchOfKukaStatus(int status, const ControllerJoints& joints) noexcept {
   ArmBranch branch;
   branch.shoulder_back = (status & 1) != 0;

@@ -30,6 +30,7 @@
 #include "stepcal/programs/configuration.hpp"
 #include "stepcal/programs/program.hpp"
 #include "stepcal/report/text_format.hpp"
+#include "stepcal/runtime/closed_form_seed.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/twin/twin.hpp"
 #include "subcommands.hpp"
@@ -846,8 +847,14 @@ TargetOutcome correctTarget(const runtime::RuntimeModel& model, runtime::Workspa
     return o;
   }
   previous_rad = *q_controller;
-  const runtime::InverseResult r = runtime::solveInverse(model, ws, X_desired, p.terms, p.temp_c, *q_controller,
-                                                         runtime::Clock::time_point::max());
+  // A word the closed form places: the corrected inverse from the calibrated geometry's closed
+  // form in that branch (closed_form_seed.hpp), its turns nearest the controller's joints.
+  const runtime::InverseResult r =
+      word && b.closed.solvable()
+          ? runtime::solveInverseInBranch(model, ws, X_desired, p.terms, p.temp_c, programs::branchNamed(*word, b.joints),
+                                          *q_controller, runtime::Clock::time_point::max())
+          : runtime::solveInverse(model, ws, X_desired, p.terms, p.temp_c, *q_controller,
+                                  runtime::Clock::time_point::max());
   ++tally.statuses[size_t(r.status)];
   const bool answered = r.status == runtime::Status::kOk || r.status == runtime::Status::kOutOfDomain;
   if (!answered) {

@@ -5,7 +5,6 @@
 #include <vector>
 
 #include "stepcal/common/error.hpp"
-#include "stepcal/common/units.hpp"
 
 namespace stepcal::programs {
 namespace {
@@ -77,16 +76,6 @@ ConfigurationWord fanuc(const Target& t, const std::string& path) {
   return w;
 }
 
-/// Moves joint j by whole turns towards `negative` (KUKA's T bit), within the limits.
-void kukaSign(int j, bool negative, const KinematicChain& chain, const ControllerJoints& joints, JointVector& q) {
-  if ((q[j] < 0.0) == negative) return;
-  JointVector moved = q;
-  moved[j] += negative ? -2.0 * kPi : 2.0 * kPi;
-  const JointVector chain_q = chainFromController(joints, moved);
-  const ChainJoint& limits = chain.joints()[size_t(j)];
-  if (chain_q[j] >= limits.lower_rad && chain_q[j] <= limits.upper_rad) q = moved;
-}
-
 }  // namespace
 
 std::optional<ConfigurationWord> readConfiguration(Language language, const Target& t, const std::string& path) {
@@ -119,9 +108,7 @@ void applyTurns(const ConfigurationWord& w, const KinematicChain& chain, const C
     applyFanucTurn(3, w.fanuc->turn4, q);
     applyFanucTurn(5, w.fanuc->turn6, q);
   }
-  if (w.kuka_turn) {
-    for (int j = 0; j < 6; ++j) kukaSign(j, ((*w.kuka_turn >> j) & 1) != 0, chain, joints, q);
-  }
+  if (w.kuka_turn) applyKukaTurn(*w.kuka_turn, q);
   // A turn the limits do not allow stays where the closed form put it (then reported).
   const JointVector chain_q = chainFromController(joints, q);
   for (int j = 0; j < 6; ++j) {

@@ -28,7 +28,7 @@
 // The controllers' configuration words (KUKA S/T, ABB confdata, Fanuc CONFIG) are built from a
 // branch and the joints in robot_configuration.hpp.
 //
-// Everything here is allocation-free and noexcept after recognise(); fixed-size Eigen only.
+// Everything here, recognise() included, is allocation-free and noexcept; fixed-size Eigen only.
 #pragma once
 
 #include <array>

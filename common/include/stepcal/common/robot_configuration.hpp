@@ -58,6 +58,9 @@ struct KukaStatusTurn {
 };
 /// KUKA S and T of a branch at the controller's joints (A1…A6, rad).
 KukaStatusTurn kukaStatusTurn(const ArmBranch& branch, const JointVector& q_controller_rad) noexcept;
+/// Moves each joint of q_controller by whole turns (the fewest) to the sign its Turn bit names,
+/// where a whole turn can (a joint within ±180° of 0 already has the sign its angle gives).
+void applyKukaTurn(int turn, JointVector& q_controller_rad) noexcept;
 /// The branch a Status names (bit 2 read through joint5Negative).
 ArmBranch branchOfKukaStatus(int status, const ControllerJoints& joints) noexcept;
 

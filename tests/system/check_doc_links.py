@@ -55,7 +55,7 @@ def check(root):
                 paths = [w for w in re.split(r"[\s=$\"']+", line.split("#")[0])
                          if re.match(TOP + "/", w)]
             for path in paths:
-                path = re.sub(r"[:,;.)]+$|:\d+$", "", path)
+                path = re.sub(r"(:\d+)*[:,;.)]*$", "", path)
                 if re.search(r"\.\.\.|…|\*|\{|<|[A-Z]{3,}", path):
                     continue
                 links += 1

@@ -71,6 +71,14 @@ RUNS = [
   out/olp/measurements.csv > out/program.csv""",
         "build/bin/stepcal correct out/demo/model.stepcal out/program.csv --out out/corrected.csv --truth out/demo/truth.json",
     ]),
+    Run("programs", "docs/runtime.md", [
+        "build/bin/stepcal demo --out out/demo",
+        "build/bin/stepcal correct out/demo/model.stepcal tests/data/programs/twin/twin.src --out out/twin.src --truth out/demo/truth.json",
+        "build/bin/stepcal correct out/demo/model.stepcal tests/data/programs/twin/twin.mod --out out/twin.mod --truth out/demo/truth.json",
+        "build/bin/stepcal correct out/demo/model.stepcal tests/data/programs/twin/twin.script --out out/twin.script --truth out/demo/truth.json",
+        "build/bin/stepcal correct out/demo/model.stepcal tests/data/programs/twin/twin.ls --out out/twin.ls --program-frame 'UF 1=900,-250,400,0.984807753,0,0,0.173648178' --program-frame 'UT 1=20,0,300,0.996194698,0,0.087155743,0' --truth out/demo/truth.json",
+        "build/bin/stepcal correct out/demo/model.stepcal tests/data/programs/twin/twin.dat --out out/twin.dat --program-frame 'TOOL=20,0,300,0.996194698,0,0.087155743,0' --program-frame 'BASE=900,-250,400,0.984807753,0,0,0.173648178'",
+    ]),
     Run("daemon", "docs/runtime.md", [
         "build/bin/stepcal demo --out out/demo",
         "build/bin/stepcal-runtime --model out/demo/model.stepcal --budget-us 1000 &",
@@ -434,12 +442,38 @@ FIGS = [
         "{} NOT_CONVERGED, {} NEAR_SINGULAR, {} BAD_REQUEST; {} in the model's coverage", "correct500",
         *(lambda i=i: grep_all(r"\d+", grep(r"(wrote out/corrected.csv: .*)", out("correct500")))[i]
           for i in range(8))),
-    Fig("docs/runtime.md", "as commanded: mean {} mm, max {} mm, mean {} deg over {} targets", "correct500",
+    Fig("docs/runtime.md", "BAD_REQUEST; {-} in the model's coverage on the twin, as commanded: mean {} mm, "
+        "max {} mm, mean {} deg over {} targets", "correct500",
         *(lambda i=i: grep(r"as commanded: mean ([\d.]+) mm, max ([\d.]+) mm, mean ([\d.]+) deg over (\d+)",
                            out("correct500"), i) for i in range(1, 5))),
-    Fig("docs/runtime.md", "as corrected: mean {} mm, max {} mm, mean {} deg over {} targets", "correct500",
+    Fig("docs/runtime.md", "BAD_REQUEST; {-} in the model's coverage on the twin, as commanded: mean {-} mm, "
+        "max {-} mm, mean {-} deg over {-} targets on the twin, as corrected: mean {} mm, max {} mm, mean {} deg "
+        "over {} targets", "correct500",
         *(lambda i=i: grep(r"as corrected: mean ([\d.]+) mm, max ([\d.]+) mm, mean ([\d.]+) deg over (\d+)",
                            out("correct500"), i) for i in range(1, 5))),
+    # docs/runtime.md: the robot's own programs (the KRL run; the others print the same figures)
+    Fig("docs/runtime.md", "twin.src:7:5: joints: corrected (moved {} mm, {} deg)", "programs",
+        *(lambda i=i: grep(r"twin.src:7:5: joints: corrected \(moved ([\d.]+) mm, ([\d.]+) deg", out("programs", 1), i)
+          for i in (1, 2))),
+    Fig("docs/runtime.md", "twin.src:8:5: pose: corrected (moved {} mm, {} deg)", "programs",
+        *(lambda i=i: grep(r"twin.src:8:5: pose: corrected \(moved ([\d.]+) mm, ([\d.]+) deg", out("programs", 1), i)
+          for i in (1, 2))),
+    Fig("docs/runtime.md", "wrote out/twin.src (KUKA KRL): {} targets: {} corrected; {} not a literal; {} in the model's "
+        "coverage", "programs",
+        *(lambda i=i: grep(r"wrote out/twin.src \(KUKA KRL\): (\d+) targets: (\d+) corrected; (\d+) not a literal; "
+                           r"(\d+) in the model's coverage", out("programs", 1), i) for i in range(1, 5))),
+    *(Fig("docs/runtime.md", "not a literal; {-} in the model's coverage on the twin, as " + kind + ": mean {} mm, "
+          "max {} mm, mean {} deg over {} targets", "programs",
+          *(lambda i=i, kind=kind, run=run: grep(r"as " + kind + r": mean ([\d.]+) mm, max ([\d.]+) mm, mean ([\d.]+) "
+                                                 r"deg over (\d+)", out("programs", run), i) for i in range(1, 5)))
+      for kind in ("commanded",) for run in (1, 2, 3, 4)),
+    *(Fig("docs/runtime.md", "over {-} targets on the twin, as corrected: mean {} mm, max {} mm, mean {} deg over {} "
+          "targets ``` The corrected", "programs",
+          *(lambda i=i, run=run: grep(r"as corrected: mean ([\d.]+) mm, max ([\d.]+) mm, mean ([\d.]+) deg over (\d+)",
+                                      out("programs", run), i) for i in range(1, 5)))
+      for run in (1, 2, 3, 4)),
+    Fig("docs/runtime.md", "The corrected {} mm is the model's own error at a tool given from the flange", "programs",
+        lambda: grep(r"as corrected: mean ([\d.]+) mm", out("programs", 1))),
     Fig("docs/runtime.md", "The corrected error, {} mm, is the model's own", "correct500",
         lambda: grep(r"as corrected: mean ([\d.]+) mm", out("correct500"))),
     Fig("README.md", "(on the twin: {} joint targets from {} mm to {} mm mean)", "correct500",

@@ -27,7 +27,10 @@
 #include "stepcal/common/text_number.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
+#include "stepcal/programs/configuration.hpp"
+#include "stepcal/programs/program.hpp"
 #include "stepcal/report/text_format.hpp"
+#include "stepcal/runtime/closed_form_seed.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/twin/twin.hpp"
 #include "subcommands.hpp"
@@ -46,6 +49,10 @@ struct CorrectArgs {
   std::vector<double> seed_deg;     ///< the first pose target's seed when the file has none, deg
   std::string truth;                ///< the twin's truth.json: each target run on it too
   bool json = false;                ///< the summary as JSON
+  std::string format;               ///< csv | krl | rapid | urscript | tp; empty: from the file
+  /// NAME=x,y,z,qw,qx,qy,qz (mm): a tool (flange frame) or base (robot base frame) the program
+  /// names without its values (TOOL_DATA[1], UF 2, UT 9).
+  std::vector<std::string> program_frames;
 };
 
 const std::array<const char*, 7> kPoseColumns = {"x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"};
@@ -609,21 +616,24 @@ nlohmann::json summaryJson(const CorrectArgs& args, size_t lines, const Tally& t
   return summary;
 }
 
+/// --truth: the targets' errors on the twin as commanded and as corrected.
+void printTwinErrors(const Tally& tally) {
+  for (const auto& [name, stats] : {std::pair{"as commanded", &tally.before}, std::pair{"as corrected", &tally.after}}) {
+    const nlohmann::json j = stats->toJson();
+    std::cout << format("on the twin, %s: mean %.4f mm, max %.4f mm, mean %.4f deg over %d targets\n",
+                        name, j["mean_position_mm"].get<double>(),
+                        j["max_position_mm"].get<double>(),
+                        j["mean_orientation_deg"].get<double>(), stats->count);
+  }
+}
+
 void printSummary(const CorrectArgs& args, size_t lines, const Tally& tally, bool with_truth) {
   const std::array<long, kStatusCount>& statuses = tally.statuses;
   std::cout << "wrote " << args.out << ": " << lines << " lines: " << statuses[0]
             << " OK, " << statuses[3] << " OUT_OF_DOMAIN, " << statuses[4] << " UNREACHABLE, "
             << statuses[1] << " NOT_CONVERGED, " << statuses[5] << " NEAR_SINGULAR, "
             << statuses[6] << " BAD_REQUEST; " << tally.in_coverage << " in the model's coverage\n";
-  if (with_truth) {
-    for (const auto& [name, stats] : {std::pair{"as commanded", &tally.before}, std::pair{"as corrected", &tally.after}}) {
-      const nlohmann::json j = stats->toJson();
-      std::cout << format("on the twin, %s: mean %.4f mm, max %.4f mm, mean %.4f deg over %d targets\n",
-                          name, j["mean_position_mm"].get<double>(),
-                          j["max_position_mm"].get<double>(),
-                          j["mean_orientation_deg"].get<double>(), stats->count);
-    }
-  }
+  if (with_truth) printTwinErrors(tally);
 }
 
 /// Says on stderr how many lines were not corrected (status not OK): exit status 3 then, 0 when
@@ -636,10 +646,384 @@ int exitStatusFor(size_t lines, const Tally& tally) {
   return exit_code::kDoneInPart;
 }
 
+/// --program-frame NAME=x,y,z,qw,qx,qy,qz (mm, unit quaternion), by upper-case name.
+std::map<std::string, Pose> commandLineFrames(const CorrectArgs& args) {
+  std::map<std::string, Pose> frames;
+  for (const std::string& given : args.program_frames) {
+    const size_t eq = given.rfind('=');
+    const std::vector<std::string_view> numbers =
+        eq == std::string::npos ? std::vector<std::string_view>{} : splitFields(std::string_view(given).substr(eq + 1));
+    std::vector<double> v;
+    for (const std::string_view n : numbers) {
+      const std::optional<double> value = parseFinite(n);
+      if (value) v.push_back(*value);
+    }
+    if (eq == 0 || v.size() != 7 || numbers.size() != 7) {
+      throw InputError("--program-frame " + inQuotes(given) + ": expected NAME=x,y,z,qw,qx,qy,qz (mm and a unit quaternion)");
+    }
+    const Eigen::Quaterniond q(v[3], v[4], v[5], v[6]);
+    if (!isUnitQuaternion(q)) {
+      throw InputError("--program-frame " + inQuotes(given) + ": the quaternion has norm " + formatShortest(q.norm()) + "; expected a unit quaternion (within 1e-6)");
+    }
+    std::string name = given.substr(0, eq);
+    for (char& c : name) c = char(std::toupper(static_cast<unsigned char>(c)));
+    frames[name] = poseFromPositionQuaternion(Vec3(v[0], v[1], v[2]) * kMPerMm, q);
+  }
+  return frames;
+}
+
+/// Says on stderr which --program-frame names the program never names (a typo: UF1 for UF 1).
+void warnOfUnusedFrames(const programs::Program& program, const std::map<std::string, Pose>& given) {
+  for (const auto& [name, pose] : given) {
+    bool named = name == "TOOL" || name == "BASE";
+    for (const programs::Frame& f : program.frames) {
+      std::string upper = f.name;
+      for (char& c : upper) c = char(std::toupper(static_cast<unsigned char>(c)));
+      named = named || upper == name;
+    }
+    if (!named) {
+      std::string names;
+      for (const programs::Frame& f : program.frames) names += (names.empty() ? "" : ", ") + f.name;
+      std::cerr << "stepcal correct: warning: --program-frame " << name << ": the program names no such frame"
+                << (names.empty() ? std::string(" (it names none)") : " (it names " + names + ")") << "\n";
+    }
+  }
+}
+
+/// A frame the program names: its values from the program, else from --program-frame.
+const Pose& framePose(const programs::Program& program, int index, const std::map<std::string, Pose>& given,
+                      const programs::Target& target, const std::string& path) {
+  const programs::Frame& f = program.frames[size_t(index)];
+  if (f.X) return *f.X;
+  std::string name = f.name;
+  for (char& c : name) c = char(std::toupper(static_cast<unsigned char>(c)));
+  const auto found = given.find(name);
+  if (found != given.end()) return found->second;
+  throw InputError(std::string(target.kind == programs::TargetKind::kJoint ? "a joint" : "a") + " target uses " +
+                       f.name + ", whose values the program does not give; expected them with --program-frame '" +
+                       f.name + "=x,y,z,qw,qx,qy,qz' (mm)",
+                   path, target.line, std::to_string(target.column));
+}
+
+/// A target as a line of the CSV driver: its pose or joints, its tool (flange frame; when the
+/// program names none, --program-frame TOOL=…, else the flange itself), its base (a user frame;
+/// when none, --program-frame BASE=…, else the robot's base) and the tool's load where the
+/// program gives it.
+ProgramLine programLine(const programs::Program& program, const programs::Target& t,
+                        const std::map<std::string, Pose>& given, const std::string& path) {
+  ProgramLine p;
+  p.line = t.line;
+  p.id = t.name;
+  p.joint_target = t.kind == programs::TargetKind::kJoint;
+  p.q_rad = t.q_rad;
+  p.X_FrameTcp = t.X_FrameTcp;
+  p.terms.tool_from = runtime::ToolFrom::kFlange;
+  p.terms.load_from = runtime::LoadFrom::kPayload;
+  p.terms.frame = runtime::PoseFrame::kBase;
+  if (t.tool >= 0) {
+    p.terms.X_Tool = framePose(program, t.tool, given, t, path);
+    const programs::Frame& tool = program.frames[size_t(t.tool)];
+    if (tool.mass_kg > 0.0) {
+      p.terms.payload.mass_kg = tool.mass_kg;
+      p.terms.payload.p_CoG_m = tool.p_CoG_m;
+      p.terms.payload.frame = runtime::CogFrame::kFlange;
+    }
+  }
+  if (t.base >= 0) {
+    p.terms.frame = runtime::PoseFrame::kUser;
+    p.terms.X_BaseUser = framePose(program, t.base, given, t, path);
+  }
+  // A target whose program names no tool or base (a KRL .dat's points): --program-frame TOOL=…
+  // and BASE=… where given.
+  const auto default_tool = given.find("TOOL"), default_base = given.find("BASE");
+  if (t.tool < 0 && default_tool != given.end()) p.terms.X_Tool = default_tool->second;
+  if (t.base < 0 && default_base != given.end()) {
+    p.terms.frame = runtime::PoseFrame::kUser;
+    p.terms.X_BaseUser = default_base->second;
+  }
+  return p;
+}
+
+/// What became of one target of a robot program.
+struct TargetOutcome {
+  const programs::Target* target = nullptr;
+  std::string outcome;  ///< corrected, unchanged, out of coverage, unreachable, …
+  bool written = false;
+  double correction_mm = 0.0, correction_deg = 0.0;  ///< how far the written target moved
+  std::string detail;
+};
+
+/// Without a closed form (an arm of another layout), a corrected joint solution more than this
+/// far from the controller's own (nominal) one on any joint is in another branch (a wrist flip,
+/// an elbow down): reported, not written.
+constexpr double kSameBranch_rad = 20.0 * kRadPerDeg;
+
+/// What places a Cartesian target's joints in the branch its program names: the nominal chain's
+/// closed-form inverse (closed_form_ik.hpp), the controller's joint convention (the URDF's own:
+/// docs/runtime.md), and the chain's tip from the flange.
+struct Branching {
+  ClosedFormInverse closed;
+  ControllerJoints joints;
+  const KinematicChain* chain = nullptr;
+  Pose X_FlangeTip = Pose::Identity();
+  programs::Language language = programs::Language::kKrl;
+  std::string path;
+};
+
+Branching branching(const runtime::RuntimeModel& model, programs::Language language, const std::string& path) {
+  Branching b;
+  b.chain = &model.file.nominal_Base;
+  b.closed = ClosedFormInverse::recognise(*b.chain);
+  const int n = b.chain->dof();
+  b.X_FlangeTip = model.X_LastFlange_nominal.inverse() * b.chain->initialPose(n);
+  b.language = language;
+  b.path = path;
+  return b;
+}
+
+/// The controller's joints for a Cartesian target: the closed form in the branch and turns its
+/// word names, nearest where the robot was (`previous`), when the arm has a closed form and the
+/// target a word; else the numeric nominal inverse from `previous` (the branch it is in).
+std::optional<JointVector> controllerJoints(const Branching& b, const runtime::RuntimeModel& nominal,
+                                            runtime::Workspace& nominal_ws, const ProgramLine& p,
+                                            const std::optional<programs::ConfigurationWord>& word,
+                                            const JointVector& previous, std::string& why_not) {
+  JointVector seed = previous;
+  if (word && b.closed.solvable()) {
+    const Pose X_BaseTcp = p.terms.frame == runtime::PoseFrame::kUser ? p.terms.X_BaseUser * p.X_FrameTcp : p.X_FrameTcp;
+    const Pose X_BaseTip = X_BaseTcp * p.terms.X_Tool.inverse() * b.X_FlangeTip;
+    JointVector q_closed(6);
+    const ClosedFormStatus status = b.closed.solve(X_BaseTip, programs::branchNamed(*word, b.joints), previous, q_closed);
+    if (status != ClosedFormStatus::kOk && status != ClosedFormStatus::kSingular) {
+      why_not = std::string("the nominal chain in the program's configuration: ") + toString(status);
+      return std::nullopt;
+    }
+    JointVector q_controller = controllerFromChain(b.joints, q_closed);
+    programs::applyTurns(*word, *b.chain, b.joints, q_controller);
+    seed = chainFromController(b.joints, q_controller);
+  }
+  const runtime::InverseResult n = runtime::solveInverse(nominal, nominal_ws, p.X_FrameTcp, p.terms, p.temp_c, seed,
+                                                         runtime::Clock::time_point::max());
+  if (n.status != runtime::Status::kOk && n.status != runtime::Status::kNearSingular) {
+    why_not = std::string("the nominal chain itself: ") + runtime::toString(n.status);
+    return std::nullopt;
+  }
+  return n.q_target_rad;
+}
+
+/// Why corrected joints cannot be written in the target's configuration; empty when they can.
+std::string configurationChange(const Branching& b, const std::optional<programs::ConfigurationWord>& word,
+                                const JointVector& q_controller, const JointVector& q_corrected) {
+  if (word && b.closed.solvable()) {
+    std::string theirs;
+    const JointVector q = controllerFromChain(b.joints, q_corrected);
+    if (programs::sameConfiguration(*word, b.closed.branchOf(q_corrected), q, theirs)) return "";
+    return "the corrected joints have the configuration " + theirs;
+  }
+  if (b.closed.solvable()) {
+    if (b.closed.branchOf(q_corrected) == b.closed.branchOf(q_controller)) return "";
+    return "the corrected joints are in branch " + std::to_string(b.closed.branchOf(q_corrected).index()) +
+           ", the controller's in " + std::to_string(b.closed.branchOf(q_controller).index());
+  }
+  const double moved = (q_corrected - q_controller).cwiseAbs().maxCoeff();
+  if (moved <= kSameBranch_rad) return "";
+  return "the corrected joints leave the controller's by " + number(moved / kRadPerDeg, "%.1f") + " deg";
+}
+
+/// One target corrected: its outcome and, where written, its replacement. `previous_rad` is
+/// where the robot is before it (the last target's joints) and becomes where it is after.
+TargetOutcome correctTarget(const runtime::RuntimeModel& model, runtime::Workspace& ws,
+                            const runtime::RuntimeModel& nominal, runtime::Workspace& nominal_ws,
+                            const Branching& b, const programs::Target& t, const ProgramLine& p,
+                            JointVector& previous_rad, std::optional<TwinTruth>& truth, Tally& tally,
+                            programs::Replacement& replacement) {
+  TargetOutcome o;
+  const Pose X_desired = p.joint_target ? runtime::nominalTcp(model, ws, p.q_rad, p.terms) : p.X_FrameTcp;
+  const std::optional<programs::ConfigurationWord> word = programs::readConfiguration(b.language, t, b.path);
+  std::optional<JointVector> q_controller = p.q_rad;
+  if (!p.joint_target) q_controller = controllerJoints(b, nominal, nominal_ws, p, word, previous_rad, o.detail);
+  if (!q_controller) {
+    o.outcome = "unreachable";
+    return o;
+  }
+  previous_rad = *q_controller;
+  // A word the closed form places: the corrected inverse from the calibrated geometry's closed
+  // form in that branch (closed_form_seed.hpp), its turns nearest the controller's joints.
+  const runtime::InverseResult r =
+      word && b.closed.solvable()
+          ? runtime::solveInverseInBranch(model, ws, X_desired, p.terms, p.temp_c, programs::branchNamed(*word, b.joints),
+                                          *q_controller, runtime::Clock::time_point::max())
+          : runtime::solveInverse(model, ws, X_desired, p.terms, p.temp_c, *q_controller,
+                                  runtime::Clock::time_point::max());
+  ++tally.statuses[size_t(r.status)];
+  const bool answered = r.status == runtime::Status::kOk || r.status == runtime::Status::kOutOfDomain;
+  if (!answered) {
+    o.outcome = r.status == runtime::Status::kUnreachable    ? "unreachable"
+                : r.status == runtime::Status::kNearSingular ? "near singular"
+                                                             : "not converged";
+    return o;
+  }
+  o.detail = p.joint_target ? "" : configurationChange(b, word, *q_controller, r.q_target_rad);
+  if (!o.detail.empty()) {
+    o.outcome = "changed configuration";
+    return o;
+  }
+  replacement.X_FrameTcp = r.X_ControllerTcp_commanded;
+  replacement.q_rad = r.q_target_rad;
+  o.written = true;
+  o.outcome = r.status == runtime::Status::kOutOfDomain ? "out of coverage" : "corrected";
+  if (p.joint_target) {
+    o.correction_deg = (r.q_target_rad - p.q_rad).cwiseAbs().maxCoeff() / kRadPerDeg;
+  } else {
+    o.correction_mm = (r.X_ControllerTcp_commanded.translation() - p.X_FrameTcp.translation()).norm() * kMmPerM;
+    o.correction_deg = lie::angleBetween(r.X_ControllerTcp_commanded.linear(), p.X_FrameTcp.linear()) / kRadPerDeg;
+  }
+  tally.in_coverage += runtime::withinDomain(model, r.gpr_std) && r.uncovered_joints == 0;
+  if (truth) {
+    std::string ignored;
+    appendTwinErrors(ignored, *truth, model, p, X_desired, p.joint_target ? p.q_rad : *q_controller, r.q_target_rad, tally);
+  }
+  return o;
+}
+
+/// Where the robot is before the program's first target, for the first Cartesian target's
+/// search: --seed, else the first joint target when it comes first, else (a first target whose
+/// configuration word the closed form places) the zero pose; else a clear error.
+JointVector firstSeed(const programs::Program& program, const std::optional<JointVector>& seed_option,
+                      const Branching& b, int dof) {
+  if (seed_option) return *seed_option;
+  if (program.targets.empty() || program.targets[0].kind == programs::TargetKind::kJoint) {
+    return program.targets.empty() ? JointVector::Zero(dof) : program.targets[0].q_rad;
+  }
+  const programs::Target& t = program.targets[0];
+  if (b.closed.solvable() && programs::readConfiguration(program.language, t, b.path)) return JointVector::Zero(dof);
+  throw InputError("the first target is a pose without a configuration word the closed form can place: its "
+                   "inverse needs a seed where the search starts; expected --seed q1 … qn (deg)",
+                   b.path, t.line, std::to_string(t.column));
+}
+
+/// The outcome of every target, each on its line, and the targets the program computes at run time.
+void printProgramOutcomes(const std::string& path, const programs::Program& program,
+                          const std::vector<TargetOutcome>& outcomes) {
+  for (const TargetOutcome& o : outcomes) {
+    const programs::Target& t = *o.target;
+    std::cout << path << ":" << t.line << ":" << t.column << ": " << (t.name.empty() ? "" : t.name + ": ")
+              << (t.kind == programs::TargetKind::kJoint ? "joints" : "pose") << ": " << o.outcome;
+    if (o.written && o.outcome != "unchanged") {
+      std::cout << format(" (moved %.3f mm, %.4f deg)", o.correction_mm, o.correction_deg);
+    }
+    if (!o.detail.empty()) std::cout << " (" << o.detail << ")";
+    std::cout << "\n";
+  }
+  for (const programs::NotLiteral& n : program.not_literals) {
+    std::cout << path << ":" << n.line << ":" << n.column << ": not a literal, not corrected: " << n.text << "\n";
+  }
+}
+
+/// The targets not written (reported) and those the program computes at run time.
+long notCorrected(const programs::Program& program, const std::vector<TargetOutcome>& outcomes) {
+  long count = long(program.not_literals.size());
+  for (const TargetOutcome& o : outcomes) count += !o.written;
+  return count;
+}
+
+void printProgramSummary(const CorrectArgs& args, const programs::Program& program,
+                         const std::vector<TargetOutcome>& outcomes, const Tally& tally) {
+  std::map<std::string, int> counts;
+  for (const TargetOutcome& o : outcomes) ++counts[o.outcome];
+  std::cout << "wrote " << args.out << " (" << programs::languageName(program.language) << "): "
+            << outcomes.size() << " targets:";
+  std::string separator = " ";
+  for (const auto& [outcome, count] : counts) {
+    std::cout << separator << count << " " << outcome;
+    separator = ", ";
+  }
+  std::cout << "; " << program.not_literals.size() << " not a literal; " << tally.in_coverage
+            << " in the model's coverage\n";
+}
+
+nlohmann::json programSummaryJson(const CorrectArgs& args, const programs::Program& program,
+                                  const std::vector<TargetOutcome>& outcomes, const Tally& tally,
+                                  bool with_truth, const runtime::RuntimeModel& model) {
+  nlohmann::json summary = summaryJson(args, outcomes.size(), tally, with_truth, model);
+  summary["language"] = programs::languageName(program.language);
+  nlohmann::json counts = nlohmann::json::object(), targets = nlohmann::json::array();
+  for (const TargetOutcome& o : outcomes) {
+    counts[o.outcome] = counts.value(o.outcome, 0) + 1;
+    targets.push_back({{"line", o.target->line}, {"column", o.target->column}, {"name", o.target->name},
+                       {"kind", o.target->kind == programs::TargetKind::kJoint ? "joints" : "pose"},
+                       {"configuration", o.target->configuration}, {"outcome", o.outcome},
+                       {"correction_mm", o.correction_mm}, {"correction_deg", o.correction_deg}, {"detail", o.detail}});
+  }
+  counts["not a literal"] = program.not_literals.size();
+  summary["outcomes"] = counts;
+  summary["not_corrected"] = notCorrected(program, outcomes);
+  summary["targets"] = targets;
+  nlohmann::json not_literals = nlohmann::json::array();
+  for (const programs::NotLiteral& n : program.not_literals) {
+    not_literals.push_back({{"line", n.line}, {"column", n.column}, {"text", n.text}});
+  }
+  summary["not_literals"] = not_literals;
+  return summary;
+}
+
+/// `stepcal correct` on a robot's own program: every literal target corrected in the program's
+/// own units, frames and configuration, written back with every other byte kept. The file is
+/// read whole first: one it does not understand is refused (file, line, column) before anything
+/// is written. Exit status 3 when a target is not corrected or not a literal.
+int runCorrectRobotProgram(const CorrectArgs& args, programs::Language language) {
+  const std::unique_ptr<const runtime::RuntimeModel> model = runtime::RuntimeModel::load(args.model);
+  runtime::Workspace ws = runtime::makeWorkspace(*model);
+  const std::unique_ptr<const runtime::RuntimeModel> nominal = nominalModel(*model);
+  runtime::Workspace nominal_ws = runtime::makeWorkspace(*nominal);
+  const std::string text = readTextFile(args.program);
+  const programs::Program program = programs::readProgram(language, text, args.program);
+  if (!model->has_flange) {
+    throw InputError("the model knows no flange (its campaign.yaml names no flange_link), and a robot "
+                     "program's tools are given from the flange; calibrate with flange_link",
+                     args.program);
+  }
+  const std::map<std::string, Pose> given = commandLineFrames(args);
+  warnOfUnusedFrames(program, given);
+  const Branching b = branching(*model, language, args.program);
+  const int dof = model->file.chain_Tracker.dof();
+  JointVector previous_rad = firstSeed(program, seedOption(args, dof), b, dof);
+  std::optional<TwinTruth> truth = readTruth(args.truth, *model);
+  Tally tally;
+  std::vector<TargetOutcome> outcomes;
+  std::vector<programs::Replacement> replacements;
+  for (size_t i = 0; i < program.targets.size(); ++i) {
+    const programs::Target& t = program.targets[i];
+    const ProgramLine p = programLine(program, t, given, args.program);
+    programs::Replacement replacement;
+    replacement.target = i;
+    TargetOutcome o = correctTarget(*model, ws, *nominal, nominal_ws, b, t, p, previous_rad, truth, tally, replacement);
+    o.target = &t;
+    if (o.written && programs::unchangedWithinTolerance(t, replacement)) o.outcome = "unchanged";
+    if (o.written) replacements.push_back(replacement);
+    outcomes.push_back(o);
+  }
+  const std::string out = programs::writeProgram(program, text, replacements);
+  writeFileAtomically(args.out, out.data(), out.size(), "corrected program");
+  if (args.json) {
+    std::cout << programSummaryJson(args, program, outcomes, tally, truth.has_value(), *model).dump(2) << "\n";
+  } else {
+    printProgramOutcomes(args.program, program, outcomes);
+    printProgramSummary(args, program, outcomes, tally);
+    if (truth) printTwinErrors(tally);
+  }
+  const long not_corrected = notCorrected(program, outcomes);
+  if (not_corrected == 0) return exit_code::kDone;
+  std::cerr << "stepcal correct: " << not_corrected << " targets not corrected (see each target's line)\n";
+  return exit_code::kDoneInPart;
+}
+
 /// Reads the model and the program, corrects every line, writes args.out (atomically) and prints
 /// the summary. Throws InputError naming the file, line and column of bad input. Exit status 3
 /// (done in part) when a line's status is not OK.
 int runCorrect(const CorrectArgs& args) {
+  const std::optional<programs::Language> language = programs::languageOf(args.program, args.format);
+  if (language) return runCorrectRobotProgram(args, *language);
   const std::unique_ptr<const runtime::RuntimeModel> model = runtime::RuntimeModel::load(args.model);
   const int dof = model->file.chain_Tracker.dof();
   runtime::Workspace ws = runtime::makeWorkspace(*model);
@@ -671,10 +1055,13 @@ Subcommand addCorrectCommand(CLI::App& app) {
       "correct", "correct an offline program's targets: joint targets and pre-distorted poses");
   correct->add_option("model", args.model, "model file")->required();
   correct->add_option("program", args.program,
-                      "program CSV: a target per line (docs/runtime.md, \"Correcting an "
-                      "offline program\")")
+                      "program: stepcal's CSV (a target per line), or the robot's own program in "
+                      "KRL, RAPID, URScript or Fanuc TP (docs/runtime.md, \"Correcting an "
+                      "offline program\", \"The robot's own programs\")")
       ->required();
-  correct->add_option("--out", args.out, "corrected program CSV to write")->required();
+  correct->add_option("--out", args.out,
+                      "corrected program to write (CSV, or the program in its own language with "
+                      "only its targets replaced)")->required();
   correct->add_option("--frame", args.frame, "frame of the pose targets: tracker | base | user")
       ->capture_default_str();
   correct->add_option("--user-frame", args.user_frame,
@@ -688,6 +1075,15 @@ Subcommand addCorrectCommand(CLI::App& app) {
                       "the twin's truth.json: run every target on the simulated robot, as "
                       "commanded and as corrected (its payload at the twin's own centre of gravity)");
   correct->add_flag("--json", args.json, "print the summary as JSON");
+  correct->add_option("--format", args.format,
+                      "the program's language: csv, krl, rapid, urscript or tp (default: from the "
+                      "extension: .src/.dat, .mod/.prg/.sys, .script, .ls; else csv)");
+  correct->add_option("--program-frame", args.program_frames,
+                      "a tool or base the program names without its values: NAME=x,y,z,qw,qx,qy,qz "
+                      "(mm; a tool in the flange frame, a base in the robot's base frame), e.g. "
+                      "'TOOL_DATA[1]=0,0,300,1,0,0,0' or 'UF 2=900,0,40,1,0,0,0'; TOOL=… and BASE=… "
+                      "for the targets whose program names none (else the flange and the robot's "
+                      "base); repeatable");
   return {correct, [args_owned] { return runCorrect(*args_owned); }};
 }
 

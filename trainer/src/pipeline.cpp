@@ -9,6 +9,8 @@
 #include <set>
 #include <string>
 
+#include <Eigen/Eigenvalues>
+
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/lie.hpp"
 
@@ -443,6 +445,27 @@ std::string campaignHash(const Campaign& campaign) {
   return hex;
 }
 
+namespace {
+
+// The model's accuracy factors (model_file.hpp): the step-1 and step-2 fits' covariances as
+// factors and the tracker's stated noise.
+AccuracyFactors accuracyFactors(const Campaign& campaign, const CalibrationOutcome& outcome) {
+  AccuracyFactors a;
+  a.position_noise_m = campaign.tracker.position_sigma_m;
+  a.orientation_noise_rad = campaign.tracker.orientation_sigma_rad;
+  a.geometry_factor = outcome.poe.covariance_factor;
+  if (outcome.has_stiffness && outcome.stiffness.compliance_covariance.size() > 0) {
+    // Σ = V Λ Vᵀ = (V √Λ)(V √Λ)ᵀ: a factor of a covariance that may be singular (rigid joints).
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(
+        outcome.stiffness.compliance_covariance);
+    a.compliance_factor =
+        eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+  }
+  return a;
+}
+
+}  // namespace
+
 CalibratedModel modelFromOutcome(const Campaign& campaign, const CalibrationOutcome& outcome) {
   CalibratedModel model;
   model.chain_Tracker = outcome.poe.chain_Tracker;
@@ -455,6 +478,7 @@ CalibratedModel modelFromOutcome(const Campaign& campaign, const CalibrationOutc
     model.compliance_sigma_rad_per_nm = outcome.stiffness.compliance_sigma_rad_per_nm;
   }
   if (outcome.gpr && outcome.gpr->taken) model.gpr = outcome.gpr->gp.parameters();
+  model.accuracy = accuracyFactors(campaign, outcome);
   model.provenance.campaign_hash = campaignHash(campaign);
   model.provenance.campaign_path = campaign.directory;
   model.provenance.trainer_version = STEPCAL_VERSION;

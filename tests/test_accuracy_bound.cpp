@@ -91,6 +91,44 @@ TEST(AccuracyBound, TwinValidationRowsAreCoveredAtEachLoadAndTheExtrapolatedLoad
     EXPECT_GE(c.percent(), 85.0) << load_kg << " kg";  // 80 or 50 rows: 4σ below 95 %
   }
   EXPECT_GT(by_load.at(55.0).meanBound(), by_load.at(40.0).meanBound());
+
+  // Farther out, the bound grows: at three times a 40 kg row's wrench (the compliances' share
+  // and the GPR's variance), and with the joints moved past the calibrated poses (the GPR's).
+  const Measurement* loaded = nullptr;
+  for (const Measurement& row : campaign.rows) {
+    if (row.set == RowSet::kValidation && row.load_kg == 40.0) loaded = &row;
+  }
+  ASSERT_NE(loaded, nullptr);
+  const double t = runtime::kUnknownTemperature_c;
+  const auto bound = [&](const JointVector& q, const Vec6& wrench) {
+    return runtime::correctForward(*model, ws, q, wrench, t).accuracy.position_bound_m;
+  };
+  const double at_row = bound(loaded->q_rad, loaded->wrench_Sensor);
+  EXPECT_GT(bound(loaded->q_rad, 3.0 * loaded->wrench_Sensor), 1.05 * at_row);
+  JointVector q_far = loaded->q_rad;
+  q_far(0) += 1.5;
+  q_far(3) -= 1.5;
+  EXPECT_GT(bound(q_far, loaded->wrench_Sensor), 1.05 * at_row);
+
+  // The inverse states the accuracy of the pose it predicts, as the forward call does there.
+  const runtime::ForwardResult forward =
+      runtime::correctForward(*model, ws, loaded->q_rad, loaded->wrench_Sensor, t);
+  const runtime::InverseResult inverse = runtime::solveInverse(
+      *model, ws, forward.X_TrackerTip, loaded->wrench_Sensor, t, loaded->q_rad,
+      runtime::Clock::time_point::max());
+  EXPECT_NEAR(inverse.accuracy.position_bound_m, forward.accuracy.position_bound_m,
+              1e-3 * forward.accuracy.position_bound_m);
+  EXPECT_NEAR(inverse.accuracy.orientation_bound_rad, forward.accuracy.orientation_bound_rad,
+              1e-3 * forward.accuracy.orientation_bound_rad);
+
+  // A model without the factors (a file written before them) states no bound.
+  CalibratedModel without = model->file;
+  without.accuracy.reset();
+  const auto old_model = runtime::RuntimeModel::fromModel(std::move(without), 2);
+  runtime::Workspace old_ws = runtime::makeWorkspace(*old_model);
+  EXPECT_TRUE(std::isnan(runtime::correctForward(*old_model, old_ws, loaded->q_rad,
+                                                 loaded->wrench_Sensor, t)
+                             .accuracy.position_bound_m));
 }
 
 }  // namespace

@@ -705,8 +705,8 @@ TEST_F(ModelFileTest, OtherSemanticChecks) {
             std::string::npos);
   // Swapping the order of two sections is a structural error even with a valid checksum.
   EXPECT_NE(edited([&](auto& b) { std::memcpy(&b[chain - 16], "REGI", 4); })
-                .find("expected the sections CHAN, NOMI, REGI, COMP, MECH, GPR, PROV in that "
-                      "order"),
+                .find("expected the sections CHAN, NOMI, REGI, COMP, MECH, GPR, PROV (then ACCU, "
+                      "optional) in that order"),
             std::string::npos);
   EXPECT_NE(edited([&](auto& b) { putU32(b, chain - 12, 1); }).find("reserved word"),
             std::string::npos);

@@ -392,6 +392,55 @@ TEST_F(ModelFileTest, GprPerPayloadForceRoundTripsAndItsReferenceIsChecked) {
   EXPECT_THROW(serializeModel(per_force), InputError);
 }
 
+// ACCU, the accuracy factors, follows PROV when the model has them: a model without them is
+// written as before (the bytes of every earlier file), one with them round trips bit for bit,
+// and each bad value is refused naming its field.
+TEST_F(ModelFileTest, AccuracyFactorsRoundTripAreOptionalAndCheckedByField) {
+  CalibratedModel with = model();
+  const int n = with.chain_Tracker.dof();
+  std::mt19937_64 rng(45);
+  std::normal_distribution<double> normal(0.0, 1e-5);
+  AccuracyFactors a;
+  a.position_noise_m = 15e-6;
+  a.orientation_noise_rad = 1.7e-4;
+  a.geometry_factor.resize(6 * (n + 1), 30);
+  for (Eigen::Index i = 0; i < a.geometry_factor.size(); ++i) a.geometry_factor(i) = normal(rng);
+  a.compliance_factor = Eigen::MatrixXd::Identity(n, n) * 1e-8;
+  with.accuracy = a;
+  const std::vector<uint8_t> b = serializeModel(with);
+  EXPECT_EQ(b.size(), bytes().size() + 16 + 4 + 16 + 8 + 6 * (n + 1) * 30 * 8 + 4 + n * n * 8);
+  const CalibratedModel parsed = parse(b);
+  ASSERT_TRUE(parsed.accuracy.has_value());
+  EXPECT_EQ(parsed.accuracy->geometry_factor, a.geometry_factor);
+  EXPECT_EQ(parsed.accuracy->compliance_factor, a.compliance_factor);
+  EXPECT_EQ(parsed.accuracy->position_noise_m, a.position_noise_m);
+  EXPECT_EQ(parsed.accuracy->orientation_noise_rad, a.orientation_noise_rad);
+  EXPECT_EQ(serializeModel(parsed), b);
+  EXPECT_FALSE(parse(bytes()).accuracy.has_value());  // a file without ACCU loads as before
+
+  const size_t accu = payloadOf(b, "ACCU");
+  const auto refusedNaming = [&](size_t at, auto put, const std::string& field) {
+    std::vector<uint8_t> edited = b;
+    put(edited, at);
+    refix(edited);
+    const std::string message = refusal(edited);
+    EXPECT_NE(message.find(field), std::string::npos) << message;
+  };
+  refusedNaming(accu, [](auto& e, size_t at) { putU32(e, at, 2); }, "accuracy.layout_version");
+  refusedNaming(accu + 4, [](auto& e, size_t at) { putF64(e, at, -1.0); },
+                "accuracy.position_noise_m");
+  refusedNaming(accu + 20, [](auto& e, size_t at) { putU32(e, at, 7); }, "accuracy.geometry_rows");
+  refusedNaming(accu + 24, [](auto& e, size_t at) { putU32(e, at, 43); },
+                "accuracy.geometry_rank");
+  refusedNaming(accu + 28 + 8 * 31, [](auto& e, size_t at) { putF64(e, at, std::nan("")); },
+                "accuracy.geometry_factor(1, 1): nan");
+  refusedNaming(accu + 28 + 8 * 6 * (n + 1) * 30, [](auto& e, size_t at) { putU32(e, at, 2); },
+                "accuracy.compliance_count");
+
+  with.accuracy->compliance_factor.resize(2, 2);
+  EXPECT_THROW(serializeModel(with), InputError);
+}
+
 TEST_F(ModelFileTest, IllConditionedButConsistentGprIsAccepted) {
   // Long length scales and σ_f/σ_n = 1e6: α from Cholesky leaves ‖(K + σ_n² I) α − Y‖ / ‖Y‖
   // around 1e-3, yet it is the exact solution to working precision (backward error ~1e-16).
@@ -656,8 +705,8 @@ TEST_F(ModelFileTest, OtherSemanticChecks) {
             std::string::npos);
   // Swapping the order of two sections is a structural error even with a valid checksum.
   EXPECT_NE(edited([&](auto& b) { std::memcpy(&b[chain - 16], "REGI", 4); })
-                .find("expected the sections CHAN, NOMI, REGI, COMP, MECH, GPR, PROV in that "
-                      "order"),
+                .find("expected the sections CHAN, NOMI, REGI, COMP, MECH, GPR, PROV (then ACCU, "
+                      "optional) in that order"),
             std::string::npos);
   EXPECT_NE(edited([&](auto& b) { putU32(b, chain - 12, 1); }).find("reserved word"),
             std::string::npos);

@@ -1179,6 +1179,8 @@ TEST(Runtime, RealTimeCallsAllocateNothing) {
     const Workspace ws = makeWorkspace(model);
     EXPECT_GT(counter.count(), 0);
   }
+  // Every call below states its accuracy too (the model has the calibration's factors).
+  ASSERT_TRUE(model.file.accuracy.has_value());
   Workspace ws = makeWorkspace(model);
   std::mt19937_64 rng(8);
   struct Request {

@@ -72,6 +72,7 @@ constexpr SectionId kCompliance{fourcc("COMP"), "compliance"};
 constexpr SectionId kMechanisms{fourcc("MECH"), "mechanisms"};
 constexpr SectionId kGpr{fourcc("GPR "), "gpr"};
 constexpr SectionId kProvenance{fourcc("PROV"), "provenance"};
+constexpr SectionId kAccuracy{fourcc("ACCU"), "accuracy"};
 
 /// Bytes a GPR per payload force adds to its section: its reference force, N.
 constexpr uint64_t kPayloadForceBytes = 8;
@@ -211,6 +212,23 @@ class Writer {
   std::vector<uint8_t> out_;
 };
 
+/// Refuses accuracy factors of sizes the ACCU layout cannot express.
+template <class Refuse>
+void checkAccuracyWritable(const AccuracyFactors& a, int n, const Refuse& refuse) {
+  const Eigen::Index g = a.geometry_factor.rows(), r = a.geometry_factor.cols();
+  if (!((g == 0 && r == 0) || (g == 6 * (n + 1) && r <= g))) {
+    refuse("accuracy.geometry_factor is " + std::to_string(g) + " × " + std::to_string(r) +
+           "; expected 0 × 0 or " + std::to_string(6 * (n + 1)) + " × r, r ≤ " +
+           std::to_string(6 * (n + 1)));
+  }
+  const Eigen::Index c = a.compliance_factor.rows();
+  if (!((c == 0 || c == n) && a.compliance_factor.cols() == c)) {
+    refuse("accuracy.compliance_factor is " + std::to_string(c) + " × " +
+           std::to_string(a.compliance_factor.cols()) + "; expected 0 × 0 or " +
+           std::to_string(n) + " × " + std::to_string(n));
+  }
+}
+
 /// Refuses models whose sizes the fixed layout cannot express; parseModel checks the rest.
 void checkWritable(const CalibratedModel& model, const std::string& source) {
   const auto refuse = [&](const std::string& message) { throw InputError(message, source); };
@@ -280,6 +298,7 @@ void checkWritable(const CalibratedModel& model, const std::string& source) {
              std::to_string(kMaxMechanismParameters));
     }
   }
+  if (model.accuracy) checkAccuracyWritable(*model.accuracy, model.chain_Tracker.dof(), refuse);
   const ModelProvenance& p = model.provenance;
   checkString(p.campaign_hash, "provenance.campaign_hash");
   checkString(p.created_utc, "provenance.created_utc");
@@ -451,8 +470,8 @@ class Reader {
     const uint32_t tag = u32(what + " tag");
     if (tag != id.tag) {
       fail(at, what, "found tag " + tagText(tag) +
-                         "; expected the sections CHAN, NOMI, REGI, COMP, MECH, GPR, PROV in "
-                         "that order");
+                         "; expected the sections CHAN, NOMI, REGI, COMP, MECH, GPR, PROV "
+                         "(then ACCU, optional) in that order");
     }
     const uint32_t reserved = u32(what + " reserved word");
     if (reserved != 0) {
@@ -738,6 +757,38 @@ void readProvenance(Reader& in, ModelProvenance& p) {
   }
 }
 
+/// The ACCU section: the factors of the parameters' covariance and the measurement noise.
+AccuracyFactors readAccuracy(Reader& in, int n) {
+  const size_t version_at = in.offset();
+  const uint32_t version = in.u32("accuracy.layout_version");
+  if (version != AccuracyFactors::kLayoutVersion) {
+    in.fail(version_at, "accuracy.layout_version",
+            std::to_string(version) + "; expected " +
+                std::to_string(AccuracyFactors::kLayoutVersion) +
+                " (hint: re-run `stepcal calibrate` with this build)");
+  }
+  AccuracyFactors a;
+  a.position_noise_m = in.nonNegative("accuracy.position_noise_m");
+  a.orientation_noise_rad = in.nonNegative("accuracy.orientation_noise_rad");
+  const uint32_t geometry_rows = uint32_t(6 * (n + 1));
+  const size_t g_at = in.offset();
+  const uint32_t g = in.u32("accuracy.geometry_rows");
+  if (g != 0 && g != geometry_rows) {
+    in.fail(g_at, "accuracy.geometry_rows",
+            std::to_string(g) + "; expected 0 or 6(n+1) = " + std::to_string(geometry_rows));
+  }
+  const uint32_t r = in.count("accuracy.geometry_rank", 0, g, 8 * size_t(g));
+  a.geometry_factor = in.matrix(g, r, "accuracy.geometry_factor");
+  const size_t c_at = in.offset();
+  const uint32_t c = in.u32("accuracy.compliance_count");
+  if (c != 0 && c != uint32_t(n)) {
+    in.fail(c_at, "accuracy.compliance_count",
+            std::to_string(c) + "; expected 0 or the dof, " + std::to_string(n));
+  }
+  a.compliance_factor = in.matrix(c, c, "accuracy.compliance_factor");
+  return a;
+}
+
 CalibratedModel parseChecked(const uint8_t* data, size_t size, const std::string& source) {
   Reader in(data, size, source);
   if (size < kMagic.size() || std::memcmp(data, kMagic.data(), kMagic.size()) != 0) {
@@ -800,6 +851,11 @@ CalibratedModel parseChecked(const uint8_t* data, size_t size, const std::string
   in.enterSection(kProvenance, crc_at);
   readProvenance(in, model.provenance);
   in.leaveSection();
+  if (in.offset() != crc_at) {
+    in.enterSection(kAccuracy, crc_at);
+    model.accuracy = readAccuracy(in, model.chain_Tracker.dof());
+    in.leaveSection();
+  }
   if (in.offset() != crc_at) {
     in.fail(in.offset(), "end of sections",
             std::to_string(crc_at - in.offset()) +
@@ -913,6 +969,21 @@ std::vector<uint8_t> serializeModel(const CalibratedModel& model) {
     out.f64(v.mean_orientation_rad);
   }
   out.endSection(at);
+
+  // Only a model with a bound writes ACCU: one without is written as before.
+  if (model.accuracy) {
+    const AccuracyFactors& a = *model.accuracy;
+    at = out.beginSection(kAccuracy);
+    out.u32(AccuracyFactors::kLayoutVersion);
+    out.f64(a.position_noise_m);
+    out.f64(a.orientation_noise_rad);
+    out.u32(uint32_t(a.geometry_factor.rows()));
+    out.u32(uint32_t(a.geometry_factor.cols()));
+    out.rowMajor(a.geometry_factor);
+    out.u32(uint32_t(a.compliance_factor.rows()));
+    out.rowMajor(a.compliance_factor);
+    out.endSection(at);
+  }
 
   std::vector<uint8_t>& bytes = out.bytes();
   const uint64_t total = bytes.size() + kCrcBytes;

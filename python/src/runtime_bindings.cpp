@@ -153,7 +153,11 @@ py::object correctForward(const ModelHandle& model, const py::handle& q, const p
   py::array_t<double> pose = outputArray(rows, false, {4, 4});
   py::array_t<double> gpr_std = outputArray(rows, false, {6});
   py::array_t<double> wrench_used = outputArray(rows, false, {6});
+  py::array_t<double> position_bound = outputArray(rows, false, {});
+  py::array_t<double> orientation_bound = outputArray(rows, false, {});
   {
+    double* position_bound_out = position_bound.mutable_data();
+    double* orientation_bound_out = orientation_bound.mutable_data();
     int8_t* status_out = status.mutable_data();
     uint32_t* uncovered_out = uncovered.mutable_data();
     double* wrench_out = wrench_used.mutable_data();
@@ -173,6 +177,8 @@ py::object correctForward(const ModelHandle& model, const py::handle& q, const p
       writePose(r.X_FrameTcp, position_out + 3 * i, quaternion_out + 4 * i, pose_out + 16 * i);
       for (int k = 0; k < 6; ++k) std_out[6 * i + k] = r.gpr_std(k);
       for (int k = 0; k < 6; ++k) wrench_out[6 * i + k] = r.wrench_Sensor(k);
+      position_bound_out[i] = r.accuracy.position_bound_m;
+      orientation_bound_out[i] = r.accuracy.orientation_bound_rad;
     }
   }
   const bool single = joints.single;
@@ -184,6 +190,8 @@ py::object correctForward(const ModelHandle& model, const py::handle& q, const p
   fields["gpr_std"] = scalarOr(gpr_std, single);
   fields["uncovered_joints"] = scalarOr(uncovered, single);
   fields["wrench"] = scalarOr(wrench_used, single);
+  fields["position_bound_m"] = scalarOr(position_bound, single);
+  fields["orientation_bound_rad"] = scalarOr(orientation_bound, single);
   return resultObject(fields);
 }
 
@@ -217,7 +225,11 @@ py::object solveInverse(const ModelHandle& model, const py::handle& pose, const 
   py::array_t<double> residual_position = outputArray(rows, false, {});
   py::array_t<double> residual_orientation = outputArray(rows, false, {});
   py::array_t<double> wrench_used = outputArray(rows, false, {6});
+  py::array_t<double> position_bound = outputArray(rows, false, {});
+  py::array_t<double> orientation_bound = outputArray(rows, false, {});
   {
+    double* position_bound_out = position_bound.mutable_data();
+    double* orientation_bound_out = orientation_bound.mutable_data();
     double* wrench_out = wrench_used.mutable_data();
     int8_t* status_out = status.mutable_data();
     int32_t* iterations_out = iterations.mutable_data();
@@ -259,6 +271,8 @@ py::object solveInverse(const ModelHandle& model, const py::handle& pose, const 
       for (int k = 0; k < 6; ++k) wrench_out[6 * i + k] = r.wrench_Sensor(k);
       rp[i] = r.residual_position_m;
       ro[i] = r.residual_orientation_rad;
+      position_bound_out[i] = r.accuracy.position_bound_m;
+      orientation_bound_out[i] = r.accuracy.orientation_bound_rad;
     }
   }
   const bool single = desired.single;
@@ -277,6 +291,8 @@ py::object solveInverse(const ModelHandle& model, const py::handle& pose, const 
   fields["residual_orientation_rad"] = scalarOr(residual_orientation, single);
   fields["uncovered_joints"] = scalarOr(uncovered, single);
   fields["wrench"] = scalarOr(wrench_used, single);
+  fields["position_bound_m"] = scalarOr(position_bound, single);
+  fields["orientation_bound_rad"] = scalarOr(orientation_bound, single);
   return resultObject(fields);
 }
 

@@ -231,6 +231,18 @@ Pose correctedTip(const RuntimeModel& model, Workspace& ws, const JointVector& q
               lie::expSE3(residualTwist(model, ws, q_rad, *reading, X_physical.linear(), true)));
 }
 
+/// The accuracy of the corrected tip just evaluated at q (correctedTip, or the inverse's full
+/// model there): ws.chain at its link angles, ws.torque_nm, ws.gpr_input and ws.gpr_std.
+PoseAccuracy answerAccuracy(const RuntimeModel& model, const Workspace& ws,
+                            const Mat3& R_TrackerTip) noexcept {
+  if (!ws.with_accuracy || !model.file.accuracy) return PoseAccuracy{};
+  const GprUncertainty gpr = model.file.gpr
+                                 ? gprUncertainty(model.gpr, ws.gpr_input.data(), ws.gpr_std)
+                                 : GprUncertainty{};
+  return poseAccuracy(model.file, model.physical.chain_Tracker, ws.chain, ws.torque_nm,
+                      R_TrackerTip, gpr);
+}
+
 /// σ/σ_f from the per-output std bound (raw units) that predictMeanAndBoundInto wrote: the
 /// kernel is shared, so output 0 serves (its scale and σ_f are > 0, checked by fromParameters).
 /// Equals GprPredictor::relativeStdBound without computing the kernel column a second time.
@@ -638,6 +650,7 @@ ForwardResult forwardWith(const RuntimeModel& model, Workspace& ws, const JointV
   if (!call.at_target) result.X_FrameTcp = result.X_FrameTcp * call.X_TipTcp;
   if (!call.in_tracker) result.X_FrameTcp = call.X_TrackerFrame.inverse() * result.X_FrameTcp;
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
+  result.accuracy = answerAccuracy(model, ws, result.X_TrackerTip.linear());
   result.status = outOfDomain(model, result.gpr_std) ? Status::kOutOfDomain : Status::kOk;
   result.uncovered_joints = jointsOutsideCoverage(model.physical, q_rad);
   return result;
@@ -842,6 +855,7 @@ struct InverseIteration {
           correctedTip(model, ws, q_best_rad, call, wrench_Sensor, temp_c, &result.wrench_Sensor);
     }
     if (model.file.gpr) result.gpr_std = ws.gpr_std;
+    result.accuracy = answerAccuracy(model, ws, result.X_TrackerTip_predicted.linear());
     result.uncovered_joints = jointsOutsideCoverage(model.physical, q_best_rad);
     const Pose X_TrackerTcp_predicted = call.at_target
                                             ? result.X_TrackerTip_predicted

@@ -168,6 +168,11 @@ def test_runtime_gives_the_cpp_apis_numbers(campaign, model):
     np.testing.assert_allclose(solved.q_target_rad, inverse[:, 1:7], rtol=0, atol=TOLERANCE)
     np.testing.assert_array_equal(solved.iterations, inverse[:, 7])
     assert (solved.status == stepcal.Status.OK).mean() > 0.9
+    # Each answer states its accuracy (the model file has the calibration's factors): a 95 %
+    # bound above the tracker's stated noise, the inverse's at its answer as the forward's there.
+    assert np.all(result.position_bound_m > 1e-6) and np.all(result.orientation_bound_rad > 0)
+    ok = solved.status == stepcal.Status.OK
+    np.testing.assert_allclose(solved.position_bound_m[ok], result.position_bound_m[ok], rtol=0.05)
 
     # One row in, one row's values out; statuses as the enum.
     one = model.correct_forward(q[0], wrench=wrench[0], temp_c=temp_c[0])

@@ -29,6 +29,9 @@
 // its code and data as in a run of that series alone. Each series' report also has the p50 of
 // its quietest 1 000 calls in a row (`p50_quietest_batch_us`): the code's own speed when
 // undisturbed; p50 and p99 over every call are what a controller there would see.
+// The forward and the inverse are timed once more with the stated accuracy switched off
+// (Workspace::with_accuracy, `forward_without_bound`, `inverse_without_bound`), in the same
+// rounds: the bound's cost is the difference.
 // --realtime: locked memory, SCHED_FIFO and one CPU for the timing thread (the daemon's settings,
 // stepcal/service/realtime.hpp), so that other processes do not preempt the calls.
 // --answers writes every bench pose's answers (forward pose, inverse status and joint targets)
@@ -519,6 +522,14 @@ struct BenchCalls {
     iterations = r.iterations;
     return r.status;
   }
+  /// A call with the stated accuracy switched off (Workspace::with_accuracy): its cost.
+  template <typename Call>
+  runtime::Status withoutBound(int call, Call&& run) {
+    ws.with_accuracy = false;
+    const runtime::Status status = run(call);
+    ws.with_accuracy = true;
+    return status;
+  }
   /// KDL's outcome as a status: converged within eps, or not.
   runtime::Status kdl(int call) {
     return kdl_side.solve(static_cast<size_t>(call) % poses.size())
@@ -530,14 +541,17 @@ struct BenchCalls {
 /// Every series' calls, and the heap allocations of ours.
 struct BenchSeries {
   CallStats forward, inverse, inverse_closed_form, one_pose, kdl, inverse_terms, authentication;
+  CallStats forward_without_bound, inverse_without_bound;  ///< Workspace::with_accuracy off
   long allocations = 0;
 
   explicit BenchSeries(int calls) {
     for (CallStats* stats : {&forward, &inverse, &inverse_closed_form, &one_pose, &kdl,
-                             &inverse_terms, &authentication}) {
+                             &inverse_terms, &authentication, &forward_without_bound,
+                             &inverse_without_bound}) {
       stats->latency_us.resize(static_cast<size_t>(calls));
     }
     inverse.iterations.resize(static_cast<size_t>(runtime::InverseOptions{}.max_iterations) + 1);
+    inverse_without_bound.iterations.resize(inverse.iterations.size());
     one_pose.iterations.resize(inverse.iterations.size());
     inverse_closed_form.iterations.resize(inverse.iterations.size());
     inverse_terms.iterations.resize(inverse.iterations.size());
@@ -601,6 +615,12 @@ void timeSeries(BenchCalls& calls, BenchSeries& series, int call_count, int base
       timeCalls(series.inverse_terms, first, last, iterations,
                 [&](int call) { return calls.inverseTerms(call); });
       timeCalls(series.authentication, first, last, iterations, calls.authentication);
+      timeCalls(series.forward_without_bound, first, last, iterations, [&](int call) {
+        return calls.withoutBound(call, [&](int c) { return calls.forward(c); });
+      });
+      timeCalls(series.inverse_without_bound, first, last, iterations, [&](int call) {
+        return calls.withoutBound(call, [&](int c) { return calls.inverse(c); });
+      });
       series.allocations += counter.count();
     }
     if (compare_kdl) {
@@ -625,6 +645,8 @@ nlohmann::json makeReport(const BenchOptions& options, const BenchPoses& drawn,
                            {"inverse_one_pose", toJson(series.one_pose, true)},
                            {"inverse_terms", toJson(series.inverse_terms, true)},
                            {"authentication", toJson(series.authentication, false)},
+                           {"forward_without_bound", toJson(series.forward_without_bound, false)},
+                           {"inverse_without_bound", toJson(series.inverse_without_bound, true)},
                            {"allocations", series.allocations},
                            {"realtime", realtime_report}};
   if (options.compare_kdl) {
@@ -643,7 +665,7 @@ void printText(const nlohmann::json& report, const std::string& pose_description
   std::cout << "poses: " << report["poses"] << ", " << pose_description << "\n";
   for (const char* name :
        {"forward", "inverse", "inverse_closed_form_seed", "inverse_one_pose", "inverse_terms",
-        "authentication"}) {
+        "authentication", "forward_without_bound", "inverse_without_bound"}) {
     const nlohmann::json& r = report[name];
     std::cout << name << ": " << r["calls"] << " calls, p50 " << r["p50_us"].get<double>()
               << " us, p99 " << r["p99_us"].get<double>() << " us, max "

@@ -520,7 +520,7 @@ std::string correctedHeader(int dof, bool with_truth) {
   std::string out = "line,id,target,status";
   for (int j = 0; j < dof; ++j) out += ",q" + std::to_string(j + 1) + "_deg";
   out += ",x_mm,y_mm,z_mm,qw,qx,qy,qz,residual_mm,residual_deg,gpr_std_mm,in_coverage,"
-         "uncovered_joints,iterations";
+         "uncovered_joints,iterations,bound95_mm";
   if (with_truth) out += ",error_commanded_mm,error_commanded_deg,error_corrected_mm,error_corrected_deg";
   out += "\n";
   return out;
@@ -571,7 +571,7 @@ std::string correctProgram(const runtime::RuntimeModel& model, runtime::Workspac
     out += std::to_string(p.line) + "," + p.id + "," + (p.joint_target ? "joints" : "pose") + "," +
            runtime::toString(r.status);
     if (!answered) {
-      out += std::string(size_t(dof + 13 + (truth ? 4 : 0)), ',') + "\n";
+      out += std::string(size_t(dof + 14 + (truth ? 4 : 0)), ',') + "\n";
       continue;
     }
     for (int j = 0; j < dof; ++j) out += "," + number(r.q_target_rad[j] / kRadPerDeg, "%.8f");
@@ -585,7 +585,10 @@ std::string correctProgram(const runtime::RuntimeModel& model, runtime::Workspac
     out += "," + number(r.residual_position_m * kMmPerM, "%.6f") + "," +
            number(r.residual_orientation_rad / kRadPerDeg, "%.6f") + "," +
            number(r.gpr_std.head<3>().norm() * kMmPerM, "%.6f") + "," + (covered ? "yes" : "no") +
-           "," + uncovered + "," + std::to_string(r.iterations);
+           "," + uncovered + "," + std::to_string(r.iterations) + "," +
+           (std::isnan(r.accuracy.position_bound_m)
+                ? std::string()
+                : number(r.accuracy.position_bound_m * kMmPerM, "%.6f"));
     if (truth) appendTwinErrors(out, *truth, model, p, X_FrameTcp_desired, seed, r.q_target_rad, tally);
     out += "\n";
   }

@@ -82,4 +82,26 @@ double noiseFloorMean(double sigma_per_axis) {
   return sigma_per_axis * 2.0 * std::sqrt(2.0 / kPi);
 }
 
+void raiseNoiseToResidual(AccuracyFactors& factors, const PoseModel& model,
+                          const std::vector<const Measurement*>& rows) {
+  double sum_p2 = 0.0, sum_r2 = 0.0;
+  int oriented = 0;
+  for (const Measurement* row : rows) {
+    const RowError e = rowError(model(*row), *row);
+    sum_p2 += e.position_m * e.position_m;
+    if (row->has_orientation) {
+      sum_r2 += e.orientation_rad * e.orientation_rad;
+      ++oriented;
+    }
+  }
+  if (!rows.empty()) {
+    factors.position_noise_m =
+        std::max(factors.position_noise_m, std::sqrt(sum_p2 / (3.0 * static_cast<double>(rows.size()))));
+  }
+  if (oriented > 0) {
+    factors.orientation_noise_rad =
+        std::max(factors.orientation_noise_rad, std::sqrt(sum_r2 / (3.0 * oriented)));
+  }
+}
+
 }  // namespace stepcal::trainer

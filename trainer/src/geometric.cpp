@@ -222,6 +222,21 @@ Observability analyseObservability(const KinematicChain& chain, const ParameterL
   return obs;
 }
 
+// The first session's chain parameters' covariance factor F (Σ = F Fᵀ, 6(n+1) × rank): the
+// truncated SVD's V S⁻¹ on its retained directions, back in physical units, times √χ²_red when
+// the rows scatter more than stated. Parameters the fit does not take get zero rows.
+Eigen::MatrixXd chainCovarianceFactor(const ParameterLayout& layout, const SvdSolution& svd, int n,
+                                      double chi2_reduced) {
+  const Eigen::MatrixXd W = svd.V.leftCols(svd.rank) *
+                            svd.singular_values.head(svd.rank).cwiseInverse().asDiagonal() *
+                            std::sqrt(std::max(1.0, chi2_reduced));
+  Eigen::MatrixXd F = Eigen::MatrixXd::Zero(6 * (n + 1), svd.rank);
+  for (int i = 0; i < 6 * (n + 1); ++i) {
+    if (const int c = layout.column(0, i); c >= 0) F.row(i) = W.row(c) / svd.column_scale(c);
+  }
+  return F;
+}
+
 }  // namespace
 
 std::vector<std::string> parameterNames(const KinematicChain& chain) {
@@ -326,6 +341,7 @@ GeometricFit fitGeometry(const KinematicChain& nominal_Base, const std::vector<G
   if (sessions.size() > 1) result.own_frames = options.own_frames;
   const double dof_residual = std::max<double>(1.0, static_cast<double>(sys.r.size() - last.rank));
   const double chi2_reduced = sys.stats.weighted_cost / dof_residual;
+  result.covariance_factor = chainCovarianceFactor(layout, last, n, chi2_reduced);
   return {std::move(result), layout, std::move(last), chi2_reduced};
 }
 

@@ -9,6 +9,8 @@
 #include <set>
 #include <string>
 
+#include <Eigen/Eigenvalues>
+
 #include "stepcal/common/compliance.hpp"
 #include "stepcal/common/lie.hpp"
 
@@ -263,6 +265,27 @@ std::vector<const Measurement*> stiffnessPairRows(const Campaign& campaign, int 
 
 }  // namespace
 
+namespace {
+
+// The model's accuracy factors (model_file.hpp): the step-1 and step-2 fits' covariances as
+// factors and the tracker's stated noise.
+AccuracyFactors accuracyFactors(const Campaign& campaign, const CalibrationOutcome& outcome) {
+  AccuracyFactors a;
+  a.position_noise_m = campaign.tracker.position_sigma_m;
+  a.orientation_noise_rad = campaign.tracker.orientation_sigma_rad;
+  a.geometry_factor = outcome.poe.covariance_factor;
+  if (outcome.has_stiffness && outcome.stiffness.compliance_covariance.size() > 0) {
+    // Σ = V Λ Vᵀ = (V √Λ)(V √Λ)ᵀ: a factor of a covariance that may be singular (rigid joints).
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(
+        outcome.stiffness.compliance_covariance);
+    a.compliance_factor =
+        eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+  }
+  return a;
+}
+
+}  // namespace
+
 CalibrationOutcome calibrateCampaign(const Campaign& campaign, const CalibrationOptions& options) {
   CalibrationOutcome out;
   auto clock = std::chrono::steady_clock::now();
@@ -355,6 +378,8 @@ CalibrationOutcome calibrateCampaign(const Campaign& campaign, const Calibration
   }
   const PoseModel physical = out.has_stiffness ? bySession(std::move(physical_sessions)) : poe_model;
   out.gpr = fitResidual(physical, residual_rows, residual_set, campaign.tracker, options);
+  out.accuracy_factors = accuracyFactors(campaign, out);
+  if (!out.gpr->taken) raiseNoiseToResidual(out.accuracy_factors, physical, residual_rows);
   if (out.has_stiffness) {
     out.gpr_baseline = fitResidual(poe_model, residual_rows, residual_set, campaign.tracker, options);
   }
@@ -443,6 +468,7 @@ std::string campaignHash(const Campaign& campaign) {
   return hex;
 }
 
+
 CalibratedModel modelFromOutcome(const Campaign& campaign, const CalibrationOutcome& outcome) {
   CalibratedModel model;
   model.chain_Tracker = outcome.poe.chain_Tracker;
@@ -455,6 +481,7 @@ CalibratedModel modelFromOutcome(const Campaign& campaign, const CalibrationOutc
     model.compliance_sigma_rad_per_nm = outcome.stiffness.compliance_sigma_rad_per_nm;
   }
   if (outcome.gpr && outcome.gpr->taken) model.gpr = outcome.gpr->gp.parameters();
+  model.accuracy = outcome.accuracy_factors;
   model.provenance.campaign_hash = campaignHash(campaign);
   model.provenance.campaign_path = campaign.directory;
   model.provenance.trainer_version = STEPCAL_VERSION;

@@ -189,9 +189,13 @@ StiffnessResult identifyCompliance(const std::vector<StiffnessSession>& sessions
 
   result.compliance_rad_per_nm = JointVector::Zero(n);
   result.compliance_sigma_rad_per_nm = JointVector::Zero(n);
+  result.compliance_covariance = Eigen::MatrixXd::Zero(n, n);
   for (size_t i = 0; i < excited.size(); ++i) {
     const int j = excited[i];
     const Eigen::Index e = static_cast<Eigen::Index>(i);
+    for (size_t k = 0; k < excited.size(); ++k) {
+      result.compliance_covariance(j, excited[k]) = covariance(e, static_cast<Eigen::Index>(k));
+    }
     JointCompliance& jc = result.joints[static_cast<size_t>(j)];
     jc.excited = true;
     jc.compliance_rad_per_nm = c(e);

@@ -48,10 +48,14 @@ ValidationResult validateModel(const CalibratedModel& model, const Campaign& cam
     if (!refit_frames) {
       predictors.push_back(layer);
     } else if (name == kMethodPoe) {
-      physical_layer = physicalPoseModel(diagnosis::refitFrames(chain_only, fit));
+      const PhysicalModel refit = diagnosis::refitFrames(chain_only, fit);
+      out.refit_chain_Tracker = refit.chain_Tracker;  // replaced by the next layer's, if any
+      physical_layer = physicalPoseModel(refit);
       predictors.push_back(physical_layer);
     } else if (name == kMethodPoeStiffness || name == kMethodExtended) {
-      physical_layer = physicalPoseModel(diagnosis::refitFrames(physical, fit));
+      const PhysicalModel refit = diagnosis::refitFrames(physical, fit);
+      out.refit_chain_Tracker = refit.chain_Tracker;
+      physical_layer = physicalPoseModel(refit);
       predictors.push_back(physical_layer);
     } else {
       // The GPR on its physical layer, the one before it.

@@ -144,6 +144,19 @@ PoseModel inOwnFrames(PoseModel model, MeasurementFrames frames) {
   };
 }
 
+// The extended model's measurement noise in its accuracy factors (it keeps the starting model's
+// parameter factors): the tracker's, raised to the extended physical model's residual scatter
+// where its GPR does not take that (none taken, or one per payload force: nothing unloaded).
+void statedNoiseOfExtended(AccuracyFactors& factors, const Campaign& campaign,
+                           const ResidualModel& residual, const PoseModel& after,
+                           const std::vector<const Measurement*>& gpr_rows) {
+  factors.position_noise_m = campaign.tracker.position_sigma_m;
+  factors.orientation_noise_rad = campaign.tracker.orientation_sigma_rad;
+  if (!residual.taken || residual.gp.parameters().payload_force_reference_n > 0.0) {
+    raiseNoiseToResidual(factors, after, gpr_rows);
+  }
+}
+
 }  // namespace
 
 void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
@@ -205,6 +218,7 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
                                              options.calibration, extendedResidualTarget(gpr_rows));
   ext.gpr.reset();
   if (residual.taken) ext.gpr = residual.gp.parameters();
+  if (ext.accuracy) statedNoiseOfExtended(*ext.accuracy, campaign, residual, after, gpr_rows);
   d.extended_gpr_rows = residual.training_rows;
   d.extended_gpr_z = residual.z_statistic;
   d.extended_gpr_taken = residual.taken;

@@ -5,7 +5,7 @@
 //
 //   header   24 B  magic "STEPCAL\0", u32 format version, u32 flags (0), u64 file size in bytes
 //   sections       each u32 tag (FourCC), u32 reserved (0), u64 payload length, payload;
-//                  exactly these seven, in this order:
+//                  these seven, in this order, then ACCU when the model has it:
 //     "CHAN"  u32 n; n × {str name, f64 twist (v, ω)[6], f64 lower_rad, f64 upper_rad};
 //             n+1 × pose T_{k,k+1}(0); u32 f; f × {str name, u32 parent, pose X_ParentFrame}
 //     "NOMI"  the nominal chain, encoded as CHAN; same n and joint names as CHAN
@@ -25,6 +25,10 @@
 //     "PROV"  str campaign_hash, created_utc, trainer_version, campaign_path; u32 v;
 //             v × {str method, f64 load_kg, i32 rows, f64 mean_position_m, max_position_m,
 //             mean_orientation_rad}
+//     "ACCU"  (optional; absent in files written before it, which load as before) u32 layout
+//             version (1); f64 position_noise_m, orientation_noise_rad; u32 g (0 or 6(n+1)),
+//             u32 r (≤ g); f64 geometry_factor[g × r]; u32 c (0 or n); f64
+//             compliance_factor[c × c] (AccuracyFactors)
 //   trailer   4 B  u32 CRC-32 (IEEE 802.3) of every preceding byte
 //
 // pose = 12 f64, row-major [R | p]; str = u32 byte count (≤ 4096) then the bytes, no terminator.
@@ -86,6 +90,27 @@ struct ModelProvenance {
   std::vector<ValidationFigure> validation;
 };
 
+/// What the runtime needs to state how accurate a corrected pose is (docs/method.md, "The
+/// accuracy bound"): the fitted parameters' covariance as factors F with Σ = F Fᵀ, so that a
+/// pose's covariance is (J F)(J F)ᵀ with J its Jacobian w.r.t. the parameters, and the noise of
+/// a measurement of the pose.
+struct AccuracyFactors {
+  /// Layout version of the ACCU section this build writes and reads.
+  static constexpr uint32_t kLayoutVersion = 1;
+  /// 1-σ per axis of a measured position and orientation (m, rad): the tracker's stated
+  /// noise, raised to the model's residual scatter on its fit rows where no GPR takes that
+  /// (none taken, or a GPR per payload force: nothing unloaded). A GPR's own noise σ_n is added
+  /// at run time (pose_accuracy.hpp).
+  double position_noise_m = 0.0, orientation_noise_rad = 0.0;
+  /// 6(n+1) × r (or empty): the initial poses' right-perturbations δt_k (docs/method.md eq. 7,
+  /// the rows ordered as parameterJacobian's columns), covariance F Fᵀ, r the fit's rank; the
+  /// directions the rows do not observe carry none (they were left at their nominal values).
+  Eigen::MatrixXd geometry_factor;
+  /// n × n (or empty): the joint compliances' covariance factor, rad/(N·m); zero rows for the
+  /// joints taken as rigid.
+  Eigen::MatrixXd compliance_factor;
+};
+
 /// Everything the runtime needs to correct a pose.
 struct CalibratedModel {
   /// Calibrated initial poses (tracker-rooted), joint twists, limits, names and attached frames
@@ -105,6 +130,8 @@ struct CalibratedModel {
   std::vector<Mechanism> mechanisms;
   std::optional<GprParameters> gpr;         ///< absent = no residual step
   ModelProvenance provenance;
+  /// Absent: a model written before the accuracy bound (no bound is stated).
+  std::optional<AccuracyFactors> accuracy;
 };
 
 /// Empty when model.mechanisms[index] is well formed in this model: mechanismProblem for the

@@ -21,6 +21,7 @@
 #include "stepcal/common/gpr_predictor.hpp"
 #include "stepcal/common/mechanisms.hpp"
 #include "stepcal/common/model_file.hpp"
+#include "stepcal/common/pose_accuracy.hpp"
 
 namespace stepcal::runtime {
 
@@ -162,6 +163,9 @@ struct Workspace {
   GprPredictor::Workspace gpr;
   Eigen::VectorXd gpr_input;  ///< n + 6
   Vec6 gpr_mean = Vec6::Zero(), gpr_std = Vec6::Zero();
+  /// Whether the calls state their answer's accuracy (PoseAccuracy; a model without
+  /// AccuracyFactors states none either way). Off only to time the calls without it.
+  bool with_accuracy = true;
 };
 /// A workspace sized for the model (allocates; call off the real-time path).
 Workspace makeWorkspace(const RuntimeModel& model);
@@ -187,6 +191,10 @@ struct ForwardResult {
   /// Bit j: joint j's angle lies outside the angles its transmission profile was fitted on, so
   /// the profile is faded out there (jointsOutsideCoverage); the status is unaffected.
   uint32_t uncovered_joints = 0;
+  /// How far a measurement of the corrected target will be from X_TrackerTip: the parameters'
+  /// covariance, the GPR's variance and the measurement's noise (pose_accuracy.hpp; the
+  /// target's, not a tool's offset from it). NaN for a model without AccuracyFactors.
+  PoseAccuracy accuracy;
 };
 
 /// Pose the robot reaches at commanded joints q [rad] under the measured wrench_Sensor [N, N·m]
@@ -241,6 +249,7 @@ struct InverseResult {
   double residual_position_m = 0.0;              ///< ‖p_desired − p_predicted‖ at q_target (TCP), m
   double residual_orientation_rad = 0.0;         ///< angle between the two rotations, rad
   uint32_t uncovered_joints = 0;                 ///< at q_target, as ForwardResult::uncovered_joints
+  PoseAccuracy accuracy;                         ///< at q_target, as ForwardResult::accuracy
 };
 
 /// Joint targets that make the real robot (the full corrected model, as correctForward) reach

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "stepcal/common/campaign.hpp"
+#include "stepcal/common/model_file.hpp"
 
 namespace stepcal::trainer {
 
@@ -54,5 +55,12 @@ double pooledMeanPosition(const std::vector<AccuracySummary>& summaries, const s
 
 /// Mean error that measurement noise alone gives (χ with 3 dof): σ·2·√(2/π), for σ per axis.
 double noiseFloorMean(double sigma_per_axis);
+
+/// Raises the factors' measurement noise to a model's residual scatter on rows where larger: the
+/// RMS per axis of the position errors (‖e‖² / 3) and of the rotation errors. What a model
+/// leaves that no GPR takes (none taken, or one per payload force at zero load) is then part of
+/// its stated accuracy (docs/method.md, "The accuracy bound").
+void raiseNoiseToResidual(AccuracyFactors& factors, const PoseModel& model,
+                          const std::vector<const Measurement*>& rows);
 
 }  // namespace stepcal::trainer

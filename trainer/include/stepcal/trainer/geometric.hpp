@@ -86,6 +86,10 @@ struct GeometricResult {
   /// The joint frames T_{k,k+1} each session has its own (GeometricOptions::own_frames), the
   /// others shared; empty with one session.
   std::vector<int> own_frames;
+  /// Covariance factor F of the first session's 6(n+1) initial-pose parameters (the rows in
+  /// parameterJacobian's order), Σ = F Fᵀ, 6(n+1) × rank: the fit's (JᵀJ)⁺ on the directions it
+  /// observes (rows weighted by the stated noise), times the reduced χ² when above 1.
+  Eigen::MatrixXd covariance_factor;
 };
 
 /// Calibrates the chain (rooted at base_link) on the given rows. Throws InputError when the

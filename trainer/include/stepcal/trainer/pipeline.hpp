@@ -66,6 +66,10 @@ struct CalibrationOutcome {
   ComplianceDifferences compliance_differences;
   std::vector<StiffnessValidation> stiffness_validation;  ///< on validation pairs, per load
   std::optional<ResidualModel> gpr;           ///< step 3 on the POE + stiffness residual
+  /// The model file's accuracy factors (model_file.hpp): step 1's and step 2's covariance
+  /// factors, the tracker's noise, raised to the physical model's residual scatter on the
+  /// residual rows when no GPR is taken.
+  AccuracyFactors accuracy_factors;
   std::optional<ResidualModel> gpr_baseline;  ///< "POE + GPR": step 3 on the POE residual
   std::vector<AccuracySummary> accuracy;  ///< every method on every (set, load) group
   /// Per session of a merged campaign (Campaign::sessions), every method on its rows alone, in

@@ -47,6 +47,9 @@ struct StiffnessResult {
   JointVector compliance_rad_per_nm;        ///< n entries, 0 for joints not excited
   JointVector compliance_sigma_rad_per_nm;  ///< n entries
   std::vector<JointCompliance> joints;
+  /// n × n covariance of compliance_rad_per_nm, (rad/(N·m))² (zero rows and columns for the
+  /// joints not identified): (BᵀB)⁺ of the weighted system, times the reduced χ² when above 1.
+  Eigen::MatrixXd compliance_covariance;
   int pairs = 0;
   double rms_position_residual_m = 0.0;  ///< of the fitted deflections
 };

@@ -3,6 +3,7 @@
 // model, on all rows and on the rows inside every transmission profile's coverage.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include "stepcal/common/campaign.hpp"
@@ -17,6 +18,9 @@ struct ValidationResult {
   int rows = 0;
   int covered_rows = 0;  ///< rows whose joint angles every profile covers (jointsOutsideCoverage)
   bool frames_refit = false;
+  /// With frames_refit: the full physical model's chain with the campaign's tracker and tool
+  /// frames (what the model's last layer predicts with), for the runtime's bound on these rows.
+  std::optional<KinematicChain> refit_chain_Tracker;
 };
 
 /// Every layer of the model on the campaign's rows (all sets). With refit_frames, the tracker

@@ -1,0 +1,135 @@
+// The stated accuracy of a corrected pose (pose_accuracy.hpp): the 95 % length bound against its
+// closed forms and a Monte Carlo of an anisotropic Gaussian; on the twin, the runtime's bound
+// judged by held-out validation rows, per load, and growing at the extrapolated load.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+#include <vector>
+
+#include "stepcal/common/pose_accuracy.hpp"
+#include "stepcal/runtime/corrector.hpp"
+#include "stepcal/trainer/pipeline.hpp"
+#include "stepcal/twin/twin.hpp"
+
+namespace stepcal {
+namespace {
+
+TEST(AccuracyBound, LengthBoundMatchesChiSquareClosedForms) {
+  const double sigma = 0.02;
+  // Isotropic: |e|² / σ² is χ²₃, its 95 % point 7.8147.
+  EXPECT_NEAR(lengthBound95(Mat3::Identity() * sigma * sigma), std::sqrt(7.814728) * sigma, 1e-9);
+  // Rank one: |e| = |σ z|, its 95 % point 1.95996 σ.
+  const Vec3 u = Vec3(1.0, 2.0, -2.0) / 3.0;
+  EXPECT_NEAR(lengthBound95(u * u.transpose() * sigma * sigma), 1.959964 * sigma, 1e-6 * sigma);
+  EXPECT_EQ(lengthBound95(Mat3::Zero()), 0.0);
+}
+
+TEST(AccuracyBound, LengthBoundHoldsNinetyFivePercentOfAnAnisotropicGaussian) {
+  std::mt19937_64 rng(45);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const Mat3 R = Eigen::AngleAxisd(0.7, Vec3(1.0, 1.0, 0.0).normalized()).toRotationMatrix();
+  for (const Vec3& sigmas : {Vec3(1.0, 0.5, 0.1), Vec3(1.0, 1.0, 0.2), Vec3(1.0, 0.05, 0.05)}) {
+    const Mat3 S = R * sigmas.cwiseAbs2().asDiagonal() * R.transpose();
+    const double bound = lengthBound95(S);
+    const int draws = 200000;
+    int inside = 0;
+    for (int i = 0; i < draws; ++i) {
+      const Vec3 e = R * sigmas.cwiseProduct(Vec3(normal(rng), normal(rng), normal(rng)));
+      inside += e.norm() <= bound;
+    }
+    // The two-moment match is within ±1 % of 95 % for these shapes (binomial σ: 0.05 %).
+    EXPECT_NEAR(100.0 * inside / draws, 95.0, 1.0) << sigmas.transpose();
+  }
+}
+
+struct Coverage {
+  int rows = 0, covered = 0;
+  double bound_sum_m = 0.0;
+  double percent() const { return 100.0 * covered / rows; }
+  double meanBound() const { return bound_sum_m / rows; }
+};
+
+// The paper's protocol on the twin, calibrated as `stepcal calibrate` does (the paper's three
+// steps), the runtime's bound judged on the held-out validation rows of each load. 80 rows per
+// load up to 40 kg (binomial σ of a 95 % coverage: 2.4 %), 50 at the extrapolated 55 kg.
+TEST(AccuracyBound, TwinValidationRowsAreCoveredAtEachLoadAndTheExtrapolatedLoadGrows) {
+  twin::TwinOptions options;
+  options.protocol = "paper";
+  options.seed = 11;
+  const Campaign campaign = twin::simulateCampaign(options, nullptr);
+  const trainer::CalibrationOutcome outcome = trainer::calibrateCampaign(campaign, {});
+  const auto model = runtime::RuntimeModel::fromModel(trainer::modelFromOutcome(campaign, outcome), 1);
+  ASSERT_TRUE(model->file.accuracy.has_value());
+  runtime::Workspace ws = runtime::makeWorkspace(*model);
+  std::map<double, Coverage> by_load;
+  Coverage calibrated_loads;
+  for (const Measurement& row : campaign.rows) {
+    if (row.set != RowSet::kValidation) continue;
+    const runtime::ForwardResult answer = runtime::correctForward(
+        *model, ws, row.q_rad, row.wrenchOrZero(), runtime::kUnknownTemperature_c);
+    const double error_m = (row.p_TipInTracker_m - answer.X_TrackerTip.translation()).norm();
+    ASSERT_TRUE(std::isfinite(answer.accuracy.position_bound_m));
+    for (Coverage* c : {&by_load[row.load_kg], row.load_kg <= 40.0 ? &calibrated_loads : nullptr}) {
+      if (c == nullptr) continue;
+      ++c->rows;
+      c->covered += error_m <= answer.accuracy.position_bound_m;
+      c->bound_sum_m += answer.accuracy.position_bound_m;
+    }
+  }
+  for (const auto& [load_kg, c] : by_load) {
+    std::cout << "[          ] " << load_kg << " kg: " << c.rows << " rows, " << c.percent()
+              << " % covered, mean bound " << c.meanBound() * 1e3 << " mm\n";
+  }
+  ASSERT_EQ(calibrated_loads.rows, 320);
+  // 320 rows: binomial σ 1.2 %; 88–99 % is 6σ below and 3σ above 95 %.
+  EXPECT_GE(calibrated_loads.percent(), 88.0);
+  EXPECT_LE(calibrated_loads.percent(), 99.0);
+  for (const auto& [load_kg, c] : by_load) {
+    EXPECT_GE(c.percent(), 85.0) << load_kg << " kg";  // 80 or 50 rows: 4σ below 95 %
+  }
+  EXPECT_GT(by_load.at(55.0).meanBound(), by_load.at(40.0).meanBound());
+
+  // Farther out, the bound grows: at three times a 40 kg row's wrench (the compliances' share
+  // and the GPR's variance), and with the joints moved past the calibrated poses (the GPR's).
+  const Measurement* loaded = nullptr;
+  for (const Measurement& row : campaign.rows) {
+    if (row.set == RowSet::kValidation && row.load_kg == 40.0) loaded = &row;
+  }
+  ASSERT_NE(loaded, nullptr);
+  const double t = runtime::kUnknownTemperature_c;
+  const auto bound = [&](const JointVector& q, const Vec6& wrench) {
+    return runtime::correctForward(*model, ws, q, wrench, t).accuracy.position_bound_m;
+  };
+  const double at_row = bound(loaded->q_rad, loaded->wrench_Sensor);
+  EXPECT_GT(bound(loaded->q_rad, 3.0 * loaded->wrench_Sensor), 1.05 * at_row);
+  JointVector q_far = loaded->q_rad;
+  q_far(0) += 1.5;
+  q_far(3) -= 1.5;
+  EXPECT_GT(bound(q_far, loaded->wrench_Sensor), 1.05 * at_row);
+
+  // The inverse states the accuracy of the pose it predicts, as the forward call does there.
+  const runtime::ForwardResult forward =
+      runtime::correctForward(*model, ws, loaded->q_rad, loaded->wrench_Sensor, t);
+  const runtime::InverseResult inverse = runtime::solveInverse(
+      *model, ws, forward.X_TrackerTip, loaded->wrench_Sensor, t, loaded->q_rad,
+      runtime::Clock::time_point::max());
+  EXPECT_NEAR(inverse.accuracy.position_bound_m, forward.accuracy.position_bound_m,
+              1e-3 * forward.accuracy.position_bound_m);
+  EXPECT_NEAR(inverse.accuracy.orientation_bound_rad, forward.accuracy.orientation_bound_rad,
+              1e-3 * forward.accuracy.orientation_bound_rad);
+
+  // A model without the factors (a file written before them) states no bound.
+  CalibratedModel without = model->file;
+  without.accuracy.reset();
+  const auto old_model = runtime::RuntimeModel::fromModel(std::move(without), 2);
+  runtime::Workspace old_ws = runtime::makeWorkspace(*old_model);
+  EXPECT_TRUE(std::isnan(runtime::correctForward(*old_model, old_ws, loaded->q_rad,
+                                                 loaded->wrench_Sensor, t)
+                             .accuracy.position_bound_m));
+}
+
+}  // namespace
+}  // namespace stepcal

@@ -35,7 +35,7 @@ struct Subcommand {
 
 Subcommand addSimulateCommand(CLI::App& app);   ///< simulate.cpp
 Subcommand addPlanCommand(CLI::App& app);       ///< plan.cpp
-Subcommand addImportCommand(CLI::App& app);     ///< import.cpp: import ipa
+Subcommand addImportCommand(CLI::App& app);     ///< import.cpp: import ipa, import mapped
 Subcommand addCalibrateCommand(CLI::App& app);  ///< calibrate.cpp
 Subcommand addValidateCommand(CLI::App& app);   ///< validate.cpp
 Subcommand addInspectCommand(CLI::App& app);    ///< inspect.cpp

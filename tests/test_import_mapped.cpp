@@ -251,7 +251,7 @@ TEST(MappedImport, RefusesABadRowByFileAndLine) {
                    "joints.log", 8, "A3", {"expected a number with a decimal comma (degrees)", "'110.250'"});
   expectInputError([&] { importers::importMapped(writeCell(dir.path(), withRobot(kKukaMapping),
                                                   replaced(trackerExport(), "10:15:17.875", "10:15:18.875"))); },
-                   "tracker.csv", 6, "Time", {"no joint log row within tolerance_s 0.1 s", "joints.log line 10"});
+                   "tracker.csv", 6, "Time", {"no joint log row within tolerance_s 0.1 s", "joints.log line 10, 0.980 s away"});
   expectInputError([&] { importers::importMapped(writeCell(dir.path(), withRobot(kKukaMapping),
                                                   replaced(trackerExport(), ",21.5\nP02", "\nP02"))); },
                    "tracker.csv", 4, "", {"row has 8 fields; expected 9 as in the header (line 3)"});

@@ -3,6 +3,7 @@
 #include "stepcal/importers/mapped.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -199,10 +200,12 @@ std::vector<int> joinByTimestamp(const ImportMapping& m, const Table& tracker, c
     }
     const double gap = std::abs(t_joints[static_cast<size_t>(best)] - t);
     if (gap > m.tolerance_s) {
+      std::array<char, 32> gap_text{};  // ms: stamps of a day and more leave no finer digits
+      std::snprintf(gap_text.data(), gap_text.size(), "%.3f", gap);
       tracker.fail(tracker.lineOf(r), m.tracker_time->column,
                    "no joint log row within tolerance_s " + formatShortest(m.tolerance_s) +
                        " s; the nearest is " + joints.path() + " line " +
-                       std::to_string(joints.lineOf(best)) + ", " + formatShortest(gap) +
+                       std::to_string(joints.lineOf(best)) + ", " + gap_text.data() +
                        " s away (expected the controller's reading at the tracker's time)");
     }
     out.push_back(best);

@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
       addCorrectCommand(app),
       addToolCommand(app),
       addFrameCommand(app),
+      addRecheckCommand(app),
   };
   for (const Subcommand& subcommand : subcommands) {  // `import` as well as `import ipa`
     for (CLI::App* c = subcommand.command; c != nullptr; c = c->get_parent()) {

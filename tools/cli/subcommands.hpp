@@ -45,5 +45,6 @@ Subcommand addDemoCommand(CLI::App& app);       ///< demo.cpp
 Subcommand addCorrectCommand(CLI::App& app);    ///< correct.cpp
 Subcommand addToolCommand(CLI::App& app);       ///< tool.cpp
 Subcommand addFrameCommand(CLI::App& app);      ///< frame.cpp
+Subcommand addRecheckCommand(CLI::App& app);    ///< recheck.cpp
 
 }  // namespace stepcal::cli

@@ -12,6 +12,8 @@
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/trainer/recheck.hpp"
 #include "stepcal/twin/twin.hpp"
+#include "support/command.hpp"
+#include "support/files.hpp"
 
 namespace stepcal {
 namespace {
@@ -99,6 +101,25 @@ TEST(Recheck, TheTrackerKeptSeesJointOne) {
   ASSERT_TRUE(r.zeros[0].fitted);
   EXPECT_TRUE(r.zeros[0].changed);
   EXPECT_NEAR(r.zeros[0].delta_rad, kMovedZeroRad, 3.0 * r.zeros[0].sigma_rad);
+}
+
+TEST(Recheck, TheCommandWritesTheUpdateBesideTheStoredModel) {
+  const test::TempDir dir;
+  const std::string model = (dir.path() / "robot.stepcal").string();
+  writeModelFile(storedModel(), model);
+  writeCampaign(recheckCampaign(kMovedZeroRad), (dir.path() / "recheck").string());
+  const std::string stepcal = std::string(STEPCAL_BIN_DIR) + "/stepcal recheck " + model + " " +
+                              (dir.path() / "recheck").string();
+  const std::string stored_bytes = test::readText(model);
+  const test::CommandResult r = test::run(stepcal);
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("joint 3 re-mastered: +0.3"), std::string::npos) << r.out;
+  EXPECT_EQ(test::readText(model), stored_bytes);
+  const CalibratedModel updated = readModelFile((dir.path() / "robot.recheck.stepcal").string());
+  EXPECT_NE(updated.chain_Tracker.initialPose(2).linear(), storedModel().chain_Tracker.initialPose(2).linear());
+  const test::CommandResult over = test::run(stepcal + " --out " + model);
+  EXPECT_EQ(over.status, 2) << over.out;
+  EXPECT_NE(over.out.find("never overwritten"), std::string::npos) << over.out;
 }
 
 }  // namespace

@@ -30,6 +30,8 @@ using diagnosis::FitRows;
 
 constexpr double kRankTolerance = 1e-9;
 constexpr int kIterations = 20;
+/// A tool whose 1-σ exceeds ten times a change worth acting on is not determined by the poses.
+constexpr double kUndeterminedTool_m = 10.0 * kNegligibleToolChange_m;
 
 /// The parameters fitted: registration (6), tool translation (3) and rotation (3), joint zeros.
 struct Unknowns {
@@ -246,7 +248,13 @@ std::string recheckVerdict(const RecheckResult& result) {
     }
   }
   const bool changed = !out.empty() || result.tool_changed;
-  if (result.tool_fitted) {
+  if (result.tool_fitted && result.tool_translation_sigma_m > kUndeterminedTool_m) {
+    std::snprintf(line, sizeof line,
+                  "tool not determined by these poses (1-sigma %.3f mm: their orientations vary "
+                  "too little): re-check with --keep-tool, or with poses of varied orientation\n",
+                  result.tool_translation_sigma_m * 1e3);
+    out += line;
+  } else if (result.tool_fitted) {
     std::snprintf(line, sizeof line, "tool %s: moved %.3f mm ± %.3f (x %+.3f, y %+.3f, z %+.3f mm in the tool frame)\n",
                   result.tool_changed ? "changed" : "unchanged", result.tool_translation_m.norm() * 1e3,
                   result.tool_translation_sigma_m * 1e3, result.tool_translation_m.x() * 1e3,

@@ -248,7 +248,9 @@ std::string recheckVerdict(const RecheckResult& result) {
     }
   }
   const bool changed = !out.empty() || result.tool_changed;
-  if (result.tool_fitted && result.tool_translation_sigma_m > kUndeterminedTool_m) {
+  const bool tool_undetermined =
+      result.tool_fitted && result.tool_translation_sigma_m > kUndeterminedTool_m;
+  if (tool_undetermined) {
     std::snprintf(line, sizeof line,
                   "tool not determined by these poses (1-sigma %.3f mm: their orientations vary "
                   "too little): re-check with --keep-tool, or with poses of varied orientation\n",
@@ -262,11 +264,11 @@ std::string recheckVerdict(const RecheckResult& result) {
     out += line;
   }
   if (!unchanged.empty()) {
-    out += "joints " + unchanged + ": zero unchanged (within 3 sigma or below " +
+    out += (unchanged.find(',') == std::string::npos ? "joint " : "joints ") + unchanged + ": zero unchanged (within 3 sigma or below " +
            std::to_string(static_cast<int>(kNegligibleZeroChange_rad * 1e6)) + " urad)\n";
   }
   if (!unseen.empty()) {
-    out += "joints " + unseen + ": zero not seen (a refitted " +
+    out += (unseen.find(',') == std::string::npos ? "joint " : "joints ") + unseen + ": zero not seen (a refitted " +
            std::string(result.registration_fitted && result.tool_fitted ? "registration or tool" :
                        result.registration_fitted ? "registration" : "tool") +
            " takes it up; --keep-registration, --keep-tool when the tracker or the tool has not moved)\n";
@@ -282,7 +284,9 @@ std::string recheckVerdict(const RecheckResult& result) {
                   result.validation_error_after_m * 1e3);
     out += line;
   }
-  out += changed ? "nothing else changed\n" : "nothing changed: the stored model holds\n";
+  out += changed             ? "nothing else changed\n"
+         : tool_undetermined ? "no joint zero changed (the tool is not determined: see above)\n"
+                             : "nothing changed: the stored model holds\n";
   return out;
 }
 

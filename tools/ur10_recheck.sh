@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The re-check on the real UR10 (docs/cell.md, "The re-check"): Series A's models (geometric and
-# extended) re-checked with twenty rows of Series D spread evenly through it (every 31st row from
-# the first; the other 612 rows become set=validation), by default and with --keep-tool, beside
-# A's extended model with the tracker and tool refitted on all of D (`stepcal validate
-# --refit-frames`, the README's A→D).
+# extended) re-checked with twenty rows of Series D, the other 612 becoming set=validation, by
+# default and with --keep-tool, beside A's models with the tracker and tool refitted on all of D
+# (`stepcal validate --refit-frames`, the README's A→D). Two choices of the twenty: D20, every
+# 31st row from the first; D20plan, the twenty `stepcal plan --candidates-from` chooses among D's
+# measured poses (D-optimal for the geometry).
 #
 # Usage: tools/ur10_recheck.sh [DATA [OUT]]
 #   DATA  the IPA data set (default tests/data/ipa-robot-accuracy)
@@ -33,6 +34,18 @@ awk -F, -v OFS=, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "set") c = i; pr
                   { $c = ((NR - 2) % 31 == 0 && NR - 2 < 620) ? "geometry" : "validation"; print }' \
   "$out/D/measurements.csv" >"$out/D20/measurements.csv"
 
+# The planner's twenty among D's poses.
+"$bin/stepcal" plan --robot "$out/D/robot.urdf" --base-link base_link --tip-link tmac \
+  --sensor-link none --poses 20 --loads 0 --candidates-from "$out/D" --out "$out/D-plan20.csv" \
+  >/dev/null 2>&1
+rm -rf "$out/D20plan"
+cp -r "$out/D" "$out/D20plan"
+awk -F, -v OFS=, 'NR == FNR { if (FNR > 1) planned[$1] = 1; next }
+                  FNR == 1 { for (i = 1; i <= NF; i++) { if ($i == "set") c = i; if ($i == "pose_id") p = i }
+                             print; next }
+                  { $c = ($p in planned) ? "geometry" : "validation"; print }' \
+  "$out/D-plan20.csv" "$out/D/measurements.csv" >"$out/D20plan/measurements.csv"
+
 for model in A.poe A.extended; do
   echo "== $model, A->D with the frames refitted on all of D"
   "$bin/stepcal" validate "$out/$model.stepcal" "$out/D" --refit-frames | tail -1
@@ -41,4 +54,9 @@ for model in A.poe A.extended; do
   echo "== $model re-checked on twenty rows of D, the tool kept"
   "$bin/stepcal" recheck "$out/$model.stepcal" "$out/D20" --keep-tool \
     --out "$out/$model.recheck-keep-tool.stepcal"
+  echo "== $model re-checked on the planner's twenty rows of D"
+  "$bin/stepcal" recheck "$out/$model.stepcal" "$out/D20plan" --out "$out/$model.recheck-plan.stepcal"
+  echo "== $model re-checked on the planner's twenty rows of D, the tool kept"
+  "$bin/stepcal" recheck "$out/$model.stepcal" "$out/D20plan" --keep-tool \
+    --out "$out/$model.recheck-plan-keep-tool.stepcal"
 done

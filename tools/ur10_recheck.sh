@@ -3,8 +3,8 @@
 # extended) re-checked with twenty rows of Series D, the other 612 becoming set=validation, by
 # default and with --keep-tool, beside A's models with the tracker and tool refitted on all of D
 # (`stepcal validate --refit-frames`, the README's A→D). Two choices of the twenty: D20, every
-# 31st row from the first; D20plan, the twenty `stepcal plan --candidates-from` chooses among D's
-# measured poses (D-optimal for the geometry).
+# 31st row from the first; D20plan, the twenty `stepcal plan --recheck A.extended.stepcal
+# --candidates-from D` chooses among D's measured poses.
 #
 # Usage: tools/ur10_recheck.sh [DATA [OUT]]
 #   DATA  the IPA data set (default tests/data/ipa-robot-accuracy)
@@ -34,10 +34,9 @@ awk -F, -v OFS=, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "set") c = i; pr
                   { $c = ((NR - 2) % 31 == 0 && NR - 2 < 620) ? "geometry" : "validation"; print }' \
   "$out/D/measurements.csv" >"$out/D20/measurements.csv"
 
-# The planner's twenty among D's poses.
-"$bin/stepcal" plan --robot "$out/D/robot.urdf" --base-link base_link --tip-link tmac \
-  --sensor-link none --poses 20 --loads 0 --candidates-from "$out/D" --out "$out/D-plan20.csv" \
-  >/dev/null 2>&1
+# The re-check's plan: twenty of D's poses.
+"$bin/stepcal" plan --recheck "$out/A.extended.stepcal" --poses 20 --candidates-from "$out/D" \
+  --out "$out/D-plan20.csv" >/dev/null 2>&1
 rm -rf "$out/D20plan"
 cp -r "$out/D" "$out/D20plan"
 awk -F, -v OFS=, 'NR == FNR { if (FNR > 1) planned[$1] = 1; next }

@@ -25,9 +25,9 @@ namespace stepcal {
 namespace {
 
 namespace fs = std::filesystem;
+using test::expectInputError;
 using test::readText;
 using test::TempDir;
-using test::expectInputError;
 using test::writeText;
 
 const fs::path kData = fs::path(STEPCAL_TEST_DATA_DIR);
@@ -54,7 +54,8 @@ TEST(MappedImport, IpaSeriesDThroughAMappingIsTheIpaImport) {
   }
   const std::string urdf = readText(dir.path() / "mapped/robot.urdf");
   EXPECT_NE(urdf.find("<!-- Added by stepcal import mapped"), std::string::npos);
-  EXPECT_EQ(withoutAddedComment(urdf), withoutAddedComment(readText(dir.path() / "ipa/robot.urdf")));
+  EXPECT_EQ(withoutAddedComment(urdf),
+            withoutAddedComment(readText(dir.path() / "ipa/robot.urdf")));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -63,17 +64,33 @@ TEST(MappedImport, IpaSeriesDThroughAMappingIsTheIpaImport) {
 /// One measured point: what the files say, in their units.
 struct Point {
   std::string name;
-  double t_s;                  ///< seconds after 10:15:00
+  double t_s;  ///< seconds after 10:15:00
   std::array<double, 6> q_deg;
   std::array<double, 3> p_mm;
   std::array<double, 3> abc_deg;  ///< KUKA A, B, C: R = Rz(A)·Ry(B)·Rx(C)
 };
 
 const std::vector<Point> kPoints = {
-    {"P01", 2.125, {10.5, -80.25, 95.125, -15.5, 90.75, 3.25}, {1234.5678, -512.25, 801.0625}, {12.5, -30.25, 170.75}},
-    {"P02", 9.5, {-20.125, -95.5, 110.25, -30.0, 85.5, -45.125}, {1500.0625, 200.5, 650.25}, {-95.5, 10.125, -175.25}},
-    {"P03", 17.875, {45.0, -60.75, 70.5, -10.25, 100.125, 60.5}, {980.125, 905.75, 1020.5}, {60.25, 45.5, 5.75}},
-    {"P04", 26.25, {0.0, -110.25, 125.5, -45.75, 75.25, 0.125}, {1710.875, -20.125, 420.375}, {0.0, -5.25, 179.5}},
+    {"P01",
+     2.125,
+     {10.5, -80.25, 95.125, -15.5, 90.75, 3.25},
+     {1234.5678, -512.25, 801.0625},
+     {12.5, -30.25, 170.75}},
+    {"P02",
+     9.5,
+     {-20.125, -95.5, 110.25, -30.0, 85.5, -45.125},
+     {1500.0625, 200.5, 650.25},
+     {-95.5, 10.125, -175.25}},
+    {"P03",
+     17.875,
+     {45.0, -60.75, 70.5, -10.25, 100.125, 60.5},
+     {980.125, 905.75, 1020.5},
+     {60.25, 45.5, 5.75}},
+    {"P04",
+     26.25,
+     {0.0, -110.25, 125.5, -45.75, 75.25, 0.125},
+     {1710.875, -20.125, 420.375},
+     {0.0, -5.25, 179.5}},
 };
 
 Mat3 kukaAbc(const std::array<double, 3>& abc_deg) {
@@ -96,13 +113,14 @@ std::string fixed(double v, int decimals, bool decimal_comma = false) {
 }
 
 std::string clock(double t_s, bool decimal_comma) {
-  return std::string(decimal_comma ? "04.03.2026 " : "2026-03-04 ") + "10:15:" +
-         (t_s < 10 ? "0" : "") + fixed(t_s, 3, decimal_comma);
+  return std::string(decimal_comma ? "04.03.2026 " : "2026-03-04 ") +
+         "10:15:" + (t_s < 10 ? "0" : "") + fixed(t_s, 3, decimal_comma);
 }
 
 std::string trackerExport() {
-  std::string s = "# AT960 export, job 'cell check'\n# frame: tracker\n"
-                  "Point,Time,X [mm],Y [mm],Z [mm],A [deg],B [deg],C [deg],T [C]\n";
+  std::string s =
+      "# AT960 export, job 'cell check'\n# frame: tracker\n"
+      "Point,Time,X [mm],Y [mm],Z [mm],A [deg],B [deg],C [deg],T [C]\n";
   for (const Point& p : kPoints) {
     s += p.name + "," + clock(p.t_s, false);
     for (double v : p.p_mm) s += "," + fixed(v, 4);
@@ -187,10 +205,13 @@ void expectThePoints(const Campaign& c) {
     const Measurement& m = c.rows[i];
     EXPECT_EQ(m.pose_id, p.name);
     EXPECT_EQ(m.set, i >= 3 ? RowSet::kValidation : RowSet::kGeometry);
-    for (int j = 0; j < 6; ++j) EXPECT_NEAR(m.q_rad[j], p.q_deg[static_cast<size_t>(j)] * kRadPerDeg, 1e-12);
-    for (int a = 0; a < 3; ++a) EXPECT_NEAR(m.p_TipInTracker_m[a], p.p_mm[static_cast<size_t>(a)] * 1e-3, 1e-12);
+    for (int j = 0; j < 6; ++j)
+      EXPECT_NEAR(m.q_rad[j], p.q_deg[static_cast<size_t>(j)] * kRadPerDeg, 1e-12);
+    for (int a = 0; a < 3; ++a)
+      EXPECT_NEAR(m.p_TipInTracker_m[a], p.p_mm[static_cast<size_t>(a)] * 1e-3, 1e-12);
     ASSERT_TRUE(m.has_orientation);
-    EXPECT_LT((m.q_TrackerTip.toRotationMatrix() - kukaAbc(p.abc_deg)).cwiseAbs().maxCoeff(), 1e-12);
+    EXPECT_LT((m.q_TrackerTip.toRotationMatrix() - kukaAbc(p.abc_deg)).cwiseAbs().maxCoeff(),
+              1e-12);
   }
 }
 
@@ -246,33 +267,67 @@ TEST(MappedImport, RefusesABadRowByFileAndLine) {
   const TempDir dir;
   const std::string log = kukaJointLog();
   // Line 8 of the log: P02's own angles, A3 written with a decimal point.
-  expectInputError([&] { importers::importMapped(writeCell(dir.path(), withRobot(kKukaMapping), trackerExport(),
-                                                  replaced(log, "110,250", "110.250"))); },
-                   "joints.log", 8, "A3", {"expected a number with a decimal comma (degrees)", "'110.250'"});
-  expectInputError([&] { importers::importMapped(writeCell(dir.path(), withRobot(kKukaMapping),
-                                                  replaced(trackerExport(), "10:15:17.875", "10:15:18.875"))); },
-                   "tracker.csv", 6, "Time", {"no joint log row within tolerance_s 0.1 s", "joints.log line 10, 0.980 s away"});
-  expectInputError([&] { importers::importMapped(writeCell(dir.path(), withRobot(kKukaMapping),
-                                                  replaced(trackerExport(), ",21.5\nP02", "\nP02"))); },
-                   "tracker.csv", 4, "", {"row has 8 fields; expected 9 as in the header (line 3)"});
-  expectInputError([&] { importers::importMapped(writeCell(dir.path(), withRobot(kKukaMapping),
-                                                  replaced(trackerExport(), "2026-03-04 10:15:02.125", "10h15"))); },
-                   "tracker.csv", 4, "Time", {"expected a number with a decimal point (a time stamp", "'10h15'"});
-  expectInputError([&] { importers::importMapped(writeCell(dir.path(), replaced(withRobot(kKukaMapping), "[A1,", "[Axis1,"))); },
-                   "joints.log", 4, "Axis1", {"column 'Axis1' (joint angle, named by the mapping) is missing", "'A1'"});
+  expectInputError(
+      [&] {
+        importers::importMapped(writeCell(dir.path(), withRobot(kKukaMapping), trackerExport(),
+                                          replaced(log, "110,250", "110.250")));
+      },
+      "joints.log", 8, "A3", {"expected a number with a decimal comma (degrees)", "'110.250'"});
+  expectInputError(
+      [&] {
+        importers::importMapped(
+            writeCell(dir.path(), withRobot(kKukaMapping),
+                      replaced(trackerExport(), "10:15:17.875", "10:15:18.875")));
+      },
+      "tracker.csv", 6, "Time",
+      {"no joint log row within tolerance_s 0.1 s", "joints.log line 10, 0.980 s away"});
+  expectInputError(
+      [&] {
+        importers::importMapped(writeCell(dir.path(), withRobot(kKukaMapping),
+                                          replaced(trackerExport(), ",21.5\nP02", "\nP02")));
+      },
+      "tracker.csv", 4, "", {"row has 8 fields; expected 9 as in the header (line 3)"});
+  expectInputError(
+      [&] {
+        importers::importMapped(
+            writeCell(dir.path(), withRobot(kKukaMapping),
+                      replaced(trackerExport(), "2026-03-04 10:15:02.125", "10h15")));
+      },
+      "tracker.csv", 4, "Time",
+      {"expected a number with a decimal point (a time stamp", "'10h15'"});
+  expectInputError(
+      [&] {
+        importers::importMapped(
+            writeCell(dir.path(), replaced(withRobot(kKukaMapping), "[A1,", "[Axis1,")));
+      },
+      "joints.log", 4, "Axis1",
+      {"column 'Axis1' (joint angle, named by the mapping) is missing", "'A1'"});
 }
 
 TEST(MappedImport, RefusesABadMappingByLine) {
   const TempDir dir;
   const std::string mapping = withRobot(kKukaMapping);
-  expectInputError([&] { importers::importMapped(writeCell(dir.path(), replaced(mapping, "  skip_lines: 2", "  skip_line: 2"))); },
-                   "mapping.yaml", 8, "", {"mapping.tracker: unknown key 'skip_line'"});
-  expectInputError([&] { importers::importMapped(writeCell(dir.path(), replaced(mapping, "euler: ZYX", "euler: ZZY"))); },
-                   "mapping.yaml", 14, "", {"expected three axes", "'ZZY'"});
-  expectInputError([&] { importers::importMapped(writeCell(dir.path(), replaced(mapping, "A5, A6]", "A5]"))); },
-                   "mapping.yaml", 0, "", {"has 6 joints", "joints.columns, which lists 5"});
-  expectInputError([&] { importers::importMapped(writeCell(dir.path(), replaced(mapping, "  tolerance_s: 0.1\n", ""))); },
-                   "mapping.yaml", 28, "", {"mapping.join: required key 'tolerance_s' is missing"});
+  expectInputError(
+      [&] {
+        importers::importMapped(
+            writeCell(dir.path(), replaced(mapping, "  skip_lines: 2", "  skip_line: 2")));
+      },
+      "mapping.yaml", 8, "", {"mapping.tracker: unknown key 'skip_line'"});
+  expectInputError(
+      [&] {
+        importers::importMapped(
+            writeCell(dir.path(), replaced(mapping, "euler: ZYX", "euler: ZZY")));
+      },
+      "mapping.yaml", 14, "", {"expected three axes", "'ZZY'"});
+  expectInputError(
+      [&] { importers::importMapped(writeCell(dir.path(), replaced(mapping, "A5, A6]", "A5]"))); },
+      "mapping.yaml", 0, "", {"has 6 joints", "joints.columns, which lists 5"});
+  expectInputError(
+      [&] {
+        importers::importMapped(
+            writeCell(dir.path(), replaced(mapping, "  tolerance_s: 0.1\n", "")));
+      },
+      "mapping.yaml", 28, "", {"mapping.join: required key 'tolerance_s' is missing"});
 }
 
 TEST(MappedImport, TheCommandWritesNothingOnABadRow) {
@@ -280,14 +335,14 @@ TEST(MappedImport, TheCommandWritesNothingOnABadRow) {
   const std::string mapping = writeCell(dir.path(), withRobot(kKukaMapping), trackerExport(),
                                         replaced(kukaJointLog(), "110,250", "110.250"));
   const std::string stepcal = std::string(STEPCAL_BIN_DIR) + "/stepcal";
-  const test::CommandResult bad = test::run(stepcal + " import mapped " + mapping + " --out " +
-                                            (dir.path() / "out").string());
+  const test::CommandResult bad =
+      test::run(stepcal + " import mapped " + mapping + " --out " + (dir.path() / "out").string());
   EXPECT_EQ(bad.status, 2) << bad.out;
   EXPECT_NE(bad.out.find("joints.log:8: column 'A3'"), std::string::npos) << bad.out;
   EXPECT_FALSE(fs::exists(dir.path() / "out"));
   writeCell(dir.path());
-  const test::CommandResult good = test::run(stepcal + " import mapped " + mapping + " --out " +
-                                             (dir.path() / "out").string());
+  const test::CommandResult good =
+      test::run(stepcal + " import mapped " + mapping + " --out " + (dir.path() / "out").string());
   ASSERT_EQ(good.status, 0) << good.out;
   expectThePoints(readCampaign((dir.path() / "out").string()));
 }

@@ -1,7 +1,8 @@
 // The re-check (trainer/recheck.hpp) on the twin: a model calibrated from station 0, then the
-// twenty poses the re-check's plan chooses, measured from another tracker station with joint 3 re-mastered (its reading 300 µrad
-// less): the moved zero found within 3σ, the updated model at the noise floor on the new
-// campaign's validation rows, and the same robot unchanged reported as unchanged.
+// twenty poses the re-check's plan chooses, measured from another tracker station with joint 3
+// re-mastered (its reading 300 µrad less): the moved zero found within 3σ, the updated model at the
+// noise floor on the new campaign's validation rows, and the same robot unchanged reported as
+// unchanged.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -49,7 +50,8 @@ Campaign recheckCampaign(double shift_rad) {
   plan.poses = kRecheckPoses;
   plan.loads_kg = {0.0};
   for (const Measurement& row : c.rows) {
-    if (row.set != RowSet::kValidation) plan.given_candidates.push_back({row.pose_id, 0.0, row.q_rad});
+    if (row.set != RowSet::kValidation)
+      plan.given_candidates.push_back({row.pose_id, 0.0, row.q_rad});
   }
   std::set<std::string> planned;
   for (const PlannedMeasurement& p :
@@ -86,14 +88,15 @@ TEST(Recheck, ARemasteredJointIsFoundAndTheUpdateReachesTheNoiseFloor) {
   // The validation rows at the floor: as the same robot unchanged gives after its re-check
   // (0.0180 mm both), and within 10 % of the stored model's with the frames alone refitted there
   // (0.0173 mm); 0.1146 mm here with the frames alone.
-  const trainer::RecheckResult unchanged = trainer::recheckModel(storedModel(), recheckCampaign(0.0), {});
+  const trainer::RecheckResult unchanged =
+      trainer::recheckModel(storedModel(), recheckCampaign(0.0), {});
   EXPECT_NEAR(r.validation_error_after_m, unchanged.validation_error_after_m,
               0.02 * unchanged.validation_error_after_m);
   EXPECT_LT(r.validation_error_after_m, 1.1 * unchanged.validation_error_frames_only_m);
   EXPECT_GT(r.validation_error_frames_only_m, 3.0 * r.validation_error_after_m);
   // The updated model is a model file's, and keeps the stored one's everything else.
-  const CalibratedModel back = parseModel(serializeModel(r.updated).data(),
-                                          serializeModel(r.updated).size(), "updated");
+  const CalibratedModel back =
+      parseModel(serializeModel(r.updated).data(), serializeModel(r.updated).size(), "updated");
   EXPECT_EQ(back.chain_Tracker.dof(), storedModel().chain_Tracker.dof());
 }
 
@@ -133,7 +136,8 @@ TEST(Recheck, TheCommandWritesTheUpdateBesideTheStoredModel) {
   EXPECT_NE(r.out.find("joint 3 re-mastered: +0.3"), std::string::npos) << r.out;
   EXPECT_EQ(test::readText(model), stored_bytes);
   const CalibratedModel updated = readModelFile((dir.path() / "robot.recheck.stepcal").string());
-  EXPECT_NE(updated.chain_Tracker.initialPose(2).linear(), storedModel().chain_Tracker.initialPose(2).linear());
+  EXPECT_NE(updated.chain_Tracker.initialPose(2).linear(),
+            storedModel().chain_Tracker.initialPose(2).linear());
   const test::CommandResult over = test::run(stepcal + " --out " + model);
   EXPECT_EQ(over.status, 2) << over.out;
   EXPECT_NE(over.out.find("never overwritten"), std::string::npos) << over.out;

@@ -37,8 +37,10 @@ void runRecheck(const RecheckArgs& a) {
   const std::string out = a.out.empty() ? besideTheModel(a.model) : a.out;
   std::error_code ec;
   if (fs::equivalent(out, a.model, ec)) {
-    throw InputError("--out names the stored model; expected another file (the stored model is "
-                     "never overwritten)", out);
+    throw InputError(
+        "--out names the stored model; expected another file (the stored model is "
+        "never overwritten)",
+        out);
   }
   const trainer::RecheckResult r = trainer::recheckModel(model, campaign, a.options);
   std::cout << "model " << a.model << " re-checked on " << a.campaign << "\n"
@@ -53,16 +55,19 @@ Subcommand addRecheckCommand(CLI::App& app) {
   auto args = std::make_shared<RecheckArgs>();
   RecheckArgs& a = *args;
   CLI::App* recheck = app.add_subcommand(
-      "recheck", "a stored model against a short campaign: which joint zeros and tool changed, "
-                 "and the model updated beside it (docs/cell.md)");
+      "recheck",
+      "a stored model against a short campaign: which joint zeros and tool changed, "
+      "and the model updated beside it (docs/cell.md)");
   recheck->add_option("model", a.model, "the stored model file")->required();
   recheck->add_option("campaign", a.campaign, "the re-check campaign folder")->required();
-  recheck->add_option("--out", a.out, "updated model file (default: MODEL.recheck.stepcal beside it)");
+  recheck->add_option("--out", a.out,
+                      "updated model file (default: MODEL.recheck.stepcal beside it)");
   recheck->add_flag("--keep-registration", a.options.keep_registration,
                     "the tracker stands where it stood for the model: keep its registration and "
                     "see joint 1's zero");
-  recheck->add_flag("--keep-tool", a.options.keep_tool,
-                    "the target has not been remounted: keep the tool and see the last joint's zero");
+  recheck->add_flag(
+      "--keep-tool", a.options.keep_tool,
+      "the target has not been remounted: keep the tool and see the last joint's zero");
   return {recheck, [args] { runRecheck(*args); }};
 }
 

@@ -1,11 +1,11 @@
 // The re-check (recheck.hpp): Gauss–Newton on the tracker registration, the tool and the joint
 // zeros of a stored model, on a short campaign; every other parameter of the model kept.
 //
-// A joint's zero moves its initial pose by exp(s_j δ_j) (T(0)·exp(s δ)·exp(s θ) = T(0)·exp(s(θ+δ))),
-// so its column is the initial-pose columns of its block times its twist s_j, and the update is
-// folded into the chain exactly. The first joint's zero is a turn of the whole robot about its
-// first axis, which a new registration takes up; the last joint's is a turn of the tool about the
-// last axis, which a new tool takes up: each is fitted only when the other is kept.
+// A joint's zero moves its initial pose by exp(s_j δ_j) (T(0)·exp(s δ)·exp(s θ) =
+// T(0)·exp(s(θ+δ))), so its column is the initial-pose columns of its block times its twist s_j,
+// and the update is folded into the chain exactly. The first joint's zero is a turn of the whole
+// robot about its first axis, which a new registration takes up; the last joint's is a turn of the
+// tool about the last axis, which a new tool takes up: each is fitted only when the other is kept.
 #include "stepcal/trainer/recheck.hpp"
 
 #include <algorithm>
@@ -44,7 +44,8 @@ struct Unknowns {
 };
 
 /// The fitted parameters' columns of the initial-pose linearisation G (count × 6(n+1)).
-Eigen::MatrixXd columnsOf(const Eigen::MatrixXd& G, const Unknowns& u, const KinematicChain& chain) {
+Eigen::MatrixXd columnsOf(const Eigen::MatrixXd& G, const Unknowns& u,
+                          const KinematicChain& chain) {
   const int n = chain.dof();
   Eigen::MatrixXd A(G.rows(), u.count());
   int c = 0;
@@ -58,14 +59,16 @@ Eigen::MatrixXd columnsOf(const Eigen::MatrixXd& G, const Unknowns& u, const Kin
 }
 
 /// The initial-pose correction (6(n+1), KinematicChain::corrected) of a step x of the unknowns.
-Eigen::VectorXd correctionOf(const Eigen::VectorXd& x, const Unknowns& u, const KinematicChain& chain) {
+Eigen::VectorXd correctionOf(const Eigen::VectorXd& x, const Unknowns& u,
+                             const KinematicChain& chain) {
   const int n = chain.dof();
   Eigen::VectorXd delta = Eigen::VectorXd::Zero(6 * (n + 1));
   int c = 0;
   if (u.registration) delta.head(6) = x.segment(c, 6), c += 6;
   if (u.tool_translation) delta.segment(6 * n, 3) = x.segment(c, 3), c += 3;
   if (u.tool_rotation) delta.segment(6 * n + 3, 3) = x.segment(c, 3), c += 3;
-  for (int j : u.joints) delta.segment(6 * j, 6) += x(c++) * chain.joints()[static_cast<size_t>(j)].twist_Local;
+  for (int j : u.joints)
+    delta.segment(6 * j, 6) += x(c++) * chain.joints()[static_cast<size_t>(j)].twist_Local;
   return delta;
 }
 
@@ -76,7 +79,8 @@ void registerInClosedForm(PhysicalModel& model, const FitRows& fit) {
   ChainWorkspace ws;
   JointVector theta, tau;
   for (const Measurement* row : fit.rows) {
-    physicalLinkAngles(model, row->q_rad, row->wrenchOrZero(), rowTemperature(*row), {ws, theta, tau});
+    physicalLinkAngles(model, row->q_rad, row->wrenchOrZero(), rowTemperature(*row),
+                       {ws, theta, tau});
     p_model.push_back(tipPose(ws).translation());
     p_measured.push_back(row->p_TipInTracker_m);
   }
@@ -99,13 +103,15 @@ Fitted fitUnknowns(PhysicalModel model, const FitRows& fit, const Unknowns& u) {
   Eigen::VectorXd r = diagnosis::residuals(model, fit);
   Eigen::VectorXd x = Eigen::VectorXd::Zero(p);
   for (int it = 0; it < kIterations && p > 0; ++it) {
-    const Eigen::MatrixXd A = columnsOf(diagnosis::linearise(model, fit, r).geometry, u, model.chain_Tracker);
+    const Eigen::MatrixXd A =
+        columnsOf(diagnosis::linearise(model, fit, r).geometry, u, model.chain_Tracker);
     const SvdSolution s = solveTruncated(A, r, kRankTolerance);
     const double cost = r.squaredNorm();
     bool improved = false;
     for (double fraction = 1.0; fraction > 1e-3; fraction *= 0.5) {
       PhysicalModel moved = model;
-      moved.chain_Tracker = model.chain_Tracker.corrected(correctionOf(fraction * s.x, u, model.chain_Tracker));
+      moved.chain_Tracker =
+          model.chain_Tracker.corrected(correctionOf(fraction * s.x, u, model.chain_Tracker));
       Eigen::VectorXd r_moved = diagnosis::residuals(moved, fit);
       if (r_moved.squaredNorm() < cost) {
         improved = cost - r_moved.squaredNorm() > 1e-12 * cost;
@@ -122,9 +128,11 @@ Fitted fitUnknowns(PhysicalModel model, const FitRows& fit, const Unknowns& u) {
   out.chi2_reduced = r.squaredNorm() / static_cast<double>(dof);
   out.covariance = Eigen::MatrixXd::Zero(p, p);
   if (p > 0) {
-    const Eigen::MatrixXd A = columnsOf(diagnosis::linearise(model, fit, r).geometry, u, model.chain_Tracker);
+    const Eigen::MatrixXd A =
+        columnsOf(diagnosis::linearise(model, fit, r).geometry, u, model.chain_Tracker);
     const Eigen::VectorXd scale = A.colwise().norm().cwiseMax(1e-300).transpose();
-    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A * scale.cwiseInverse().asDiagonal(), Eigen::ComputeThinV);
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A * scale.cwiseInverse().asDiagonal(),
+                                                Eigen::ComputeThinV);
     const Eigen::VectorXd sv = svd.singularValues();
     Eigen::VectorXd inv2 = Eigen::VectorXd::Zero(sv.size());
     for (Eigen::Index i = 0; i < sv.size(); ++i) {
@@ -146,7 +154,8 @@ double meanError(const PhysicalModel& model, const FitRows& rows) {
 }
 
 /// The stored model with the fitted chain: registration and tool as refitted, zeros folded in.
-CalibratedModel updatedModel(const CalibratedModel& model, const KinematicChain& fitted, bool registration) {
+CalibratedModel updatedModel(const CalibratedModel& model, const KinematicChain& fitted,
+                             bool registration) {
   CalibratedModel out = model;
   if (registration) {
     out.X_TrackerBase = Pose(fitted.initialPose(0) * model.chain_Tracker.initialPose(0).inverse() *
@@ -189,7 +198,8 @@ RecheckResult recheckModel(const CalibratedModel& model, const Campaign& campaig
   }
   if (fit.count <= all.count()) {
     throw InputError("has " + std::to_string(fit_rows.size()) + " fit rows (" +
-                         std::to_string(fit.count) + " equations) for " + std::to_string(all.count()) +
+                         std::to_string(fit.count) + " equations) for " +
+                         std::to_string(all.count()) +
                          " unknowns (registration, tool, joint zeros); expected more rows: about "
                          "twenty poses (stepcal plan --recheck)",
                      campaign.directory);
@@ -216,10 +226,12 @@ RecheckResult recheckModel(const CalibratedModel& model, const Campaign& campaig
     z.fitted = true;
     z.delta_rad = full.x(c);
     z.sigma_rad = std::sqrt(std::max(0.0, full.covariance(c, c)));
-    z.changed = std::abs(z.delta_rad) > 3.0 * z.sigma_rad && std::abs(z.delta_rad) > kNegligibleZeroChange_rad;
+    z.changed = std::abs(z.delta_rad) > 3.0 * z.sigma_rad &&
+                std::abs(z.delta_rad) > kNegligibleZeroChange_rad;
   }
   if (out.tool_fitted) {
-    const Pose moved = model.chain_Tracker.initialPose(n).inverse() * full.model.chain_Tracker.initialPose(n);
+    const Pose moved =
+        model.chain_Tracker.initialPose(n).inverse() * full.model.chain_Tracker.initialPose(n);
     out.tool_translation_m = moved.translation();
     const int c = frames.registration ? 6 : 0;
     out.tool_translation_sigma_m =
@@ -240,7 +252,9 @@ std::string recheckVerdict(const RecheckResult& result) {
     if (!z.fitted) {
       unseen += (unseen.empty() ? "" : ", ") + name;
     } else if (z.changed) {
-      std::snprintf(line, sizeof line, "joint %d re-mastered: %+.3f mrad ± %.3f (the link angle is now the reading %+.3f mrad)\n",
+      std::snprintf(line, sizeof line,
+                    "joint %d re-mastered: %+.3f mrad ± %.3f (the link angle is now the reading "
+                    "%+.3f mrad)\n",
                     z.joint + 1, z.delta_rad * 1e3, z.sigma_rad * 1e3, z.delta_rad * 1e3);
       out += line;
     } else {
@@ -257,29 +271,36 @@ std::string recheckVerdict(const RecheckResult& result) {
                   result.tool_translation_sigma_m * 1e3);
     out += line;
   } else if (result.tool_fitted) {
-    std::snprintf(line, sizeof line, "tool %s: moved %.3f mm ± %.3f (x %+.3f, y %+.3f, z %+.3f mm in the tool frame)\n",
-                  result.tool_changed ? "changed" : "unchanged", result.tool_translation_m.norm() * 1e3,
-                  result.tool_translation_sigma_m * 1e3, result.tool_translation_m.x() * 1e3,
-                  result.tool_translation_m.y() * 1e3, result.tool_translation_m.z() * 1e3);
+    std::snprintf(
+        line, sizeof line,
+        "tool %s: moved %.3f mm ± %.3f (x %+.3f, y %+.3f, z %+.3f mm in the tool frame)\n",
+        result.tool_changed ? "changed" : "unchanged", result.tool_translation_m.norm() * 1e3,
+        result.tool_translation_sigma_m * 1e3, result.tool_translation_m.x() * 1e3,
+        result.tool_translation_m.y() * 1e3, result.tool_translation_m.z() * 1e3);
     out += line;
   }
   if (!unchanged.empty()) {
-    out += (unchanged.find(',') == std::string::npos ? "joint " : "joints ") + unchanged + ": zero unchanged (within 3 sigma or below " +
+    out += (unchanged.find(',') == std::string::npos ? "joint " : "joints ") + unchanged +
+           ": zero unchanged (within 3 sigma or below " +
            std::to_string(static_cast<int>(kNegligibleZeroChange_rad * 1e6)) + " urad)\n";
   }
   if (!unseen.empty()) {
-    out += (unseen.find(',') == std::string::npos ? "joint " : "joints ") + unseen + ": zero not seen (a refitted " +
-           std::string(result.registration_fitted && result.tool_fitted ? "registration or tool" :
-                       result.registration_fitted ? "registration" : "tool") +
-           " takes it up; --keep-registration, --keep-tool when the tracker or the tool has not moved)\n";
+    out += (unseen.find(',') == std::string::npos ? "joint " : "joints ") + unseen +
+           ": zero not seen (a refitted " +
+           std::string(result.registration_fitted && result.tool_fitted ? "registration or tool"
+                       : result.registration_fitted                     ? "registration"
+                                                                        : "tool") +
+           " takes it up; --keep-registration, --keep-tool when the tracker or the tool has not "
+           "moved)\n";
   }
   std::snprintf(line, sizeof line,
                 "fit rows (%d): %.4f mm with the tracker%s refitted, %.4f mm with the zeros too\n",
-                result.fit_rows, result.fit_error_frames_only_m * 1e3, result.tool_fitted ? " and tool" : "",
-                result.fit_error_after_m * 1e3);
+                result.fit_rows, result.fit_error_frames_only_m * 1e3,
+                result.tool_fitted ? " and tool" : "", result.fit_error_after_m * 1e3);
   out += line;
   if (result.validation_rows > 0) {
-    std::snprintf(line, sizeof line, "validation rows (%d): %.4f mm before, %.4f mm after the update\n",
+    std::snprintf(line, sizeof line,
+                  "validation rows (%d): %.4f mm before, %.4f mm after the update\n",
                   result.validation_rows, result.validation_error_frames_only_m * 1e3,
                   result.validation_error_after_m * 1e3);
     out += line;

@@ -50,9 +50,10 @@ class Table {
       std::vector<std::string_view> fields = fieldsOf(lines[i]);
       const int line = static_cast<int>(i) + 1;
       if (fields.size() != names_.size()) {
-        fail(line, "", "row has " + std::to_string(fields.size()) + " fields; expected " +
-                           std::to_string(names_.size()) + " as in the header (line " +
-                           std::to_string(header_line) + ")");
+        fail(line, "",
+             "row has " + std::to_string(fields.size()) + " fields; expected " +
+                 std::to_string(names_.size()) + " as in the header (line " +
+                 std::to_string(header_line) + ")");
       }
       rows_.push_back(std::move(fields));
       lines_.push_back(line);
@@ -75,8 +76,10 @@ class Table {
       std::string all;
       for (const std::string& n : names_) all += (all.empty() ? "" : ", ") + inQuotes(n);
       fail(header_line_, name,
-           "column " + inQuotes(name) + " (" + meaning + ", named by the mapping) is missing; the "
-           "header has " + all);
+           "column " + inQuotes(name) + " (" + meaning +
+               ", named by the mapping) is missing; the "
+               "header has " +
+               all);
     }
     return static_cast<int>(it - names_.begin());
   }
@@ -166,8 +169,9 @@ std::vector<double> timesOf(const Table& t, const TimeColumn& time) {
       out.push_back(*clock);
       continue;
     }
-    out.push_back(t.number(r, col, "a time stamp: seconds, or hh:mm:ss[.fff] after an optional "
-                                   "date YYYY-MM-DD or DD.MM.YYYY") *
+    out.push_back(t.number(r, col,
+                           "a time stamp: seconds, or hh:mm:ss[.fff] after an optional "
+                           "date YYYY-MM-DD or DD.MM.YYYY") *
                   time.seconds_per_unit);
   }
   return out;
@@ -177,13 +181,15 @@ std::vector<double> timesOf(const Table& t, const TimeColumn& time) {
 // Joining
 
 /// For each tracker row, its joint log row.
-std::vector<int> joinByTimestamp(const ImportMapping& m, const Table& tracker, const Table& joints) {
+std::vector<int> joinByTimestamp(const ImportMapping& m, const Table& tracker,
+                                 const Table& joints) {
   const std::vector<double> t_tracker = timesOf(tracker, *m.tracker_time);
   const std::vector<double> t_joints = timesOf(joints, *m.joints_time);
   std::vector<int> order(t_joints.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
-  std::stable_sort(order.begin(), order.end(),
-                   [&](int a, int b) { return t_joints[static_cast<size_t>(a)] < t_joints[static_cast<size_t>(b)]; });
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return t_joints[static_cast<size_t>(a)] < t_joints[static_cast<size_t>(b)];
+  });
   std::vector<int> out;
   for (int r = 0; r < tracker.rowCount(); ++r) {
     const double t = t_tracker[static_cast<size_t>(r)];
@@ -213,7 +219,8 @@ std::vector<int> joinByTimestamp(const ImportMapping& m, const Table& tracker, c
   return out;
 }
 
-std::vector<int> joinByPointName(const ImportMapping& m, const Table& tracker, const Table& joints) {
+std::vector<int> joinByPointName(const ImportMapping& m, const Table& tracker,
+                                 const Table& joints) {
   const int jcol = joints.column(m.joints_point, "point name");
   std::map<std::string, int, std::less<>> row_of;
   for (int r = 0; r < joints.rowCount(); ++r) {
@@ -252,7 +259,8 @@ std::vector<int> joinedRows(const ImportMapping& m, const Table& tracker, const 
     throw InputError("joined by row, the tracker export " + tracker.path() + " has " +
                          std::to_string(tracker.rowCount()) + " rows and the joint log " +
                          joints.path() + " " + std::to_string(joints.rowCount()) +
-                         "; expected as many", m.file);
+                         "; expected as many",
+                     m.file);
   }
   std::vector<int> out(static_cast<size_t>(tracker.rowCount()));
   for (size_t i = 0; i < out.size(); ++i) out[i] = static_cast<int>(i);
@@ -262,24 +270,25 @@ std::vector<int> joinedRows(const ImportMapping& m, const Table& tracker, const 
 // ---------------------------------------------------------------------------------------------
 // Rows
 
-Vec3 axisOf(char name) {
-  return Vec3::Unit(std::tolower(static_cast<unsigned char>(name)) - 'x');
-}
+Vec3 axisOf(char name) { return Vec3::Unit(std::tolower(static_cast<unsigned char>(name)) - 'x'); }
 
 /// The measured orientation of one row, by the mapping's convention.
 Eigen::Quaterniond orientationOf(const OrientationMapping& o, const Table& t,
                                  const std::vector<int>& cols, int row) {
   std::vector<double> v;
-  for (int c : cols) v.push_back(t.number(row, c, o.kind == OrientationKind::kQuaternion
-                                                      ? "quaternion component"
-                                                      : o.degrees ? "degrees" : "radians"));
+  for (int c : cols)
+    v.push_back(t.number(row, c,
+                         o.kind == OrientationKind::kQuaternion ? "quaternion component"
+                         : o.degrees                            ? "degrees"
+                                                                : "radians"));
   if (o.kind == OrientationKind::kQuaternion) {
     const Eigen::Quaterniond q = o.scalar_first ? Eigen::Quaterniond(v[0], v[1], v[2], v[3])
                                                 : Eigen::Quaterniond(v[3], v[0], v[1], v[2]);
     if (std::abs(q.norm() - 1.0) > 1e-3) {
       t.fail(t.lineOf(row), t.nameOf(cols[0]),
-             "quaternion has norm " + formatShortest(q.norm()) + "; expected a unit quaternion "
-             "(within 1e-3) in the order the mapping states");
+             "quaternion has norm " + formatShortest(q.norm()) +
+                 "; expected a unit quaternion "
+                 "(within 1e-3) in the order the mapping states");
     }
     return q.normalized();
   }
@@ -301,8 +310,9 @@ std::string poseIdOf(const ImportMapping& m, const Table& tracker, int point_col
   }
   const std::string_view name = tracker.field(row, point_col);
   if (name.empty() || name.find_first_of(",\"\n") != std::string_view::npos) {
-    tracker.fail(tracker.lineOf(row), m.tracker_point,
-                 "point name " + inQuotes(name) + ": expected a non-empty name without ',' or '\"'");
+    tracker.fail(
+        tracker.lineOf(row), m.tracker_point,
+        "point name " + inQuotes(name) + ": expected a non-empty name without ',' or '\"'");
   }
   return std::string(name);
 }
@@ -315,12 +325,15 @@ struct Columns {
 
 Columns columnsOf(const ImportMapping& m, const Table& tracker, const Table& joints) {
   Columns c;
-  for (const std::string& n : m.position_columns) c.position.push_back(tracker.column(n, "position"));
+  for (const std::string& n : m.position_columns)
+    c.position.push_back(tracker.column(n, "position"));
   for (const std::string& n : m.orientation.columns)
     c.orientation.push_back(tracker.column(n, "orientation"));
-  for (const auto& [name, column] : m.kept) c.kept.push_back(tracker.column(column, "kept as " + name));
+  for (const auto& [name, column] : m.kept)
+    c.kept.push_back(tracker.column(column, "kept as " + name));
   for (const std::string& n : m.joint_columns) c.joints.push_back(joints.column(n, "joint angle"));
-  if (!m.temperature_column.empty()) c.temperature = tracker.column(m.temperature_column, "temperature");
+  if (!m.temperature_column.empty())
+    c.temperature = tracker.column(m.temperature_column, "temperature");
   if (!m.tracker_point.empty()) c.point = tracker.column(m.tracker_point, "point name");
   if (!m.load_column.empty()) c.load = joints.column(m.load_column, "payload, kg");
   return c;
@@ -337,8 +350,8 @@ Measurement rowOf(const ImportMapping& m, const Table& tracker, const Table& joi
   const std::string length_unit = m.length_shift_to_metres == -3 ? "millimetres" : "metres";
   for (int a = 0; a < 3; ++a) {
     const int col = c.position[static_cast<size_t>(a)];
-    r.p_TipInTracker_m[a] = *parseFiniteShifted(tracker.numberText(row, col, length_unit),
-                                                m.length_shift_to_metres);
+    r.p_TipInTracker_m[a] =
+        *parseFiniteShifted(tracker.numberText(row, col, length_unit), m.length_shift_to_metres);
   }
   if (m.orientation.kind != OrientationKind::kNone) {
     r.q_TrackerTip = orientationOf(m.orientation, tracker, c.orientation, row);
@@ -348,7 +361,8 @@ Measurement rowOf(const ImportMapping& m, const Table& tracker, const Table& joi
   for (int col : c.kept) r.extra.push_back(tracker.numberText(row, col, "a number to keep"));
   r.q_rad.resize(static_cast<Eigen::Index>(c.joints.size()));
   for (size_t j = 0; j < c.joints.size(); ++j) {
-    const double q = joints.number(joint_row, c.joints[j], m.joints_in_degrees ? "degrees" : "radians");
+    const double q =
+        joints.number(joint_row, c.joints[j], m.joints_in_degrees ? "degrees" : "radians");
     r.q_rad[static_cast<Eigen::Index>(j)] = m.joints_in_degrees ? q * kPi / 180.0 : q;
   }
   if (c.load >= 0) {
@@ -383,7 +397,8 @@ void checkJointCount(const ImportMapping& m, const Campaign& c) {
   const KinematicChain chain = chainFromUrdf(c.urdf_xml, c.base_link, c.tip_link, {}, m.urdf_path);
   if (chain.dof() != static_cast<int>(m.joint_columns.size())) {
     std::string names;
-    for (const ChainJoint& joint : chain.joints()) names += (names.empty() ? "" : ", ") + joint.name;
+    for (const ChainJoint& joint : chain.joints())
+      names += (names.empty() ? "" : ", ") + joint.name;
     throw InputError("the chain " + c.base_link + " → " + c.tip_link + " has " +
                          std::to_string(chain.dof()) + " joints (" + names +
                          "); expected as many names in joints.columns, which lists " +
@@ -412,7 +427,8 @@ Campaign importMapped(const std::string& mapping_path) {
   if (m.validation_from_row >= tracker.rowCount()) {
     throw InputError("validation_from_row is " + std::to_string(m.validation_from_row) +
                          " but the tracker export has rows 0 … " +
-                         std::to_string(tracker.rowCount() - 1) + "; expected a row index in that range",
+                         std::to_string(tracker.rowCount() - 1) +
+                         "; expected a row index in that range",
                      m.file);
   }
   const Columns columns = columnsOf(m, tracker, joints);

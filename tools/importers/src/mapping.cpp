@@ -74,15 +74,16 @@ class Section {
                     const std::string& fallback) const {
     const std::string v = textOr(key, fallback);
     if (std::find(allowed.begin(), allowed.end(), v) == allowed.end()) {
-      fail(lineOf(key), "key " + inQuotes(key) + ": expected one of " + listed(allowed) +
-                            ", got " + inQuotes(v));
+      fail(lineOf(key), "key " + inQuotes(key) + ": expected one of " + listed(allowed) + ", got " +
+                            inQuotes(v));
     }
     return v;
   }
   double number(const std::string& key, const std::string& expected) const {
     const std::optional<double> v = parseFinite(text(key));
-    if (!v) fail(lineOf(key), "key " + inQuotes(key) + ": expected " + expected + ", got " +
-                                  shapeOf(node(key)));
+    if (!v)
+      fail(lineOf(key),
+           "key " + inQuotes(key) + ": expected " + expected + ", got " + shapeOf(node(key)));
     return *v;
   }
   std::vector<std::string> texts(const std::string& key, size_t count) const {
@@ -107,8 +108,9 @@ class Section {
     Vec3 v;
     for (int i = 0; i < 3; ++i) {
       const std::optional<double> x = parseFinite(items[static_cast<size_t>(i)]);
-      if (!x) fail(lineOf(key), "key " + inQuotes(key) + ": expected 3 numbers (" + unit +
-                                    "), got " + inQuotes(items[static_cast<size_t>(i)]));
+      if (!x)
+        fail(lineOf(key), "key " + inQuotes(key) + ": expected 3 numbers (" + unit + "), got " +
+                              inQuotes(items[static_cast<size_t>(i)]));
       v[i] = *x;
     }
     return v;
@@ -161,8 +163,8 @@ std::optional<TimeColumn> timeColumn(const Section& s) {
 }
 
 void readRobot(const Section& top, const fs::path& folder, ImportMapping& m) {
-  const Section r = top.sub("robot", {"urdf", "base_link", "tip_link", "flange_link",
-                                      "gravity_in_base", "add_tip_link"});
+  const Section r = top.sub(
+      "robot", {"urdf", "base_link", "tip_link", "flange_link", "gravity_in_base", "add_tip_link"});
   const std::string urdf = r.text("urdf");
   m.urdf_path = isRobotPath(urdf) ? resolved(folder, urdf) : robotDescriptionPath(urdf);
   m.base_link = r.text("base_link");
@@ -201,20 +203,21 @@ void readOrientation(const Section& t, OrientationMapping& o) {
   const bool upper = std::all_of(a.begin(), a.end(), [](char c) { return c >= 'X' && c <= 'Z'; });
   const bool lower = std::all_of(a.begin(), a.end(), [](char c) { return c >= 'x' && c <= 'z'; });
   if (a.size() != 3 || !(upper || lower) || a[0] == a[1] || a[1] == a[2]) {
-    s.fail(s.lineOf("euler"),
-           "key 'euler': expected three axes, upper case for intrinsic (XYZ; ZYX: KUKA A, B, C; "
-           "ZYZ) or lower case for extrinsic (xyz: roll, pitch, yaw), no axis twice in a row, got " +
-               inQuotes(a));
+    s.fail(
+        s.lineOf("euler"),
+        "key 'euler': expected three axes, upper case for intrinsic (XYZ; ZYX: KUKA A, B, C; "
+        "ZYZ) or lower case for extrinsic (xyz: roll, pitch, yaw), no axis twice in a row, got " +
+            inQuotes(a));
   }
   o.columns = s.texts("columns", 3);
   o.degrees = s.oneOf("unit", {"deg", "rad"}, "deg") == "deg";
 }
 
 void readTracker(const Section& top, const fs::path& folder, ImportMapping& m) {
-  const Section t = top.sub(
-      "tracker", {"file", "separator", "decimal", "skip_lines", "position", "length_unit",
-                  "orientation", "temperature_c", "keep", "position_sigma_mm",
-                  "orientation_sigma_deg", "time", "time_unit", "point_name"});
+  const Section t =
+      top.sub("tracker", {"file", "separator", "decimal", "skip_lines", "position", "length_unit",
+                          "orientation", "temperature_c", "keep", "position_sigma_mm",
+                          "orientation_sigma_deg", "time", "time_unit", "point_name"});
   m.tracker = tableFormat(t, folder);
   m.position_columns = t.texts("position", 3);
   m.length_shift_to_metres = t.oneOf("length_unit", {"mm", "m"}, "mm") == "mm" ? -3 : 0;
@@ -222,7 +225,8 @@ void readTracker(const Section& top, const fs::path& folder, ImportMapping& m) {
   m.temperature_column = t.textOr("temperature_c", "");
   if (t.has("keep")) {
     const YAML::Node& keep = t.node("keep");
-    if (!keep.IsMap()) t.fail(t.lineOf("keep"), "key 'keep': expected a mapping campaign_column: tracker_column");
+    if (!keep.IsMap())
+      t.fail(t.lineOf("keep"), "key 'keep': expected a mapping campaign_column: tracker_column");
     for (const auto& entry : keep) {
       if (!entry.second.IsScalar() || entry.second.Scalar().empty()) {
         t.fail(entry.first.Mark().line + 1, "key 'keep': expected a tracker column name");
@@ -231,7 +235,8 @@ void readTracker(const Section& top, const fs::path& folder, ImportMapping& m) {
     }
   }
   if (t.has("position_sigma_mm") != t.has("orientation_sigma_deg")) {
-    t.fail(t.lineOf(t.has("position_sigma_mm") ? "position_sigma_mm" : "orientation_sigma_deg"), "expected position_sigma_mm and orientation_sigma_deg together");
+    t.fail(t.lineOf(t.has("position_sigma_mm") ? "position_sigma_mm" : "orientation_sigma_deg"),
+           "expected position_sigma_mm and orientation_sigma_deg together");
   }
   if (t.has("position_sigma_mm")) {
     m.noise.position_sigma_m = t.number("position_sigma_mm", "a number (mm)") * kMPerMm;

@@ -13,10 +13,10 @@ namespace stepcal::importers {
 
 /// How a table file is written.
 struct TableFormat {
-  std::string path;          ///< resolved against the mapping file's folder
+  std::string path;  ///< resolved against the mapping file's folder
   char separator = ',';
   bool decimal_comma = false;  ///< ',' is the decimal mark; a '.' in a number is refused
-  int skip_lines = 0;        ///< lines before the header line
+  int skip_lines = 0;          ///< lines before the header line
 };
 
 /// A time column: seconds (or milliseconds) as a number, or a clock time
@@ -50,7 +50,7 @@ struct ImportMapping {
     std::string parent;
     std::string transform_path;  ///< 4×4 matrix file, resolved
     double metres_per_unit = 1.0;
-    bool invert = false;          ///< the file holds X_ChildParent
+    bool invert = false;               ///< the file holds X_ChildParent
     Vec3 then_rpy_rad = Vec3::Zero();  ///< turned by this afterwards (URDF rpy)
   };
   std::optional<AddedLink> added_tip;
@@ -59,7 +59,7 @@ struct ImportMapping {
   std::vector<std::string> position_columns;
   int length_shift_to_metres = -3;  ///< decimal shift from the file's unit: mm -3, m 0
   OrientationMapping orientation;
-  std::string temperature_column;  ///< empty: none
+  std::string temperature_column;                         ///< empty: none
   std::vector<std::pair<std::string, std::string>> kept;  ///< campaign column ← tracker column
   TrackerNoise noise;
   std::optional<TimeColumn> tracker_time;

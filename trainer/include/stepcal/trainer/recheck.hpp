@@ -24,10 +24,10 @@ struct RecheckOptions {
 
 /// One joint's zero: link angle = reading + delta_rad from now on.
 struct ZeroChange {
-  int joint = 0;              ///< 0-based
-  bool fitted = false;        ///< false: absorbed by the registration or the tool (see options)
+  int joint = 0;        ///< 0-based
+  bool fitted = false;  ///< false: absorbed by the registration or the tool (see options)
   double delta_rad = 0.0, sigma_rad = 0.0;
-  bool changed = false;       ///< beyond 3σ and beyond kNegligibleZeroChange_rad
+  bool changed = false;  ///< beyond 3σ and beyond kNegligibleZeroChange_rad
 };
 
 /// A size beyond which a zero change is worth acting on: 30 µrad moves a tip 1.5 m out by

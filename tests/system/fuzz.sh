@@ -69,7 +69,7 @@ case $target in
   ipa_import)
     flags+=(-I"$root/tools/importers/include" -DSTEPCAL_ROBOTS_DIR="\"$root/robots\"")
     headers+=("$root/tools/importers/include")
-    sources=(common/src/{error,text_number,csv,lie,chain,urdf,campaign}.cpp tools/importers/src/ipa.cpp)
+    sources=(common/src/{error,text_number,csv,lie,chain,urdf,campaign}.cpp tools/importers/src/{ipa,shared}.cpp)
     # shellcheck disable=SC2207
     libs=($(pkg-config --libs urdfdom yaml-cpp))
     # The first rows of each real series, a NUL, the series' transform.

@@ -1,4 +1,6 @@
-// `stepcal import ipa`: a series of the IPA UR10 data set as a campaign (importers/ipa.hpp).
+// `stepcal import ipa`: a series of the IPA UR10 data set as a campaign (importers/ipa.hpp);
+// `stepcal import mapped`: a tracker export and a joint log, as a mapping file says
+// (importers/mapped.hpp).
 #include <iostream>
 #include <memory>
 #include <string>
@@ -7,6 +9,7 @@
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/robots.hpp"
 #include "stepcal/importers/ipa.hpp"
+#include "stepcal/importers/mapped.hpp"
 #include "subcommands.hpp"
 
 namespace stepcal::cli {
@@ -14,6 +17,7 @@ namespace {
 
 struct IpaArgs {
   std::string csv, out, robot = "ur10";
+  std::string mapping, mapped_out;
   int validation_from_row = -1;  ///< rows from here on become set=validation; -1: none
 };
 
@@ -33,7 +37,22 @@ Subcommand addImportCommand(CLI::App& app) {
                       shippedRobotList() + ")")
       ->capture_default_str();
   ipa->add_option("--out", a.out, "campaign folder to write")->required();
-  return {ipa, [args] {
+  CLI::App* mapped = import->add_subcommand(
+      "mapped",
+      "a tracker export beside a joint log, columns and units named by a mapping file "
+      "(docs/cell.md)");
+  mapped->add_option("mapping", a.mapping, "the mapping file (YAML, stepcal-import-mapping/1)")
+      ->required();
+  mapped->add_option("--out", a.mapped_out, "campaign folder to write")->required();
+  // One Subcommand for both: main.cpp sets the help footer on the selecting command's parents.
+  ipa->footer(exit_code::kHelpFooter);
+  mapped->footer(exit_code::kHelpFooter);
+  return {import, [args, mapped] {
+            if (*mapped) {
+              writeCampaign(importers::importMapped(args->mapping), args->mapped_out);
+              std::cerr << "wrote " << args->mapped_out << "\n";
+              return;
+            }
             writeCampaign(importers::importIpaSeries(args->csv, args->validation_from_row,
                                                      robotDescriptionPath(args->robot)),
                           args->out);

@@ -31,6 +31,7 @@ int main(int argc, char** argv) {
       addToolCommand(app),
       addFrameCommand(app),
       addCertifyCommand(app),
+      addRecheckCommand(app),
   };
   for (const Subcommand& subcommand : subcommands) {  // `import` as well as `import ipa`
     for (CLI::App* c = subcommand.command; c != nullptr; c = c->get_parent()) {

@@ -10,6 +10,7 @@
 #include "common.hpp"
 #include "stepcal/common/campaign.hpp"
 #include "stepcal/common/error.hpp"
+#include "stepcal/common/model_file.hpp"
 #include "stepcal/common/urdf.hpp"
 #include "stepcal/report/certificate.hpp"
 #include "stepcal/report/report.hpp"
@@ -25,6 +26,7 @@ struct PlanArgs {
   std::vector<double> loads_kg;  ///< empty: 0,20,40 with a sensor link, else 0
   std::vector<double> payload_cog_m;
   std::string candidates_from;  ///< a campaign whose measured poses are the candidates
+  std::string recheck_model;    ///< a model to plan the re-check of; empty: a calibration's plan
   std::string selection = "d-optimal";
   std::vector<double> tracker_m = {4.0, 0.0, 1.2};
   std::vector<int> off_axis_joints;  ///< 1-based, as on the command line
@@ -102,6 +104,32 @@ void runIsoPlan(const PlanArgs& a) {
   std::cout << report::formatIsoPlan(plan);
 }
 
+void writePlan(const trainer::CampaignPlan& plan, const PlanArgs& a) {
+  writePlannedRows(plan.rows, a.out);
+  std::cerr << "wrote " << a.out << "\n";
+  std::cout << report::formatPlan(plan, a.options);
+}
+
+// The re-check's plan of a stored model (`--recheck MODEL`): its robot as the controller knows it
+// (nominal_Base, its sensor frame), unloaded unless --loads says otherwise.
+void runRecheckPlan(PlanArgs a) {
+  const CalibratedModel model = readModelFile(a.recheck_model);
+  a.options.recheck = true;
+  a.options.loads_kg = a.loads_kg.empty() ? std::vector<double>{0.0} : a.loads_kg;
+  const bool loaded = std::any_of(a.options.loads_kg.begin(), a.options.loads_kg.end(),
+                                  [](double load_kg) { return load_kg != 0.0; });
+  if (loaded && model.sensor_frame < 0) {
+    throw InputError("--loads with payloads, but the model has no sensor frame; expected --loads 0",
+                     a.recheck_model);
+  }
+  if (!a.payload_cog_m.empty()) a.options.p_CoGInSensor_m = payloadCoG(a.payload_cog_m);
+  if (model.gravity_Base.norm() > 0.0) a.options.gravity_in_base_m_per_s2 = model.gravity_Base;
+  if (!a.candidates_from.empty()) {
+    a.options.given_candidates = measuredPoses(a.candidates_from, model.nominal_Base, a.options);
+  }
+  writePlan(trainer::planCampaign(model.nominal_Base, model.sensor_frame, a.options), a);
+}
+
 // Plans a campaign (trainer/plan.hpp), writes its pose list and says what was found.
 void runPlan(PlanArgs a) {
   if (a.iso9283) {
@@ -125,6 +153,7 @@ void runPlan(PlanArgs a) {
                      "--tracker 4,0,1.2)");
   }
   a.options.p_TrackerInBase_m = Vec3(a.tracker_m[0], a.tracker_m[1], a.tracker_m[2]);
+  if (!a.recheck_model.empty()) return runRecheckPlan(std::move(a));
   const Robot robot = resolveRobot(a.robot);
   const bool sensor = !robot.sensor_link.empty();
   if (a.loads_kg.empty()) {
@@ -149,10 +178,7 @@ void runPlan(PlanArgs a) {
   if (!a.candidates_from.empty()) {
     a.options.given_candidates = measuredPoses(a.candidates_from, chain, a.options);
   }
-  const trainer::CampaignPlan plan = trainer::planCampaign(chain, sensor ? 0 : -1, a.options);
-  writePlannedRows(plan.rows, a.out);
-  std::cerr << "wrote " << a.out << "\n";
-  std::cout << report::formatPlan(plan, a.options);
+  writePlan(trainer::planCampaign(chain, sensor ? 0 : -1, a.options), a);
 }
 
 }  // namespace
@@ -192,6 +218,10 @@ Subcommand addPlanCommand(CLI::App& app) {
                    "choose among the measured poses of this campaign (its unloaded fit rows, "
                    "pose_ids kept; weighed by its stated tracker noise) instead of drawing "
                    "candidates");
+  plan->add_option("--recheck", plan_args.recheck_model,
+                   "plan the re-check of this model (stepcal recheck; about twenty poses: "
+                   "--poses 20): poses that see the registration, the tool and each inner "
+                   "joint's zero; its robot replaces --robot, unloaded unless --loads");
   plan->add_option("--tracker", plan_args.tracker_m, "tracker head in base_link: x,y,z, m")
       ->delimiter(',')->capture_default_str();
   plan->add_option("--min-range-m", plan_args.options.min_range_m, "nearest tip distance, m")

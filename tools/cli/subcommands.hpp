@@ -35,7 +35,7 @@ struct Subcommand {
 
 Subcommand addSimulateCommand(CLI::App& app);   ///< simulate.cpp
 Subcommand addPlanCommand(CLI::App& app);       ///< plan.cpp
-Subcommand addImportCommand(CLI::App& app);     ///< import.cpp: import ipa
+Subcommand addImportCommand(CLI::App& app);     ///< import.cpp: import ipa, import mapped
 Subcommand addCalibrateCommand(CLI::App& app);  ///< calibrate.cpp
 Subcommand addValidateCommand(CLI::App& app);   ///< validate.cpp
 Subcommand addInspectCommand(CLI::App& app);    ///< inspect.cpp
@@ -46,5 +46,6 @@ Subcommand addCorrectCommand(CLI::App& app);    ///< correct.cpp
 Subcommand addToolCommand(CLI::App& app);       ///< tool.cpp
 Subcommand addFrameCommand(CLI::App& app);      ///< frame.cpp
 Subcommand addCertifyCommand(CLI::App& app);    ///< certify.cpp
+Subcommand addRecheckCommand(CLI::App& app);    ///< recheck.cpp
 
 }  // namespace stepcal::cli

@@ -113,19 +113,34 @@ void addTiltColumns(const KinematicChain& chain, const ChainWorkspace& ws, const
   }
 }
 
+/// The re-check's columns of the initial-pose Jacobian A (6 × 6(n+1)): the registration's and
+/// the tool's blocks, and each inner joint's zero (its block times its twist: recheck.cpp).
+Eigen::Matrix<double, 6, Eigen::Dynamic> recheckColumns(const KinematicChain& chain,
+                                                        const Eigen::Matrix<double, 6, Eigen::Dynamic>& A) {
+  const int n = chain.dof();
+  Eigen::Matrix<double, 6, Eigen::Dynamic> out(6, 12 + std::max(0, n - 2));
+  out.leftCols(6) = A.leftCols(6);
+  out.middleCols(6, 6) = A.middleCols(6 * n, 6);
+  for (int j = 1; j + 1 < n; ++j) {
+    out.col(11 + j) = A.middleCols(6 * j, 6) * chain.joints()[static_cast<size_t>(j)].twist_Local;
+  }
+  return out;
+}
+
 Eigen::MatrixXd identificationBlock(const KinematicChain& chain, int sensor_frame,
                                     const ChainWorkspace& ws, const std::vector<double>& payloads_kg,
                                     const PlanOptions& o) {
   const int n = chain.dof();
-  const int geometry_columns = 6 * (n + 1);
+  const int geometry_columns = o.recheck ? 12 + std::max(0, n - 2) : 6 * (n + 1);
   // Rows in units of the tracker's noise: position, then rotation when it is measured.
   const bool rotation = o.orientation_sigma_rad > 0.0;
   const int rows = rotation ? 6 : 3;
   const int tilt_columns = 2 * static_cast<int>(o.off_axis_joints.size());
   Eigen::MatrixXd block = Eigen::MatrixXd::Zero(rows * (1 + static_cast<int>(payloads_kg.size())),
                                                 geometry_columns + n + tilt_columns);
-  Eigen::Matrix<double, 6, Eigen::Dynamic> A(6, geometry_columns);
+  Eigen::Matrix<double, 6, Eigen::Dynamic> A(6, 6 * (n + 1));
   parameterJacobian(chain, ws, A);
+  if (o.recheck) A = recheckColumns(chain, A);
   const Vec3 p_TipInBase = tipPose(ws).translation();
   block.topLeftCorner(3, geometry_columns) =
       (A.topRows<3>() - lie::hat(p_TipInBase) * A.bottomRows<3>()) / o.position_sigma_m;

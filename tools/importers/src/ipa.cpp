@@ -35,6 +35,7 @@
 #include "stepcal/common/text_number.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/common/urdf.hpp"
+#include "shared.hpp"
 
 namespace stepcal::importers {
 namespace {
@@ -69,95 +70,6 @@ constexpr double kTrackerOrientationSigma_rad = 0.01 * kRadPerDeg;
 template <typename Names>
 bool contains(const Names& names, std::string_view name) {
   return std::find(names.begin(), names.end(), name) != names.end();
-}
-
-std::string readExistingFile(const fs::path& path, const std::string& what) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) {
-    throw InputError(what + (fs::is_directory(path, ec) ? " is a folder" : " not found") +
-                         "; expected a readable file",
-                     path.string());
-  }
-  return readTextFile(path.string());
-}
-
-// ---------------------------------------------------------------------------------------------
-// Trafo_TM_F_init.txt
-
-/// The 4×4 matrix of a Trafo file (whitespace separated, translation in mm) as X_TcpFlange.
-Pose readTcpFlange(const fs::path& path) {
-  const std::string file = path.string();
-  const std::string text = readExistingFile(path, "T-Mac transform " + inQuotes(kTrafoFile));
-  std::vector<std::string_view> lines = splitLines(text);
-  while (!lines.empty() && lines.back().find_first_not_of(" \t") == std::string_view::npos) {
-    lines.pop_back();  // blank lines after the matrix
-  }
-  if (lines.size() != 4) {
-    throw InputError(
-        "has " + std::to_string(lines.size()) + " lines; expected the 4 rows of a 4x4 transform",
-        file);
-  }
-  Eigen::Matrix4d M;
-  for (int r = 0; r < 4; ++r) {
-    std::vector<std::string_view> entries;
-    for (std::string_view token : splitFields(lines[static_cast<size_t>(r)], ' ')) {
-      for (std::string_view part : splitFields(token, '\t')) {
-        if (!part.empty()) entries.push_back(part);
-      }
-    }
-    if (entries.size() != 4) {
-      throw InputError(
-          "row has " + std::to_string(entries.size()) + " numbers; expected 4 separated by spaces",
-          file, r + 1);
-    }
-    for (int k = 0; k < 4; ++k) {
-      const std::string_view entry = entries[static_cast<size_t>(k)];
-      const std::optional<double> v = parseFinite(entry);
-      if (!v) {
-        throw InputError("expected a number with a decimal point, got " + inQuotes(entry), file,
-                         r + 1, std::to_string(k + 1));
-      }
-      M(r, k) = *v;
-    }
-  }
-  const Mat3 R = M.topLeftCorner<3, 3>();
-  const double orthonormality = (R.transpose() * R - Mat3::Identity()).cwiseAbs().maxCoeff();
-  if (M.row(3) != Eigen::RowVector4d(0, 0, 0, 1) || orthonormality > 1e-6 ||
-      R.determinant() < 0.0) {
-    throw InputError(
-        "expected a rigid transform (rotation block orthonormal to 1e-6 with "
-        "determinant +1, last row 0 0 0 1), got a rotation block off by " +
-            formatShortest(orthonormality) + " and last row " + formatShortest(M(3, 0)) + " " +
-            formatShortest(M(3, 1)) + " " + formatShortest(M(3, 2)) + " " + formatShortest(M(3, 3)),
-        file);
-  }
-  Pose X = Pose::Identity();
-  X.linear() = lie::projectToSO3(R);  // the file has 8 decimals
-  X.translation() = M.topRightCorner<3, 1>() * kMPerMm;
-  return X;
-}
-
-// ---------------------------------------------------------------------------------------------
-// Robot description
-
-/// The UR10 URDF with the link tmac fixed to tool0.
-std::string withTmacLink(const std::string& urdf, const Pose& X_FlangeTmac,
-                         const std::string& source) {
-  const size_t end = urdf.rfind("</robot>");
-  if (end == std::string::npos) {
-    throw InputError("expected a URDF robot description ending with </robot>", source);
-  }
-  const UrdfOrigin origin = urdfOriginOf(X_FlangeTmac);
-  const std::string block =
-      "  <!-- Added by the IPA importer: the Leica T-Mac frame the tracker measures, from " +
-      std::string(kTrafoFile) +
-      " (inverted, turned by pi about z). -->\n"
-      "  <link name=\"tmac\"/>\n"
-      "  <joint name=\"tool0-tmac\" type=\"fixed\">\n"
-      "    <parent link=\"tool0\"/><child link=\"tmac\"/>\n"
-      "    <origin xyz=\"" + origin.xyz + "\" rpy=\"" + origin.rpy + "\"/>\n"
-      "  </joint>\n";
-  return urdf.substr(0, end) + block + urdf.substr(end);
 }
 
 /// Refuses a robot description whose chain base_link → tmac is not the UR10's six joints.
@@ -259,15 +171,21 @@ Campaign importIpaSeries(const std::string& series_csv, int validation_from_row,
                      series_csv);
   }
   const fs::path csv_path(series_csv);
-  const std::string text = readExistingFile(csv_path, "IPA series file");
-  const Pose X_TcpFlange = readTcpFlange(csv_path.parent_path() / kTrafoFile);
+  const std::string text = readExistingFile(series_csv, "IPA series file");
+  const Pose X_TcpFlange =
+      readRigidTransformFile((csv_path.parent_path() / kTrafoFile).string(),
+                             "T-Mac transform " + inQuotes(kTrafoFile), kMPerMm);
   Pose Z_pi = Pose::Identity();
   Z_pi.linear() = lie::rotationFromRpy(0.0, 0.0, kPi);
   const Pose X_FlangeTmac = X_TcpFlange.inverse() * Z_pi;
 
   Campaign c;
-  c.urdf_xml = withTmacLink(readExistingFile(ur10_urdf_path, "UR10 robot description"),
-                            X_FlangeTmac, ur10_urdf_path);
+  c.urdf_xml = withFixedLink(readExistingFile(ur10_urdf_path, "UR10 robot description"), "tool0",
+                             "tmac", X_FlangeTmac,
+                             "Added by the IPA importer: the Leica T-Mac frame the tracker "
+                             "measures, from " + std::string(kTrafoFile) +
+                                 " (inverted, turned by pi about z).",
+                             ur10_urdf_path);
   checkChain(c.urdf_xml, ur10_urdf_path);
   c.base_link = "base_link";
   c.tip_link = "tmac";

@@ -415,7 +415,9 @@ std::string formatPlan(const trainer::CampaignPlan& plan, const trainer::PlanOpt
                   plan.candidates_drawn, plan.rejected_range, plan.rejected_floor,
                   plan.rejected_line_of_sight);
   }
-  out << format("log det of the normalised information (geometry + compliance, ridge %g): %.2f\n",
+  out << format("log det of the normalised information (%s, ridge %g): %.2f\n",
+                options.recheck ? "re-check: registration, tool, inner joint zeros"
+                                : "geometry + compliance",
                 options.ridge, plan.log_det_information);
   out << format("joint range covered (share of %d bins):", options.spread_bins);
   for (size_t i = 0; i < plan.joint_coverage.size(); ++i) {

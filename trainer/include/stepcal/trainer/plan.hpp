@@ -72,6 +72,10 @@ struct PlanOptions {
   /// information, so the plan seeks poses whose payload moment across the joint's axis varies
   /// and moves the tip. Empty: geometry and compliance only.
   std::vector<int> off_axis_joints;
+  /// A re-check's plan (`stepcal plan --recheck`, trainer/recheck.hpp): the information of what
+  /// a re-check fits, the registration (6), the tool (6) and the zeros of joints 2 … n−1, in
+  /// place of the whole geometry's 6(n+1) columns; compliance columns at the payloads as ever.
+  bool recheck = false;
 };
 
 /// A plan: the rows to measure and how it was found.

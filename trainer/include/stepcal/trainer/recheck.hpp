@@ -1,0 +1,65 @@
+// The re-check after a crash, a motor change or a re-mastering (docs/cell.md, "The re-check"):
+// a short campaign against a stored model, what changed (each joint's zero, the tool), with its
+// significance, and the model updated.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "stepcal/common/campaign.hpp"
+#include "stepcal/common/model_file.hpp"
+
+namespace stepcal::trainer {
+
+/// What the re-check fits beside the joint zeros.
+struct RecheckOptions {
+  /// Keep the model's tracker registration (the tracker has not moved since calibration): then
+  /// joint 1's zero is seen; otherwise a new registration absorbs it (a turn about the base's
+  /// first axis is a turn of the tracker).
+  bool keep_registration = false;
+  /// Keep the model's tool: then the last joint's zero is seen; otherwise the refitted tool
+  /// absorbs it (on rows with orientation; position-only rows see it through the tool's offset).
+  bool keep_tool = false;
+};
+
+/// One joint's zero: link angle = reading + delta_rad from now on.
+struct ZeroChange {
+  int joint = 0;        ///< 0-based
+  bool fitted = false;  ///< false: absorbed by the registration or the tool (see options)
+  double delta_rad = 0.0, sigma_rad = 0.0;
+  bool changed = false;  ///< beyond 3σ and beyond kNegligibleZeroChange_rad
+};
+
+/// A size beyond which a zero change is worth acting on: 30 µrad moves a tip 1.5 m out by
+/// 0.045 mm, three times a laser tracker's noise.
+inline constexpr double kNegligibleZeroChange_rad = 30e-6;
+/// A tool change worth acting on: 0.05 mm at the TCP.
+inline constexpr double kNegligibleToolChange_m = 0.05e-3;
+
+struct RecheckResult {
+  int fit_rows = 0, validation_rows = 0;
+  std::vector<ZeroChange> zeros;
+  bool tool_fitted = false;
+  Vec3 tool_translation_m = Vec3::Zero();  ///< the tip's move, in the tip frame
+  double tool_translation_sigma_m = 0.0;   ///< largest 1-σ of its components
+  bool tool_changed = false;
+  bool registration_fitted = false;
+  /// Mean position error of the fit rows, m: the stored model with only the tracker (and tool)
+  /// refitted, then with the zeros too.
+  double fit_error_frames_only_m = 0.0, fit_error_after_m = 0.0;
+  /// The same on the validation rows (set=validation), never fitted; 0 without such rows.
+  double validation_error_frames_only_m = 0.0, validation_error_after_m = 0.0;
+  double chi2_reduced = 0.0;
+  CalibratedModel updated;  ///< the model with the new zeros, tool and registration
+};
+
+/// Fits the model's registration, tool and joint zeros on the campaign's fit rows (every row but
+/// set=validation), the rest of the model kept. Throws InputError when the campaign is not of the
+/// model's robot or has fewer rows than unknowns.
+RecheckResult recheckModel(const CalibratedModel& model, const Campaign& campaign,
+                           const RecheckOptions& options);
+
+/// The operator's words: each changed zero with its 1-σ, the tool, or "nothing changed".
+std::string recheckVerdict(const RecheckResult& result);
+
+}  // namespace stepcal::trainer

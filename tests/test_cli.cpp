@@ -515,6 +515,30 @@ TEST(Cli, SimulateTheRobotAModelDescribes) {
                                     " --out " + (dir / "y").string());
   EXPECT_EQ(garbage.status, 2);
   EXPECT_NE(garbage.out.find("campaign.yaml"), std::string::npos) << garbage.out;
+  // A malformed --off-axis-compliance: refused as bad input with the value, what was expected
+  // and a hint, before anything is simulated.
+  const std::vector<std::pair<std::string, std::string>> bad_tilts = {
+      {"2-1.7e-7", "expected JOINT:C"},
+      {"2:", "expected JOINT:C"},
+      {"x:1e-7", "expected JOINT:C"},
+      {"2:1e-7mm", "expected JOINT:C"},
+      {"0:1e-7", "joint 0; expected a joint 1 … 6"},
+      {"7:1e-7", "joint 7; expected a joint 1 … 6"},
+      {"2:-1e-7", "compliance -1e-07 rad/(N·m); expected a finite value in [0, 1e-05)"},
+      {"2:nan", "compliance nan rad/(N·m); expected a finite value"},
+      {"2:abc", "expected JOINT:C"},
+      {"2:0.5", "compliance 0.5 rad/(N·m)"}};
+  for (const auto& [spec, said] : bad_tilts) {
+    const CommandResult tilt = run(kStepcal + " simulate --model " +
+                                   (dir / "extended.stepcal").string() +
+                                   " --off-axis-compliance '" + spec + "' --out " +
+                                   (dir / "tilted").string());
+    EXPECT_EQ(tilt.status, 2) << spec << ": " << tilt.out;
+    EXPECT_NE(tilt.out.find("--off-axis-compliance '" + spec + "'"), std::string::npos) << tilt.out;
+    EXPECT_NE(tilt.out.find(said), std::string::npos) << tilt.out;
+    EXPECT_NE(tilt.out.find("hint: 1:1.7e-7"), std::string::npos) << tilt.out;
+    EXPECT_FALSE(fs::exists(dir / "tilted")) << spec;
+  }
 }
 
 // Issue 42: a model knows its robot. The IRB4400's model given the real UR10's campaign (Series C)

@@ -339,6 +339,11 @@ struct GeometryPin {
   int unloaded_rows = 0;
   int rank = 0;         ///< identifiable geometry directions on the unloaded rows
   double f_statistic = 0.0;  ///< (Δcost / rank) / (cost_pinned / (equations − rank))
+  double f_limit = 0.0;      ///< pinned above it
+  /// How far the unloaded rows' geometry moves the modelled tip from the global fit's, over every
+  /// fit row (loaded ones included), RMS and largest, m: what the pin changed (pinned), or would
+  /// have (not pinned).
+  double tip_shift_rms_m = 0.0, tip_shift_max_m = 0.0;
 };
 
 /// A joint's transmission profile tried against the same profile modulated by the joint's
@@ -361,6 +366,27 @@ struct LoadModulatedProfile {
   double profile_gain_mm = 0.0, profile_reduction = 0.0, profile_z = 0.0, profile_p = 1.0;
 };
 
+/// The family a round chose against another global family significant in that round (the
+/// largest reductions first): whether the rows tell the two apart. Their collinearity on the fit
+/// rows is ρ, the largest canonical correlation of their columns once the round's model columns
+/// are taken out (1: a direction of one is a direction of the other; variance inflation 1/(1−ρ²));
+/// the test is held out, each added beside the other with the round's family-wise level and
+/// practical minimum. Neither adds beside the other: the rows cannot tell them apart, and the
+/// one named stands for either.
+struct FamilyPairTest {
+  Mechanism chosen, other;  ///< at their round's configurations
+  int round = 1;
+  double canonical_correlation = 0.0;
+  double variance_inflation = 1.0;  ///< 1/(1−ρ²); infinite at ρ = 1
+  struct Beside {
+    double cv_gain_mm = 0.0, relative_reduction = 0.0, z_statistic = 0.0, p_value = 1.0;
+    bool significant = false;
+  };
+  Beside chosen_beside_other, other_beside_chosen;
+  /// One of them adds significantly beside the other.
+  bool told_apart = true;
+};
+
 struct Diagnosis {
   Verdict verdict = Verdict::kNone;
   DriftVerdict drift;
@@ -372,6 +398,8 @@ struct Diagnosis {
   std::vector<ModelChange> changes;
   /// Profiles tried against the same profile times the joint's torque, where the rows tell them apart.
   std::vector<LoadModulatedProfile> load_modulated_profiles;
+  /// Per round that chose a global family, its tests against the other significant ones.
+  std::vector<FamilyPairTest> family_pairs;
   ResidualStatistics before, after;        ///< of the model without / with the effects
   std::string unexplained_trend;           ///< what the residual still follows, if anything
   /// What the catalogue does not explain, held out, and what it follows.

@@ -282,11 +282,12 @@ struct DiagnosedCampaign {
 /// A variable the extended model's residual may follow (Diagnosis::unexplained), judged held out
 /// as a family is: the residual fitted on a cubic in it (Legendre P1–P3 of the variable over its
 /// range on the fit rows) in the tracker's axes, and, where it belongs to a joint, through the
-/// arm: joint j's link angle (its angle, its torque), or the tilt and shift of joint j's frame
+/// arm: joint j's link angle (its angle, its torque, its torque from the arm's own weight), or the tilt and shift of joint j's frame
 /// (the payload's wrench in that frame); a torque modulated by harmonic h of its joint's angle
 /// through the link angle alone (τ_j cos h q_j, τ_j sin h q_j; one variable per h = 1–12).
 struct UnexplainedVariable {
-  /// e.g. "load_kg", "temp_c", "seq", "q3_deg", "tau3_nm", "joint3_mx_nm", "joint3_fz_n",
+  /// e.g. "load_kg", "temp_c", "seq", "q3_deg", "tau3_nm", "weight2_nm" (the links' gravity
+  /// torque: the model's self weight, else the URDF's masses), "joint3_mx_nm", "joint3_fz_n",
   /// "tau3_nm*h7(q3)"
   std::string name;
   std::string description;  ///< in words, e.g. "the payload's moment about joint 3's x axis"

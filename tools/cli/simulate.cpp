@@ -162,8 +162,8 @@ Subcommand addSimulateCommand(CLI::App& app) {
   simulate
       ->add_option("--off-axis-compliance", sim.off_axis_compliance,
                    "with --model: switch on a tilt of joint J across its axis in the twin, "
-                   "c M⊥ (off_axis_compliance, isotropic), J:C with C in rad/(N·m), e.g. "
-                   "1:1.7e-7; repeatable")
+                   "c M⊥ (off_axis_compliance, isotropic), J:C with J a joint of the model's chain "
+                   "(1-based) and C in [0, 1e-5) rad/(N·m), e.g. 1:1.7e-7; repeatable")
       ->needs(model_option);
   for (const char* robot_only : {"--robot", "--base-link", "--tip-link", "--sensor-link",
                                  "--protocol", "--stiffness"}) {

@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "stepcal/report/family_pairs_report.hpp"
 #include "stepcal/trainer/diagnose.hpp"
 #include "stepcal/trainer/pipeline.hpp"
 #include "stepcal/twin/twin.hpp"
@@ -40,9 +41,11 @@ void printGain(const Diagnosis& d) {
                 g.after_gpr.mean_position_m * 1e3, g.gpr.mean_position_m * 1e3,
                 d.floor_position_m * 1e3);
   }
-  std::printf("  geometry pinned: %s (F = %.2f, rank %d, %d unloaded rows); GPR taken: %s\n",
+  std::printf("  geometry pinned: %s (F = %.2f, rank %d, %d unloaded rows; the tip moved by "
+              "%.4f mm RMS, %.4f most); GPR taken: %s\n",
               d.geometry_pin.pinned ? "yes" : "no", d.geometry_pin.f_statistic,
               d.geometry_pin.rank, d.geometry_pin.unloaded_rows,
+              1e3 * d.geometry_pin.tip_shift_rms_m, 1e3 * d.geometry_pin.tip_shift_max_m,
               d.extended_gpr_taken ? "yes" : "no");
 }
 
@@ -84,6 +87,13 @@ TEST(DiagnoseBeyondTheCatalogue, AnAngleDependentStiffnessLeavesNoLoadWorseThanT
                                     {"harmonic", 6}, {"amplitude", 0.15}, {"phase_rad", 0.0}};
   const Diagnosis d = diagnoseInMixedOrder(paperOptions(3, {stiffness}));
   printGain(d);
+  // The unloaded rows reject the global fit's geometry, and the verdict says how far theirs moved
+  // the tip.
+  EXPECT_TRUE(d.geometry_pin.pinned);
+  EXPECT_GT(d.geometry_pin.tip_shift_rms_m, 0.0);
+  EXPECT_GE(d.geometry_pin.tip_shift_max_m, d.geometry_pin.tip_shift_rms_m);
+  EXPECT_EQ(report::geometryPinText(d.geometry_pin).rfind("pinned by the ", 0), 0u)
+      << report::geometryPinText(d.geometry_pin);
   EXPECT_TRUE(d.extended_gpr_taken);
   ASSERT_TRUE(d.extended_model.gpr.has_value());
   EXPECT_GT(d.extended_model.gpr->payload_force_reference_n, 0.0);

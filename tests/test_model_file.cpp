@@ -441,6 +441,43 @@ TEST_F(ModelFileTest, AccuracyFactorsRoundTripAreOptionalAndCheckedByField) {
   EXPECT_THROW(serializeModel(with), InputError);
 }
 
+// A bad reference force is refused at load with the field, the value read and what was expected;
+// a reference > 0 on a GPR whose inputs cannot hold the wrench (fewer than six) is refused too.
+TEST_F(ModelFileTest, ABadPayloadForceReferenceIsRefusedWithItsValue) {
+  CalibratedModel per_force = model();
+  per_force.gpr->payload_force_reference_n = 294.2;
+  const std::vector<uint8_t> b = serializeModel(per_force);
+  const size_t reference_at = payloadOf(b, "PROV") - 16 - 8;
+  ASSERT_EQ(getF64(b, reference_at), 294.2);
+  const std::vector<std::pair<double, std::string>> bad = {
+      {-3.0, "-3; expected > 0"},
+      {0.0, "0; expected > 0"},
+      {std::nan(""), "nan; expected a finite number"},
+      {std::numeric_limits<double>::infinity(), "inf; expected a finite number"}};
+  for (const auto& [value, said] : bad) {
+    std::vector<uint8_t> edited = b;
+    putF64(edited, reference_at, value);
+    refix(edited);
+    const std::string message = refusal(edited);
+    EXPECT_NE(message.find("byte " + std::to_string(reference_at) +
+                           ", gpr.payload_force_reference_n: " + said),
+              std::string::npos)
+        << message;
+  }
+  std::mt19937_64 rng(8);
+  CalibratedModel few_inputs = model();
+  few_inputs.gpr = randomGpr(rng, 20, 5, 3);
+  few_inputs.gpr->payload_force_reference_n = 300.0;
+  try {
+    serializeModel(few_inputs);
+    ADD_FAILURE() << "a reference force with 5 inputs was written";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("gpr.payload_force_reference_n is 300 with D = 5"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST_F(ModelFileTest, IllConditionedButConsistentGprIsAccepted) {
   // Long length scales and σ_f/σ_n = 1e6: α from Cholesky leaves ‖(K + σ_n² I) α − Y‖ / ‖Y‖
   // around 1e-3, yet it is the exact solution to working precision (backward error ~1e-16).

@@ -19,6 +19,7 @@
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/twin/draws.hpp"
+#include "stepcal/twin/effects.hpp"
 #include "stepcal/twin/twin.hpp"
 #include "support/campaign_rows.hpp"
 
@@ -309,6 +310,10 @@ TEST(TwinLoadEffects, SizesOnThePaperProtocol) {
        angleDependentStiffness(2, 6, 0.15, 0.0), 0.03, 0.08, 0.1, 0.25},
       {"angle_dependent_stiffness joint 3, k 6, eps 0.15",
        angleDependentStiffness(3, 6, 0.15, 0.0), 0.02, 0.06, 0.05, 0.15},
+      // At most c m g (the sensor's axis vertical): 0.039 mm at 20 kg, 0.108 mm at 55 kg.
+      {"tool_mount_compliance c 2e-7 m/N",
+       {{"name", "tool_mount_compliance"}, {"compliance_m_per_n", 2e-7}}, 0.005, 0.0393, 0.015,
+       0.108},
   };
   for (const Case& c : cases) {
     std::map<double, double> mean;
@@ -328,6 +333,27 @@ TEST(TwinLoadEffects, SizesOnThePaperProtocol) {
   }
 }
 
+
+// The tool mount's shift against its closed form, and its compliance checked by name.
+TEST(TwinLoadEffects, AToolMountShiftsAlongTheSensorsAxisByItsForce) {
+  const ToolMountCompliance mount(2e-7);
+  const Vec3 z = Vec3(1.0, 2.0, 2.0) / 3.0;
+  const Vec3 force(0.0, 0.0, -539.0);
+  const Vec3 shift = mount.shift(force, z);
+  EXPECT_LT((shift - 2e-7 * (-539.0 * 2.0 / 3.0) * z).norm(), 1e-18);
+  EXPECT_NEAR(shift.cross(z).norm(), 0.0, 1e-18);  // along the axis only
+  EXPECT_EQ(mount.shift(Vec3(539.0, 0.0, 0.0), Vec3::UnitZ()), Vec3::Zero());
+  for (const double bad : {-1e-7, 1e-5, std::nan("")}) {
+    try {
+      ToolMountCompliance refused(bad);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("tool_mount_compliance.compliance_m_per_n = "),
+                std::string::npos)
+          << e.what();
+    }
+  }
+}
 
 TEST(TwinLoadEffects, ForeignMixesAreTheirDesignsEffectsAtTheirSizes) {
   std::map<std::string, int> designs;

@@ -54,6 +54,31 @@ TEST(Unexplained, ACleanCampaignLeavesNothing) {
   EXPECT_FALSE(u.learner_significant) << u.text;
   EXPECT_GT(u.variables_tested, 100);  // q, τ, τ·harmonics, load, seq, the wrench in 6 frames
   EXPECT_EQ(u.text.rfind("nothing unexplained", 0), 0u) << u.text;
+  // The IRB4400's description has no masses: no variable of the links' own weight.
+  EXPECT_EQ(variableNamed(d, "weight2_nm"), nullptr);
+}
+
+// The UR10's description has its links' masses, and the twin deflects its joints under them: the
+// diagnosis names the self weight, and each joint's torque from the arm's own weight (the self
+// weight's masses) is a candidate variable of the unexplained part, tested through the joint's
+// link angle; on a clean campaign it follows nothing.
+TEST(Unexplained, TheArmsOwnWeightIsACandidateVariable) {
+  const twin::TwinOptions options = twin::twinOptionsForRobot(
+      std::string(STEPCAL_ROBOTS_DIR) + "/ur10.urdf", "base_link", "tool0", "");
+  twin::TwinOptions seeded = options;
+  seeded.seed = 101;
+  const Diagnosis d = diagnoseSimulation(seeded);
+  const UnexplainedPart& u = d.unexplained;
+  std::cout << "unexplained: " << u.text << "\n";
+  for (const char* name : {"weight2_nm", "weight3_nm"}) {
+    const UnexplainedVariable* weight = variableNamed(d, name);
+    ASSERT_NE(weight, nullptr) << name;
+    EXPECT_EQ(weight->joint, name[6] - '1');
+    EXPECT_EQ(weight->description,
+              "joint " + std::string(1, name[6]) + "'s torque from the arm's own weight");
+    EXPECT_FALSE(weight->significant) << name << " z " << weight->z_statistic;
+  }
+  EXPECT_FALSE(u.any) << u.text;
 }
 
 // Joint 1's bearing tilts under the moment it carries (the payload's and the links' weight),
@@ -99,6 +124,31 @@ TEST(Unexplained, AnAngleDependentStiffnessIsItsJointsTorqueWithItsAngle) {
   ASSERT_NE(seq, nullptr);
   EXPECT_FALSE(seq->significant);
   EXPECT_TRUE(u.learner_significant);
+}
+
+// Outside the catalogue, of another kind than a joint's: the tool's mount gives along the F/T
+// sensor's axis under the payload's force (the twin's tool_mount_compliance, c = 2e-7 m/N: the
+// tool moves by c (z·F) z, up to 0.11 mm at 55 kg). A shift beyond the last joint that no
+// catalogued mechanism makes. The unexplained part names the payload's force along the wrist's
+// axis first (joint 6's x axis on the IRB4400, the sensor's z), not the time order, and no drift
+// is named. The search still names a cause that is not there, joint 4's off-axis compliance,
+// which takes part of it (0.0241 mm held out is left, 1.5× the floor): a wrong cause beside an
+// effect outside the catalogue, what the rules for naming kinds are to settle.
+TEST(Unexplained, AToolMountThatGivesIsThePayloadsForceAlongTheWristAxis) {
+  const Diagnosis d = diagnosedMixed(
+      5, {{"name", "tool_mount_compliance"}, {"compliance_m_per_n", 2e-7}});
+  const UnexplainedPart& u = d.unexplained;
+  std::cout << "named: " << effectsText(d) << "\nunexplained: " << u.text << "\n";
+  for (const FoundEffect& e : d.effects) {
+    EXPECT_NE(e.mechanism.kind, MechanismKind::kRegistrationDrift) << effectsText(d);
+  }
+  EXPECT_TRUE(u.any) << u.text;
+  const UnexplainedVariable* first = strongest(d);
+  ASSERT_NE(first, nullptr) << u.text;
+  EXPECT_EQ(first->name, "joint6_fx_n") << u.text;
+  const UnexplainedVariable* time = variableNamed(d, "seq");
+  ASSERT_NE(time, nullptr);
+  EXPECT_FALSE(time->significant);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 #include <memory>
 #include <stdexcept>
@@ -22,23 +23,49 @@
 namespace stepcal::cli {
 namespace {
 
-// "J:C" of --off-axis-compliance: joint J (1-based) and c rad/(N·m), as (J − 1, c).
-std::pair<int, double> offAxisComplianceSpec(const std::string& spec) {
+// A number as written, shortest form ("-1e-07", "nan").
+std::string shortest(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
+
+// "J:C" of --off-axis-compliance on a chain of `joints` joints: joint J (1-based) and c
+// rad/(N·m), as (J − 1, c); a joint outside the chain or a compliance no bearing has is refused
+// with the option's own words (the twin's mechanism check would name a 0-based index).
+std::pair<int, double> offAxisComplianceSpec(const std::string& spec, int joints) {
+  constexpr double kMostCompliance_rad_per_nm = 1e-5;  // the twin's bearing_tilt bound
+  const std::string hint = " (hint: 1:1.7e-7, a heavy robot's base bearing)";
   const size_t colon = spec.find(':');
+  int joint = 0;
+  double c = 0.0;
+  bool parsed = false;
   try {
     if (colon != std::string::npos) {
       size_t used = 0;
-      const int joint = std::stoi(spec.substr(0, colon), &used);
+      joint = std::stoi(spec.substr(0, colon), &used);
       const std::string c_text = spec.substr(colon + 1);
       size_t c_used = 0;
-      const double c = std::stod(c_text, &c_used);
-      if (used == colon && c_used == c_text.size()) return {joint - 1, c};
+      c = std::stod(c_text, &c_used);
+      parsed = used == colon && c_used == c_text.size();
     }
   } catch (const std::logic_error&) {
   }
-  throw InputError("--off-axis-compliance '" + spec +
-                   "'; expected JOINT:C, a joint (1-based) and its tilt compliance across the "
-                   "axis in rad/(N·m) (hint: 1:1.7e-7, a heavy robot's base bearing)");
+  if (!parsed) {
+    throw InputError("--off-axis-compliance '" + spec +
+                     "'; expected JOINT:C, a joint (1-based) and its tilt compliance across the "
+                     "axis in rad/(N·m)" + hint);
+  }
+  if (joint < 1 || joint > joints) {
+    throw InputError("--off-axis-compliance '" + spec + "': joint " + std::to_string(joint) +
+                     "; expected a joint 1 … " + std::to_string(joints) + " of the model's chain" +
+                     hint);
+  }
+  if (!(std::isfinite(c) && c >= 0.0 && c < kMostCompliance_rad_per_nm)) {
+    throw InputError("--off-axis-compliance '" + spec + "': compliance " + shortest(c) +
+                     " rad/(N·m); expected a finite value in [0, 1e-05) rad/(N·m)" + hint);
+  }
+  return {joint - 1, c};
 }
 
 // The twin of a calibrated robot (model_twin.hpp): the model's physics on a campaign's rows.
@@ -52,12 +79,10 @@ void runSimulateModel(const SimulateArgs& a) {
     options.tracker_orientation_sigma_rad = a.orientation_sigma_deg * kRadPerDeg;
   }
   if (!a.payload_cog_m.empty()) options.p_CoGInSensor_m = payloadCoG(a.payload_cog_m);
-  if (!a.poses.empty()) {
-    options.planned_fit_rows =
-        readPoseList(a.poses, readModelFile(a.model).chain_Tracker.dof());
-  }
+  const int joints = readModelFile(a.model).chain_Tracker.dof();
+  if (!a.poses.empty()) options.planned_fit_rows = readPoseList(a.poses, joints);
   for (const std::string& spec : a.off_axis_compliance) {
-    options.off_axis_compliance.push_back(offAxisComplianceSpec(spec));
+    options.off_axis_compliance.push_back(offAxisComplianceSpec(spec, joints));
   }
   twin::writeModelSimulation(options, a.out);
 }
@@ -137,8 +162,8 @@ Subcommand addSimulateCommand(CLI::App& app) {
   simulate
       ->add_option("--off-axis-compliance", sim.off_axis_compliance,
                    "with --model: switch on a tilt of joint J across its axis in the twin, "
-                   "c M⊥ (off_axis_compliance, isotropic), J:C with C in rad/(N·m), e.g. "
-                   "1:1.7e-7; repeatable")
+                   "c M⊥ (off_axis_compliance, isotropic), J:C with J a joint of the model's chain "
+                   "(1-based) and C in [0, 1e-5) rad/(N·m), e.g. 1:1.7e-7; repeatable")
       ->needs(model_option);
   for (const char* robot_only : {"--robot", "--base-link", "--tip-link", "--sensor-link",
                                  "--protocol", "--stiffness"}) {

@@ -14,6 +14,7 @@
 #include "stepcal/common/mechanisms/transmission_error.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/report/text_format.hpp"
+#include "stepcal/report/family_pairs_report.hpp"
 #include "stepcal/report/unexplained_report.hpp"
 
 namespace stepcal::report {
@@ -520,6 +521,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
   for (const trainer::LoadModulatedProfile& f : d.load_modulated_profiles) {
     out += "  profile or load: " + loadModulatedProfileText(f) + "\n";
   }
+  for (const std::string& line : familyPairLines(d)) out += "  cannot be told apart: " + line + "\n";
   if (!d.drift.text.empty()) out += "  drift: " + d.drift.text + "\n";
   if (!d.unexplained_trend.empty()) {
     out += "  " + std::string(d.verdict == trainer::Verdict::kUnexplained
@@ -530,6 +532,9 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
   out += unexplainedText(d.unexplained);
   if (!d.effects.empty()) out += "\n" + statisticsText("  after", d.after);
   out += campaignsText(d);
+  if (const std::string pin = geometryPinText(d.geometry_pin); !pin.empty()) {
+    out += "\nThe extended model's geometry: " + pin + "\n";
+  }
 
   out += format("\nThe extended model's GPR: %d training rows, held-out reduction z %.1f: %s\n",
                 d.extended_gpr_rows, d.extended_gpr_z,
@@ -780,6 +785,8 @@ nlohmann::json diagnosisJson(const trainer::Diagnosis& d, double seconds_calibra
       j["load_modulated_profiles"].push_back(loadModulatedProfileJson(f));
     }
   }
+  j["family_pairs"] = familyPairsJson(d);
+  j["geometry_pin"] = geometryPinJson(d.geometry_pin);
   j["drift"] = driftJson(d.drift);
   j["unexplained"] = unexplainedJson(d.unexplained);
   j["residual"] = {{"before", residualStatisticsJson(d.before)},

@@ -43,7 +43,8 @@ namespace {
 constexpr const char* kKnownEffects[] = {
     "joint_compliance", "backlash",    "transmission_error", "nonlinear_stiffness",
     "joint_coupling",   "self_weight", "thermal_expansion",  "sensor_bias", "torsion_curve",
-    "joint_zero_drift", "registration_drift", "angle_dependent_stiffness", "bearing_tilt"};
+    "joint_zero_drift", "registration_drift", "angle_dependent_stiffness", "bearing_tilt",
+    "tool_mount_compliance"};
 
 std::string show(double v) {
   std::ostringstream s;
@@ -272,6 +273,24 @@ Vec3 BearingTilt::tilt(const Vec3& moment_Joint, const Vec3& axis_Joint) const n
   return compliance_rad_per_nm_ * (moment_Joint - axis_Joint * axis_Joint.dot(moment_Joint));
 }
 
+ToolMountCompliance::ToolMountCompliance(double compliance_m_per_n)
+    : compliance_m_per_n_(compliance_m_per_n) {
+  if (!(std::isfinite(compliance_m_per_n) && compliance_m_per_n >= 0.0 &&
+        compliance_m_per_n < 1e-5)) {
+    throw InputError(name() + ".compliance_m_per_n = " + show(compliance_m_per_n) +
+                     " m/N; expected a finite value in [0, 1e-05) m/N (a compliant tool mount: "
+                     "about 2e-07)");
+  }
+}
+
+Vec3 ToolMountCompliance::shift(const Vec3& force_Base, const Vec3& z_Base) const noexcept {
+  return compliance_m_per_n_ * z_Base.dot(force_Base) * z_Base;
+}
+
+nlohmann::json ToolMountCompliance::toJson() const {
+  return {{"name", name()}, {"compliance_m_per_n", compliance_m_per_n_}};
+}
+
 nlohmann::json BearingTilt::toJson() const {
   return {{"name", name()}, {"joint", joint_}, {"compliance_rad_per_nm", compliance_rad_per_nm_}};
 }
@@ -487,6 +506,9 @@ void EffectSet::add(const nlohmann::json& j, int dof) {
     bearing_tilt.push_back(tilt);
     std::sort(bearing_tilt.begin(), bearing_tilt.end(),
               [](const BearingTilt& a, const BearingTilt& b) { return a.joint() < b.joint(); });
+  } else if (name == ToolMountCompliance::name()) {
+    once(tool_mount.has_value());
+    tool_mount.emplace(j.at("compliance_m_per_n").get<double>());
   } else if (name == "joint_compliance") {
     auto stiffness = j.at("stiffness_nm_per_rad").get<std::vector<double>>();
     if (stiffness.size() != static_cast<size_t>(dof)) {
@@ -540,6 +562,7 @@ nlohmann::json EffectSet::toJson() const {
   nlohmann::json all = nlohmann::json::array();
   for (const auto& e : link_angle) all.push_back(e->toJson());
   for (const BearingTilt& t : bearing_tilt) all.push_back(t.toJson());
+  if (tool_mount) all.push_back(tool_mount->toJson());
   if (self_weight) all.push_back(self_weight->toJson());
   if (thermal_expansion) all.push_back(thermal_expansion->toJson());
   if (sensor_bias) all.push_back(sensor_bias->toJson());

@@ -157,7 +157,13 @@ TwinRobot::Deflection TwinRobot::deflection(const JointVector& q_cmd_rad, double
       }
       d.tilt_rad = next_tilt;
     }
-    if (step <= kFixedPointTolerance_rad) return d;
+    if (step <= kFixedPointTolerance_rad) {
+      if (effects_.tool_mount && sensor_frame_ >= 0) {
+        d.tool_shift_m = effects_.tool_mount->shift(
+            W_payload.head<3>(), framePose(chain_, ws, sensor_frame_).linear().col(2));
+      }
+      return d;
+    }
   }
   throw InputError("the link angles under a " + std::to_string(load_kg) +
                    " kg payload did not converge; expected a structure stiff enough to carry it "
@@ -182,6 +188,7 @@ void TwinRobot::framesAt(const Deflection& d, double scale, ChainWorkspace& ws) 
     const Pose moved = ws.X_RootFrame[j] * X_Tilt * ws.X_RootFrame[j].inverse();
     for (size_t k = j; k <= tip; ++k) ws.X_RootFrame[k] = moved * ws.X_RootFrame[k];
   }
+  ws.X_RootFrame[tip].translation() += d.tool_shift_m;
 }
 
 void TwinRobot::bearingTilts(const ChainWorkspace& ws, const Vec6& W_payload,

@@ -1,6 +1,7 @@
 // The extended model and its gain on the validation rows (search.hpp).
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #include "../least_squares.hpp"
 #include "search.hpp"
@@ -94,6 +95,20 @@ PhysicalModel geometryRefitted(PhysicalModel model, const FitRows& rows, int* ra
   return model;
 }
 
+// How far the pinned geometry moves the modelled tip from the found one over the fit rows: the
+// position part of the two residuals' difference, unweighted.
+void tipShift(const PhysicalModel& found, const PhysicalModel& pinned, const FitRows& fit,
+              GeometryPin& pin) {
+  const Eigen::VectorXd shift = residuals(found, fit) - residuals(pinned, fit);
+  double sum = 0.0;
+  for (size_t i = 0; i < fit.rows.size(); ++i) {
+    const double d_m = shift.segment(fit.start[i], 3).norm() / fit.w_p;
+    sum += d_m * d_m;
+    pin.tip_shift_max_m = std::max(pin.tip_shift_max_m, d_m);
+  }
+  if (!fit.rows.empty()) pin.tip_shift_rms_m = std::sqrt(sum / static_cast<double>(fit.rows.size()));
+}
+
 // The paper's step 1 within the extended model: where the unloaded fit rows reject the geometry
 // the global fit found on every fit row (a load effect the catalogue cannot explain leaked into
 // it), the geometry they alone give, the mechanisms held; the loaded rows' rest is the GPR's.
@@ -114,7 +129,9 @@ PhysicalModel pinnedToUnloaded(const PhysicalModel& found, const Search& search,
   pin.tested = pin.rank > 0 && dof > 0 && cost_pinned > 0.0;
   if (!pin.tested) return found;
   pin.f_statistic = ((cost_found - cost_pinned) / pin.rank) / (cost_pinned / dof);
+  pin.f_limit = kPinF;
   pin.pinned = pin.f_statistic > kPinF;
+  tipShift(found, pinned, search.fit, pin);
   return pin.pinned ? pinned : found;
 }
 

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "confounds.hpp"
+#include "family_pairs.hpp"
 #include "model_fits.hpp"
 #include "profile_load_check.hpp"
 #include "scoring.hpp"
@@ -129,6 +130,8 @@ void searchRounds(Search& search) {
     }
     const size_t chosen = choose(scored, significant);
     scored[chosen].score.chosen = true;
+    // Whether the rows tell it from the others that explained the residual too.
+    testFamilyPairs(scored, chosen, significant, cv, *grams, sc, passes, round, d.family_pairs);
     addFamily(dm, scored[chosen]);
     rivals.clear();
     if (scored[chosen].family->extends >= 0) {

@@ -53,14 +53,19 @@ struct Layout {
   int seq() const { return 2 * n + 2; }
   /// Component c of the payload's wrench in joint j's frame: fx, fy, fz (N), mx, my, mz (N·m).
   int wrench(int j, int c) const { return 2 * n + 3 + 6 * j + c; }
-  int size() const { return 8 * n + 3; }
+  /// Joint j's gravity torque of the arm's own links (N·m; NaN: no masses known).
+  int weight(int j) const { return 8 * n + 3 + j; }
+  int size() const { return 9 * n + 3; }
+  /// The links' masses and first moments (a self_weight's parameters): the model's self weight
+  /// where it has one, else the URDF's; null: neither.
+  const std::vector<double>* link_masses = nullptr;
 };
 
-using RowValues = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 8 * kMaxJoints + 3, 1>;
+using RowValues = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 9 * kMaxJoints + 3, 1>;
 
 // The row's variables: its recorded angles (deg), the model's torques, its load, temperature and
-// time order, and the payload's measured wrench in each joint's frame before its motion, at the
-// model's link angles.
+// time order, the payload's measured wrench in each joint's frame before its motion, and each
+// joint's torque from the links' own weight, at the model's link angles.
 RowValues rowValues(const PhysicalModel& model, const Measurement& row, const JointVector& theta,
                     const JointVector& tau, const Layout& at, ChainWorkspace& ws) {
   RowValues v = RowValues::Zero(at.size());
@@ -68,12 +73,21 @@ RowValues rowValues(const PhysicalModel& model, const Measurement& row, const Jo
   for (int j = 0; j < at.n; ++j) {
     v(at.q(j)) = kDegPerRad * row.q_rad(j);
     v(at.tau(j)) = tau(j);
+    v(at.weight(j)) = std::numeric_limits<double>::quiet_NaN();
   }
   v(at.load()) = row.load_kg;
   v(at.temp()) = rowTemperature(row);
   v(at.seq()) = static_cast<double>(row.seq);
-  if (model.sensor_frame < 0 || !row.has_wrench) return v;
+  const bool weight = at.link_masses != nullptr && model.gravity_Tracker.squaredNorm() > 0.0;
+  const bool wrench = model.sensor_frame >= 0 && row.has_wrench;
+  if (!weight && !wrench) return v;
   forwardKinematics(chain, theta, ws);
+  if (weight) {
+    JointVector weight_nm;
+    selfWeightTorques(chain, ws, model.gravity_Tracker, *at.link_masses, weight_nm);
+    for (int j = 0; j < at.n; ++j) v(at.weight(j)) = weight_nm(j);
+  }
+  if (!wrench) return v;
   const Vec6 W = wrenchInRoot(framePose(chain, ws, model.sensor_frame), row.wrench_Sensor);
   for (int j = 0; j < at.n; ++j) {
     const Pose X_RootJoint = ws.X_RootFrame[static_cast<size_t>(j)] * chain.initialPose(j);
@@ -136,6 +150,8 @@ std::vector<Spec> variableSpecs(const KinematicChain& chain, const Layout& at) {
     const std::string J = std::to_string(j + 1);
     add("q" + J + "_deg", jointText(j) + "'s angle", at.q(j), Reach::kLinkAngle, j);
     add("tau" + J + "_nm", jointText(j) + "'s torque", at.tau(j), Reach::kLinkAngle, j);
+    add("weight" + J + "_nm", jointText(j) + "'s torque from the arm's own weight", at.weight(j),
+        Reach::kLinkAngle, j);
   }
   for (int j = 0; j < n; ++j) {
     const std::string J = std::to_string(j + 1);
@@ -567,7 +583,11 @@ void judgeUnexplained(Search& search, const PhysicalModel& extended, const Track
   UnexplainedPart& u = d.unexplained;
   heldOutResidual(d, noise, u);
 
-  const Layout at{extended.chain_Tracker.dof()};
+  Layout at{extended.chain_Tracker.dof()};
+  at.link_masses = search.body_masses ? &*search.body_masses : nullptr;
+  for (const Mechanism& m : extended.mechanisms) {
+    if (m.kind == MechanismKind::kSelfWeight) at.link_masses = &m.parameters;
+  }
   const std::vector<Range> ranges = rangesOf(extended, fit, at);
   Tests tests;
   tests.ranges = &ranges;

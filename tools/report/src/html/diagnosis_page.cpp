@@ -12,6 +12,7 @@
 #include "stepcal/report/html/page.hpp"
 #include "stepcal/report/report_html.hpp"
 #include "stepcal/report/text_format.hpp"
+#include "stepcal/report/family_pairs_report.hpp"
 #include "stepcal/report/unexplained_report.hpp"
 
 namespace stepcal::report {
@@ -134,6 +135,7 @@ class DiagnosisPage {
     }
     if (!d_.drift.text.empty()) out_ << "<p>What drifted: " << escape(d_.drift.text) << ".</p>\n";
     out_ << driftConfoundsSection(d_.drift);
+    out_ << familyPairsSection(d_);
     writeEffects();
     writeSignatures();
     out_ << unexplainedSection(d_.unexplained);
@@ -303,6 +305,9 @@ class DiagnosisPage {
            << cell("%.4f", g.after_gpr.mean_position_m * kMmPerM) << "</td></tr>\n";
     }
     out_ << "</table>\n";
+    if (const std::string pin = geometryPinText(d_.geometry_pin); !pin.empty()) {
+      out_ << "<p>The extended model's geometry: " << escape(pin) << ".</p>\n";
+    }
   }
 
   const Campaign& campaign_;

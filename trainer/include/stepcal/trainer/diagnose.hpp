@@ -282,11 +282,12 @@ struct DiagnosedCampaign {
 /// A variable the extended model's residual may follow (Diagnosis::unexplained), judged held out
 /// as a family is: the residual fitted on a cubic in it (Legendre P1–P3 of the variable over its
 /// range on the fit rows) in the tracker's axes, and, where it belongs to a joint, through the
-/// arm: joint j's link angle (its angle, its torque), or the tilt and shift of joint j's frame
+/// arm: joint j's link angle (its angle, its torque, its torque from the arm's own weight), or the tilt and shift of joint j's frame
 /// (the payload's wrench in that frame); a torque modulated by harmonic h of its joint's angle
 /// through the link angle alone (τ_j cos h q_j, τ_j sin h q_j; one variable per h = 1–12).
 struct UnexplainedVariable {
-  /// e.g. "load_kg", "temp_c", "seq", "q3_deg", "tau3_nm", "joint3_mx_nm", "joint3_fz_n",
+  /// e.g. "load_kg", "temp_c", "seq", "q3_deg", "tau3_nm", "weight2_nm" (the links' gravity
+  /// torque: the model's self weight, else the URDF's masses), "joint3_mx_nm", "joint3_fz_n",
   /// "tau3_nm*h7(q3)"
   std::string name;
   std::string description;  ///< in words, e.g. "the payload's moment about joint 3's x axis"
@@ -339,6 +340,11 @@ struct GeometryPin {
   int unloaded_rows = 0;
   int rank = 0;         ///< identifiable geometry directions on the unloaded rows
   double f_statistic = 0.0;  ///< (Δcost / rank) / (cost_pinned / (equations − rank))
+  double f_limit = 0.0;      ///< pinned above it
+  /// How far the unloaded rows' geometry moves the modelled tip from the global fit's, over every
+  /// fit row (loaded ones included), RMS and largest, m: what the pin changed (pinned), or would
+  /// have (not pinned).
+  double tip_shift_rms_m = 0.0, tip_shift_max_m = 0.0;
 };
 
 /// A joint's transmission profile tried against the same profile modulated by the joint's
@@ -361,6 +367,27 @@ struct LoadModulatedProfile {
   double profile_gain_mm = 0.0, profile_reduction = 0.0, profile_z = 0.0, profile_p = 1.0;
 };
 
+/// The family a round chose against another global family significant in that round (the
+/// largest reductions first): whether the rows tell the two apart. Their collinearity on the fit
+/// rows is ρ, the largest canonical correlation of their columns once the round's model columns
+/// are taken out (1: a direction of one is a direction of the other; variance inflation 1/(1−ρ²));
+/// the test is held out, each added beside the other with the round's family-wise level and
+/// practical minimum. Neither adds beside the other: the rows cannot tell them apart, and the
+/// one named stands for either.
+struct FamilyPairTest {
+  Mechanism chosen, other;  ///< at their round's configurations
+  int round = 1;
+  double canonical_correlation = 0.0;
+  double variance_inflation = 1.0;  ///< 1/(1−ρ²); infinite at ρ = 1
+  struct Beside {
+    double cv_gain_mm = 0.0, relative_reduction = 0.0, z_statistic = 0.0, p_value = 1.0;
+    bool significant = false;
+  };
+  Beside chosen_beside_other, other_beside_chosen;
+  /// One of them adds significantly beside the other.
+  bool told_apart = true;
+};
+
 struct Diagnosis {
   Verdict verdict = Verdict::kNone;
   DriftVerdict drift;
@@ -372,6 +399,8 @@ struct Diagnosis {
   std::vector<ModelChange> changes;
   /// Profiles tried against the same profile times the joint's torque, where the rows tell them apart.
   std::vector<LoadModulatedProfile> load_modulated_profiles;
+  /// Per round that chose a global family, its tests against the other significant ones.
+  std::vector<FamilyPairTest> family_pairs;
   ResidualStatistics before, after;        ///< of the model without / with the effects
   std::string unexplained_trend;           ///< what the residual still follows, if anything
   /// What the catalogue does not explain, held out, and what it follows.

@@ -21,7 +21,8 @@
 // ThermalExpansion (s) and SensorBias (the reading only; the robot's physics is unaffected).
 // BearingTilt turns the frames beyond a joint under the moment perpendicular to its axis: it
 // joins step 1's fixed point (every frame evaluated with the tilts, the tilts from the wrench
-// at those frames).
+// at those frames). ToolMountCompliance shifts the tool along the sensor's axis under the
+// payload's force (after step 1: a shift of micrometres does not change the torques).
 // EffectSet holds one twin's mechanisms and builds them from their truth.json objects.
 // Joints and links are numbered 1 … n in names, parameters and truth.json.
 #pragma once
@@ -196,6 +197,27 @@ class BearingTilt final {
   double compliance_rad_per_nm_;
 };
 
+/// The tool's mount (the F/T sensor, a tool changer) gives along the sensor's z axis under the
+/// payload: the tool moves by δ = c (z·F) z, F the payload's force and z the sensor's z axis.
+/// A spring in series with the arm beyond its last joint that shifts, not tilts: no joint's
+/// frame and no mechanism of the catalogue has it.
+class ToolMountCompliance final {
+ public:
+  /// compliance_m_per_n finite in [0, 1e-5) m/N (0: none). Throws InputError naming the key and
+  /// the value.
+  explicit ToolMountCompliance(double compliance_m_per_n);
+  /// Name of the mechanism; the "name" key of its truth.json object.
+  static std::string name() { return "tool_mount_compliance"; }
+  /// δ [m] from the payload's force force_Base [N] and the sensor's unit z axis z_Base, both in
+  /// the same axes; δ in them.
+  Vec3 shift(const Vec3& force_Base, const Vec3& z_Base) const noexcept;
+  /// {"name", "compliance_m_per_n"}.
+  nlohmann::json toJson() const;
+
+ private:
+  double compliance_m_per_n_;
+};
+
 /// Joint j's link angle moves with joint i's commanded angle (wrist coupling):
 /// Δθ_j = c q_i. c rad/rad.
 class JointCoupling final : public LinkAngleEffect {
@@ -336,6 +358,7 @@ struct EffectSet {
   std::optional<SensorBias> sensor_bias;
   std::vector<JointZeroDrift> zero_drift;  ///< at most one per joint
   std::vector<BearingTilt> bearing_tilt;   ///< at most one per joint, by joint
+  std::optional<ToolMountCompliance> tool_mount;
   std::optional<RegistrationDrift> registration_drift;
 
   /// Adds the mechanism of a dof-joint chain described by its truth.json object ("name" and

@@ -212,6 +212,8 @@ class TwinRobot {
     /// Per joint, its bearing_tilt δ: rotation vector in the frame after the joint's motion,
     /// rad; zero for a joint without one.
     std::vector<Vec3> tilt_rad;
+    /// The tool's shift on its mount (tool_mount_compliance), base axes, m; zero without one.
+    Vec3 tool_shift_m = Vec3::Zero();
   };
   /// The link angles and bearing tilts the robot reaches at commanded angles q_cmd_rad [rad]
   /// under a payload of load_kg [kg] at the CoG and its own weight, at temp_c [°C]: the

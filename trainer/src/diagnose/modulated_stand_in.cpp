@@ -2,6 +2,7 @@
 #include "modulated_stand_in.hpp"
 
 #include <algorithm>
+#include <utility>
 
 #include "candidates.hpp"
 
@@ -103,6 +104,7 @@ void setAsideModulatedStandIns(std::vector<Scored>& scored, std::vector<size_t>&
     return (without.total() - with.total()) / base_total;
   };
   std::vector<size_t> set_aside;
+  std::vector<std::pair<size_t, CrossValidation::Outcome>> beside_blocks;  // of those that stay
   size_t next = 1;
   for (size_t k : global) {
     CandidateScore& score = scored[k].score;
@@ -133,14 +135,14 @@ void setAsideModulatedStandIns(std::vector<Scored>& scored, std::vector<size_t>&
       set_aside.push_back(k);
       continue;
     }
-    // Ranked by what it removes beyond the block that explains most of it: its per-pose
-    // reduction beside the block, taken from the round's base.
-    CrossValidation::Outcome& own = scored[k].outcome;
+    // What it removes beyond the block that leaves it least: its per-pose reduction beside the
+    // block, taken from the round's base.
+    CrossValidation::Outcome own = scored[k].outcome;
     for (size_t i = 0; i < own.pose_sse.size(); ++i) {
       own.pose_sse[i] = outcomes.front().pose_sse[i] -
                         (least_block->alone.pose_sse[i] - least_beside->pose_sse[i]);
     }
-    scored[k].total = own.total();
+    beside_blocks.push_back({k, std::move(own)});
   }
   significant.erase(std::remove_if(significant.begin(), significant.end(),
                                    [&](size_t k) {
@@ -148,6 +150,16 @@ void setAsideModulatedStandIns(std::vector<Scored>& scored, std::vector<size_t>&
                                             set_aside.end();
                                    }),
                     significant.end());
+  // Ranked on it where only global causes compete: a profile is not fitted beside the block, so
+  // beside one the round compares every family on its reduction alone.
+  const bool profile_competes = std::any_of(significant.begin(), significant.end(), [&](size_t k) {
+    return scored[k].family->stage == Stage::kProfile;
+  });
+  if (profile_competes) return;
+  for (auto& [k, own] : beside_blocks) {
+    scored[k].total = own.total();
+    scored[k].outcome = std::move(own);
+  }
 }
 
 }  // namespace stepcal::trainer::diagnosis

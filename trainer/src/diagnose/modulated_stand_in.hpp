@@ -22,10 +22,12 @@ namespace stepcal::trainer::diagnosis {
 /// significantly beside it and it is no longer significant (is_significant, the round's level,
 /// on the reduction of the round's error) beside them: what it explained is the joint's torque
 /// varying with its angle. Where neither adds beside the other the family stays: the rows cannot
-/// tell them apart and the catalogue's cause is named. A family that stays is ranked (its
-/// outcome and total, what choose() compares) by its per-pose reduction beside the block that
-/// leaves it least, taken from the round's base: a curve of the joint next to the varying one
-/// that explains part of it through the torques they share does not win the round on that part.
+/// tell them apart and the catalogue's cause is named. Where only global families stay
+/// significant, each is ranked (its outcome and total, what choose() compares) by its per-pose
+/// reduction beside the block that leaves it least, taken from the round's base: a curve of the
+/// joint next to the varying one that explains part of it through the torques they share does
+/// not win the round on that part. Where a profile competes, every family keeps its reduction
+/// alone (a profile is not fitted beside the block; like is compared with like).
 void setAsideModulatedStandIns(std::vector<Scored>& scored, std::vector<size_t>& significant,
                                const CrossValidation& cv, const DiagnoseOptions& options,
                                const std::function<bool(const CandidateScore&)>& is_significant);

@@ -200,6 +200,32 @@ std::vector<std::string> impossibleLines(const trainer::Diagnosis& d) {
   return lines;
 }
 
+// The candidates not named because a joint's torque modulated by its angle explained their gain:
+// one line per candidate (its last round's test), in the order of the candidates.
+std::vector<std::string> standInLines(const trainer::Diagnosis& d) {
+  std::vector<std::string> names, lines;
+  for (const trainer::CandidateScore& c : d.candidates) {
+    const trainer::CandidateScore::ModulatedStandIn& s = c.modulated_stand_in;
+    if (s.joint < 0) continue;
+    const std::string name = describe(c.mechanism);
+    const std::string line = format(
+        "%s: stands in for a stiffness that varies with joint %d's angle (round %d: the joint's "
+        "torque times harmonics 1-%d of its angle adds %.4f mm held out beside it, z %.1f; it "
+        "adds %.4f mm beside them, z %.1f), which the catalogue does not hold (left to the "
+        "residual)",
+        name.c_str(), s.joint + 1, c.round, s.modulated_order, s.modulated_gain_mm, s.modulated_z,
+        s.gain_mm, s.z);
+    const auto at = std::find(names.begin(), names.end(), name);
+    if (at == names.end()) {
+      names.push_back(name);
+      lines.push_back(line);
+    } else {
+      lines[static_cast<size_t>(at - names.begin())] = line;
+    }
+  }
+  return lines;
+}
+
 std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
   std::vector<std::string> lines;
   for (const trainer::ModelChange& c : d.changes) {
@@ -517,6 +543,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
     if (const std::string curve = torqueCurveText(e); !curve.empty()) out += "    " + curve + "\n";
   }
   for (const std::string& line : impossibleLines(d)) out += "  not named: " + line + "\n";
+  for (const std::string& line : standInLines(d)) out += "  not named: " + line + "\n";
   for (const std::string& line : identifiabilityLines(d)) out += "  identifiability: " + line + "\n";
   for (const trainer::LoadModulatedProfile& f : d.load_modulated_profiles) {
     out += "  profile or load: " + loadModulatedProfileText(f) + "\n";
@@ -628,6 +655,16 @@ nlohmann::json candidateJson(const trainer::CandidateScore& c) {
                                  {"cv_gain_mm", c.unbounded_cv_gain_mm},
                                  {"z_statistic", c.unbounded_z_statistic},
                                  {"significant", c.unbounded_significant}};
+  }
+  if (const trainer::CandidateScore::ModulatedStandIn& m = c.modulated_stand_in; m.joint >= 0) {
+    x["modulated_stand_in"] = {{"joint", m.joint + 1},
+                               {"modulated_order", m.modulated_order},
+                               {"modulated_cv_gain_mm", m.modulated_gain_mm},
+                               {"modulated_relative_reduction", m.modulated_reduction},
+                               {"modulated_z_statistic", m.modulated_z},
+                               {"cv_gain_mm", m.gain_mm},
+                               {"relative_reduction", m.reduction},
+                               {"z_statistic", m.z}};
   }
   return x;
 }

@@ -7,6 +7,7 @@
 #include "confounds.hpp"
 #include "family_pairs.hpp"
 #include "model_fits.hpp"
+#include "modulated_stand_in.hpp"
 #include "profile_load_check.hpp"
 #include "scoring.hpp"
 #include "search.hpp"
@@ -123,6 +124,7 @@ void searchRounds(Search& search) {
       if (scored[k].score.significant) significant.push_back(k);
     }
     setAsideLoadModulatedProfiles(scored, significant, cv, dm, options, round, d);
+    setAsideModulatedStandIns(scored, significant, cv, options, isSignificant);
     d.seconds_screening += secondsSince(clock);
     if (significant.empty()) {
       for (Scored& s : scored) d.candidates.push_back(std::move(s.score));

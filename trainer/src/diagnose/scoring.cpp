@@ -78,6 +78,20 @@ GlobalCorrections globalCorrections(const Family& family, const CrossValidation&
 
 }  // namespace
 
+CrossValidation::Correction globalBeside(const Scored& scored, const CrossValidation& cv,
+                                         const std::vector<Eigen::Index>& extra) {
+  const Family& family = *scored.family;
+  std::vector<Eigen::Index> columns = family.columns;
+  columns.insert(columns.end(), extra.begin(), extra.end());
+  if (scored.score.impossible_unbounded.empty()) return cv.withGlobal(columns);
+  Eigen::MatrixXd C;
+  Eigen::VectorXd d;
+  candidateBounds(family, C, d);
+  Eigen::MatrixXd padded = Eigen::MatrixXd::Zero(C.rows(), static_cast<Eigen::Index>(columns.size()));
+  padded.leftCols(C.cols()) = C;
+  return cv.withGlobal(columns, padded, d);
+}
+
 // Drops from a family the joints whose compliance it would make negative (fitted on every row):
 // a joint that deflects against its load under the arm's weight is not deflecting under it.
 void pruneNegativeCompliance(Family& family, const CrossValidation& cv, size_t stage1_size,

@@ -25,6 +25,11 @@ struct Scored {
   int spent = 0;        ///< parameters it spends (fitted, and chosen such as τ₀ or knots)
 };
 
+/// A scored global family fitted with extra global columns beside it (after its own), within its
+/// physics' bounds where its score needed them (score.impossible_unbounded not empty).
+CrossValidation::Correction globalBeside(const Scored& scored, const CrossValidation& cv,
+                                         const std::vector<Eigen::Index>& extra);
+
 /// Drops from a family the joints whose compliance it would make negative (fitted on every row):
 /// a joint that deflects against its load under the arm's weight is not deflecting under it.
 void pruneNegativeCompliance(Family& family, const CrossValidation& cv, size_t stage1_size,

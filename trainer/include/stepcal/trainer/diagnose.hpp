@@ -91,6 +91,19 @@ struct CandidateScore {
   double unbounded_z_statistic = 0.0, unbounded_p_value = 1.0;
   /// The unbounded fit passes the round's test (as `significant`, but for being possible).
   bool unbounded_significant = false;
+  /// A global cause whose gain a joint's torque modulated by harmonics of its angle (a stiffness
+  /// varying with the angle, which the catalogue does not hold) explains: those columns add
+  /// significantly beside it and it adds nothing significant beside them, so it is not named
+  /// (docs/diagnosis.md "A cause standing in for a stiffness that varies with the angle").
+  struct ModulatedStandIn {
+    int joint = -1;           ///< 0-based joint of the modulated columns; −1: not set aside
+    int modulated_order = 0;  ///< their order, the best of the orders tried held out
+    /// The modulated columns beside the cause: held-out gain, reduction of the round's error, z.
+    double modulated_gain_mm = 0.0, modulated_reduction = 0.0, modulated_z = 0.0;
+    /// The cause beside the modulated columns.
+    double gain_mm = 0.0, reduction = 0.0, z = 0.0;
+  };
+  ModulatedStandIn modulated_stand_in;
   bool significant = false;  ///< physical, p < family_alpha / (configurations in the round), enough removed
   bool chosen = false;
 };

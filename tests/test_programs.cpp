@@ -3,7 +3,8 @@
 // numbers and nothing else; garbage and truncated programs refused by line and column; and on
 // the twin, a program of 240 targets per language (a tool 0.3 m out, a base frame, both wrist
 // configurations) corrected by `stepcal correct` and then run as a controller would run it:
-// each written pose through the nominal inverse from the joints before it, on the twin's truth.
+// each written pose through the nominal inverse from the joints before it, on the twin's truth;
+// the same with the tool calibrated on the model (`stepcal tool`, then `--tool-file`).
 #include <gtest/gtest.h>
 
 #include <cmath>

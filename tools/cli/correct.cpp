@@ -886,8 +886,8 @@ TargetOutcome correctTarget(const runtime::RuntimeModel& model, runtime::Workspa
   if (p.joint_target) {
     o.correction_deg = (r.q_target_rad - p.q_rad).cwiseAbs().maxCoeff() / kRadPerDeg;
   } else {
-    o.correction_mm = (r.X_ControllerTcp_commanded.translation() - p.X_FrameTcp.translation()).norm() * kMmPerM;
-    o.correction_deg = lie::angleBetween(r.X_ControllerTcp_commanded.linear(), p.X_FrameTcp.linear()) / kRadPerDeg;
+    o.correction_mm = (replacement.X_FrameTcp.translation() - p.X_FrameTcp.translation()).norm() * kMmPerM;
+    o.correction_deg = lie::angleBetween(replacement.X_FrameTcp.linear(), p.X_FrameTcp.linear()) / kRadPerDeg;
   }
   tally.in_coverage += runtime::withinDomain(model, r.gpr_std) && r.uncovered_joints == 0;
   if (truth) {

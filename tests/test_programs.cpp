@@ -760,6 +760,23 @@ TEST(Programs, CorrectRefusesAToolFileOfAnotherModelOrAToolTheProgramDoesNotUse)
   EXPECT_NE(unused.out.find("no target of the program uses the tool TOOL_DATA[7]; expected one of the tools it uses: "),
             std::string::npos) << unused.out;
   EXPECT_FALSE(std::filesystem::exists(out));
+
+  // One file for every tool, but a program of two tools: each needs its own.
+  const std::string two_tools = (dir.path() / "two.script").string(), out_script = (dir.path() / "out.script").string();
+  std::string script = test::readText(kPrograms + "twin/twin.script");
+  script.insert(script.find("  movej", script.find("movel")), "  set_tcp(p[0, 0, 0.2, 0, 0, 0])\n");
+  test::writeText(two_tools, script);
+  const test::CommandResult two = test::run(kStepcal + " correct " + cell.model + " " + two_tools + " --out " +
+                                            out_script + " --tool-file " + tool.path);
+  EXPECT_EQ(two.status, 2) << two.out;
+  EXPECT_NE(two.out.find("stands for every tool, but the program uses two of different values: SET_TCP LINE 3 (line "
+                         "4) and SET_TCP LINE 6; expected --tool-file NAME=TOOL.json for each tool calibrated"),
+            std::string::npos) << two.out;
+  const test::CommandResult named = test::run(kStepcal + " correct " + cell.model + " " + two_tools + " --out " +
+                                              out_script + " --tool-file 'set_tcp line 3=" + tool.path + "'");
+  EXPECT_EQ(named.status, 0) << named.out;
+  EXPECT_NE(named.out.find("SET_TCP LINE 3: the calibrated TCP of " + tool.path + " (tracker, 8 points) for 2 targets"),
+            std::string::npos) << named.out;
 }
 
 // The real files through `stepcal correct` with the model of no correction: each comes back

@@ -190,7 +190,7 @@ Subcommand addToolCommand(CLI::App& app) {
                   "shots at the TCP")
       ->required();
   cmd->add_option("--out", a.out, "tool file to write (JSON: the TCP, its covariance, the "
-                                  "controller terms; `stepcal frame --tool` reads it)");
+                                  "controller terms; `stepcal frame --tool` and `stepcal correct --tool-file` read it)");
   cmd->add_option("--rotation", a.rotation,
                   "the TCP's axes in the flange's as a unit quaternion qw qx qy qz (a point "
                   "fixes no orientation; default 1 0 0 0, the flange's axes)")

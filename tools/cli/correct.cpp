@@ -839,8 +839,8 @@ std::string configurationChange(const Branching& b, const std::optional<programs
 TargetOutcome correctTarget(const runtime::RuntimeModel& model, runtime::Workspace& ws,
                             const runtime::RuntimeModel& nominal, runtime::Workspace& nominal_ws,
                             const Branching& b, const programs::Target& t, const ProgramLine& p,
-                            const ToolFile* tool_file, JointVector& previous_rad, std::optional<TwinTruth>& truth, Tally& tally,
-                            programs::Replacement& replacement) {
+                            const ToolFile* tool_file, JointVector& previous_rad, std::optional<TwinTruth>& truth,
+                            Tally& tally, programs::Replacement& replacement) {
   TargetOutcome o;
   const Pose X_desired = p.joint_target ? runtime::nominalTcp(model, ws, p.q_rad, p.terms) : p.X_FrameTcp;
   const std::optional<programs::ConfigurationWord> word = programs::readConfiguration(b.language, t, b.path);

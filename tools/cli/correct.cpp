@@ -34,6 +34,7 @@
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/twin/twin.hpp"
 #include "subcommands.hpp"
+#include "tool_file.hpp"
 
 namespace stepcal::cli {
 namespace {
@@ -53,6 +54,9 @@ struct CorrectArgs {
   /// NAME=x,y,z,qw,qx,qy,qz (mm): a tool (flange frame) or base (robot base frame) the program
   /// names without its values (TOOL_DATA[1], UF 2, UT 9).
   std::vector<std::string> program_frames;
+  /// A robot program's tool calibrated on the model (stepcal tool --out): TOOL.json, or
+  /// NAME=TOOL.json per tool the program names.
+  std::vector<std::string> tool_files;
 };
 
 const std::array<const char*, 7> kPoseColumns = {"x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"};
@@ -838,8 +842,8 @@ std::string configurationChange(const Branching& b, const std::optional<programs
 TargetOutcome correctTarget(const runtime::RuntimeModel& model, runtime::Workspace& ws,
                             const runtime::RuntimeModel& nominal, runtime::Workspace& nominal_ws,
                             const Branching& b, const programs::Target& t, const ProgramLine& p,
-                            JointVector& previous_rad, std::optional<TwinTruth>& truth, Tally& tally,
-                            programs::Replacement& replacement) {
+                            const ToolFile* tool_file, JointVector& previous_rad, std::optional<TwinTruth>& truth,
+                            Tally& tally, programs::Replacement& replacement) {
   TargetOutcome o;
   const Pose X_desired = p.joint_target ? runtime::nominalTcp(model, ws, p.q_rad, p.terms) : p.X_FrameTcp;
   const std::optional<programs::ConfigurationWord> word = programs::readConfiguration(b.language, t, b.path);
@@ -850,13 +854,17 @@ TargetOutcome correctTarget(const runtime::RuntimeModel& model, runtime::Workspa
     return o;
   }
   previous_rad = *q_controller;
+  // The model places the real TCP: the calibrated one from the measured target where a tool
+  // file stands for the program's tool, else the program's tool on the model's flange.
+  const runtime::CallTerms model_terms = tool_file ? calibratedTerms(p.terms, *tool_file, model) : p.terms;
   // A word the closed form places: the corrected inverse from the calibrated geometry's closed
   // form in that branch (closed_form_seed.hpp), its turns nearest the controller's joints.
   const runtime::InverseResult r =
       word && b.closed.solvable()
-          ? runtime::solveInverseInBranch(model, ws, X_desired, p.terms, p.temp_c, programs::branchNamed(*word, b.joints),
-                                          *q_controller, runtime::Clock::time_point::max())
-          : runtime::solveInverse(model, ws, X_desired, p.terms, p.temp_c, *q_controller,
+          ? runtime::solveInverseInBranch(model, ws, X_desired, model_terms, p.temp_c,
+                                          programs::branchNamed(*word, b.joints), *q_controller,
+                                          runtime::Clock::time_point::max())
+          : runtime::solveInverse(model, ws, X_desired, model_terms, p.temp_c, *q_controller,
                                   runtime::Clock::time_point::max());
   ++tally.statuses[size_t(r.status)];
   const bool answered = r.status == runtime::Status::kOk || r.status == runtime::Status::kOutOfDomain;
@@ -871,15 +879,18 @@ TargetOutcome correctTarget(const runtime::RuntimeModel& model, runtime::Workspa
     o.outcome = "changed configuration";
     return o;
   }
-  replacement.X_FrameTcp = r.X_ControllerTcp_commanded;
+  // What the controller is to be commanded: its own kinematics and tool data at the corrected
+  // joints (the program's tool data stays as written; the targets compensate).
+  replacement.X_FrameTcp =
+      tool_file ? runtime::nominalTcp(model, ws, r.q_target_rad, p.terms) : r.X_ControllerTcp_commanded;
   replacement.q_rad = r.q_target_rad;
   o.written = true;
   o.outcome = r.status == runtime::Status::kOutOfDomain ? "out of coverage" : "corrected";
   if (p.joint_target) {
     o.correction_deg = (r.q_target_rad - p.q_rad).cwiseAbs().maxCoeff() / kRadPerDeg;
   } else {
-    o.correction_mm = (r.X_ControllerTcp_commanded.translation() - p.X_FrameTcp.translation()).norm() * kMmPerM;
-    o.correction_deg = lie::angleBetween(r.X_ControllerTcp_commanded.linear(), p.X_FrameTcp.linear()) / kRadPerDeg;
+    o.correction_mm = (replacement.X_FrameTcp.translation() - p.X_FrameTcp.translation()).norm() * kMmPerM;
+    o.correction_deg = lie::angleBetween(replacement.X_FrameTcp.linear(), p.X_FrameTcp.linear()) / kRadPerDeg;
   }
   tally.in_coverage += runtime::withinDomain(model, r.gpr_std) && r.uncovered_joints == 0;
   if (truth) {
@@ -903,6 +914,67 @@ JointVector firstSeed(const programs::Program& program, const std::optional<Join
   throw InputError("the first target is a pose without a configuration word the closed form can place: its "
                    "inverse needs a seed where the search starts; expected --seed q1 … qn (deg)",
                    b.path, t.line, std::to_string(t.column));
+}
+
+/// Each target's tool as --tool-file names it.
+std::vector<TargetTool> targetTools(const programs::Program& program, const std::vector<ProgramLine>& lines) {
+  std::vector<TargetTool> tools;
+  for (size_t i = 0; i < lines.size(); ++i) {
+    const int index = program.targets[i].tool;
+    std::string name = index >= 0 ? program.frames[size_t(index)].name : "TOOL";
+    for (char& c : name) c = char(std::toupper(static_cast<unsigned char>(c)));
+    tools.push_back({name, lines[i].terms.X_Tool, lines[i].line});
+  }
+  return tools;
+}
+
+/// A tool of the program that a tool file stands for, as the report names it.
+struct CalibratedToolUse {
+  std::string tool;
+  const ToolFile* file = nullptr;
+  int targets = 0;
+  double from_program_m = 0.0;  ///< programToolOffset_m
+};
+
+std::vector<CalibratedToolUse> calibratedToolUses(const programs::Program& program, const std::vector<ProgramLine>& lines,
+                                                  const std::vector<const ToolFile*>& files,
+                                                  const runtime::RuntimeModel& model) {
+  const std::vector<TargetTool> tools = targetTools(program, lines);
+  std::vector<CalibratedToolUse> uses;
+  for (size_t i = 0; i < files.size(); ++i) {
+    if (!files[i]) continue;
+    auto use = std::find_if(uses.begin(), uses.end(), [&](const CalibratedToolUse& u) { return u.tool == tools[i].name; });
+    if (use == uses.end()) {
+      uses.push_back({tools[i].name, files[i], 0, programToolOffset_m(tools[i].X_FlangeTcp, *files[i], model)});
+      use = uses.end() - 1;
+    }
+    ++use->targets;
+  }
+  return uses;
+}
+
+void printToolUses(const std::vector<CalibratedToolUse>& uses) {
+  for (const CalibratedToolUse& u : uses) {
+    const Vec3 p_mm = u.file->p_TcpInTip_m * kMmPerM;
+    std::cout << u.tool << ": the calibrated TCP of " << u.file->path << " (" << u.file->method << ", " << u.file->points
+              << " points) for " << u.targets << " targets: "
+              << format("%.4f %.4f %.4f mm on the measured target, 1-sigma %.4f %.4f %.4f mm; the program's tool "
+                        "through the nominal flange is %.4f mm from it\n",
+                        p_mm.x(), p_mm.y(), p_mm.z(), std::sqrt(u.file->covariance_m2(0, 0)) * kMmPerM,
+                        std::sqrt(u.file->covariance_m2(1, 1)) * kMmPerM,
+                        std::sqrt(u.file->covariance_m2(2, 2)) * kMmPerM, u.from_program_m * kMmPerM);
+  }
+}
+
+nlohmann::json toolUsesJson(const std::vector<CalibratedToolUse>& uses) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const CalibratedToolUse& u : uses) {
+    out.push_back({{"tool", u.tool}, {"file", u.file->path}, {"targets", u.targets},
+                   {"tcp_in_target_mm", {u.file->p_TcpInTip_m.x() * kMmPerM, u.file->p_TcpInTip_m.y() * kMmPerM,
+                                         u.file->p_TcpInTip_m.z() * kMmPerM}},
+                   {"program_tool_from_it_mm", u.from_program_m * kMmPerM}});
+  }
+  return out;
 }
 
 /// The outcome of every target, each on its line, and the targets the program computes at run time.
@@ -995,12 +1067,19 @@ int runCorrectRobotProgram(const CorrectArgs& args, programs::Language language)
   Tally tally;
   std::vector<TargetOutcome> outcomes;
   std::vector<programs::Replacement> replacements;
+  std::vector<ProgramLine> lines;
+  for (const programs::Target& t : program.targets) lines.push_back(programLine(program, t, given, args.program));
+  const ProgramToolFiles tool_files = readProgramToolFiles(args.tool_files, *model, args.model);
+  const std::vector<const ToolFile*> tool_of_target =
+      toolFilesOfTargets(tool_files, targetTools(program, lines), args.program);
+  const std::vector<CalibratedToolUse> tool_uses = calibratedToolUses(program, lines, tool_of_target, *model);
   for (size_t i = 0; i < program.targets.size(); ++i) {
     const programs::Target& t = program.targets[i];
-    const ProgramLine p = programLine(program, t, given, args.program);
+    const ProgramLine& p = lines[i];
     programs::Replacement replacement;
     replacement.target = i;
-    TargetOutcome o = correctTarget(*model, ws, *nominal, nominal_ws, b, t, p, previous_rad, truth, tally, replacement);
+    TargetOutcome o = correctTarget(*model, ws, *nominal, nominal_ws, b, t, p, tool_of_target[i], previous_rad, truth,
+                                    tally, replacement);
     o.target = &t;
     if (o.written && programs::unchangedWithinTolerance(t, replacement)) o.outcome = "unchanged";
     if (o.written) replacements.push_back(replacement);
@@ -1009,8 +1088,11 @@ int runCorrectRobotProgram(const CorrectArgs& args, programs::Language language)
   const std::string out = programs::writeProgram(program, text, replacements);
   writeFileAtomically(args.out, out.data(), out.size(), "corrected program");
   if (args.json) {
-    std::cout << programSummaryJson(args, program, outcomes, tally, truth.has_value(), *model).dump(2) << "\n";
+    nlohmann::json summary = programSummaryJson(args, program, outcomes, tally, truth.has_value(), *model);
+    summary["tool_files"] = toolUsesJson(tool_uses);
+    std::cout << summary.dump(2) << "\n";
   } else {
+    printToolUses(tool_uses);
     printProgramOutcomes(args.program, program, outcomes);
     printProgramSummary(args, program, outcomes, tally);
     if (truth) printTwinErrors(tally);
@@ -1027,6 +1109,11 @@ int runCorrectRobotProgram(const CorrectArgs& args, programs::Language language)
 int runCorrect(const CorrectArgs& args) {
   const std::optional<programs::Language> language = programs::languageOf(args.program, args.format);
   if (language) return runCorrectRobotProgram(args, *language);
+  if (!args.tool_files.empty()) {
+    throw InputError("--tool-file is for a robot program's tools; stepcal's CSV takes the calibrated TCP "
+                     "in its columns (tool_from target, tool_x_mm … tool_qz: docs/cell.md)",
+                     args.program);
+  }
   const std::unique_ptr<const runtime::RuntimeModel> model = runtime::RuntimeModel::load(args.model);
   const int dof = model->file.chain_Tracker.dof();
   runtime::Workspace ws = runtime::makeWorkspace(*model);
@@ -1087,6 +1174,12 @@ Subcommand addCorrectCommand(CLI::App& app) {
                       "'TOOL_DATA[1]=0,0,300,1,0,0,0' or 'UF 2=900,0,40,1,0,0,0'; TOOL=… and BASE=… "
                       "for the targets whose program names none (else the flange and the robot's "
                       "base); repeatable");
+  correct->add_option("--tool-file", args.tool_files,
+                      "a robot program's tool calibrated with this model (stepcal tool --out): the "
+                      "targets are corrected for that TCP, taken from the measured target, and the "
+                      "program's tool data kept as written; TOOL.json for every tool the program "
+                      "uses, or NAME=TOOL.json per tool as --program-frame names it (docs/cell.md); "
+                      "repeatable");
   return {correct, [args_owned] { return runCorrect(*args_owned); }};
 }
 

@@ -20,6 +20,7 @@
 #include "stepcal/report/text_format.hpp"
 #include "stepcal/trainer/cell.hpp"
 #include "subcommands.hpp"
+#include "tool_file.hpp"
 #include "touch_file.hpp"
 
 namespace stepcal::cli {
@@ -33,40 +34,6 @@ struct FrameArgs {
   double payload_kg = -1;
   std::vector<double> cog_mm{0, 0, 0};
 };
-
-/// The calibrated TCP as `stepcal tool --out` wrote it.
-struct ToolFile {
-  Vec3 p_TcpInTip_m = Vec3::Zero();
-  Mat3 covariance_m2 = Mat3::Zero();
-  double point_sigma_m = 0;
-};
-
-ToolFile readToolFile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError("cannot open the tool file", path);
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-    ToolFile tool;
-    if (j.at("format") != "stepcal-tool/1") {
-      throw InputError("format " + j.at("format").dump() + "; expected \"stepcal-tool/1\" (written "
-                       "by stepcal tool --out)", path, 0, "format");
-    }
-    for (int a = 0; a < 3; ++a) {
-      tool.p_TcpInTip_m[a] = j.at("tcp_in_target_mm").at(size_t(a)).get<double>() * kMPerMm;
-      for (int b = 0; b < 3; ++b) {
-        tool.covariance_m2(a, b) =
-            j.at("tcp_covariance_in_target_mm2").at(size_t(a)).at(size_t(b)).get<double>() * kMPerMm * kMPerMm;
-      }
-    }
-    tool.point_sigma_m = j.at("point_sigma_mm").get<double>() * kMPerMm;
-    return tool;
-  } catch (const nlohmann::json::exception& e) {
-    throw InputError(std::string("not a tool file: ") + e.what() +
-                         "; expected the JSON that stepcal tool --out writes",
-                     path);
-  }
-}
 
 /// Each line's point in the tracker frame: measured, or touched with the TCP.
 std::vector<trainer::FramePoint> framePoints(const FrameArgs& a, const runtime::RuntimeModel& model,
@@ -128,7 +95,7 @@ int runFrame(const FrameArgs& a) {
   const std::unique_ptr<const runtime::RuntimeModel> model = runtime::RuntimeModel::load(a.model);
   const std::vector<Touch> touches = readTouchFile(a.points, int(model->file.chain_Tracker.dof()));
   std::optional<ToolFile> tool;
-  if (!a.tool.empty()) tool = readToolFile(a.tool);
+  if (!a.tool.empty()) tool = readToolFile(a.tool, *model, a.model);
   const std::vector<trainer::FramePoint> points = framePoints(a, *model, touches, tool);
   const bool touched = !touches.front().p_InTracker_m;
   // A touch scatters as the tool's own touches did; a tracker point by the tracker's noise.

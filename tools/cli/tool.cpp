@@ -20,6 +20,7 @@
 #include "stepcal/report/text_format.hpp"
 #include "stepcal/trainer/cell.hpp"
 #include "subcommands.hpp"
+#include "tool_file.hpp"
 #include "touch_file.hpp"
 
 namespace stepcal::cli {
@@ -137,7 +138,8 @@ int runTool(const ToolArgs& a) {
   }
   if (!fit.note.empty()) std::cout << "  WARNING: " << fit.note << "\n";
 
-  nlohmann::json out = {{"format", "stepcal-tool/1"}, {"model", a.model}, {"touches", a.touches},
+  nlohmann::json out = {{"format", "stepcal-tool/1"}, {"model", a.model}, {"model_id", modelIdHex(*model)},
+                        {"touches", a.touches},
                         {"method", method}, {"points", fit.points},
                         {"tcp_in_target_mm", {fit.p_TcpInTip_m.x() * kMmPerM, fit.p_TcpInTip_m.y() * kMmPerM, fit.p_TcpInTip_m.z() * kMmPerM}},
                         {"tcp_covariance_in_target_mm2", matrixJson(fit.covariance_TcpInTip_m2 * kMmPerM * kMmPerM)},
@@ -188,7 +190,7 @@ Subcommand addToolCommand(CLI::App& app) {
                   "shots at the TCP")
       ->required();
   cmd->add_option("--out", a.out, "tool file to write (JSON: the TCP, its covariance, the "
-                                  "controller terms; `stepcal frame --tool` reads it)");
+                                  "controller terms; `stepcal frame --tool` and `stepcal correct --tool-file` read it)");
   cmd->add_option("--rotation", a.rotation,
                   "the TCP's axes in the flange's as a unit quaternion qw qx qy qz (a point "
                   "fixes no orientation; default 1 0 0 0, the flange's axes)")

@@ -124,13 +124,21 @@ correction_request_t inverseRequest(const Measurement& row, int64_t id,
   return msg;
 }
 
-/// Handles bytes directly (no LCM); the decoded reply, or nullopt when none was due.
+/// Handles bytes directly (no LCM); the decoded reply, or nullopt when none was due. Bytes whose
+/// message_version reads 2 get the version-2 refusal: its id and status.
 std::optional<correction_reply_t> handle(Service& service, const std::vector<uint8_t>& bytes) {
   std::vector<uint8_t> reply(static_cast<size_t>(Service::replyBytes()));
   const int size = service.handleRequest(bytes.data(), int(bytes.size()), Clock::now(),
                                          reply.data(), int(reply.size()));
   if (size == 0) return std::nullopt;
   correction_reply_t decoded;
+  if (decodeReply(reply.data(), size, decoded) == ReplyKind::kOldVersion) {
+    stepcal_lcm::correction_reply_v2_t refusal{};
+    EXPECT_EQ(refusal.decode(reply.data(), 0, size), size);
+    decoded.request_id = refusal.request_id;
+    decoded.status = refusal.status;
+    return decoded;
+  }
   EXPECT_EQ(decodeReply(reply.data(), size, decoded), ReplyKind::kReply);
   return decoded;
 }

@@ -23,6 +23,7 @@
 #include <lcm/lcm.h>
 #include <stepcal_lcm/correction_reply_t.hpp>
 #include <stepcal_lcm/correction_reply_v1_t.hpp>
+#include <stepcal_lcm/correction_reply_v2_t.hpp>
 #include <stepcal_lcm/correction_request_t.hpp>
 #include <stepcal_lcm/correction_request_v1_t.hpp>
 #include <stepcal_lcm/runtime_status_t.hpp>
@@ -123,13 +124,21 @@ correction_request_t inverseRequest(const Measurement& row, int64_t id,
   return msg;
 }
 
-/// Handles bytes directly (no LCM); the decoded reply, or nullopt when none was due.
+/// Handles bytes directly (no LCM); the decoded reply, or nullopt when none was due. Bytes whose
+/// message_version reads 2 get the version-2 refusal: its id and status.
 std::optional<correction_reply_t> handle(Service& service, const std::vector<uint8_t>& bytes) {
   std::vector<uint8_t> reply(static_cast<size_t>(Service::replyBytes()));
   const int size = service.handleRequest(bytes.data(), int(bytes.size()), Clock::now(),
                                          reply.data(), int(reply.size()));
   if (size == 0) return std::nullopt;
   correction_reply_t decoded;
+  if (decodeReply(reply.data(), size, decoded) == ReplyKind::kOldVersion) {
+    stepcal_lcm::correction_reply_v2_t refusal{};
+    EXPECT_EQ(refusal.decode(reply.data(), 0, size), size);
+    decoded.request_id = refusal.request_id;
+    decoded.status = refusal.status;
+    return decoded;
+  }
   EXPECT_EQ(decodeReply(reply.data(), size, decoded), ReplyKind::kReply);
   return decoded;
 }
@@ -466,6 +475,52 @@ TEST(LcmService, AVersion1RequestIsRefusedByName) {
             0);
   EXPECT_EQ(with_key.counters().old_version, 1);
   EXPECT_EQ(with_key.counters().forged, 0);
+}
+
+// A client of message version 2 (this request layout, message_version 2; it reads only
+// correction_reply_v2_t) is refused by name: a version-2 BAD_REQUEST reply it can read, counted
+// as old_version_requests; with a key its code is checked as any request's and the refusal is
+// sealed for it.
+TEST(LcmService, AVersion2RequestIsRefusedByName) {
+  correction_request_t old = forwardRequest(validationRow(), 4343);
+  old.message_version = 2;
+  const std::vector<uint8_t> bytes = encodeRequest(old);
+  Service service(paperModel(), "paper.stepcal", generousOptions());
+  std::vector<uint8_t> reply(static_cast<size_t>(Service::replyBytes()));
+  const int size = service.handleRequest(bytes.data(), int(bytes.size()), Clock::now(),
+                                         reply.data(), int(reply.size()));
+  stepcal_lcm::correction_reply_v2_t refusal{};
+  ASSERT_GT(size, 0);
+  ASSERT_EQ(refusal.decode(reply.data(), 0, size), size) << "a reply the old client can read";
+  EXPECT_EQ(refusal.request_id, 4343);
+  EXPECT_EQ(refusal.message_version, 2);
+  EXPECT_EQ(refusal.status, stepcal_lcm::correction_reply_v2_t::STATUS_BAD_REQUEST);
+  EXPECT_EQ(refusal.model_id, int64_t(kFirstModelId));
+  EXPECT_EQ(service.counters().old_version, 1);
+  EXPECT_EQ(service.counters().status_counts[size_t(Status::kBadRequest)], 1);
+  EXPECT_EQ(service.status(false).old_version_requests, 1);
+  correction_reply_t as_new{};
+  EXPECT_EQ(decodeReply(reply.data(), size, as_new), ReplyKind::kOldVersion)
+      << "and no new client misreads it";
+
+  ServiceOptions keyed = generousOptions();
+  keyed.key = CellKey::fromBytes({});
+  Service with_key(paperModel(), "paper.stepcal", keyed);
+  MessageSigner client(*keyed.key);
+  std::vector<uint8_t> sealed = bytes;
+  client.seal(sealed.data(), int(sealed.size()));
+  const int sealed_size = with_key.handleRequest(sealed.data(), int(sealed.size()), Clock::now(),
+                                                 reply.data(), int(reply.size()));
+  ASSERT_GT(sealed_size, 0);
+  MessageVerifier verifier(*keyed.key, kDefaultAuthWindowUs);
+  EXPECT_EQ(verifier.verify(reply.data(), sealed_size, unixMicroseconds()), Verdict::kAuthentic);
+  EXPECT_EQ(oldReplyVersion(reply.data(), sealed_size), 2);
+  EXPECT_EQ(with_key.counters().old_version, 1);
+  // Unsealed: dropped as forged, as any request without the cell's code.
+  EXPECT_EQ(with_key.handleRequest(bytes.data(), int(bytes.size()), Clock::now(), reply.data(),
+                                   int(reply.size())),
+            0);
+  EXPECT_EQ(with_key.counters().forged, 1);
 }
 
 TEST(LcmService, StaleLiveWrenchIsStaleWrench) {

@@ -14,6 +14,7 @@
 #include <lcm/lcm.h>
 #include <stepcal_lcm/correction_reply_t.hpp>
 #include <stepcal_lcm/correction_reply_v1_t.hpp>
+#include <stepcal_lcm/correction_reply_v2_t.hpp>
 #include <stepcal_lcm/correction_request_t.hpp>
 
 #include "stepcal/service/channels.hpp"
@@ -156,6 +157,12 @@ std::vector<correction_reply_t> repliesOfEveryStatus() {
     r.model_id = int64_t(0xC0FFEE00u) + status;
     r.residual_position_m = 1e-7 * status;
     r.residual_orientation_rad = 2e-7 * status;
+    // Odd statuses: a model that states no accuracy (NaN).
+    const double stated = status % 2 ? PoseAccuracy::kUnknown : 1.0;
+    r.position_rms_m = 1e-4 * status * stated;
+    r.position_bound_m = 2.5e-4 * status * stated;
+    r.orientation_rms_rad = 3e-5 * status * stated;
+    r.orientation_bound_rad = 7e-5 * status * stated;
     r.auth_sender = 77;
     r.auth_counter = 1'700'000'000'000'000;
     for (int i = 0; i < 32; ++i) r.auth_mac[i] = uint8_t(i * 7 + status);
@@ -190,6 +197,15 @@ TEST(Wire, RequestsOfEveryKindRoundTrip) {
   EXPECT_EQ(decoded.wrench_source, WrenchSource::kLiveSensor);
   EXPECT_TRUE(std::isnan(decoded.temp_c));
   EXPECT_TRUE(decoded.terms.X_Tool.isApprox(Pose::Identity(), 0.0));
+  // A version-2 request (the same layout, its version number): refused as version 2, addressable.
+  correction_request_t version2 = blankRequest();
+  version2.request_id = 99;
+  version2.message_version = 2;
+  const std::vector<uint8_t> old = encodeRequest(version2);
+  ASSERT_EQ(decodeRequest(old.data(), int(old.size()), decoded), Status::kBadRequest);
+  EXPECT_EQ(decoded.old_version, 2);
+  EXPECT_TRUE(decoded.request_id_known);
+  EXPECT_EQ(decoded.request_id, 99);
   // Too small a buffer: nothing written.
   std::vector<uint8_t> small(size_t(requestBytes() - 1));
   EXPECT_EQ(encodeRequest(blankRequest(), small.data(), int(small.size())), 0);
@@ -209,24 +225,49 @@ TEST(Wire, RepliesOfEveryStatusRoundTrip) {
     EXPECT_EQ(decoded.request_id, reply.request_id);
     EXPECT_EQ(decoded.status, reply.status);
     EXPECT_EQ(decoded.predicted_position_m[2], reply.predicted_position_m[2]);
+    EXPECT_EQ(std::isnan(decoded.position_bound_m), std::isnan(reply.position_bound_m));
+    if (!std::isnan(reply.position_bound_m)) {
+      EXPECT_EQ(decoded.position_rms_m, reply.position_rms_m);
+      EXPECT_EQ(decoded.position_bound_m, reply.position_bound_m);
+      EXPECT_EQ(decoded.orientation_rms_rad, reply.orientation_rms_rad);
+      EXPECT_EQ(decoded.orientation_bound_rad, reply.orientation_bound_rad);
+    }
     EXPECT_EQ(std::memcmp(decoded.auth_mac, reply.auth_mac, 32), 0);
     // Truncated or longer: malformed, never a reply.
     EXPECT_EQ(decodeReply(bytes.data(), size - 1, decoded), ReplyKind::kMalformed);
     bytes.push_back(0);
     EXPECT_EQ(decodeReply(bytes.data(), size + 1, decoded), ReplyKind::kMalformed);
   }
-  // A version-1 refusal is told apart by name, and a version-1 client reads it.
+  // A version-1 or version-2 refusal is told apart by name, and a client of that version reads
+  // it.
   std::vector<uint8_t> old(static_cast<size_t>(replyBytes()));
-  const int size = encodeOldVersionRefusal(4242, 17, 99, old.data(), int(old.size()));
+  int size = encodeOldVersionRefusal(1, 4242, 17, 99, old.data(), int(old.size()));
   ASSERT_GT(size, 0);
   correction_reply_t as_new;
   EXPECT_EQ(decodeReply(old.data(), size, as_new), ReplyKind::kOldVersion);
+  EXPECT_EQ(oldReplyVersion(old.data(), size), 1);
   stepcal_lcm::correction_reply_v1_t v1{};
   ASSERT_EQ(v1.decode(old.data(), 0, size), size);
   EXPECT_EQ(v1.request_id, 4242);
   EXPECT_EQ(v1.utime, 17);
   EXPECT_EQ(v1.model_id, 99);
   EXPECT_EQ(v1.status, stepcal_lcm::correction_reply_v1_t::STATUS_BAD_REQUEST);
+  size = encodeOldVersionRefusal(2, 4243, 18, 98, old.data(), int(old.size()));
+  ASSERT_GT(size, 0);
+  EXPECT_EQ(decodeReply(old.data(), size, as_new), ReplyKind::kOldVersion);
+  EXPECT_EQ(oldReplyVersion(old.data(), size), 2);
+  stepcal_lcm::correction_reply_v2_t v2{};
+  ASSERT_EQ(v2.decode(old.data(), 0, size), size);
+  EXPECT_EQ(v2.request_id, 4243);
+  EXPECT_EQ(v2.message_version, 2);
+  EXPECT_EQ(v2.utime, 18);
+  EXPECT_EQ(v2.model_id, 98);
+  EXPECT_EQ(v2.status, stepcal_lcm::correction_reply_v2_t::STATUS_BAD_REQUEST);
+  EXPECT_EQ(encodeOldVersionRefusal(3, 4244, 0, 0, old.data(), int(old.size())), 0)
+      << "version 3 is no old version";
+  ASSERT_NE(stepcal_lcm::correction_reply_v2_t::getHash(), correction_reply_t::getHash());
+  const std::vector<uint8_t> current = lcmBytes(repliesOfEveryStatus()[0]);
+  EXPECT_EQ(oldReplyVersion(current.data(), int(current.size())), 0);
   // A request on the reply channel, or a few bytes: malformed.
   const std::vector<uint8_t> request = encodeRequest(blankRequest());
   EXPECT_EQ(decodeReply(request.data(), int(request.size()), as_new), ReplyKind::kMalformed);
@@ -278,34 +319,122 @@ TEST(LcmRequester, GetsTheServicesReplyToItsRequest) {
   EXPECT_TRUE(requester.explainSilence("--key-file").empty());
 }
 
-/// A daemon of message version 1: every request gets its BAD_REQUEST refusal.
+/// A daemon of an older message version (1 or 2): every request gets its BAD_REQUEST refusal.
 struct OldDaemon {
   lcm_t* lcm;
+  int version;
   static void on(const lcm_recv_buf_t* rbuf, const char*, void* user) {
     const auto* self = static_cast<OldDaemon*>(user);
     Request request;
     decodeRequest(rbuf->data, int(rbuf->data_size), request);
     std::vector<uint8_t> bytes(static_cast<size_t>(replyBytes()));
-    const int size = encodeOldVersionRefusal(request.request_id, 0, 5, bytes.data(), int(bytes.size()));
+    const int size = encodeOldVersionRefusal(self->version, request.request_id, 0, 5,
+                                             bytes.data(), int(bytes.size()));
     lcm_publish(self->lcm, kReplyChannel, bytes.data(), unsigned(size));
   }
 };
 
-TEST(LcmRequester, RefusesADaemonOfMessageVersion1ByName) {
-  const LcmPtr lcm(lcm_create("memq://"), &lcm_destroy);
-  OldDaemon old{lcm.get()};
-  lcm_subscribe(lcm.get(), kRequestChannel, &OldDaemon::on, &old);
-  LcmRequester requester(lcm.get(), std::nullopt);
-  correction_request_t msg = forwardRequest();
-  EXPECT_FALSE(requester.exchange(msg, 7, std::chrono::milliseconds(50)));
-  EXPECT_EQ(requester.counters().old_version, 1);
-  const std::vector<std::string> reasons = requester.explainSilence("key_file");
-  ASSERT_EQ(reasons.size(), 1u);
-  EXPECT_NE(reasons[0].find("message version 1 (correction_reply_v1_t)"), std::string::npos)
-      << reasons[0];
-  EXPECT_NE(reasons[0].find("update stepcal-runtime"), std::string::npos) << reasons[0];
-  // Counted since a snapshot: nothing new, nothing to say.
-  EXPECT_TRUE(requester.explainSilence("key_file", requester.counters()).empty());
+TEST(LcmRequester, RefusesADaemonOfMessageVersion1Or2ByName) {
+  for (int version : {1, 2}) {
+    SCOPED_TRACE(version);
+    const LcmPtr lcm(lcm_create("memq://"), &lcm_destroy);
+    OldDaemon old{lcm.get(), version};
+    lcm_subscribe(lcm.get(), kRequestChannel, &OldDaemon::on, &old);
+    LcmRequester requester(lcm.get(), std::nullopt);
+    correction_request_t msg = forwardRequest();
+    EXPECT_FALSE(requester.exchange(msg, 7, std::chrono::milliseconds(50)));
+    EXPECT_EQ(requester.counters().old_version, 1);
+    EXPECT_EQ(requester.counters().old_version_seen, version);
+    const std::vector<std::string> reasons = requester.explainSilence("key_file");
+    ASSERT_EQ(reasons.size(), 1u);
+    const std::string name = std::to_string(version);
+    EXPECT_NE(reasons[0].find("message version " + name + " (correction_reply_v" + name +
+                              "_t): it predates this client's version 3"),
+              std::string::npos)
+        << reasons[0];
+    EXPECT_NE(reasons[0].find("update stepcal-runtime"), std::string::npos) << reasons[0];
+    // Counted since a snapshot: nothing new, nothing to say.
+    EXPECT_TRUE(requester.explainSilence("key_file", requester.counters()).empty());
+  }
+}
+
+/// The reply the service encodes for msg (bytes through handleRequest, as the daemon sends).
+correction_reply_t serviceReply(Service& service, correction_request_t msg, int64_t request_id) {
+  msg.request_id = request_id;
+  const std::vector<uint8_t> bytes = encodeRequest(msg);
+  std::vector<uint8_t> reply(static_cast<size_t>(Service::replyBytes()));
+  const int size = service.handleRequest(bytes.data(), int(bytes.size()),
+                                         runtime::Clock::now(), reply.data(), int(reply.size()));
+  correction_reply_t decoded{};
+  EXPECT_EQ(decodeReply(reply.data(), size, decoded), ReplyKind::kReply);
+  return decoded;
+}
+
+/// The reply's accuracy is `accuracy` within a relative tolerance.
+void expectAccuracyOf(const correction_reply_t& reply, const PoseAccuracy& accuracy,
+                      double relative) {
+  EXPECT_NEAR(reply.position_rms_m, accuracy.position_rms_m, relative * accuracy.position_rms_m);
+  EXPECT_NEAR(reply.position_bound_m, accuracy.position_bound_m,
+              relative * accuracy.position_bound_m);
+  EXPECT_NEAR(reply.orientation_rms_rad, accuracy.orientation_rms_rad,
+              relative * accuracy.orientation_rms_rad);
+  EXPECT_NEAR(reply.orientation_bound_rad, accuracy.orientation_bound_rad,
+              relative * accuracy.orientation_bound_rad);
+}
+
+// The reply carries the runtime's stated accuracy: finite for a model with the accuracy factors
+// (ACCU), the forward's at q and the inverse's at its targets; NaN for a model without them.
+TEST(Wire, TheReplyCarriesTheRuntimesAccuracy) {
+  const auto runtime_model = runtime::RuntimeModel::fromModel(model(), 21);
+  ASSERT_TRUE(runtime_model->file.accuracy.has_value());
+  runtime::Workspace ws = runtime::makeWorkspace(*runtime_model);
+  ServiceOptions options;
+  options.budget_ns = 1'000'000'000;  // a busy machine never cuts the inverse short
+  Service service(runtime::RuntimeModel::fromModel(model(), 21), "model.stepcal", options);
+  const correction_request_t forward = forwardRequest();
+  const correction_reply_t forward_reply = serviceReply(service, forward, 1);
+  ASSERT_EQ(forward_reply.status, int8_t(Status::kOk));
+  const std::vector<uint8_t> forward_bytes = encodeRequest(forward);
+  Request decoded;
+  ASSERT_EQ(decodeRequest(forward_bytes.data(), int(forward_bytes.size()), decoded), Status::kOk);
+  const runtime::ForwardResult expected = runtime::correctForward(
+      *runtime_model, ws, decoded.q_rad, decoded.terms, decoded.temp_c);
+  ASSERT_TRUE(std::isfinite(expected.accuracy.position_bound_m));
+  ASSERT_GT(expected.accuracy.position_bound_m, 0.0);
+  ASSERT_GT(expected.accuracy.orientation_bound_rad, 0.0);
+  expectAccuracyOf(forward_reply, expected.accuracy, 1e-12);
+
+  // The inverse of the forward's pose: the accuracy at its targets, as the forward states it
+  // there (to the inverse's approximation of the deflection, test_accuracy_bound.cpp).
+  correction_request_t inverse = forward;
+  inverse.mode = correction_request_t::MODE_INVERSE;
+  std::copy(forward_reply.predicted_position_m, forward_reply.predicted_position_m + 3,
+            inverse.desired_position_m);
+  std::copy(forward_reply.predicted_quaternion_wxyz, forward_reply.predicted_quaternion_wxyz + 4,
+            inverse.desired_quaternion_wxyz);
+  std::copy(forward.q_rad, forward.q_rad + 6, inverse.seed_q_rad);
+  const correction_reply_t inverse_reply = serviceReply(service, inverse, 2);
+  ASSERT_EQ(inverse_reply.status, int8_t(Status::kOk));
+  JointVector q_target(kMessageJoints);
+  for (int j = 0; j < kMessageJoints; ++j) q_target[j] = inverse_reply.q_target_rad[j];
+  expectAccuracyOf(inverse_reply,
+                   runtime::correctForward(*runtime_model, ws, q_target, decoded.terms,
+                                           decoded.temp_c)
+                       .accuracy,
+                   1e-3);
+
+  CalibratedModel without = model();
+  without.accuracy.reset();
+  Service old_model(runtime::RuntimeModel::fromModel(std::move(without), 22), "old.stepcal",
+                    options);
+  for (const correction_request_t& msg : {forward, inverse}) {
+    const correction_reply_t reply = serviceReply(old_model, msg, 3);
+    ASSERT_EQ(reply.status, int8_t(Status::kOk));
+    EXPECT_TRUE(std::isnan(reply.position_rms_m));
+    EXPECT_TRUE(std::isnan(reply.position_bound_m));
+    EXPECT_TRUE(std::isnan(reply.orientation_rms_rad));
+    EXPECT_TRUE(std::isnan(reply.orientation_bound_rad));
+  }
 }
 
 TEST(LcmRequester, AKeyedDaemonsStatusSaysTheKeyIsMissingOrWrong) {

@@ -87,7 +87,7 @@ class Client {
   const std::string& url() const { return url_; }
 
  private:
-  /// A version-2 request with the call's terms; the pose fields of the mode are the caller's.
+  /// A version-3 request with the call's terms; the pose fields of the mode are the caller's.
   correction_request_t newRequest(const py::object& wrench, double temp_c, int deadline_us,
                                   const py::object& terms_arg) {
     const runtime::CallTerms terms = termsOf(terms_arg);
@@ -116,7 +116,7 @@ class Client {
   }
 
   /// Sends the request and waits for its reply (LcmRequester: sealed, verified, a daemon of
-  /// message version 1 told apart). No reply: TimeoutError, saying why when the refused replies
+  /// message version 1 or 2 told apart). No reply: TimeoutError, saying why when the refused replies
   /// do.
   py::object exchange(correction_request_t& request) {
     const int64_t request_id = request.request_id;
@@ -162,6 +162,10 @@ class Client {
     f["model_id"] = modelIdObject(uint64_t(r.model_id));
     f["residual_position_m"] = r.residual_position_m;
     f["residual_orientation_rad"] = r.residual_orientation_rad;
+    f["position_rms_m"] = r.position_rms_m;
+    f["position_bound_m"] = r.position_bound_m;
+    f["orientation_rms_rad"] = r.orientation_rms_rad;
+    f["orientation_bound_rad"] = r.orientation_bound_rad;
     return py::module_::import("types").attr("SimpleNamespace")(**f);
   }
 

@@ -5,8 +5,8 @@
 //
 // Each input is decoded three times: as given (the type fingerprint refuses nearly every
 // mutation), then with the fingerprint of correction_request_t stamped over its first 8 bytes,
-// so the fuzzer reaches the field checks, and with that of version 1, which is always refused by
-// name.
+// so the fuzzer reaches the field checks (a request of this layout with message_version 2 is
+// refused by name as version 2), and with that of version 1, which is always refused by name.
 //
 // Built with -DSTEPCAL_FUZZ_SEED_MAIN (and without -fsanitize=fuzzer) the same file is instead
 // a seed generator: `make_seeds FOLDER` writes valid forward and inverse requests (through the
@@ -51,7 +51,16 @@ void decodeAndCheck(const uint8_t* data, size_t size) {
   Request request;
   const Status status = stepcal::service::decodeRequest(data, static_cast<int>(size), request);
   check(status == Status::kOk || status == Status::kBadRequest);
-  if (status == Status::kBadRequest) return;
+  if (status == Status::kBadRequest) {
+    // Refused as version 2: exactly one request of this layout, its message_version 2.
+    if (request.old_version == 2) {
+      correction_request_t msg{};
+      check(request.request_id_known);
+      check(msg.decode(data, 0, static_cast<int>(size)) == static_cast<int>(size));
+      check(msg.message_version == 2 && msg.request_id == request.request_id);
+    }
+    return;
+  }
   // Accepted: the bytes are exactly one request with known id, mode and finite values.
   correction_request_t msg{};
   check(request.request_id_known);
@@ -83,7 +92,7 @@ void checkOldVersion(const uint8_t* data, size_t size) {
   Request request;
   const Status status = stepcal::service::decodeRequest(data, static_cast<int>(size), request);
   check(status == Status::kBadRequest);
-  check(request.old_version == (size >= 16));
+  check(request.old_version == (size >= 16 ? 1 : 0));
 }
 
 }  // namespace

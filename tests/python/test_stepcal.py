@@ -5,7 +5,7 @@ in a private network namespace, python_client; tests/CMakeLists.txt sets the env
   STEPCAL_CAMPAIGN     a twin campaign (the can_e2e fixture's, seed 4) and
   STEPCAL_MODEL        its calibrated model file
   STEPCAL_REFERENCE    tests/python/runtime_reference: the C++ runtime's answers on that campaign
-  STEPCAL_OLD_DAEMON   tests/python/old_daemon: a daemon of message version 1 (refusals only)
+  STEPCAL_OLD_DAEMON   tests/python/old_daemon: a daemon of message version 1 or 2 (refusals only)
   STEPCAL_DOCS_DIR     docs/, whose python.md holds the example script run here
 """
 import enum
@@ -404,6 +404,12 @@ def test_client_gets_the_daemons_answers(tmp_path, campaign, model):
         assert reply.model_id == model.model_id
         np.testing.assert_allclose(reply.predicted_position_m, local.position_m, rtol=0,
                                    atol=TOLERANCE)
+        # The stated accuracy travels in the reply, the local call's (the model has ACCU).
+        assert math.isfinite(local.position_bound_m) and local.position_bound_m > 0
+        np.testing.assert_allclose([reply.position_bound_m, reply.orientation_bound_rad],
+                                   [local.position_bound_m, local.orientation_bound_rad],
+                                   rtol=1e-12, atol=0)
+        assert reply.position_rms_m < reply.position_bound_m
         seed = q + 2 * math.pi / 180
         reply = client.inverse(rows["position_m"][i], rows["quaternion_wxyz"][i], seed,
                                wrench=wrench)
@@ -454,19 +460,20 @@ def test_client_with_the_cell_key(tmp_path, campaign):
 
 
 @needs_netns
-def test_client_refuses_a_daemon_of_message_version_1_by_name(tmp_path):
-    # Its version-1 replies are never taken for answers; the timeout says what answered.
+@pytest.mark.parametrize("version", [1, 2])
+def test_client_refuses_a_daemon_of_an_older_message_version_by_name(tmp_path, version):
+    # Its old replies are never taken for answers; the timeout says what answered.
     log = tmp_path / "old_daemon.log"
-    old = subprocess.Popen([os.environ["STEPCAL_OLD_DAEMON"], stepcal.DEFAULT_LCM_URL],
-                           stderr=open(log, "w"))
+    old = subprocess.Popen([os.environ["STEPCAL_OLD_DAEMON"], stepcal.DEFAULT_LCM_URL,
+                            str(version)], stderr=open(log, "w"))
     try:
         for _ in range(100):
             if "serving" in log.read_text():
                 break
             time.sleep(0.1)
-        with pytest.raises(TimeoutError, match=r"message version 1 \(correction_reply_v1_t\): "
-                                               r"it predates this client's version 2; update "
-                                               r"stepcal-runtime"):
+        with pytest.raises(TimeoutError, match=rf"message version {version} "
+                                               rf"\(correction_reply_v{version}_t\): it predates "
+                                               r"this client's version 3; update stepcal-runtime"):
             stepcal.Client(timeout_ms=300).forward([0.0] * 6, wrench=np.zeros(6))
     finally:
         old.terminate()

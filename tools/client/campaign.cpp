@@ -258,6 +258,7 @@ CampaignTally tallyReplies(const std::vector<correction_request_t>& requests,
     const correction_reply_t& r = replies[i];
     entry["status"] = runtime::toString(static_cast<runtime::Status>(r.status));
     entry["gpr_std"] = std::vector<double>(r.gpr_std, r.gpr_std + 6);
+    entry["accuracy"] = accuracyJson(r);
     if (r.status >= 0 && r.status < kStatusCount) ++tally.status_counts[r.status];
     tally.compute_us.push_back(double(r.compute_ns) * 1e-3);
     tally.model_id = r.model_id;

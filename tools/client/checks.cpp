@@ -106,6 +106,14 @@ double ReplyChecker::maxDifference(const correction_reply_t& a, const correction
   compare(a.gpr_std, b.gpr_std, 6);
   compare(&a.residual_position_m, &b.residual_position_m, 1);
   compare(&a.residual_orientation_rad, &b.residual_orientation_rad, 1);
+  // NaN in both: the model states no accuracy, and the two agree on that.
+  const auto compareStated = [&](double x, double y) {
+    if (!(std::isnan(x) && std::isnan(y))) compare(&x, &y, 1);
+  };
+  compareStated(a.position_rms_m, b.position_rms_m);
+  compareStated(a.position_bound_m, b.position_bound_m);
+  compareStated(a.orientation_rms_rad, b.orientation_rms_rad);
+  compareStated(a.orientation_bound_rad, b.orientation_bound_rad);
   return largest;
 }
 

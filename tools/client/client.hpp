@@ -159,6 +159,9 @@ std::string latencyText(const nlohmann::json& j);
 JointVector jointsOf(const double* q_rad);
 /// A model id as printed by stepcal-runtime: 16 hex digits.
 std::string modelIdText(int64_t model_id);
+/// A reply's predicted accuracy (RMS and 95 % bound, position m and orientation rad); null where
+/// the model states none.
+nlohmann::json accuracyJson(const correction_reply_t& r);
 nlohmann::json replyJson(const correction_reply_t& r, bool inverse);
 void printReply(const correction_reply_t& r, double round_trip_us, bool inverse,
                 const std::string& frame);

@@ -1,4 +1,5 @@
 // stepcal-client's replies as text and JSON.
+#include <cmath>
 #include <cstdio>
 
 #include "client.hpp"
@@ -41,6 +42,14 @@ std::string modelIdText(int64_t model_id) {
   return text;
 }
 
+nlohmann::json accuracyJson(const correction_reply_t& r) {
+  // NaN (the model states none) is written as null.
+  return {{"position_rms_m", r.position_rms_m},
+          {"position_bound_m", r.position_bound_m},
+          {"orientation_rms_rad", r.orientation_rms_rad},
+          {"orientation_bound_rad", r.orientation_bound_rad}};
+}
+
 nlohmann::json replyJson(const correction_reply_t& r, bool inverse) {
   const auto array = [](const double* v, int n) { return std::vector<double>(v, v + n); };
   nlohmann::json j = {
@@ -52,7 +61,8 @@ nlohmann::json replyJson(const correction_reply_t& r, bool inverse) {
       {"predicted_quaternion_wxyz", array(r.predicted_quaternion_wxyz, 4)},
       {"gpr_std", array(r.gpr_std, 6)},
       {"wrench", array(r.wrench, 6)},
-      {"uncovered_joints", uncoveredJoints(r.uncovered_joints)}};
+      {"uncovered_joints", uncoveredJoints(r.uncovered_joints)},
+      {"accuracy", accuracyJson(r)}};
   if (inverse) {
     j["q_target_rad"] = array(r.q_target_rad, 6);
     j["commanded_position_m"] = array(r.commanded_position_m, 3);
@@ -84,6 +94,13 @@ void printReply(const correction_reply_t& r, double round_trip_us, bool inverse,
               vectorText(r.predicted_quaternion_wxyz, 4).c_str());
   std::printf("wrench used (N, N m)      %s\n", vectorText(r.wrench, 6, 1.0, "%.3f").c_str());
   std::printf("gpr_std (v m, w rad)      %s\n", vectorText(r.gpr_std, 6, 1.0, "%.3e").c_str());
+  if (std::isnan(r.position_bound_m)) {
+    std::printf("accuracy                  not stated (the model file has no ACCU section)\n");
+  } else {
+    std::printf("accuracy (95 %%)           %.4f mm, %.5f deg (RMS %.4f mm, %.5f deg)\n",
+                r.position_bound_m * kMmPerM, r.orientation_bound_rad * kDegPerRad,
+                r.position_rms_m * kMmPerM, r.orientation_rms_rad * kDegPerRad);
+  }
   if (r.uncovered_joints != 0) {
     std::printf("outside the fitted angles of the profile of joint(s) %s\n",
                 uncoveredJoints(r.uncovered_joints).dump().c_str());

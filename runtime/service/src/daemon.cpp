@@ -133,8 +133,9 @@ class RefusalLog {
  public:
   void update(const service::ServiceCounters& c) {
     once(c.old_version, old_version_,
-         "refused a request in message version 1 (correction_request_v1_t): this daemon reads "
-         "correction_request_t version 2; update the client (docs/runtime.md, Messages); "
+         "refused a request in an older message version (1: correction_request_v1_t, or 2): "
+         "this daemon reads correction_request_t version 3; update the client (docs/runtime.md, "
+         "Messages); "
          "counted in STEPCAL_STATUS old_version_requests");
     once(c.forged, forged_,
          "dropped a request whose authentication code does not verify (forged, or sent without "

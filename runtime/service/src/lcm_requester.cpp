@@ -78,6 +78,7 @@ ReplyVerdict LcmRequester::judge(const void* data, int size, correction_reply_t&
   const ReplyKind kind = decodeReply(data, size, reply);
   if (kind == ReplyKind::kOldVersion) {
     ++counters_.old_version;
+    counters_.old_version_seen = oldReplyVersion(data, size);
     return ReplyVerdict::kOldVersion;
   }
   if (verifier_) {
@@ -127,9 +128,10 @@ std::vector<std::string> LcmRequester::explainSilence(const std::string& key_opt
   const long replayed = counters_.rejected_replayed - since.rejected_replayed;
   std::vector<std::string> reasons;
   if (old_version > 0) {
-    reasons.push_back(
-        "the daemon answered in message version 1 (correction_reply_v1_t): it predates this "
-        "client's version 2; update stepcal-runtime");
+    const std::string version = std::to_string(counters_.old_version_seen);
+    reasons.push_back("the daemon answered in message version " + version + " (correction_reply_v" +
+                      version + "_t): it predates this client's version " +
+                      std::to_string(correction_reply_t::VERSION) + "; update stepcal-runtime");
   }
   if (forged + replayed > 0) {
     reasons.push_back("rejected " + std::to_string(forged) +

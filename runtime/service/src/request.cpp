@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include <stepcal_lcm/correction_reply_v2_t.hpp>
 #include <stepcal_lcm/correction_request_v1_t.hpp>
 
 namespace stepcal::service {
@@ -58,7 +59,7 @@ Status decodeRequest(const void* data, int size, Request& out) noexcept {
   const int64_t fingerprint = bigEndian64(bytes);
   if (fingerprint == stepcal_lcm::correction_request_v1_t::getHash()) {
     out.request_id_known = true;
-    out.old_version = true;
+    out.old_version = 1;
     out.request_id = bigEndian64(bytes + kFingerprintBytes);
     return Status::kBadRequest;
   }
@@ -70,6 +71,11 @@ Status decodeRequest(const void* data, int size, Request& out) noexcept {
   if (msg.decode(data, 0, size) != size) return Status::kBadRequest;  // truncated or too long
   out.utime = msg.utime;
   out.deadline_us = msg.deadline_us;
+  // Version 2 had this layout; its client reads only correction_reply_v2_t.
+  if (msg.message_version == stepcal_lcm::correction_reply_v2_t::VERSION) {
+    out.old_version = stepcal_lcm::correction_reply_v2_t::VERSION;
+    return Status::kBadRequest;
+  }
   if (msg.message_version != correction_request_t::VERSION ||
       !inRange(msg.mode, correction_request_t::MODE_FORWARD, correction_request_t::MODE_INVERSE) ||
       !inRange(msg.frame, correction_request_t::FRAME_TRACKER, correction_request_t::FRAME_USER) ||

@@ -25,6 +25,13 @@ void writeVector(const Vec6& v, double* out) noexcept {
   for (int i = 0; i < 6; ++i) out[i] = v[i];
 }
 
+void writeAccuracy(const PoseAccuracy& accuracy, stepcal_lcm::correction_reply_t& reply) noexcept {
+  reply.position_rms_m = accuracy.position_rms_m;
+  reply.position_bound_m = accuracy.position_bound_m;
+  reply.orientation_rms_rad = accuracy.orientation_rms_rad;
+  reply.orientation_bound_rad = accuracy.orientation_bound_rad;
+}
+
 /// Whether a result of this status carries an answer (poses, joints) worth sending.
 bool carriesAnswer(Status status) noexcept {
   return status != Status::kBadRequest && status != Status::kStaleWrench;
@@ -38,6 +45,7 @@ void writeAnswer(const runtime::ForwardResult& r, stepcal_lcm::correction_reply_
   writeVector(r.gpr_std, reply.gpr_std);
   writeVector(r.wrench_Sensor, reply.wrench);
   reply.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);
+  writeAccuracy(r.accuracy, reply);
 }
 
 void writeAnswer(const runtime::InverseResult& r, stepcal_lcm::correction_reply_t& reply) noexcept {
@@ -50,6 +58,7 @@ void writeAnswer(const runtime::InverseResult& r, stepcal_lcm::correction_reply_
   writeVector(r.gpr_std, reply.gpr_std);
   writeVector(r.wrench_Sensor, reply.wrench);
   reply.uncovered_joints = static_cast<int32_t>(r.uncovered_joints);
+  writeAccuracy(r.accuracy, reply);
   reply.iterations = r.iterations;
   reply.residual_position_m = r.residual_position_m;
   reply.residual_orientation_rad = r.residual_orientation_rad;
@@ -88,9 +97,10 @@ Service::Service(std::unique_ptr<const runtime::RuntimeModel> model, std::string
 
 int Service::replyBytes() noexcept { return service::replyBytes(); }
 
-int Service::refuseOldVersion(int64_t request_id, uint8_t* reply, int capacity) noexcept {
+int Service::refuseOldVersion(int version, int64_t request_id, uint8_t* reply,
+                              int capacity) noexcept {
   const int bytes =
-      encodeOldVersionRefusal(request_id, unixMicroseconds(),
+      encodeOldVersionRefusal(version, request_id, unixMicroseconds(),
                               static_cast<int64_t>(models_.currentModelId()), reply, capacity);
   if (bytes <= 0) return 0;
   ++counters_.replies;
@@ -110,11 +120,11 @@ int Service::handleRequest(const void* data, int size, Clock::time_point receive
   ++counters_.requests;
   Request request;
   Status status = decodeRequest(data, size, request);
-  if (request.old_version) {
+  if (request.old_version == 1) {
     // Refused by name before any key: a version-1 client can carry no code.
     ++counters_.old_version;
     if (verifier_ || capacity < replyBytes()) return 0;
-    return refuseOldVersion(request.request_id, reply, capacity);
+    return refuseOldVersion(1, request.request_id, reply, capacity);
   }
   if (verifier_) {
     const Verdict verdict =
@@ -129,6 +139,13 @@ int Service::handleRequest(const void* data, int size, Clock::time_point receive
     return 0;
   }
   if (capacity < replyBytes()) return 0;
+  if (request.old_version != 0) {
+    // A version-2 client carries the cell's code (checked above) and reads a sealed reply.
+    ++counters_.old_version;
+    const int bytes = refuseOldVersion(request.old_version, request.request_id, reply, capacity);
+    if (bytes > 0 && signer_) signer_->seal(reply, bytes);
+    return bytes;
+  }
   reply_ = stepcal_lcm::correction_reply_t{};
   reply_.message_version = stepcal_lcm::correction_reply_t::VERSION;
   reply_.request_id = request.request_id;

@@ -1,7 +1,8 @@
 // The controller's side of the daemon's wire, shared by stepcal-client, the Python client
 // (stepcal.Client) and the tests: requests sealed with the cell key (when given) and published on
 // STEPCAL_REQUEST; every message on STEPCAL_REPLY judged before it may count as an answer: a
-// daemon of message version 1 is told apart by name (its correction_reply_v1_t), and with a key a
+// daemon of message version 1 or 2 is told apart by name (its correction_reply_v1_t or
+// correction_reply_v2_t), and with a key a
 // reply whose code does not verify or whose counter is not fresh is refused. Refusals are counted,
 // never matched to a request. The daemon's STEPCAL_STATUS is heard too: it tells a silence of a
 // keyed daemon (its requests dropped for want of the key) from one of no daemon at all.
@@ -26,8 +27,8 @@ namespace stepcal::service {
 
 /// What became of one message on the reply channel.
 enum class ReplyVerdict : int8_t {
-  kAccepted = 0,    ///< a version-2 reply (with a key: its code verifies, its counter is fresh)
-  kOldVersion = 1,  ///< a correction_reply_v1_t: the daemon predates message version 2
+  kAccepted = 0,    ///< a version-3 reply (with a key: its code verifies, its counter is fresh)
+  kOldVersion = 1,  ///< a correction_reply_v1_t or _v2_t: the daemon predates message version 3
   kForged = 2,      ///< with a key: the code does not verify (another key, none, a change)
   kReplayed = 3,    ///< with a key: the code verifies but the counter is not fresh
   kMalformed = 4,   ///< not a reply (another type, truncated, too long)
@@ -38,6 +39,7 @@ struct RequesterCounters {
   long rejected_forged = 0;    ///< kForged
   long rejected_replayed = 0;  ///< kReplayed
   long old_version = 0;        ///< kOldVersion: replies of a daemon that predates this client
+  int old_version_seen = 0;    ///< the message version of the latest of them (1 or 2)
 };
 
 /// The latest runtime_status_t heard on kStatusChannel since the requester was made.
@@ -87,7 +89,7 @@ class LcmRequester {
 
   /// The verdict on the bytes of one message on the reply channel, reply filled when kAccepted;
   /// refusals counted. The old version is told apart before any key is checked: a version-1
-  /// daemon can carry no code.
+  /// daemon can carry no code (and an old reply is never an answer, whoever sealed it).
   ReplyVerdict judge(const void* data, int size, stepcal_lcm::correction_reply_t& reply) noexcept;
 
   /// Why no reply came, when the replies refused since `since` (a snapshot of counters()) say;

@@ -29,9 +29,10 @@ enum class WrenchSource : int8_t { kLiveSensor = 0, kGiven = 1, kPayload = 2 };
 /// A decoded, validated request in the runtime's types.
 struct Request {
   bool request_id_known = false;  ///< false: the bytes are not a request (no reply is due)
-  /// A request in message version 1 (correction_request_v1_t): refused by name, with a version-1
-  /// BAD_REQUEST reply.
-  bool old_version = false;
+  /// 1 or 2: a request in that older message version (1: correction_request_v1_t's fingerprint;
+  /// 2: this layout with message_version 2), refused by name with a BAD_REQUEST reply of that
+  /// version (encodeOldVersionRefusal). 0: the current version, or not a request.
+  int8_t old_version = 0;
   int64_t request_id = 0;
   int64_t utime = 0;  ///< send time, µs since the Unix epoch
   Mode mode = Mode::kForward;
@@ -48,21 +49,22 @@ struct Request {
   int32_t deadline_us = 0;  ///< ≤ 0: the daemon's budget alone, µs
 };
 
-/// Decodes the LCM bytes of a correction_request_t (message version 2) and validates them: kOk,
+/// Decodes the LCM bytes of a correction_request_t (message version 3) and validates them: kOk,
 /// or kBadRequest when the bytes are truncated, too long or of another type, message_version is
-/// not 2, the mode, frame, tool origin, wrench source or centre-of-gravity frame is unknown, a
+/// not 3, the mode, frame, tool origin, wrench source or centre-of-gravity frame is unknown, a
 /// double other than temp_c is NaN or infinite, temp_c is neither NaN nor within
 /// runtime::kMinTemperature_c … kMaxTemperature_c (runtime::validTemperature), the payload's
 /// mass is negative, or a quaternion in use (the tool's always, the user frame's with
 /// FRAME_USER, the desired pose's for an inverse) has a norm off by more than
 /// kQuaternionNormTolerance. Bytes with the fingerprint of version 1 (correction_request_v1_t)
-/// give kBadRequest with out.old_version set. out.request_id_known says whether a reply can be
+/// give kBadRequest with out.old_version 1, a well-formed request with message_version 2
+/// kBadRequest with out.old_version 2. out.request_id_known says whether a reply can be
 /// addressed (a known fingerprint and the id's bytes present). What the model must provide (a
 /// flange, gravity) is checked by the runtime's calls. Never allocates, never throws, never reads
 /// outside [data, data + size).
 runtime::Status decodeRequest(const void* data, int size, Request& out) noexcept;
 
-/// A version-2 request that asks nothing yet, where every sender starts: message_version set,
+/// A version-3 request that asks nothing yet, where every sender starts: message_version set,
 /// the quaternions (desired pose, user frame, tool) the identity, temp_c NaN (not measured),
 /// everything else zero (forward, tracker frame, tool from the target, live sensor, ids 0).
 stepcal_lcm::correction_request_t blankRequest() noexcept;

@@ -47,7 +47,7 @@ struct ServiceCounters {
   /// reply. Malformed requests with a readable id get a BAD_REQUEST reply instead.
   int64_t unaddressable = 0;
   std::array<int64_t, 7> status_counts{};  ///< replies per runtime::Status value
-  int64_t old_version = 0;  ///< requests in message version 1, refused by name
+  int64_t old_version = 0;  ///< requests in message version 1 or 2, refused by name
   int64_t forged = 0;       ///< with a key: dropped, their code did not verify
   int64_t replayed = 0;     ///< with a key: dropped, their counter was not fresh
 };
@@ -73,7 +73,9 @@ class Service {
   /// Handles the LCM bytes of one request received at `received` (steady clock) and encodes its
   /// reply into reply[0 .. capacity). Returns the reply's size in bytes, or 0 when no reply is due
   /// (the bytes are not a correction_request_t; with a key, they fail its check) or capacity <
-  /// replyBytes(). A version-1 request gets a correction_reply_v1_t BAD_REQUEST (none with a key).
+  /// replyBytes(). A version-1 request gets a correction_reply_v1_t BAD_REQUEST (none with a key:
+  /// it can carry no code), a version-2 request a correction_reply_v2_t BAD_REQUEST (with a key,
+  /// once its code verifies, sealed).
   /// With a key the reply is sealed (auth.hpp). Serving thread only; allocation-free, lock-free,
   /// never throws.
   int handleRequest(const void* data, int size, runtime::Clock::time_point received,
@@ -115,8 +117,9 @@ class Service {
   WorkspaceSlot& slotOf(const runtime::RuntimeModel* model) noexcept;
   void recordCompute(double compute_us) noexcept;
 
-  /// A version-1 BAD_REQUEST reply to request_id into reply (capacity ≥ replyBytes()).
-  int refuseOldVersion(int64_t request_id, uint8_t* reply, int capacity) noexcept;
+  /// A BAD_REQUEST reply of message version `version` (1 or 2) to request_id into reply
+  /// (capacity ≥ replyBytes()).
+  int refuseOldVersion(int version, int64_t request_id, uint8_t* reply, int capacity) noexcept;
 
   ServiceOptions options_;
   std::optional<MessageVerifier> verifier_;  ///< with a key
@@ -136,7 +139,7 @@ class Service {
   stepcal_lcm::runtime_status_t status_{};
 };
 
-/// Writes a result's answer (poses, joints, GPR std, coverage, iterations) into a reply, as the
+/// Writes a result's answer (poses, joints, GPR std, coverage, accuracy, iterations) into a reply, as the
 /// daemon sends it; nothing for results without one (BAD_REQUEST, STALE_WRENCH). Offline checkers
 /// recompute replies through them. Allocation-free.
 void writeAnswer(const runtime::ForwardResult& r, stepcal_lcm::correction_reply_t& reply) noexcept;

@@ -72,23 +72,6 @@ Eigen::VectorXd correctionOf(const Eigen::VectorXd& x, const Unknowns& u,
   return delta;
 }
 
-/// The tracker registered in closed form to the model's tips (gravity turns with it), as
-/// diagnosis::refitFrames starts: Gauss–Newton from a station metres away may not converge.
-void registerInClosedForm(PhysicalModel& model, const FitRows& fit) {
-  std::vector<Vec3> p_model, p_measured;
-  ChainWorkspace ws;
-  JointVector theta, tau;
-  for (const Measurement* row : fit.rows) {
-    physicalLinkAngles(model, row->q_rad, row->wrenchOrZero(), rowTemperature(*row),
-                       {ws, theta, tau});
-    p_model.push_back(tipPose(ws).translation());
-    p_measured.push_back(row->p_TipInTracker_m);
-  }
-  const Pose X_NewOld = fitRigidTransform(p_model, p_measured);
-  model.chain_Tracker = model.chain_Tracker.rerooted(X_NewOld);
-  model.gravity_Tracker = X_NewOld.linear() * model.gravity_Tracker;
-}
-
 struct Fitted {
   PhysicalModel model;
   Eigen::VectorXd x;           ///< the unknowns' total step (exact for the zeros)
@@ -99,7 +82,7 @@ struct Fitted {
 
 Fitted fitUnknowns(PhysicalModel model, const FitRows& fit, const Unknowns& u) {
   const int p = u.count();
-  if (u.registration) registerInClosedForm(model, fit);
+  if (u.registration) diagnosis::registerInClosedForm(model, fit);
   Eigen::VectorXd r = diagnosis::residuals(model, fit);
   Eigen::VectorXd x = Eigen::VectorXd::Zero(p);
   for (int it = 0; it < kIterations && p > 0; ++it) {

@@ -16,22 +16,24 @@ constexpr size_t kLeastRowsPerStation = 4;
 
 }  // namespace
 
+void registerInClosedForm(PhysicalModel& model, const FitRows& fit) {
+  std::vector<Vec3> p_model, p_measured;
+  ChainWorkspace ws;
+  JointVector theta, tau;
+  for (const Measurement* row : fit.rows) {
+    physicalLinkAngles(model, row->q_rad, row->wrenchOrZero(), rowTemperature(*row),
+                       {ws, theta, tau});
+    p_model.push_back(tipPose(ws).translation());
+    p_measured.push_back(row->p_TipInTracker_m);
+  }
+  const Pose X_NewOld = fitRigidTransform(p_model, p_measured);
+  model.chain_Tracker = model.chain_Tracker.rerooted(X_NewOld);
+  model.gravity_Tracker = X_NewOld.linear() * model.gravity_Tracker;
+}
+
 PhysicalModel refitFrames(PhysicalModel model, const FitRows& fit) {
   const int n = model.chain_Tracker.dof();
-  {
-    std::vector<Vec3> p_model, p_measured;
-    ChainWorkspace ws;
-    JointVector theta, tau;
-    for (const Measurement* row : fit.rows) {
-      physicalLinkAngles(model, row->q_rad, row->wrenchOrZero(), rowTemperature(*row),
-                         {ws, theta, tau});
-      p_model.push_back(tipPose(ws).translation());
-      p_measured.push_back(row->p_TipInTracker_m);
-    }
-    const Pose X_NewOld = fitRigidTransform(p_model, p_measured);
-    model.chain_Tracker = model.chain_Tracker.rerooted(X_NewOld);
-    model.gravity_Tracker = X_NewOld.linear() * model.gravity_Tracker;
-  }
+  registerInClosedForm(model, fit);
   Eigen::VectorXd r = residuals(model, fit);
   double cost = r.squaredNorm();
   for (int it = 0; it < kFrameIterations; ++it) {

@@ -10,6 +10,10 @@
 
 namespace stepcal::trainer::diagnosis {
 
+/// The tracker registered in closed form to the model's tips on these rows (gravity turns with
+/// it): where refitFrames starts, since Gauss–Newton from a station metres away may not converge.
+void registerInClosedForm(PhysicalModel& model, const FitRows& fit);
+
 /// The model with its tracker and tool frames (docs/method.md eq. 7, blocks 0 and n) fitted on these
 /// rows, the joint frames kept: the tracker registered in closed form to the model's tips
 /// (gravity turns with it), then Gauss–Newton on those 12 parameters.

@@ -2,7 +2,7 @@
 // twenty poses the re-check's plan chooses, measured from another tracker station with joint 3
 // re-mastered (its reading 300 µrad less): the moved zero found within 3σ, the updated model at the
 // noise floor on the new campaign's validation rows, and the same robot unchanged reported as
-// unchanged.
+// unchanged. At two loads, the same with joint 2's compliance 20 % higher: found within 3σ.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -78,7 +78,9 @@ TEST(Recheck, ARemasteredJointIsFoundAndTheUpdateReachesTheNoiseFloor) {
   EXPECT_TRUE(z.changed);
   EXPECT_NEAR(z.delta_rad, kMovedZeroRad, 3.0 * z.sigma_rad);
   for (const trainer::ZeroChange& other : r.zeros) {
-    if (other.joint != 2) EXPECT_FALSE(other.changed) << "joint " << other.joint + 1;
+    if (other.joint != 2) {
+      EXPECT_FALSE(other.changed) << "joint " << other.joint + 1;
+    }
   }
   EXPECT_FALSE(r.zeros.front().fitted);  // the new registration takes joint 1's zero up
   EXPECT_FALSE(r.zeros.back().fitted);   // the refitted tool joint 6's
@@ -121,6 +123,103 @@ TEST(Recheck, TheTrackerKeptSeesJointOne) {
   ASSERT_TRUE(r.zeros[0].fitted);
   EXPECT_TRUE(r.zeros[0].changed);
   EXPECT_NEAR(r.zeros[0].delta_rad, kMovedZeroRad, 3.0 * r.zeros[0].sigma_rad);
+}
+
+/// The stored model with the twin's true compliances (1/K of the paper's stiffness): its
+/// geometry campaign is unloaded, so the calibration has none of its own.
+const CalibratedModel& storedModelWithCompliance() {
+  static const CalibratedModel model = [] {
+    CalibratedModel m = storedModel();
+    const int n = m.chain_Tracker.dof();
+    m.compliance_rad_per_nm = JointVector::Zero(n);
+    m.compliance_sigma_rad_per_nm = JointVector::Zero(n);
+    for (int j = 0; j < n; ++j) {
+      m.compliance_rad_per_nm(j) = 1.0 / twin::kPaperStiffnessNmPerRad[static_cast<size_t>(j)];
+      m.compliance_sigma_rad_per_nm(j) = 0.01 * m.compliance_rad_per_nm(j);
+    }
+    if (m.accuracy) {
+      m.accuracy->compliance_factor = m.compliance_sigma_rad_per_nm.asDiagonal();
+    }
+    return m;
+  }();
+  return model;
+}
+
+constexpr double kSofterJoint2 = 1.2;
+
+/// Station 1 measured at the twenty poses (of its geometry poses) the re-check's plan chooses
+/// at 0 and 40 kg (`stepcal plan --recheck MODEL --loads 0,40 --candidates-from`), joint 2's
+/// compliance times compliance_factor_joint2, and its validation rows.
+Campaign loadedRecheckCampaign(double compliance_factor_joint2) {
+  twin::TwinOptions o = options(1);
+  const Campaign candidates = twin::simulateCampaign(o, nullptr);
+  trainer::PlanOptions plan;
+  plan.recheck = true;
+  plan.poses = kRecheckPoses;
+  plan.loads_kg = {0.0, 40.0};
+  plan.p_CoGInSensor_m = o.p_CoGInSensor_m;
+  for (const Measurement& row : candidates.rows) {
+    if (row.set != RowSet::kValidation)
+      plan.given_candidates.push_back({row.pose_id, 0.0, row.q_rad});
+  }
+  const CalibratedModel& model = storedModelWithCompliance();
+  o.planned_fit_rows = trainer::planCampaign(model.nominal_Base, model.sensor_frame, plan).rows;
+  o.stiffness_nm_per_rad[1] /= compliance_factor_joint2;
+  return twin::simulateCampaign(o, nullptr);
+}
+
+TEST(Recheck, AtTwoLoadsASofterJointTwoIsFound) {
+  const trainer::RecheckResult r =
+      trainer::recheckModel(storedModelWithCompliance(), loadedRecheckCampaign(kSofterJoint2), {});
+  const std::string verdict = trainer::recheckVerdict(r);
+  SCOPED_TRACE(verdict);
+  ASSERT_TRUE(r.compliance_tested) << r.compliance_not_tested;
+  const trainer::ComplianceChange& c = r.compliances[1];
+  ASSERT_TRUE(c.tested);
+  EXPECT_TRUE(c.changed);
+  EXPECT_NEAR(c.delta_rad_per_nm, (kSofterJoint2 - 1.0) * c.stored_rad_per_nm,
+              3.0 * c.sigma_rad_per_nm);
+  EXPECT_LT(c.sigma_rad_per_nm, 0.05 * c.stored_rad_per_nm);  // a 20 % change is seen
+  for (const trainer::ComplianceChange& other : r.compliances) {
+    if (other.joint != 1) {
+      EXPECT_FALSE(other.changed) << "joint " << other.joint + 1;
+    }
+  }
+  // Joint 1 turns about the vertical: a payload's weight has no torque about it.
+  EXPECT_FALSE(r.compliances[0].tested);
+  for (const trainer::ZeroChange& z : r.zeros) EXPECT_FALSE(z.changed) << "joint " << z.joint + 1;
+  EXPECT_NE(verdict.find("joint 2's compliance changed: +2"), std::string::npos);
+  EXPECT_NE(verdict.find("compliance of joint 1"), std::string::npos);
+  EXPECT_NE(verdict.find("nothing else changed"), std::string::npos);
+  EXPECT_NEAR(r.updated.compliance_rad_per_nm(1), kSofterJoint2 * c.stored_rad_per_nm,
+              3.0 * c.sigma_rad_per_nm);
+  // An untested compliance is kept as it was.
+  EXPECT_EQ(r.updated.compliance_rad_per_nm(0), storedModelWithCompliance().compliance_rad_per_nm(0));
+}
+
+TEST(Recheck, AtTwoLoadsAnUnchangedRobotKeepsItsCompliances) {
+  const trainer::RecheckResult r =
+      trainer::recheckModel(storedModelWithCompliance(), loadedRecheckCampaign(1.0), {});
+  const std::string verdict = trainer::recheckVerdict(r);
+  SCOPED_TRACE(verdict);
+  ASSERT_TRUE(r.compliance_tested);
+  int tested = 0;
+  for (const trainer::ComplianceChange& c : r.compliances) {
+    EXPECT_FALSE(c.changed) << "joint " << c.joint + 1;
+    tested += c.tested ? 1 : 0;
+  }
+  EXPECT_GE(tested, 2);
+  EXPECT_NE(verdict.find("compliances unchanged"), std::string::npos);
+  EXPECT_NE(verdict.find("nothing changed"), std::string::npos);
+}
+
+TEST(Recheck, AnUnloadedRecheckDoesNotTestCompliance) {
+  const trainer::RecheckResult r =
+      trainer::recheckModel(storedModelWithCompliance(), recheckCampaign(0.0), {});
+  EXPECT_FALSE(r.compliance_tested);
+  EXPECT_NE(trainer::recheckVerdict(r).find("compliance not tested: the rows are at one load"),
+            std::string::npos);
+  EXPECT_EQ(r.updated.compliance_rad_per_nm, storedModelWithCompliance().compliance_rad_per_nm);
 }
 
 TEST(Recheck, TheCommandWritesTheUpdateBesideTheStoredModel) {

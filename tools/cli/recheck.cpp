@@ -56,8 +56,9 @@ Subcommand addRecheckCommand(CLI::App& app) {
   RecheckArgs& a = *args;
   CLI::App* recheck = app.add_subcommand(
       "recheck",
-      "a stored model against a short campaign: which joint zeros and tool changed, "
-      "and the model updated beside it (docs/cell.md)");
+      "a stored model against a short campaign: which joint zeros and tool changed (and "
+      "compliances, on rows at two loads or more), and the model updated beside it "
+      "(docs/cell.md)");
   recheck->add_option("model", a.model, "the stored model file")->required();
   recheck->add_option("campaign", a.campaign, "the re-check campaign folder")->required();
   recheck->add_option("--out", a.out,

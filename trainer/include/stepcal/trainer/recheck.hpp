@@ -35,6 +35,20 @@ struct ZeroChange {
 inline constexpr double kNegligibleZeroChange_rad = 30e-6;
 /// A tool change worth acting on: 0.05 mm at the TCP.
 inline constexpr double kNegligibleToolChange_m = 0.05e-3;
+/// A compliance change worth acting on: 5 % of the joint's compliance.
+inline constexpr double kNegligibleComplianceChange = 0.05;
+/// A joint's compliance is tested only where its torque spans this much across the fit rows: a
+/// torque that is the same in every row deflects the joint as a zero change does.
+inline constexpr double kMinimumTorqueSpan_nm = 1.0;
+
+/// One joint's compliance on a re-check campaign at several loads.
+struct ComplianceChange {
+  int joint = 0;        ///< 0-based
+  bool tested = false;  ///< false: not identifiable from these rows (see torque_span_nm, sigma)
+  double torque_span_nm = 0.0;  ///< max − min of the joint's torque over the fit rows
+  double stored_rad_per_nm = 0.0, delta_rad_per_nm = 0.0, sigma_rad_per_nm = 0.0;
+  bool changed = false;  ///< beyond 3σ and beyond kNegligibleComplianceChange
+};
 
 struct RecheckResult {
   int fit_rows = 0, validation_rows = 0;
@@ -50,16 +64,24 @@ struct RecheckResult {
   /// The same on the validation rows (set=validation), never fitted; 0 without such rows.
   double validation_error_frames_only_m = 0.0, validation_error_after_m = 0.0;
   double chi2_reduced = 0.0;
-  CalibratedModel updated;  ///< the model with the new zeros, tool and registration
+  /// Compliance is tested where the fit rows carry wrenches at two loads or more and the model
+  /// has a compliance step; otherwise why not, in words.
+  bool compliance_tested = false;
+  std::string compliance_not_tested;
+  std::vector<ComplianceChange> compliances;  ///< one per joint when tested
+  /// The model with the new zeros, tool, registration and tested compliances
+  CalibratedModel updated;
 };
 
-/// Fits the model's registration, tool and joint zeros on the campaign's fit rows (every row but
+/// Fits the model's registration, tool, joint zeros (and compliances, where the loads identify
+/// them) on the campaign's fit rows (every row but
 /// set=validation), the rest of the model kept. Throws InputError when the campaign is not of the
 /// model's robot or has fewer rows than unknowns.
 RecheckResult recheckModel(const CalibratedModel& model, const Campaign& campaign,
                            const RecheckOptions& options);
 
-/// The operator's words: each changed zero with its 1-σ, the tool, or "nothing changed".
+/// The operator's words: each changed zero and compliance with its 1-σ, the tool, or "nothing
+/// changed".
 std::string recheckVerdict(const RecheckResult& result);
 
 }  // namespace stepcal::trainer

@@ -1,5 +1,6 @@
 #include "stepcal/report/report.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -415,9 +416,12 @@ std::string formatPlan(const trainer::CampaignPlan& plan, const trainer::PlanOpt
                   plan.candidates_drawn, plan.rejected_range, plan.rejected_floor,
                   plan.rejected_line_of_sight);
   }
+  const bool loaded = std::any_of(options.loads_kg.begin(), options.loads_kg.end(),
+                                  [](double load_kg) { return load_kg > 0.0; });
   out << format("log det of the normalised information (%s, ridge %g): %.2f\n",
-                options.recheck ? "re-check: registration, tool, inner joint zeros"
-                                : "geometry + compliance",
+                !options.recheck ? "geometry + compliance"
+                : loaded ? "re-check: registration, tool, inner joint zeros, compliances"
+                         : "re-check: registration, tool, inner joint zeros",
                 options.ridge, plan.log_det_information);
   out << format("joint range covered (share of %d bins):", options.spread_bins);
   for (size_t i = 0; i < plan.joint_coverage.size(); ++i) {

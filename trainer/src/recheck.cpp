@@ -1,5 +1,6 @@
-// The re-check (recheck.hpp): Gauss–Newton on the tracker registration, the tool and the joint
-// zeros of a stored model, on a short campaign; every other parameter of the model kept.
+// The re-check (recheck.hpp): Gauss–Newton on the tracker registration, the tool, the joint
+// zeros and (on rows at two loads or more) the joint compliances of a stored model, on a short
+// campaign; every other parameter of the model kept.
 //
 // A joint's zero moves its initial pose by exp(s_j δ_j) (T(0)·exp(s δ)·exp(s θ) =
 // T(0)·exp(s(θ+δ))), so its column is the initial-pose columns of its block times its twist s_j,

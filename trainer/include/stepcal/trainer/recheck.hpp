@@ -1,5 +1,6 @@
 // The re-check after a crash, a motor change or a re-mastering (docs/cell.md, "The re-check"):
-// a short campaign against a stored model, what changed (each joint's zero, the tool), with its
+// a short campaign against a stored model, what changed (each joint's zero, the tool, the
+// compliances where the rows are at several loads), with its
 // significance, and the model updated.
 #pragma once
 

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <sstream>
 
+#include <Eigen/Eigenvalues>
+
 #include "stepcal/common/error.hpp"
 #include "stepcal/common/lie.hpp"
 #include "stepcal/trainer/registration.hpp"
@@ -234,7 +236,16 @@ Eigen::MatrixXd chainCovarianceFactor(const ParameterLayout& layout, const SvdSo
   for (int i = 0; i < 6 * (n + 1); ++i) {
     if (const int c = layout.column(0, i); c >= 0) F.row(i) = W.row(c) / svd.column_scale(c);
   }
-  return F;
+  if (F.cols() <= F.rows()) return F;
+  // Several campaigns: their own frames add columns beyond the chain's 6(n + 1) parameters. The
+  // chain's marginal covariance F Fᵀ, factored again as V √Λ over its positive eigenvalues, has
+  // at most as many columns as rows (the model file's layout).
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(F * F.transpose());
+  const Eigen::VectorXd& lambda = eigen.eigenvalues();  // ascending
+  const double floor = lambda.maxCoeff() * 1e-14;
+  Eigen::Index kept = 0;
+  while (kept < lambda.size() && lambda(lambda.size() - 1 - kept) > floor) ++kept;
+  return eigen.eigenvectors().rightCols(kept) * lambda.tail(kept).cwiseSqrt().asDiagonal();
 }
 
 }  // namespace

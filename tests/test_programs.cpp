@@ -244,10 +244,11 @@ TEST(Programs, EachLanguageReadsItsFramesAndKeepsWhatItDoesNotCorrect) {
       "  set_payload(mass)\n  movej([0,-1.57,1.57,0,1.2,0])\nend\n");
   ASSERT_EQ(loaded.targets.size(), 2u);
   const programs::Frame& tool = loaded.frames[size_t(loaded.targets[0].tool)];
-  EXPECT_EQ(tool.mass_kg, 2.5);
-  EXPECT_EQ(tool.p_CoG_m.z(), 0.05);
   EXPECT_NEAR(tool.X->translation().z(), 0.3, 1e-15);
-  EXPECT_EQ(loaded.targets[1].tool, loaded.targets[0].tool);  // set_payload(mass) is reported
+  const programs::Load& payload = loaded.loads[size_t(loaded.targets[0].load)];
+  EXPECT_EQ(payload.mass_kg, 2.5);
+  EXPECT_EQ(payload.p_CoG_m.z(), 0.05);
+  EXPECT_EQ(loaded.targets[1].load, loaded.targets[0].load);  // set_payload(mass) is reported
   EXPECT_EQ(loaded.not_literals.size(), 1u);
 
   const programs::Program tp = read(Language::kFanucTp,

@@ -33,6 +33,7 @@
 #include "stepcal/runtime/closed_form_seed.hpp"
 #include "stepcal/runtime/corrector.hpp"
 #include "stepcal/twin/twin.hpp"
+#include "program_load.hpp"
 #include "subcommands.hpp"
 #include "tool_file.hpp"
 
@@ -54,6 +55,8 @@ struct CorrectArgs {
   /// NAME=x,y,z,qw,qx,qy,qz (mm): a tool (flange frame) or base (robot base frame) the program
   /// names without its values (TOOL_DATA[1], UF 2, UT 9).
   std::vector<std::string> program_frames;
+  /// NAME=kg,x,y,z (mm): a load the program names without its values (LOAD_DATA[1], PAYLOAD[2]).
+  std::vector<std::string> program_loads;
   /// A robot program's tool calibrated on the model (stepcal tool --out): TOOL.json, or
   /// NAME=TOOL.json per tool the program names.
   std::vector<std::string> tool_files;
@@ -713,9 +716,9 @@ const Pose& framePose(const programs::Program& program, int index, const std::ma
 }
 
 /// A target as a line of the CSV driver: its pose or joints, its tool (flange frame; when the
-/// program names none, --program-frame TOOL=…, else the flange itself), its base (a user frame;
-/// when none, --program-frame BASE=…, else the robot's base) and the tool's load where the
-/// program gives it.
+/// program names none, --program-frame TOOL=…, else the flange itself) and its base (a user
+/// frame; when none, --program-frame BASE=…, else the robot's base); unloaded (its load is
+/// targetLoad's).
 ProgramLine programLine(const programs::Program& program, const programs::Target& t,
                         const std::map<std::string, Pose>& given, const std::string& path) {
   ProgramLine p;
@@ -727,15 +730,7 @@ ProgramLine programLine(const programs::Program& program, const programs::Target
   p.terms.tool_from = runtime::ToolFrom::kFlange;
   p.terms.load_from = runtime::LoadFrom::kPayload;
   p.terms.frame = runtime::PoseFrame::kBase;
-  if (t.tool >= 0) {
-    p.terms.X_Tool = framePose(program, t.tool, given, t, path);
-    const programs::Frame& tool = program.frames[size_t(t.tool)];
-    if (tool.mass_kg > 0.0) {
-      p.terms.payload.mass_kg = tool.mass_kg;
-      p.terms.payload.p_CoG_m = tool.p_CoG_m;
-      p.terms.payload.frame = runtime::CogFrame::kFlange;
-    }
-  }
+  if (t.tool >= 0) p.terms.X_Tool = framePose(program, t.tool, given, t, path);
   if (t.base >= 0) {
     p.terms.frame = runtime::PoseFrame::kUser;
     p.terms.X_BaseUser = framePose(program, t.base, given, t, path);
@@ -758,6 +753,8 @@ struct TargetOutcome {
   bool written = false;
   double correction_mm = 0.0, correction_deg = 0.0;  ///< how far the written target moved
   std::string detail;
+  JointVector q_corrected_rad;  ///< written: the corrected joints
+  TargetLoad load;              ///< what it was corrected under
 };
 
 /// Without a closed form (an arm of another layout), a corrected joint solution more than this
@@ -884,6 +881,7 @@ TargetOutcome correctTarget(const runtime::RuntimeModel& model, runtime::Workspa
   replacement.X_FrameTcp =
       tool_file ? runtime::nominalTcp(model, ws, r.q_target_rad, p.terms) : r.X_ControllerTcp_commanded;
   replacement.q_rad = r.q_target_rad;
+  o.q_corrected_rad = r.q_target_rad;
   o.written = true;
   o.outcome = r.status == runtime::Status::kOutOfDomain ? "out of coverage" : "corrected";
   if (p.joint_target) {
@@ -988,7 +986,7 @@ void printProgramOutcomes(const std::string& path, const programs::Program& prog
       std::cout << format(" (moved %.3f mm, %.4f deg)", o.correction_mm, o.correction_deg);
     }
     if (!o.detail.empty()) std::cout << " (" << o.detail << ")";
-    std::cout << "\n";
+    std::cout << describeLoad(o.load) << "\n";
   }
   for (const programs::NotLiteral& n : program.not_literals) {
     std::cout << path << ":" << n.line << ":" << n.column << ": not a literal, not corrected: " << n.text << "\n";
@@ -1025,10 +1023,17 @@ nlohmann::json programSummaryJson(const CorrectArgs& args, const programs::Progr
   nlohmann::json counts = nlohmann::json::object(), targets = nlohmann::json::array();
   for (const TargetOutcome& o : outcomes) {
     counts[o.outcome] = counts.value(o.outcome, 0) + 1;
-    targets.push_back({{"line", o.target->line}, {"column", o.target->column}, {"name", o.target->name},
-                       {"kind", o.target->kind == programs::TargetKind::kJoint ? "joints" : "pose"},
-                       {"configuration", o.target->configuration}, {"outcome", o.outcome},
-                       {"correction_mm", o.correction_mm}, {"correction_deg", o.correction_deg}, {"detail", o.detail}});
+    nlohmann::json target = {{"line", o.target->line}, {"column", o.target->column}, {"name", o.target->name},
+                             {"kind", o.target->kind == programs::TargetKind::kJoint ? "joints" : "pose"},
+                             {"configuration", o.target->configuration}, {"outcome", o.outcome},
+                             {"correction_mm", o.correction_mm}, {"correction_deg", o.correction_deg},
+                             {"detail", o.detail}, {"load", loadJson(o.load)}};
+    if (o.written) {
+      nlohmann::json q_deg = nlohmann::json::array();
+      for (int j = 0; j < o.q_corrected_rad.size(); ++j) q_deg.push_back(o.q_corrected_rad[j] / kRadPerDeg);
+      target["q_corrected_deg"] = q_deg;
+    }
+    targets.push_back(target);
   }
   counts["not a literal"] = program.not_literals.size();
   summary["outcomes"] = counts;
@@ -1060,6 +1065,8 @@ int runCorrectRobotProgram(const CorrectArgs& args, programs::Language language)
   }
   const std::map<std::string, Pose> given = commandLineFrames(args);
   warnOfUnusedFrames(program, given);
+  const std::map<std::string, GivenLoad> given_loads = commandLineLoads(args.program_loads);
+  warnOfUnusedLoads(program, given_loads);
   const Branching b = branching(*model, language, args.program);
   const int dof = model->file.chain_Tracker.dof();
   JointVector previous_rad = firstSeed(program, seedOption(args, dof), b, dof);
@@ -1068,7 +1075,12 @@ int runCorrectRobotProgram(const CorrectArgs& args, programs::Language language)
   std::vector<TargetOutcome> outcomes;
   std::vector<programs::Replacement> replacements;
   std::vector<ProgramLine> lines;
-  for (const programs::Target& t : program.targets) lines.push_back(programLine(program, t, given, args.program));
+  std::vector<TargetLoad> loads;
+  for (const programs::Target& t : program.targets) {
+    lines.push_back(programLine(program, t, given, args.program));
+    loads.push_back(targetLoad(program, t, lines.back().terms.X_Tool, given_loads, args.program));
+    lines.back().terms.payload = loads.back().payload;
+  }
   const ProgramToolFiles tool_files = readProgramToolFiles(args.tool_files, *model, args.model);
   const std::vector<const ToolFile*> tool_of_target =
       toolFilesOfTargets(tool_files, targetTools(program, lines), args.program);
@@ -1081,6 +1093,7 @@ int runCorrectRobotProgram(const CorrectArgs& args, programs::Language language)
     TargetOutcome o = correctTarget(*model, ws, *nominal, nominal_ws, b, t, p, tool_of_target[i], previous_rad, truth,
                                     tally, replacement);
     o.target = &t;
+    o.load = loads[i];
     if (o.written && programs::unchangedWithinTolerance(t, replacement)) o.outcome = "unchanged";
     if (o.written) replacements.push_back(replacement);
     outcomes.push_back(o);
@@ -1174,6 +1187,12 @@ Subcommand addCorrectCommand(CLI::App& app) {
                       "'TOOL_DATA[1]=0,0,300,1,0,0,0' or 'UF 2=900,0,40,1,0,0,0'; TOOL=… and BASE=… "
                       "for the targets whose program names none (else the flange and the robot's "
                       "base); repeatable");
+  correct->add_option("--program-load", args.program_loads,
+                      "a load the program names without its values: NAME=kg,x,y,z (the mass, then "
+                      "the centre of gravity in mm in the flange frame; a RAPID GripLoad's loaddata "
+                      "in the tool frame), e.g. 'LOAD_DATA[1]=30,0,0,150' (KRL) or "
+                      "'PAYLOAD[2]=12.5,0,0,80' (Fanuc: its payload schedule, cm × 10); each "
+                      "target's line says the load it was corrected under; repeatable");
   correct->add_option("--tool-file", args.tool_files,
                       "a robot program's tool calibrated with this model (stepcal tool --out): the "
                       "targets are corrected for that TCP, taken from the measured target, and the "

@@ -5,7 +5,9 @@
 // frames are named by number (UF 2, UT 9): their values from UTOOL[n]=PR[i] / UFRAME[n]=PR[i]
 // after PR[i,1..6]=… in /MN (as RoboDK writes them), else from the command line. A motion
 // in /MN to a position register (PR[…]) or with Offset, Tool_Offset or INC is moved at run time:
-// reported, and its P[n] is not corrected. Tabs, leading-dot numbers and P[n:"comment"] are
+// reported, and its P[n] is not corrected. PAYLOAD[n] in /MN selects a payload schedule (its
+// values are the controller's, given on the command line) for the motions after it; a P[n]
+// takes the payload of the first motion to it. Tabs, leading-dot numbers and P[n:"comment"] are
 // read; the file must end with /END.
 #include <array>
 #include <cstdio>
@@ -69,11 +71,14 @@ class TpReader {
     const size_t colon = line.find(':');
     if (colon == std::string_view::npos) return;
     std::string body = lowerCase(line.substr(colon + 1));
-    if (frameAssignment(body)) return;
+    if (frameAssignment(body) || payloadSchedule(body)) return;
     const size_t first = body.find_first_not_of(" \t");
     if (first == std::string::npos || std::string("jlca").find(body[first]) == std::string::npos ||
         (body.size() > first + 1 && body[first + 1] != ' ' && body[first + 1] != '\t')) {
       return;
+    }
+    for (size_t p = body.find("p[", first); p != std::string::npos; p = body.find("p[", p + 2)) {
+      if (p == 0 || !isWordChar(body[p - 1])) load_of_position_.emplace(std::atoi(body.c_str() + p + 2), current_payload_);
     }
     const bool register_target = body.find("pr[", first) == first + 2 || body.find(" pr[") != std::string::npos;
     const bool offset = body.find("offset") != std::string::npos || body.find(" inc") != std::string::npos;
@@ -115,6 +120,15 @@ class TpReader {
     } else if (f.X && !f.X->isApprox(X, 1e-12)) {
       f.X.reset();
     }
+    return true;
+  }
+
+  /// PAYLOAD[n] ; : payload schedule n for the motions after it.
+  bool payloadSchedule(const std::string& body) {
+    int n = 0;
+    char close = 0;
+    if (std::sscanf(body.c_str(), " payload[%d] %c", &n, &close) != 2 || close != ';') return false;
+    current_payload_ = loadIndex(program_, "PAYLOAD[" + std::to_string(n) + "]");
     return true;
   }
 
@@ -197,6 +211,8 @@ class TpReader {
     t.configuration = configuration;
     if (uf >= 0) t.base = frameIndex("UF " + std::to_string(uf), uf == 0);
     if (ut >= 0) t.tool = frameIndex("UT " + std::to_string(ut), false);
+    const auto load = load_of_position_.find(number);
+    if (load != load_of_position_.end()) t.load = load->second;
     program_.targets.push_back(std::move(t));
   }
 
@@ -225,6 +241,8 @@ class TpReader {
   std::set<int> moved_;
   std::map<int, std::array<std::optional<double>, 6>> registers_;  ///< PR[i,1..6] as assigned
   std::set<std::string> assigned_;  ///< UT n and UF n assigned from a register
+  int current_payload_ = -1;        ///< the PAYLOAD[n] in force in /MN (an index into loads)
+  std::map<int, int> load_of_position_;  ///< P[n]: the payload of the first motion to it
   bool ended_ = false;
 };
 

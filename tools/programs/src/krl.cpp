@@ -2,9 +2,12 @@
 // E6POS, FRAME) and {A1 …, …, A6 …[, E1 …]} (AXIS, E6AXIS), inline in PTP/LIN/CIRC (and their
 // spline forms) or declared (DECL E6POS XP1={…}, XP1={…}); $TOOL and $BASE from an inline
 // {FRAME: …}, TOOL_DATA[n]/BASE_DATA[n] (their values where the file assigns them) or
-// BAS(#TOOL, n). Keywords in any case; ';' starts a comment, which is left alone. A, B, C are
-// degrees about Z, Y′, X″; S and T are kept as written (decimal or 'B…').
+// BAS(#TOOL, n); $LOAD from an inline {M …, CM {X …, Y …, Z …, …}, J {…}} or LOAD_DATA[n]
+// (BAS(#TOOL, n) selects LOAD_DATA[n] too, as KUKA's BAS does). Keywords in any case; ';'
+// starts a comment, which is left alone. A, B, C are degrees about Z, Y′, X″; S and T are kept as
+// written (decimal or 'B…').
 #include <array>
+#include <cstdlib>
 #include <map>
 
 #include "scan.hpp"
@@ -31,6 +34,13 @@ struct Aggregate {
   size_t begin = 0;
   std::map<std::string, std::pair<NumberField, double>> numbers;
   std::map<std::string, std::string> words;  ///< S/T and other non-numbers as written
+  std::vector<std::pair<std::string, Aggregate>> nested;  ///< {M 30, CM {X 0, …}}: CM's
+  const Aggregate* nestedNamed(const std::string& name) const {
+    for (const auto& [n, a] : nested) {
+      if (n == name) return &a;
+    }
+    return nullptr;
+  }
   bool pose() const { return numbers.count("x") || numbers.count("y") || numbers.count("z") || numbers.count("c"); }
   bool axes() const { return numbers.count("a1") > 0; }
 };
@@ -62,8 +72,9 @@ class KrlReader {
     if (!first.empty()) last_word_ = first;
     reported_ = false;
     size_t name_start = start;
+    declared_type_.clear();
     if (first == "decl") {
-      s_.word();  // the type
+      declared_type_ = lowerCase(s_.word());
       s_.skipBlanks();
       name_start = s_.pos();
     }
@@ -81,6 +92,8 @@ class KrlReader {
         const double n = s_.number("BAS's tool or base number", nullptr, false);
         const std::string name = (kind == "tool" ? "TOOL_DATA[" : "BASE_DATA[") + formatNumber(n) + "]";
         (kind == "tool" ? current_tool_ : current_base_) = frameIndex(name);
+        // BAS selects the tool's load with it; tool 0, the flange, carries none.
+        if (kind == "tool") current_load_ = long(n) == 0 ? -1 : loadIndex(program_, "LOAD_DATA[" + formatNumber(n) + "]");
       }
     }
     s_.seek(start);
@@ -131,8 +144,10 @@ class KrlReader {
     return n;
   }
 
-  /// $TOOL = TOOL_DATA[n], $BASE = BASE_DATA[n]: that frame current from here on.
+  /// $TOOL = TOOL_DATA[n], $BASE = BASE_DATA[n], $LOAD = LOAD_DATA[n]: that frame or load
+  /// current from here on.
   void currentFrameByName(const std::string& lhs) {
+    if (lhs == "$LOAD") return currentLoadByName();
     if (lhs != "$TOOL" && lhs != "$BASE") return;
     const size_t start = s_.pos();
     const std::string_view name = s_.word();
@@ -146,6 +161,26 @@ class KrlReader {
         if (!frame.empty()) (lhs == "$TOOL" ? current_tool_ : current_base_) = frameIndex(frame);
       }
     }
+    s_.seek(start);
+  }
+
+  /// $LOAD = LOAD_DATA[n] (or any other name: a load whose values the command line gives) from
+  /// here on; an inline {M …} is read as an aggregate.
+  void currentLoadByName() {
+    const size_t start = s_.pos();
+    s_.skipBlanks();
+    if (s_.peek() == '{') return s_.seek(start);
+    std::string_view rest = s_.restOfLine();
+    rest = rest.substr(0, rest.find(';'));
+    while (!rest.empty() && (rest.back() == ' ' || rest.back() == '\t' || rest.back() == '\r')) rest.remove_suffix(1);
+    std::string name;
+    for (const char c : rest) {
+      if (c != ' ' && c != '\t') name += char(std::toupper(static_cast<unsigned char>(c)));
+    }
+    if (name.rfind("LOAD_DATA[", 0) == 0 && name.back() == ']') {
+      name = "LOAD_DATA[" + formatNumber(std::atof(name.c_str() + 10)) + "]";
+    }
+    if (!name.empty()) current_load_ = loadIndex(program_, name);
     s_.seek(start);
   }
 
@@ -185,6 +220,9 @@ class KrlReader {
     const size_t start = s_.pos();
     const int line = s_.line(), column = s_.column();
     const Aggregate a = aggregate();
+    if (assigned == "$LOAD" || assigned.rfind("LOAD_DATA[", 0) == 0 || declared_type_ == "load") {
+      return load(a, start, assigned);
+    }
     if ((!a.pose() && !a.axes()) || reported_) return;
     const bool tool = assigned == "$TOOL" || assigned.rfind("TOOL_DATA[", 0) == 0;
     const bool base = assigned == "$BASE" || assigned.rfind("BASE_DATA[", 0) == 0;
@@ -201,7 +239,34 @@ class KrlReader {
     if (!isMotionKeyword(first)) t.name = assigned;
     t.tool = current_tool_;
     t.base = current_base_;
+    t.load = current_load_;
     program_.targets.push_back(std::move(t));
+  }
+
+  /// $LOAD/LOAD_DATA[n]/DECL LOAD name = {M …, CM {X …, Y …, Z …, A …, B …, C …}, J {…}}: a
+  /// load (mass kg, centre of gravity mm in the flange frame), current from here on when it is
+  /// $LOAD. M −1 is KUKA's default load of the robot type, whose values no program holds.
+  void load(const Aggregate& a, size_t start, const std::string& assigned) {
+    const auto m = a.numbers.find("m");
+    if (m == a.numbers.end()) s_.failAt(start, "a load without M; expected {M kg, CM {X mm, Y mm, Z mm, A, B, C}, J {…}}");
+    const Aggregate* cm = a.nestedNamed("cm");
+    for (const char* axis : {"x", "y", "z"}) {
+      if (cm && !cm->numbers.count(axis)) s_.failAt(cm->begin, std::string("a load's CM without ") + char(axis[0] - 32) + "; expected CM {X mm, Y mm, Z mm, A, B, C}");
+    }
+    // An inline $LOAD is a load of its own at each assignment.
+    const std::string name = assigned == "$LOAD" ? "$LOAD line " + std::to_string(s_.lineOf(start)) : assigned;
+    const int index = loadIndex(program_, name);
+    Load& l = program_.loads[size_t(index)];
+    l.mass_kg.reset();
+    l.without_values.clear();
+    if (m->second.second < 0.0) {
+      l.without_values = "M " + std::string(s_.text().substr(m->second.first.begin, m->second.first.end - m->second.first.begin)) +
+                         " (KUKA's default load of the robot type, whose values the program does not hold)";
+    } else {
+      l.mass_kg = m->second.second;
+      if (cm) l.p_CoG_m = Vec3(cm->numbers.at("x").second, cm->numbers.at("y").second, cm->numbers.at("z").second) / 1000.0;
+    }
+    if (assigned == "$LOAD") current_load_ = index;
   }
 
   bool complete(const Aggregate& a) const {
@@ -274,7 +339,7 @@ class KrlReader {
       s_.skipBlanks();
       const char c = s_.peek();
       if (c == '{') {
-        aggregate();
+        a.nested.emplace_back(name, aggregate());
       } else if (c == '\'' || c == '"') {
         const size_t v = s_.pos();
         quoted(c);
@@ -307,8 +372,9 @@ class KrlReader {
 
   Scanner s_;
   Program program_;
-  int current_tool_ = -1, current_base_ = -1;
+  int current_tool_ = -1, current_base_ = -1, current_load_ = -1;
   std::string last_word_;
+  std::string declared_type_;  ///< DECL's type (lower case) on this statement; empty else
   bool reported_ = false;  ///< the statement's motion is already reported as not a literal
 };
 

@@ -211,6 +211,15 @@ std::string writeProgram(const Program& program, std::string_view text,
   return out;
 }
 
+int loadIndex(Program& program, const std::string& name, bool any_case) {
+  for (size_t i = 0; i < program.loads.size(); ++i) {
+    const std::string& n = program.loads[i].name;
+    if (any_case ? detail::equalsIgnoringCase(n, name) : n == name) return int(i);
+  }
+  program.loads.push_back(Load{name, std::nullopt, Vec3::Zero(), ""});
+  return int(program.loads.size() - 1);
+}
+
 bool unchangedWithinTolerance(const Target& target, const Replacement& r) {
   if (target.kind == TargetKind::kJoint) {
     return r.q_rad.size() == target.q_rad.size() &&

@@ -1,9 +1,10 @@
 // ABB RAPID (.mod, .prg, .sys): robtarget literals [[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],
 // [e1,…,e6]] declared (CONST/PERS/VAR robtarget p10 := […];), assigned, or inline in
 // MoveJ/MoveL/MoveC (and their DO/Sync forms); jointtarget [[j1,…,j6],[e1,…,e6]] declared or in
-// MoveAbsJ; tooldata, wobjdata and loaddata declarations as frames. A Move's tool is its
-// positional argument after the zone, its work object \WObj:=…; a declared target takes those of
-// the first Move that uses it. Keywords in any case; '!' starts a comment, left alone; 9E9 and
+// MoveAbsJ; tooldata and wobjdata declarations as frames, loaddata as loads. A Move's tool is
+// its positional argument after the zone, its work object \WObj:=…, its total load \TLoad:=…
+// (in place of the tool's load); GripLoad's payload (in the tool frame) is added to the tool's
+// load of the Moves after it; a declared target takes those of the first Move that uses it. Keywords in any case; '!' starts a comment, left alone; 9E9 and
 // 9E+09 mark unused axes and are never rewritten. Positions in mm, the quaternion w, x, y, z.
 #include <algorithm>
 #include <map>
@@ -94,6 +95,8 @@ class RapidReader {
       ended_ = true;
     } else if (isMove(w)) {
       move(w, start);
+    } else if (w == "gripload") {
+      gripLoad(start);
     } else if ((w == "const" || w == "pers" || w == "var") && parentheses_ == 0) {
       declaration();
     } else if (s_.skipBlanks(), s_.peek() == ':' && s_.peek(1) == '=') {
@@ -297,9 +300,9 @@ class RapidReader {
       if (value.items.empty() || !value.items[0].number || value.items.size() < 2 || !isNumbers(value.items[1], 3)) {
         s_.failAt(value.begin, "loaddata " + name + ": expected [mass,[x,y,z],[q1..q4],ix,iy,iz]");
       }
-      Frame f{name, std::nullopt, value.items[0].value, Vec3::Zero()};
-      for (int a = 0; a < 3; ++a) f.p_CoG_m[a] = value.items[1].items[size_t(a)].value / 1000.0;
-      program_.frames.push_back(f);
+      Load& l = program_.loads[size_t(loadIndex(program_, name, true))];
+      l.mass_kg = value.items[0].value;
+      for (int a = 0; a < 3; ++a) l.p_CoG_m[a] = value.items[1].items[size_t(a)].value / 1000.0;
     }
   }
 
@@ -411,17 +414,29 @@ class RapidReader {
     return args;
   }
 
+  /// GripLoad name; (load0: none): the payload of the Moves after it.
+  void gripLoad(size_t start) {
+    const std::string name(s_.word());
+    if (name.empty()) s_.failAt(start, "GripLoad without its loaddata; expected GripLoad name;");
+    grip_load_ = equalsIgnoringCase(name, "load0") ? -1 : loadIndex(program_, name, true);
+    toSemicolon(start);
+  }
+
   /// MoveX [\Conc,] point(s), speed, zone, tool [\WObj:=w] [\TLoad:=l];
   void move(const std::string& keyword, size_t start) {
     std::vector<Argument> args = arguments(start);
     std::vector<const Argument*> positional;
-    std::string wobj = "wobj0";
+    std::string wobj = "wobj0", tload = "load0";
     for (const Argument& a : args) {
       const std::string lower = lowerCase(a.text);
       const size_t w = lower.find("\\wobj:=");
       if (w != std::string::npos) wobj = wordAt(a.text, w + 7);
+      const size_t l = lower.find("\\tload:=");
+      if (l != std::string::npos) tload = wordAt(a.text, l + 8);
       if (a.text[0] != '\\') positional.push_back(&a);
     }
+    // \TLoad:=load0 is no total load: the tool's own is used.
+    const int load = equalsIgnoringCase(tload, "load0") ? -1 : loadIndex(program_, tload, true);
     const bool circular = keyword.rfind("movec", 0) == 0;
     const size_t points = circular ? 2 : 1;
     if (positional.size() < points + 3) {
@@ -430,7 +445,7 @@ class RapidReader {
     }
     const int tool = frameIndex(wordAt(positional[points + 2]->text, 0));
     const int base = frameIndex(wobj);
-    for (size_t k = 0; k < points; ++k) point(keyword, *positional[k], tool, base);
+    for (size_t k = 0; k < points; ++k) point(keyword, *positional[k], tool, base, load);
   }
 
   static std::string wordAt(const std::string& text, size_t at) {
@@ -439,7 +454,7 @@ class RapidReader {
     return text.substr(at, end - at);
   }
 
-  void point(const std::string& keyword, const Argument& a, int tool, int base) {
+  void point(const std::string& keyword, const Argument& a, int tool, int base, int load) {
     const bool joints = keyword == "moveabsj";
     if (a.value) {
       const bool fits = joints ? isJointtarget(*a.value) : isRobtarget(*a.value);
@@ -453,6 +468,8 @@ class RapidReader {
       Target t = joints ? jointtarget(*a.value, "") : robtarget(*a.value, "");
       t.tool = tool;
       t.base = base;
+      t.load = load;
+      t.grip_load = grip_load_;
       program_.targets.push_back(std::move(t));
       return;
     }
@@ -463,6 +480,8 @@ class RapidReader {
       if (t.tool < 0) {
         t.tool = tool;
         t.base = base;
+        t.load = load;
+        t.grip_load = grip_load_;
       }
       return;
     }
@@ -477,6 +496,7 @@ class RapidReader {
   std::map<std::string, size_t> named_;
   std::set<std::string> declared_;  ///< every robtarget and jointtarget name, with a literal or not
   int parentheses_ = 0;             ///< inside a routine's parameter list: no declarations there
+  int grip_load_ = -1;              ///< GripLoad's payload in force (an index into loads), -1 none
   bool ended_ = false;
 };
 

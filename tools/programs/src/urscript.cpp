@@ -1,7 +1,8 @@
 // URScript (.script): pose literals p[x, y, z, rx, ry, rz] (m, rotation vector in rad) in
 // movel/movej/movep/movec or assigned to a variable (global or local); joint lists [q1, …, q6]
 // (rad) as the first argument of movej/movel/movep; set_tcp(p[…]) as the tool from there on,
-// set_payload(m, [cx, cy, cz]) as its load.
+// set_payload(m, [cx, cy, cz]) (and set_target_payload, set_payload_mass, set_payload_cog) as
+// the load from there on.
 // A pose inside any other call (pose_trans, pose_add,
 // get_inverse_kin, …) is composed at run time: reported, not corrected. '#' starts a comment,
 // left alone (poses in comments too). Blocks (def, if, while, for, thread … end) must close.
@@ -63,7 +64,7 @@ class UrReader {
         const size_t w = s_.pos();
         last_word = lowerCase(s_.word());
         if (last_word == "p" && s_.peek() == '[') pose(w, calls, assigned);
-        if (last_word == "set_payload" && s_.peek() == '(') payload(w);
+        if (isPayloadCall(last_word) && s_.peek() == '(') payload(w, last_word);
         continue;
       }
       if (c == '"' || c == '\'') {
@@ -141,19 +142,15 @@ class UrReader {
     }
     const bool outermost = calls.size() == 1 || (calls.empty() && assigned);
     if (call == "set_tcp" && calls.size() == 1) {
-      Frame tool{"set_tcp line " + std::to_string(s_.lineOf(start)),
-                 poseFromWritten(values, Orientation::kRotationVector, 1.0)};
-      if (current_tool_ >= 0) {  // the load in force stays
-        tool.mass_kg = program_.frames[size_t(current_tool_)].mass_kg;
-        tool.p_CoG_m = program_.frames[size_t(current_tool_)].p_CoG_m;
-      }
-      program_.frames.push_back(tool);
+      program_.frames.push_back(Frame{"set_tcp line " + std::to_string(s_.lineOf(start)),
+                                      poseFromWritten(values, Orientation::kRotationVector, 1.0)});
       current_tool_ = int(program_.frames.size() - 1);
       return;
     }
     if (outermost && (call.empty() || isMove(call))) {
       Target t = cartesianTarget(program_, fields, values, s_.lineOf(start), s_.columnOf(start));
       t.tool = current_tool_;
+      t.load = current_load_;
       program_.targets.push_back(std::move(t));
       return;
     }
@@ -162,35 +159,45 @@ class UrReader {
                                          ": composed at run time"});
   }
 
-  /// set_payload(m[, [cx, cy, cz]]) (kg, m from the flange): the load of the targets after it,
-  /// on the tool in force. Values computed at run time are reported: the targets after it are
-  /// corrected with the load before.
-  void payload(size_t start) {
+  static bool isPayloadCall(const std::string& w) {
+    return w == "set_payload" || w == "set_target_payload" || w == "set_payload_mass" || w == "set_payload_cog";
+  }
+
+  /// set_payload(m[, [cx, cy, cz]]) and set_target_payload(m, [cx, cy, cz], …) (kg, m from the
+  /// flange; without the centre of gravity, the one in force stays, as UR's does),
+  /// set_payload_mass(m), set_payload_cog([cx, cy, cz]): the load of the targets after it.
+  /// Values computed at run time are reported: the targets after it keep the load before.
+  void payload(size_t start, const std::string& call) {
     const size_t open = s_.pos();
     s_.advance();
-    s_.skipBlanks();
-    const char c = s_.peek();
-    Frame load{"set_payload line " + std::to_string(s_.lineOf(start)), Pose::Identity()};
-    if (current_tool_ >= 0) load.X = program_.frames[size_t(current_tool_)].X;
-    bool literal = c == '-' || c == '.' || std::isdigit(static_cast<unsigned char>(c));
-    if (literal) {
-      load.mass_kg = s_.number("set_payload's mass", nullptr, false);
-      if (s_.accept(',', false)) {
-        std::vector<double> cog;
-        s_.skipBlanks();
-        literal = s_.peek() == '[' && numbers(cog).size() == 3;
-        if (literal) load.p_CoG_m = Vec3(cog[0], cog[1], cog[2]);
-      }
-      literal = literal && s_.accept(')', false);
+    Load load{call + " line " + std::to_string(s_.lineOf(start)), 0.0, Vec3::Zero(), ""};
+    if (current_load_ >= 0) load = Load{load.name, program_.loads[size_t(current_load_)].mass_kg,
+                                        program_.loads[size_t(current_load_)].p_CoG_m, ""};
+    bool literal = true;
+    if (call != "set_payload_cog") {
+      s_.skipBlanks();
+      const char c = s_.peek();
+      literal = c == '-' || c == '.' || std::isdigit(static_cast<unsigned char>(c));
+      if (literal) load.mass_kg = s_.number("the payload's mass", nullptr, false);
+      s_.skipBlanks();
+      literal = literal && (call == "set_payload_mass" ? s_.peek() == ')' : s_.accept(',', false) || s_.peek() == ')');
     }
+    if (literal && call != "set_payload_mass" && s_.peek() != ')') {
+      std::vector<double> cog;
+      s_.skipBlanks();
+      literal = s_.peek() == '[' && numbers(cog).size() == 3;
+      if (literal) load.p_CoG_m = Vec3(cog[0], cog[1], cog[2]);
+      s_.skipBlanks();
+      literal = literal && (s_.peek() == ')' || (call == "set_target_payload" && s_.peek() == ','));
+    }
+    s_.seek(open);
     if (!literal) {
       program_.not_literals.push_back({s_.lineOf(start), s_.columnOf(start),
-                                       "set_payload with values computed at run time: the targets after it keep the load before"});
-      s_.seek(open);
+                                       call + " with values computed at run time: the targets after it keep the load before"});
       return;
     }
-    program_.frames.push_back(load);
-    current_tool_ = int(program_.frames.size() - 1);
+    program_.loads.push_back(load);
+    current_load_ = int(program_.loads.size() - 1);
   }
 
   /// A list: a movej/movel/movep's joint targets, or another list left alone.
@@ -202,6 +209,7 @@ class UrReader {
     if (calls.size() == 1 && isMove(call) && calls.back().argument == 0 && fields.size() == 6) {
       Target t = jointTarget(program_, fields, values, s_.lineOf(start), s_.columnOf(start));
       t.tool = current_tool_;
+      t.load = current_load_;
       program_.targets.push_back(std::move(t));
     }
   }
@@ -209,7 +217,7 @@ class UrReader {
   Scanner s_;
   Program program_;
   std::vector<size_t> blocks_;
-  int current_tool_ = -1;
+  int current_tool_ = -1, current_load_ = -1;
 };
 
 }  // namespace

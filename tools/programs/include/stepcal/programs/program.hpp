@@ -49,6 +49,25 @@ struct Target {
   /// The tool and frame the program gives the target: indices into Program::frames (-1: none
   /// named; the command line's or the flange/base then).
   int tool = -1, base = -1;
+  /// The load in force at the target, an index into Program::loads: everything the flange
+  /// carries (KRL $LOAD, Fanuc PAYLOAD[n], RAPID \TLoad, URScript set_payload). -1: none named,
+  /// the tool's own load where the program gives one (RAPID tooldata), else unloaded.
+  int load = -1;
+  /// RAPID GripLoad: a payload the tool holds (its centre of gravity in the tool frame), added
+  /// to the tool's load; an index into Program::loads, -1 none.
+  int grip_load = -1;
+};
+
+/// A load the program names (LOAD_DATA[1], $LOAD, PAYLOAD[2], a RAPID loaddata, set_payload):
+/// its mass and centre of gravity where the program gives them; named without values (KRL's
+/// LOAD_DATA[n] of $config.dat, Fanuc's payload schedules) the command line gives them.
+struct Load {
+  std::string name;
+  std::optional<double> mass_kg;  ///< nullopt: not in the program
+  Vec3 p_CoG_m = Vec3::Zero();    ///< in the flange frame (a GripLoad's: in the tool frame), m
+  /// Why the program's own values cannot be used (KUKA's M -1, the robot type's default load);
+  /// empty when they are none or can.
+  std::string without_values;
 };
 
 /// A tool, base or work object the program declares (TOOL_DATA[3], tooldata tGripper,
@@ -74,8 +93,13 @@ struct Program {
   double file_units_per_rad = 0.0;   ///< joint angles: deg (180/π) or rad (1)
   std::vector<Target> targets;
   std::vector<Frame> frames;
+  std::vector<Load> loads;
   std::vector<NotLiteral> not_literals;
 };
+
+/// The index of the load named `name` (exact, or any case when `any_case`), added without
+/// values when the program has none of that name yet.
+int loadIndex(Program& program, const std::string& name, bool any_case = false);
 
 /// A target's new value (the corrected pose in the same frame, or the corrected joints).
 struct Replacement {

@@ -49,6 +49,13 @@ TEST(ProgramLoads, KrlReadsLoadAndLoadDataAndBasSelectsTheToolsLoad) {
   EXPECT_EQ(loadOf(krl, 2).name, "LOAD_DATA[3]");
   EXPECT_EQ(krl.targets[3].load, -1);  // the flange carries nothing
 
+  // A load built component by component holds the controller's values: the command line's.
+  const programs::Program parts = read(Language::kKrl,
+      "DEF a()\n$LOAD.M=$DEF_L_M\n$LOAD.CM=$DEF_L_CM\nPTP {A1 0, A2 -90, A3 90, A4 0, A5 45, A6 0}\nend\n");
+  ASSERT_EQ(parts.targets.size(), 1u);
+  EXPECT_EQ(loadOf(parts, 0).name, "$LOAD line 3");
+  EXPECT_FALSE(loadOf(parts, 0).mass_kg.has_value());
+
   // $config.dat's LOAD_DATA: M -1 is the robot type's default load, which no program holds.
   const programs::Program dat = read(Language::kKrl,
       "DEFDAT $CONFIG\nLOAD_DATA[1]={M 12.5,CM {X 0.0,Y 0.0,Z 80.0,A 0.0,B 0.0,C 0.0},J {X 0.0,Y 0.0,Z 0.0}}\n"

@@ -148,6 +148,11 @@ class KrlReader {
   /// current from here on.
   void currentFrameByName(const std::string& lhs) {
     if (lhs == "$LOAD") return currentLoadByName();
+    if (lhs.rfind("$LOAD.", 0) == 0) {  // $LOAD.M = $DEF_L_M: the values are the controller's
+      current_load_ = loadIndex(program_, "$LOAD line " + std::to_string(s_.line()));
+      program_.loads[size_t(current_load_)].without_values = "components assigned one by one ($LOAD.M, $LOAD.CM …)";
+      return;
+    }
     if (lhs != "$TOOL" && lhs != "$BASE") return;
     const size_t start = s_.pos();
     const std::string_view name = s_.word();

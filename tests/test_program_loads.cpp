@@ -258,6 +258,11 @@ std::vector<std::vector<double>> csvJoints(const std::string& text) {
   return rows;
 }
 
+// docs/runtime.md's example is the KRL program of this generator.
+TEST(ProgramLoads, TheDocumentedKrlProgramIsTheGenerators) {
+  EXPECT_EQ(test::readText(std::string(STEPCAL_TEST_DATA_DIR) + "/programs/twin/loaded.src"), loadedPrograms()[0].text);
+}
+
 class LoadedProgramOnTheTwin : public ::testing::TestWithParam<size_t> {};
 
 // Each language's program, its load changing after the third target, corrected with --truth:

@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "stepcal/common/model_file.hpp"
 #include "stepcal/common/units.hpp"
 #include "stepcal/programs/program.hpp"
 #include "support/command.hpp"
@@ -101,20 +102,21 @@ TEST(ProgramLoads, RapidReadsTLoadAndGripLoadAndUrAndTpTheirPayloads) {
   // A P[n] takes the payload of the first motion to it.
   const programs::Program tp = read(Language::kFanucTp,
       "/PROG a\n/MN\n 1:  PAYLOAD[2] ;\n 2:J P[1] 100% FINE ;\n 3:  PAYLOAD[1] ;\n 4:L P[2] 100mm/sec FINE ;\n"
-      " 5:J P[1] 100% FINE ;\n/POS\nP[1]{\n   GP1:\n\tUF : 0, UT : 1,\n\tJ1 = 0 deg, J2 = 0 deg, J3 = 0 deg, J4 = 0 deg,"
+      " 5:J P[1] 100% FINE ;\n 6:  PAYLOAD[3:gripper] ;\n 7:J P[3] 100% FINE ;\n/POS\nP[1]{\n   GP1:\n\tUF : 0, UT : 1,\n\tJ1 = 0 deg, J2 = 0 deg, J3 = 0 deg, J4 = 0 deg,"
       " J5 = -90 deg, J6 = 0 deg\n};\nP[2]{\n   GP1:\n\tUF : 0, UT : 1,\n\tJ1 = 1 deg, J2 = 0 deg, J3 = 0 deg, J4 = 0 deg,"
       " J5 = -90 deg, J6 = 0 deg\n};\nP[3]{\n   GP1:\n\tUF : 0, UT : 1,\n\tJ1 = 2 deg, J2 = 0 deg, J3 = 0 deg, J4 = 0 deg,"
       " J5 = -90 deg, J6 = 0 deg\n};\n/END\n");
   ASSERT_EQ(tp.targets.size(), 3u);
   EXPECT_EQ(loadOf(tp, 0).name, "PAYLOAD[2]");
   EXPECT_EQ(loadOf(tp, 1).name, "PAYLOAD[1]");
-  EXPECT_EQ(tp.targets[2].load, -1);  // P[3]: no motion to it
+  EXPECT_EQ(loadOf(tp, 2).name, "PAYLOAD[3]");
 }
 
 // ---- On the demo's twin, against the CSV driver ----
 
 struct Demo {
   std::string model, truth;
+  std::string identity;  ///< the model's nominal chain: no correction
 };
 
 const Demo& demo() {
@@ -123,7 +125,15 @@ const Demo& demo() {
     const std::string out = (dir.path() / "demo").string();
     const test::CommandResult r = test::run(kStepcal + " demo --out " + out);
     EXPECT_EQ(r.status, 0) << r.out;
-    return Demo{out + "/model.stepcal", out + "/truth.json"};
+    const CalibratedModel model = readModelFile(out + "/model.stepcal");
+    CalibratedModel nominal;
+    nominal.nominal_Base = model.nominal_Base;
+    nominal.chain_Tracker = model.nominal_Base.rerooted(model.X_TrackerBase);
+    nominal.X_TrackerBase = model.X_TrackerBase;
+    nominal.sensor_frame = model.sensor_frame;
+    nominal.gravity_Base = model.gravity_Base;
+    writeModelFile(nominal, out + "/identity.stepcal");
+    return Demo{out + "/model.stepcal", out + "/truth.json", out + "/identity.stepcal"};
   }();
   return d;
 }
@@ -275,6 +285,12 @@ TEST_P(LoadedProgramOnTheTwin, IsCorrectedAsTheCsvWithThatPayload) {
   const std::string program = (dir.path() / p.file).string(), csv = (dir.path() / "loaded.csv").string();
   test::writeText(program, p.text);
   test::writeText(csv, csvProgram(p));
+  // With no correction, the loaded program comes back byte-identical.
+  const test::CommandResult same = test::run(kStepcal + " correct " + d.identity + " " + program + " --out " +
+                                             (dir.path() / "same").string() + " --json" + p.options);
+  ASSERT_EQ(same.status, 0) << same.out;
+  EXPECT_EQ(test::readText(dir.path() / "same"), p.text);
+  EXPECT_EQ(jsonIn(same.out)["outcomes"].value("unchanged", 0), 6) << same.out;
   const test::CommandResult r = test::run(kStepcal + " correct " + d.model + " " + program + " --out " +
                                           (dir.path() / "out").string() + " --json --truth " + d.truth + p.options);
   ASSERT_EQ(r.status, 0) << r.out;

@@ -123,11 +123,11 @@ class TpReader {
     return true;
   }
 
-  /// PAYLOAD[n] ; : payload schedule n for the motions after it.
+  /// PAYLOAD[n] ; or PAYLOAD[n:comment] ; : payload schedule n for the motions after it.
   bool payloadSchedule(const std::string& body) {
     int n = 0;
-    char close = 0;
-    if (std::sscanf(body.c_str(), " payload[%d] %c", &n, &close) != 2 || close != ';') return false;
+    char after = 0;
+    if (std::sscanf(body.c_str(), " payload[%d%c", &n, &after) != 2 || (after != ']' && after != ':')) return false;
     current_payload_ = loadIndex(program_, "PAYLOAD[" + std::to_string(n) + "]");
     return true;
   }

@@ -76,6 +76,11 @@ TEST(ProgramLoads, RapidReadsTLoadAndGripLoadAndUrAndTpTheirPayloads) {
       "  MoveAbsJ [[2,0,0,0,30,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0\\TLoad:=total;\n"
       "  GripLoad load0;\n  MoveAbsJ [[3,0,0,0,30,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0\\TLoad:=load0;\n"
       " endproc\nENDMODULE\n");
+  const programs::Program declared = read(Language::kRapid,
+      "MODULE m\n CONST robtarget p10:=[[1,2,3],[0,1,0,0],[0,-1,2,1],[9E+09,9E9,9E9,9E9,9E9,9E9]];\n proc main()\n"
+      "  MoveL p10, v100, fine, tool0;\n  GripLoad part;\n  MoveL p10, v100, fine, tool0;\n endproc\nENDMODULE\n");
+  EXPECT_EQ(declared.targets.at(0).grip_load, -1);
+  EXPECT_EQ(declared.targets[0].other_loads, "line 6 with another tool or load");
   ASSERT_EQ(rapid.targets.size(), 4u);
   EXPECT_EQ(rapid.targets[0].grip_load, -1);
   EXPECT_EQ(rapid.loads.at(size_t(rapid.targets[1].grip_load)).mass_kg, 18.0);
@@ -109,6 +114,8 @@ TEST(ProgramLoads, RapidReadsTLoadAndGripLoadAndUrAndTpTheirPayloads) {
   ASSERT_EQ(tp.targets.size(), 3u);
   EXPECT_EQ(loadOf(tp, 0).name, "PAYLOAD[2]");
   EXPECT_EQ(loadOf(tp, 1).name, "PAYLOAD[1]");
+  EXPECT_EQ(tp.targets[0].other_loads, "line 7 under PAYLOAD[1]");  // P[1] again, corrected for the first
+  EXPECT_EQ(tp.targets[1].other_loads, "");
   EXPECT_EQ(loadOf(tp, 2).name, "PAYLOAD[3]");
 }
 

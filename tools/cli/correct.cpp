@@ -986,7 +986,9 @@ void printProgramOutcomes(const std::string& path, const programs::Program& prog
       std::cout << format(" (moved %.3f mm, %.4f deg)", o.correction_mm, o.correction_deg);
     }
     if (!o.detail.empty()) std::cout << " (" << o.detail << ")";
-    std::cout << describeLoad(o.load) << "\n";
+    std::cout << describeLoad(o.load);
+    if (!t.other_loads.empty()) std::cout << " (also moved to at " << t.other_loads << ": corrected for the first)";
+    std::cout << "\n";
   }
   for (const programs::NotLiteral& n : program.not_literals) {
     std::cout << path << ":" << n.line << ":" << n.column << ": not a literal, not corrected: " << n.text << "\n";
@@ -1027,7 +1029,8 @@ nlohmann::json programSummaryJson(const CorrectArgs& args, const programs::Progr
                              {"kind", o.target->kind == programs::TargetKind::kJoint ? "joints" : "pose"},
                              {"configuration", o.target->configuration}, {"outcome", o.outcome},
                              {"correction_mm", o.correction_mm}, {"correction_deg", o.correction_deg},
-                             {"detail", o.detail}, {"load", loadJson(o.load)}};
+                             {"detail", o.detail}, {"load", loadJson(o.load)},
+                             {"other_loads", o.target->other_loads}};
     if (o.written) {
       nlohmann::json q_deg = nlohmann::json::array();
       for (int j = 0; j < o.q_corrected_rad.size(); ++j) q_deg.push_back(o.q_corrected_rad[j] / kRadPerDeg);

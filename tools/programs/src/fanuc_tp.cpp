@@ -78,7 +78,7 @@ class TpReader {
       return;
     }
     for (size_t p = body.find("p[", first); p != std::string::npos; p = body.find("p[", p + 2)) {
-      if (p == 0 || !isWordChar(body[p - 1])) load_of_position_.emplace(std::atoi(body.c_str() + p + 2), current_payload_);
+      if (p == 0 || !isWordChar(body[p - 1])) motionTo(std::atoi(body.c_str() + p + 2), s_.lineOf(start));
     }
     const bool register_target = body.find("pr[", first) == first + 2 || body.find(" pr[") != std::string::npos;
     const bool offset = body.find("offset") != std::string::npos || body.find(" inc") != std::string::npos;
@@ -121,6 +121,16 @@ class TpReader {
       f.X.reset();
     }
     return true;
+  }
+
+  /// A motion to P[n] on `line` under the payload in force: P[n]'s load is the first one's; the
+  /// others are said on its report line.
+  void motionTo(int position, int line) {
+    const auto [first, inserted] = load_of_position_.emplace(position, current_payload_);
+    if (inserted || first->second == current_payload_) return;
+    std::string& others = other_loads_[position];
+    others += std::string(others.empty() ? "" : ", ") + "line " + std::to_string(line) + " under " +
+              (current_payload_ < 0 ? std::string("no payload") : program_.loads[size_t(current_payload_)].name);
   }
 
   /// PAYLOAD[n] ; or PAYLOAD[n:comment] ; : payload schedule n for the motions after it.
@@ -213,6 +223,7 @@ class TpReader {
     if (ut >= 0) t.tool = frameIndex("UT " + std::to_string(ut), false);
     const auto load = load_of_position_.find(number);
     if (load != load_of_position_.end()) t.load = load->second;
+    if (other_loads_.count(number)) t.other_loads = other_loads_.at(number);
     program_.targets.push_back(std::move(t));
   }
 
@@ -243,6 +254,7 @@ class TpReader {
   std::set<std::string> assigned_;  ///< UT n and UF n assigned from a register
   int current_payload_ = -1;        ///< the PAYLOAD[n] in force in /MN (an index into loads)
   std::map<int, int> load_of_position_;  ///< P[n]: the payload of the first motion to it
+  std::map<int, std::string> other_loads_;  ///< P[n]: the later motions to it under another payload
   bool ended_ = false;
 };
 

@@ -482,6 +482,9 @@ class RapidReader {
         t.base = base;
         t.load = load;
         t.grip_load = grip_load_;
+      } else if (t.tool != tool || t.load != load || t.grip_load != grip_load_) {
+        t.other_loads += std::string(t.other_loads.empty() ? "" : ", ") + "line " + std::to_string(s_.lineOf(a.begin)) +
+                         " with another tool or load";
       }
       return;
     }

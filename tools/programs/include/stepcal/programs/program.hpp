@@ -56,6 +56,9 @@ struct Target {
   /// RAPID GripLoad: a payload the tool holds (its centre of gravity in the tool frame), added
   /// to the tool's load; an index into Program::loads, -1 none.
   int grip_load = -1;
+  /// A declared point moved to under other loads than the first motion's (for which it is
+  /// corrected): which, for its report line; empty when none.
+  std::string other_loads;
 };
 
 /// A load the program names (LOAD_DATA[1], $LOAD, PAYLOAD[2], a RAPID loaddata, set_payload):

@@ -364,5 +364,23 @@ TEST(ProgramLoads, ALoadWithoutValuesIsRefusedNamingTheOption) {
   }
 }
 
+// A .dat's points name no load (their .src holds the $LOAD): --program-load LOAD=… serves them,
+// else they are unloaded, and their lines say which.
+TEST(ProgramLoads, LoadServesTheTargetsWhoseProgramNamesNone) {
+  const Demo& d = demo();
+  const test::TempDir dir;
+  const std::string dat = std::string(STEPCAL_TEST_DATA_DIR) + "/programs/twin/twin.dat";
+  const std::string frames = " --program-frame 'TOOL=20,0,300,0.996194698,0,0.087155743,0' --json";
+  for (const double mass_kg : {0.0, 25.0}) {
+    const std::string load = mass_kg > 0.0 ? " --program-load 'LOAD=25,0,0,100'" : "";
+    const test::CommandResult r =
+        test::run(kStepcal + " correct " + d.model + " " + dat + " --out " + (dir.path() / "out.dat").string() + frames + load);
+    ASSERT_EQ(r.status, 0) << r.out;
+    const nlohmann::json target = jsonIn(r.out)["targets"][0];
+    EXPECT_EQ(target["load"]["name"], mass_kg > 0.0 ? "LOAD" : "") << target.dump();
+    EXPECT_EQ(target["load"]["mass_kg"].get<double>(), mass_kg);
+  }
+}
+
 }  // namespace
 }  // namespace stepcal

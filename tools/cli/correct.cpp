@@ -1194,8 +1194,9 @@ Subcommand addCorrectCommand(CLI::App& app) {
                       "a load the program names without its values: NAME=kg,x,y,z (the mass, then "
                       "the centre of gravity in mm in the flange frame; a RAPID GripLoad's loaddata "
                       "in the tool frame), e.g. 'LOAD_DATA[1]=30,0,0,150' (KRL) or "
-                      "'PAYLOAD[2]=12.5,0,0,80' (Fanuc: its payload schedule, cm × 10); each "
-                      "target's line says the load it was corrected under; repeatable");
+                      "'PAYLOAD[2]=12.5,0,0,80' (Fanuc: its payload schedule, cm × 10); LOAD=… for "
+                      "the targets whose program names none (a KRL .dat's points; else unloaded); "
+                      "each target's line says the load it was corrected under; repeatable");
   correct->add_option("--tool-file", args.tool_files,
                       "a robot program's tool calibrated with this model (stepcal tool --out): the "
                       "targets are corrected for that TCP, taken from the measured target, and the "

@@ -64,7 +64,7 @@ std::map<std::string, GivenLoad> commandLineLoads(const std::vector<std::string>
 
 void warnOfUnusedLoads(const programs::Program& program, const std::map<std::string, GivenLoad>& given) {
   for (const auto& [name, load] : given) {
-    bool named = false;
+    bool named = name == "LOAD";
     std::string names;
     for (const programs::Load& l : program.loads) {
       named = named || upperCase(l.name) == name;
@@ -94,6 +94,13 @@ TargetLoad targetLoad(const programs::Program& program, const programs::Target& 
     out.payload.mass_kg = tool.mass_kg;
     out.payload.p_CoG_m = tool.p_CoG_m;
     out.name = tool.name + "'s load";
+  }
+  // A target whose program names no load (a KRL .dat's points): --program-load LOAD=… where given.
+  const auto default_load = given.find("LOAD");
+  if (out.name.empty() && default_load != given.end()) {
+    out.payload.mass_kg = default_load->second.mass_kg;
+    out.payload.p_CoG_m = default_load->second.p_CoG_m;
+    out.name = "LOAD";
   }
   if (target.grip_load >= 0) {
     const programs::Load& part = program.loads[size_t(target.grip_load)];

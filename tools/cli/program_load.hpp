@@ -34,7 +34,7 @@ struct TargetLoad {
 };
 
 /// The target's load: the load in force where the program names one (its values, else
-/// --program-load's), else its tool's load; plus a RAPID GripLoad payload carried in the tool
+/// --program-load's), else its tool's load, else --program-load LOAD=… where given; plus a RAPID GripLoad payload carried in the tool
 /// (X_FlangeTool). A load named without values and not given is refused with the target's file,
 /// line and column, naming the option.
 TargetLoad targetLoad(const programs::Program& program, const programs::Target& target, const Pose& X_FlangeTool,

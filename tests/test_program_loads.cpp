@@ -370,7 +370,8 @@ TEST(ProgramLoads, LoadServesTheTargetsWhoseProgramNamesNone) {
   const Demo& d = demo();
   const test::TempDir dir;
   const std::string dat = std::string(STEPCAL_TEST_DATA_DIR) + "/programs/twin/twin.dat";
-  const std::string frames = " --program-frame 'TOOL=20,0,300,0.996194698,0,0.087155743,0' --json";
+  const std::string frames = " --program-frame 'TOOL=20,0,300,0.996194698,0,0.087155743,0' --program-frame "
+                             "'BASE=900,-250,400,0.984807753,0,0,0.173648178' --json";
   for (const double mass_kg : {0.0, 25.0}) {
     const std::string load = mass_kg > 0.0 ? " --program-load 'LOAD=25,0,0,100'" : "";
     const test::CommandResult r =

@@ -163,6 +163,15 @@ struct LoadedProgram {
   std::string options;
   CsvLoad first, second;  ///< the loads the program names, as the CSV gives them
   std::string first_name, second_name;
+  /// RAPID: the last targets' load in place of `second` (a \TLoad), from this target on; 6: none.
+  int third_from = 6;
+  CsvLoad third{0, 0, 0, 0};
+  std::string third_name;
+
+  const CsvLoad& load(int target) const { return target >= third_from ? third : target < 3 ? first : second; }
+  const std::string& name(int target) const {
+    return target >= third_from ? third_name : target < 3 ? first_name : second_name;
+  }
 };
 
 std::string degrees(int target, const char* separator, const char* prefix = "") {
@@ -195,18 +204,20 @@ std::vector<LoadedProgram> loadedPrograms() {
     krl += "PTP {" + degrees(i, ",", "A") + "}\n";
   }
   programs.push_back({"loaded.src", krl + "END\n", " --program-load 'LOAD_DATA[1]=60,10,0,200'", {30, 0, 0, 150},
-                      {60, 10, 0, 200}, "$LOAD line 3", "LOAD_DATA[1]"});
+                      {60, 10, 0, 200}, "$LOAD line 3", "LOAD_DATA[1]", 6, {0, 0, 0, 0}, ""});
 
   // The tool's own 12 kg at 120 mm, then with an 18 kg part 70 mm out in the tool frame: 30 kg at
-  // (12 · 120 + 18 · 370) / 30 = 270 mm.
+  // (12 · 120 + 18 · 370) / 30 = 270 mm; the last target with a total load of its own (\TLoad).
   std::string rapid = "MODULE Loaded\n  PERS tooldata tSpindle:=[TRUE,[[0,0,300],[1,0,0,0]],[12,[0,0,120],[1,0,0,0],0,0,0]];\n"
-                      "  PERS loaddata part:=[18,[0,0,70],[1,0,0,0],0,0,0];\n  PROC main()\n";
+                      "  PERS loaddata part:=[18,[0,0,70],[1,0,0,0],0,0,0];\n"
+                      "  PERS loaddata total:=[50,[5,0,200],[1,0,0,0],0,0,0];\n  PROC main()\n";
   for (int i = 0; i < 6; ++i) {
     if (i == 3) rapid += "    GripLoad part;\n";
-    rapid += "    MoveAbsJ [[" + degrees(i, ",") + "],[9E9,9E9,9E9,9E9,9E9,9E9]], v1000, fine, tSpindle;\n";
+    rapid += "    MoveAbsJ [[" + degrees(i, ",") + "],[9E9,9E9,9E9,9E9,9E9,9E9]], v1000, fine, tSpindle" +
+             (i == 5 ? "\\TLoad:=total" : "") + ";\n";
   }
   programs.push_back({"loaded.mod", rapid + "  ENDPROC\nENDMODULE\n", "", {12, 0, 0, 120}, {30, 0, 0, 270},
-                      "tSpindle's load", "tSpindle's load + part"});
+                      "tSpindle's load", "tSpindle's load + part", 5, {50, 5, 0, 200}, "total"});
 
   std::string ur = "def loaded():\n  set_tcp(p[0, 0, 0.3, 0, 0, 0])\n  set_payload(30, [0, 0, 0.15])\n";
   for (int i = 0; i < 6; ++i) {
@@ -214,7 +225,7 @@ std::vector<LoadedProgram> loadedPrograms() {
     ur += "  movej([" + radians(i) + "], a=1.4, v=1.05)\n";
   }
   programs.push_back({"loaded.script", ur + "end\n", "", {30, 0, 0, 150}, {60, 10, 0, 200}, "set_payload line 3",
-                      "set_payload line 7"});
+                      "set_payload line 7", 6, {0, 0, 0, 0}, ""});
 
   std::string mn = "/PROG  LOADED\n/MN\n   1:  PAYLOAD[1] ;\n", pos = "/POS\n";
   for (int i = 0; i < 6; ++i) {
@@ -231,7 +242,7 @@ std::vector<LoadedProgram> loadedPrograms() {
   programs.push_back({"LOADED.LS", mn + pos + "/END\n",
                       " --program-frame 'UT 1=0,0,300,1,0,0,0' --program-load 'PAYLOAD[1]=30,0,0,150' --program-load "
                       "'PAYLOAD[2]=60,10,0,200'",
-                      {30, 0, 0, 150}, {60, 10, 0, 200}, "PAYLOAD[1]", "PAYLOAD[2]"});
+                      {30, 0, 0, 150}, {60, 10, 0, 200}, "PAYLOAD[1]", "PAYLOAD[2]", 6, {0, 0, 0, 0}, ""});
   return programs;
 }
 
@@ -240,7 +251,7 @@ std::string csvProgram(const LoadedProgram& p) {
   std::string out = "id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,tool_from,tool_x_mm,tool_y_mm,tool_z_mm,tool_qw,"
                     "tool_qx,tool_qy,tool_qz,payload_kg,cog_x_mm,cog_y_mm,cog_z_mm,cog_frame\n";
   for (int i = 0; i < 6; ++i) {
-    const CsvLoad& l = i < 3 ? p.first : p.second;
+    const CsvLoad& l = p.load(i);
     char load[128];
     std::snprintf(load, sizeof load, "%.17g,%.17g,%.17g,%.17g", l.mass_kg, l.x_mm, l.y_mm, l.z_mm);
     out += "t" + std::to_string(i) + "," + degrees(i, ",") + ",flange,0,0,300,1,0,0,0," + load + ",flange\n";
@@ -310,8 +321,8 @@ TEST_P(LoadedProgramOnTheTwin, IsCorrectedAsTheCsvWithThatPayload) {
   ASSERT_EQ(q_csv.size(), 6u);
   for (size_t i = 0; i < 6; ++i) {
     const nlohmann::json& t = program_summary["targets"][i];
-    const CsvLoad& l = i < 3 ? p.first : p.second;
-    EXPECT_EQ(t["load"]["name"], i < 3 ? p.first_name : p.second_name) << t.dump();
+    const CsvLoad& l = p.load(int(i));
+    EXPECT_EQ(t["load"]["name"], p.name(int(i))) << t.dump();
     EXPECT_NEAR(t["load"]["mass_kg"].get<double>(), l.mass_kg, 1e-12);
     for (int a = 0; a < 3; ++a) {
       EXPECT_NEAR(t["load"]["cog_flange_mm"][size_t(a)].get<double>(), (&l.x_mm)[a], 1e-9) << t.dump();
@@ -325,7 +336,7 @@ TEST_P(LoadedProgramOnTheTwin, IsCorrectedAsTheCsvWithThatPayload) {
   }
   // The load is felt: the CSV's same targets unloaded are corrected to other joints.
   LoadedProgram unloaded = p;
-  unloaded.first = unloaded.second = CsvLoad{0, 0, 0, 0};
+  unloaded.first = unloaded.second = unloaded.third = CsvLoad{0, 0, 0, 0};
   test::writeText(csv, csvProgram(unloaded));
   ASSERT_EQ(test::run(kStepcal + " correct " + d.model + " " + csv + " --out " + (dir.path() / "out.csv").string() +
                       " --frame base").status, 0);

@@ -79,6 +79,10 @@ RUNS = [
         "build/bin/stepcal correct out/demo/model.stepcal tests/data/programs/twin/twin.ls --out out/twin.ls --program-frame 'UF 1=900,-250,400,0.984807753,0,0,0.173648178' --program-frame 'UT 1=20,0,300,0.996194698,0,0.087155743,0' --truth out/demo/truth.json",
         "build/bin/stepcal correct out/demo/model.stepcal tests/data/programs/twin/twin.dat --out out/twin.dat --program-frame 'TOOL=20,0,300,0.996194698,0,0.087155743,0' --program-frame 'BASE=900,-250,400,0.984807753,0,0,0.173648178'",
     ]),
+    Run("program_loads", "docs/runtime.md", [
+        "build/bin/stepcal demo --out out/demo",
+        "build/bin/stepcal correct out/demo/model.stepcal tests/data/programs/twin/loaded.src --out out/loaded.src --program-load 'LOAD_DATA[1]=60,10,0,200' --truth out/demo/truth.json",
+    ]),
     Run("daemon", "docs/runtime.md", [
         "build/bin/stepcal demo --out out/demo",
         "build/bin/stepcal-runtime --model out/demo/model.stepcal --budget-us 1000 &",
@@ -462,7 +466,8 @@ FIGS = [
         "coverage", "programs",
         *(lambda i=i: grep(r"wrote out/twin.src \(KUKA KRL\): (\d+) targets: (\d+) corrected; (\d+) not a literal; "
                            r"(\d+) in the model's coverage", out("programs", 1), i) for i in range(1, 5))),
-    *(Fig("docs/runtime.md", "not a literal; {-} in the model's coverage on the twin, as " + kind + ": mean {} mm, "
+    *(Fig("docs/runtime.md", "out/twin.src (KUKA KRL): {-} targets: {-} corrected; {-} not a literal; {-} in the model's coverage "
+          "on the twin, as " + kind + ": mean {} mm, "
           "max {} mm, mean {} deg over {} targets", "programs",
           *(lambda i=i, kind=kind, run=run: grep(r"as " + kind + r": mean ([\d.]+) mm, max ([\d.]+) mm, mean ([\d.]+) "
                                                  r"deg over (\d+)", out("programs", run), i) for i in range(1, 5)))
@@ -472,6 +477,20 @@ FIGS = [
           *(lambda i=i, run=run: grep(r"as corrected: mean ([\d.]+) mm, max ([\d.]+) mm, mean ([\d.]+) deg over (\d+)",
                                       out("programs", run), i) for i in range(1, 5)))
       for run in (1, 2, 3, 4)),
+    # docs/runtime.md: a program's load
+    *(Fig("docs/runtime.md", "loaded.src:" + at + ": joints: corrected (moved {} mm, {} deg); load " + load + ": {} kg at "
+          "{} {} {} mm in the flange", "program_loads",
+          *(lambda i=i, at=at: grep(re.escape("loaded.src:" + at) + r": joints: corrected \(moved ([\d.]+) mm, ([\d.]+) deg\); "
+                                    r"load .*: ([\d.]+) kg at ([-\d.]+) ([-\d.]+) ([-\d.]+) mm", out("program_loads", 1), i)
+            for i in range(1, 7)))
+      for at, load in (("4:5", "$LOAD line 3"), ("8:5", "LOAD_DATA[1]"))),
+    Fig("docs/runtime.md", "wrote out/loaded.src (KUKA KRL): {} targets: {} corrected; {} not a literal; {} in the model's "
+        "coverage on the twin, as commanded: mean {} mm, max {} mm, mean {} deg over {} targets on the twin, as corrected: "
+        "mean {} mm, max {} mm, mean {} deg over {} targets", "program_loads",
+        *(lambda i=i: grep_all(r"\d+(?:\.\d+)?", grep(r"(wrote out/loaded.src .*)", out("program_loads", 1)))[i]
+          for i in range(4)),
+        *(lambda i=i, kind=kind: grep(r"as " + kind + r": mean ([\d.]+) mm, max ([\d.]+) mm, mean ([\d.]+) deg over (\d+)",
+                                      out("program_loads", 1), i) for kind in ("commanded", "corrected") for i in range(1, 5))),
     Fig("docs/runtime.md", "The corrected {} mm is the model's own error at a tool given from the flange", "programs",
         lambda: grep(r"as corrected: mean ([\d.]+) mm", out("programs", 1))),
     Fig("docs/runtime.md", "The corrected error, {} mm, is the model's own", "correct500",

@@ -19,6 +19,7 @@
 #include "stepcal/common/chain.hpp"
 #include "stepcal/common/closed_form_ik.hpp"
 #include "stepcal/common/gpr_predictor.hpp"
+#include "stepcal/common/mechanism_accuracy.hpp"
 #include "stepcal/common/mechanisms.hpp"
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/common/pose_accuracy.hpp"
@@ -166,10 +167,16 @@ struct Workspace {
   /// Whether the calls state their answer's accuracy (PoseAccuracy; a model without
   /// AccuracyFactors states none either way). Off only to time the calls without it.
   bool with_accuracy = true;
+  /// The mechanisms' share of the accuracy (mechanism_accuracy.hpp): a copy of the physical
+  /// model it was made for (mechanism_accuracy_for), only when its model has the calibration's
+  /// factors and a mechanism with a σ > 0; else empty and null.
+  MechanismAccuracyWorkspace mechanism_accuracy;
+  const PhysicalModel* mechanism_accuracy_for = nullptr;
 };
 /// A workspace sized for the model (allocates; call off the real-time path).
 Workspace makeWorkspace(const RuntimeModel& model);
-/// Whether ws was sized for a model of this shape (joints, GPR inputs and training size). The
+/// Whether ws was sized for a model of this shape (joints, GPR inputs and training size; for a
+/// model whose mechanisms' σ enter its accuracy, made for this very model). The
 /// real-time calls answer BAD_REQUEST rather than resize a workspace that does not fit, so a
 /// caller that swaps models must make a new workspace when this turns false.
 bool workspaceFits(const RuntimeModel& model, const Workspace& ws) noexcept;

@@ -1303,17 +1303,17 @@ TEST(Runtime, MechanismSigmaWidensTheBoundByItsPropagatedShare) {
     const double share_m2 = propagated.topLeftCorner<3, 3>().trace();
     EXPECT_GT(share_m2, 3.0 * squared(today.position_rms_m));  // the mechanisms dominate here
     EXPECT_NEAR(squared(answer.accuracy.position_rms_m) - squared(today.position_rms_m), share_m2,
-                1e-4 * share_m2);
+                1e-6 * share_m2);
     const double share_rad2 = propagated.bottomRightCorner<3, 3>().trace();
     EXPECT_NEAR(squared(answer.accuracy.orientation_rms_rad) - squared(today.orientation_rms_rad),
-                share_rad2, 1e-4 * share_rad2);
+                share_rad2, 1e-6 * share_rad2);
     const PoseAccuracy expected =
         poseAccuracy(model->file, model->physical.chain_Tracker, ws.chain, ws.torque_nm,
                      answer.X_TrackerTip.linear(), {}, &propagated);
     EXPECT_NEAR(answer.accuracy.position_bound_m, expected.position_bound_m,
-                1e-4 * expected.position_bound_m);
+                1e-6 * expected.position_bound_m);
     EXPECT_NEAR(answer.accuracy.orientation_bound_rad, expected.orientation_bound_rad,
-                1e-4 * expected.orientation_bound_rad);
+                1e-6 * expected.orientation_bound_rad);
     std::cout << "[ mechanisms ] position bound " << today.position_bound_m * 1e3 << " mm -> "
               << answer.accuracy.position_bound_m * 1e3 << " mm\n";
   }

@@ -19,9 +19,14 @@ bool fits(const PhysicalModel& model, const MechanismAccuracyWorkspace& ws) noex
 }
 
 /// The perturbed model's tip at the call's terms.
-Pose perturbedTip(const JointVector& q_rad, const Vec6& wrench_Sensor, double temp_c,
-                  const PointPayload* payload, MechanismAccuracyWorkspace& ws) noexcept {
+Pose perturbedTip(const PhysicalConstants* constants, const JointVector& q_rad,
+                  const Vec6& wrench_Sensor, double temp_c, const PointPayload* payload,
+                  MechanismAccuracyWorkspace& ws) noexcept {
+  FixedPointStart start;
+  start.first_pass = &ws.first_pass;
   PhysicalEvaluation how;
+  how.constants = constants;
+  how.start = &start;
   how.payload = payload;
   physicalLinkAngles(ws.perturbed, q_rad, wrench_Sensor, temp_c,
                      {ws.chain, ws.link_rad, ws.torque_nm}, how);
@@ -49,22 +54,26 @@ bool hasMechanismUncertainty(const PhysicalModel& model) noexcept {
   return false;
 }
 
-bool addMechanismCovariance(const PhysicalModel& model, const JointVector& q_rad,
-                            const Vec6& wrench_Sensor, double temp_c, const PointPayload* payload,
-                            MechanismAccuracyWorkspace& ws, Mat6& covariance) noexcept {
+bool addMechanismCovariance(const PhysicalModel& model, const PhysicalConstants* constants,
+                            const JointVector& q_rad, const Vec6& wrench_Sensor, double temp_c,
+                            const PointPayload* payload, MechanismAccuracyWorkspace& ws,
+                            Mat6& covariance) noexcept {
   if (!fits(model, ws)) return false;
+  ws.first_pass.kept = false;
   for (size_t k = 0; k < model.mechanisms.size(); ++k) {
     const Mechanism& m = model.mechanisms[k];
     if (!movesTheRobot(m)) continue;
+    const PhysicalConstants* unchanged =
+        m.kind == MechanismKind::kProfileGeometry ? nullptr : constants;
     Mechanism& moved = ws.perturbed.mechanisms[k];
     for (size_t i = 0; i < m.sigma.size() && i < m.parameters.size(); ++i) {
       const double sigma = m.sigma[i];
       if (!(sigma > 0.0)) continue;
       const double step = kMechanismStep * sigma;
       moved.parameters[i] = m.parameters[i] + step;
-      const Pose X_plus = perturbedTip(q_rad, wrench_Sensor, temp_c, payload, ws);
+      const Pose X_plus = perturbedTip(unchanged, q_rad, wrench_Sensor, temp_c, payload, ws);
       moved.parameters[i] = m.parameters[i] - step;
-      const Pose X_minus = perturbedTip(q_rad, wrench_Sensor, temp_c, payload, ws);
+      const Pose X_minus = perturbedTip(unchanged, q_rad, wrench_Sensor, temp_c, payload, ws);
       moved.parameters[i] = m.parameters[i];
       Vec6 g;
       g << X_plus.translation() - X_minus.translation(),

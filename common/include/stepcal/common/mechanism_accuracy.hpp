@@ -16,6 +16,9 @@ struct MechanismAccuracyWorkspace {
   PhysicalModel perturbed;
   ChainWorkspace chain;
   JointVector link_rad, torque_nm;
+  /// The frames at θ₀ of a call's first evaluation, reused by the parameters that leave θ₀ and
+  /// the initial poses as they are (the torque side: FirstPass).
+  FirstPass first_pass;
 };
 MechanismAccuracyWorkspace makeMechanismAccuracyWorkspace(const PhysicalModel& model);
 
@@ -28,10 +31,12 @@ inline constexpr double kMechanismStep = 1e-3;
 /// covariance += Σ g gᵀ over every parameter i of every mechanism with σ_i > 0, g the pose's
 /// change per 1-σ: (tip(p + ε σ_i) ⊖ tip(p − ε σ_i)) / 2ε, the tip position and the rotation
 /// vector in the tracker's axes, the tip that of physicalLinkAngles at (q, wrench, temp_c,
-/// payload), its model's full fixed point. Allocation-free; false when ws does not fit the model
-/// (nothing added).
-bool addMechanismCovariance(const PhysicalModel& model, const JointVector& q_rad,
-                            const Vec6& wrench_Sensor, double temp_c, const PointPayload* payload,
-                            MechanismAccuracyWorkspace& ws, Mat6& covariance) noexcept;
+/// payload), its model's full fixed point. constants: physicalConstants(model) or null, used for
+/// every parameter but a profile_geometry's (the only ones they depend on). Allocation-free;
+/// false when ws does not fit the model (nothing added).
+bool addMechanismCovariance(const PhysicalModel& model, const PhysicalConstants* constants,
+                            const JointVector& q_rad, const Vec6& wrench_Sensor, double temp_c,
+                            const PointPayload* payload, MechanismAccuracyWorkspace& ws,
+                            Mat6& covariance) noexcept;
 
 }  // namespace stepcal

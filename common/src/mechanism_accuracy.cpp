@@ -1,5 +1,7 @@
 #include "stepcal/common/mechanism_accuracy.hpp"
 
+#include <algorithm>
+
 #include "stepcal/common/lie.hpp"
 
 namespace stepcal {
@@ -66,15 +68,16 @@ bool addMechanismCovariance(const PhysicalModel& model, const PhysicalConstants*
     const PhysicalConstants* unchanged =
         m.kind == MechanismKind::kProfileGeometry ? nullptr : constants;
     Mechanism& moved = ws.perturbed.mechanisms[k];
-    for (size_t i = 0; i < m.sigma.size() && i < m.parameters.size(); ++i) {
-      const double sigma = m.sigma[i];
+    const int count = static_cast<int>(std::min(m.sigma.size(), m.parameters.size()));
+    for (int i = 0; i < count; ++i) {
+      const double sigma = m.sigma[static_cast<size_t>(i)];
       if (!(sigma > 0.0)) continue;
       const double step = kMechanismStep * sigma;
-      moved.parameters[i] = m.parameters[i] + step;
+      moved.parameter(i) = m.parameter(i) + step;
       const Pose X_plus = perturbedTip(unchanged, q_rad, wrench_Sensor, temp_c, payload, ws);
-      moved.parameters[i] = m.parameters[i] - step;
+      moved.parameter(i) = m.parameter(i) - step;
       const Pose X_minus = perturbedTip(unchanged, q_rad, wrench_Sensor, temp_c, payload, ws);
-      moved.parameters[i] = m.parameters[i];
+      moved.parameter(i) = m.parameter(i);
       Vec6 g;
       g << X_plus.translation() - X_minus.translation(),
           lie::logSO3(X_plus.linear() * X_minus.linear().transpose());

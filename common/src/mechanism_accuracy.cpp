@@ -35,6 +35,38 @@ Pose perturbedTip(const PhysicalConstants* constants, const JointVector& q_rad,
   return tipPose(ws.chain);
 }
 
+/// The gate of joint j's transmission profile at q (0 without one): how much of a
+/// profile_geometry of joint j the initial poses hold there.
+double profileGate(const PhysicalModel& model, int joint, const JointVector& q_rad) noexcept {
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kTransmissionError && m.joint == joint) {
+      return coverageGate(m.coverage, q_rad(joint));
+    }
+  }
+  return 0.0;
+}
+
+/// A profile_geometry's share, analytic: its parameter 6k + i moves initial pose k by the
+/// right-perturbation g δ (the gate g times it, to first order in exp of the gated sum), so its
+/// column is g times the identification matrix's (parameterJacobian) at the call's link angles,
+/// the tip point's rows ṗ = v − p̂ ω.
+void addProfileGeometryCovariance(const PhysicalModel& model, const Mechanism& m,
+                                  const JointVector& q_rad, const ChainWorkspace& at_link_angles,
+                                  Mat6& covariance) noexcept {
+  const double gate = profileGate(model, m.joint, q_rad);
+  const int columns = 6 * (model.chain_Tracker.dof() + 1);
+  if (gate == 0.0 || static_cast<int>(m.sigma.size()) != columns) return;
+  Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6 * (kMaxJoints + 1)> A(6, columns);
+  parameterJacobian(model.chain_Tracker, at_link_angles, A);
+  A.topRows<3>() -= lie::hat(tipPose(at_link_angles).translation()) * A.bottomRows<3>();
+  for (int c = 0; c < columns; ++c) {
+    const double sigma = m.sigma[static_cast<size_t>(c)];
+    if (!(sigma > 0.0)) continue;
+    const Vec6 g = A.col(c) * (gate * sigma);
+    covariance.noalias() += g * g.transpose();
+  }
+}
+
 }  // namespace
 
 MechanismAccuracyWorkspace makeMechanismAccuracyWorkspace(const PhysicalModel& model) {
@@ -57,16 +89,18 @@ bool hasMechanismUncertainty(const PhysicalModel& model) noexcept {
 }
 
 bool addMechanismCovariance(const PhysicalModel& model, const PhysicalConstants* constants,
-                            const JointVector& q_rad, const Vec6& wrench_Sensor, double temp_c,
-                            const PointPayload* payload, MechanismAccuracyWorkspace& ws,
-                            Mat6& covariance) noexcept {
+                            const ChainWorkspace& at_link_angles, const JointVector& q_rad,
+                            const Vec6& wrench_Sensor, double temp_c, const PointPayload* payload,
+                            MechanismAccuracyWorkspace& ws, Mat6& covariance) noexcept {
   if (!fits(model, ws)) return false;
   ws.first_pass.kept = false;
   for (size_t k = 0; k < model.mechanisms.size(); ++k) {
     const Mechanism& m = model.mechanisms[k];
     if (!movesTheRobot(m)) continue;
-    const PhysicalConstants* unchanged =
-        m.kind == MechanismKind::kProfileGeometry ? nullptr : constants;
+    if (m.kind == MechanismKind::kProfileGeometry) {
+      addProfileGeometryCovariance(model, m, q_rad, at_link_angles, covariance);
+      continue;
+    }
     Mechanism& moved = ws.perturbed.mechanisms[k];
     const int count = static_cast<int>(std::min(m.sigma.size(), m.parameters.size()));
     for (int i = 0; i < count; ++i) {
@@ -74,9 +108,9 @@ bool addMechanismCovariance(const PhysicalModel& model, const PhysicalConstants*
       if (!(sigma > 0.0)) continue;
       const double step = kMechanismStep * sigma;
       moved.parameter(i) = m.parameter(i) + step;
-      const Pose X_plus = perturbedTip(unchanged, q_rad, wrench_Sensor, temp_c, payload, ws);
+      const Pose X_plus = perturbedTip(constants, q_rad, wrench_Sensor, temp_c, payload, ws);
       moved.parameter(i) = m.parameter(i) - step;
-      const Pose X_minus = perturbedTip(unchanged, q_rad, wrench_Sensor, temp_c, payload, ws);
+      const Pose X_minus = perturbedTip(constants, q_rad, wrench_Sensor, temp_c, payload, ws);
       moved.parameter(i) = m.parameter(i);
       Vec6 g;
       g << X_plus.translation() - X_minus.translation(),

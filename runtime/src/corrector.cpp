@@ -249,8 +249,8 @@ PoseAccuracy answerAccuracy(const RuntimeModel& model, Workspace& ws, const Join
   Mat6 mechanism_covariance = Mat6::Zero();
   const bool with_mechanisms =
       ws.mechanism_accuracy_for != nullptr &&
-      addMechanismCovariance(model.physical, &model.physical_constants, q_rad, wrench_Sensor,
-                             temp_c, call.payload ? &call.point : nullptr,
+      addMechanismCovariance(model.physical, &model.physical_constants, ws.chain, q_rad,
+                             wrench_Sensor, temp_c, call.payload ? &call.point : nullptr,
                              ws.mechanism_accuracy, mechanism_covariance);
   return poseAccuracy(model.file, model.physical.chain_Tracker, ws.chain, ws.torque_nm,
                       R_TrackerTip, gpr, with_mechanisms ? &mechanism_covariance : nullptr);

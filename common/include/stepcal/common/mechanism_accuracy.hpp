@@ -29,14 +29,16 @@ bool hasMechanismUncertainty(const PhysicalModel& model) noexcept;
 inline constexpr double kMechanismStep = 1e-3;
 
 /// covariance += Σ g gᵀ over every parameter i of every mechanism with σ_i > 0, g the pose's
-/// change per 1-σ: (tip(p + ε σ_i) ⊖ tip(p − ε σ_i)) / 2ε, the tip position and the rotation
-/// vector in the tracker's axes, the tip that of physicalLinkAngles at (q, wrench, temp_c,
-/// payload), its model's full fixed point. constants: physicalConstants(model) or null, used for
-/// every parameter but a profile_geometry's (the only ones they depend on). Allocation-free;
-/// false when ws does not fit the model (nothing added).
+/// change per 1-σ, the tip position and the rotation vector in the tracker's axes: of a
+/// profile_geometry analytically (its gate times the identification matrix's column at
+/// at_link_angles, the call's frames; first order: the deflection's change with the geometry
+/// is left out), of every other kind (tip(p + ε σ_i) ⊖ tip(p − ε σ_i)) / 2ε, the tip that of
+/// physicalLinkAngles at (q, wrench, temp_c, payload), its model's full fixed point. constants:
+/// physicalConstants(model) or null (no profile_geometry parameter is moved, so they hold).
+/// Allocation-free; false when ws does not fit the model (nothing added).
 bool addMechanismCovariance(const PhysicalModel& model, const PhysicalConstants* constants,
-                            const JointVector& q_rad, const Vec6& wrench_Sensor, double temp_c,
-                            const PointPayload* payload, MechanismAccuracyWorkspace& ws,
-                            Mat6& covariance) noexcept;
+                            const ChainWorkspace& at_link_angles, const JointVector& q_rad,
+                            const Vec6& wrench_Sensor, double temp_c, const PointPayload* payload,
+                            MechanismAccuracyWorkspace& ws, Mat6& covariance) noexcept;
 
 }  // namespace stepcal

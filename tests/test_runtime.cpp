@@ -1271,6 +1271,10 @@ TEST(Runtime, MechanismSigmaWidensTheBoundByItsPropagatedShare) {
   const auto certain_model = RuntimeModel::fromModel(withMechanisms(certain, false), 8);
   Workspace ws = makeWorkspace(*model), certain_ws = makeWorkspace(*certain_model);
   EXPECT_EQ(certain_ws.mechanism_accuracy_for, nullptr);
+  // A workspace made for another model lacks this one's mechanisms: no bound rather than less.
+  EXPECT_TRUE(std::isnan(correctForward(*model, certain_ws, validationRows()[0]->q_rad,
+                                        validationRows()[0]->wrenchOrZero(), 28.0)
+                             .accuracy.position_bound_m));
   const double temp_c = 28.0;
   const double step = 1e-4;  // of σ; the runtime steps 1e-3 σ
   for (const Measurement* row : {validationRows()[3], validationRows()[40]}) {

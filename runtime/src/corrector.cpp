@@ -246,12 +246,17 @@ PoseAccuracy answerAccuracy(const RuntimeModel& model, Workspace& ws, const Join
   const GprUncertainty gpr = model.file.gpr
                                  ? gprUncertainty(model.gpr, ws.gpr_input.data(), ws.gpr_std)
                                  : GprUncertainty{};
+  const bool with_mechanisms = statesMechanismAccuracy(model);
+  // A workspace made for another model holds its mechanisms: no bound rather than one without
+  // this model's share.
+  if (with_mechanisms && ws.mechanism_accuracy_for != &model.physical) return PoseAccuracy{};
   Mat6 mechanism_covariance = Mat6::Zero();
-  const bool with_mechanisms =
-      ws.mechanism_accuracy_for != nullptr &&
-      addMechanismCovariance(model.physical, &model.physical_constants, ws.chain, q_rad,
-                             wrench_Sensor, temp_c, call.payload ? &call.point : nullptr,
-                             ws.mechanism_accuracy, mechanism_covariance);
+  if (with_mechanisms &&
+      !addMechanismCovariance(model.physical, &model.physical_constants, ws.chain, q_rad,
+                              wrench_Sensor, temp_c, call.payload ? &call.point : nullptr,
+                              ws.mechanism_accuracy, mechanism_covariance)) {
+    return PoseAccuracy{};
+  }
   return poseAccuracy(model.file, model.physical.chain_Tracker, ws.chain, ws.torque_nm,
                       R_TrackerTip, gpr, with_mechanisms ? &mechanism_covariance : nullptr);
 }
@@ -614,10 +619,6 @@ Workspace makeWorkspace(const RuntimeModel& model) {
 }
 
 bool workspaceFits(const RuntimeModel& model, const Workspace& ws) noexcept {
-  if (ws.mechanism_accuracy_for !=
-      (statesMechanismAccuracy(model) ? &model.physical : nullptr)) {
-    return false;
-  }
   if (!model.file.gpr) return true;
   return ws.gpr_input.size() == model.gpr.inputDim() &&
          ws.gpr.normalised_input.size() == model.gpr.inputDim() &&

@@ -169,14 +169,14 @@ struct Workspace {
   bool with_accuracy = true;
   /// The mechanisms' share of the accuracy (mechanism_accuracy.hpp): a copy of the physical
   /// model it was made for (mechanism_accuracy_for), only when its model has the calibration's
-  /// factors and a mechanism with a σ > 0; else empty and null.
+  /// factors and a mechanism with a σ > 0; else empty and null. Used with another model whose
+  /// mechanisms have σ > 0, the calls state no accuracy (NaN): make a workspace for each model.
   MechanismAccuracyWorkspace mechanism_accuracy;
   const PhysicalModel* mechanism_accuracy_for = nullptr;
 };
 /// A workspace sized for the model (allocates; call off the real-time path).
 Workspace makeWorkspace(const RuntimeModel& model);
-/// Whether ws was sized for a model of this shape (joints, GPR inputs and training size; for a
-/// model whose mechanisms' σ enter its accuracy, made for this very model). The
+/// Whether ws was sized for a model of this shape (joints, GPR inputs and training size). The
 /// real-time calls answer BAD_REQUEST rather than resize a workspace that does not fit, so a
 /// caller that swaps models must make a new workspace when this turns false.
 bool workspaceFits(const RuntimeModel& model, const Workspace& ws) noexcept;

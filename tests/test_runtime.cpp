@@ -1190,6 +1190,8 @@ TEST(Runtime, RealTimeCallsAllocateNothing) {
   };
   std::vector<Request> requests, mechanism_requests;
   Workspace ws_mechanisms = makeWorkspace(*with_every_mechanism);
+  // Their σ enter the accuracy too, by finite differences in the call (mechanism_accuracy.hpp).
+  ASSERT_EQ(ws_mechanisms.mechanism_accuracy_for, &with_every_mechanism->physical);
   const double temp_c = 28.0;
   for (const Measurement* row : validationRows()) {
     const Pose X = correctForward(model, ws, row->q_rad, row->wrenchOrZero(), kUnknownTemperature_c)
@@ -1248,6 +1250,91 @@ TEST(Runtime, RealTimeCallsAllocateNothing) {
   EXPECT_EQ(statuses[3], Status::kBadRequest);
   EXPECT_EQ(statuses[4], Status::kNotConverged);
   EXPECT_EQ(statuses[5], Status::kBadRequest);
+}
+
+// Each mechanism parameter's 1-σ widens the stated bound by its share propagated to the tip:
+// checked against central differences of whole models with one parameter moved (the public
+// correctForward of each, no GPR so that its tip is the physical model's; the profile geometry's
+// share, analytic, to first order). With every σ zero the
+// bound is the one stated without the mechanisms, bit for bit.
+TEST(Runtime, MechanismSigmaWidensTheBoundByItsPropagatedShare) {
+  std::vector<Mechanism> mechanisms = mechanismOfEveryKind();
+  for (Mechanism& m : mechanisms) {
+    for (double& s : m.sigma) s *= 20.0;  // 1-σ of a whole parameter's size
+    // The profile everywhere (gate 1), so that its geometry's share is large enough to check.
+    if (m.kind == MechanismKind::kTransmissionError) m.coverage = AngleCoverage{};
+  }
+  const auto model = RuntimeModel::fromModel(withMechanisms(mechanisms, false), 7);
+  ASSERT_TRUE(model->file.accuracy.has_value());
+  std::vector<Mechanism> certain = mechanisms;
+  for (Mechanism& m : certain) std::fill(m.sigma.begin(), m.sigma.end(), 0.0);
+  const auto certain_model = RuntimeModel::fromModel(withMechanisms(certain, false), 8);
+  Workspace ws = makeWorkspace(*model), certain_ws = makeWorkspace(*certain_model);
+  EXPECT_EQ(certain_ws.mechanism_accuracy_for, nullptr);
+  // A workspace made for another model lacks this one's mechanisms: no bound rather than less.
+  EXPECT_TRUE(std::isnan(correctForward(*model, certain_ws, validationRows()[0]->q_rad,
+                                        validationRows()[0]->wrenchOrZero(), 28.0)
+                             .accuracy.position_bound_m));
+  const double temp_c = 28.0;
+  const double step = 1e-4;  // of σ; the runtime steps 1e-3 σ
+  for (const Measurement* row : {validationRows()[3], validationRows()[40]}) {
+    const Vec6 wrench = row->wrenchOrZero();
+    const ForwardResult certain_answer =
+        correctForward(*certain_model, certain_ws, row->q_rad, wrench, temp_c);
+    const PoseAccuracy today =
+        poseAccuracy(certain_model->file, certain_model->physical.chain_Tracker, certain_ws.chain,
+                     certain_ws.torque_nm, certain_answer.X_TrackerTip.linear(), {});
+    EXPECT_EQ(certain_answer.accuracy.position_bound_m, today.position_bound_m);
+    EXPECT_EQ(certain_answer.accuracy.orientation_bound_rad, today.orientation_bound_rad);
+
+    Mat6 propagated = Mat6::Zero();
+    double profile_geometry_m2 = 0.0;  // its share, analytic in the runtime: checked here too
+    for (size_t k = 0; k < mechanisms.size(); ++k) {
+      for (size_t i = 0; i < mechanisms[k].sigma.size(); ++i) {
+        Pose X[2];
+        for (int side = 0; side < 2; ++side) {
+          std::vector<Mechanism> moved = certain;
+          moved[k].parameters[i] += (side == 0 ? step : -step) * mechanisms[k].sigma[i];
+          const auto moved_model = RuntimeModel::fromModel(withMechanisms(moved, false), 9);
+          Workspace moved_ws = makeWorkspace(*moved_model);
+          X[side] = correctForward(*moved_model, moved_ws, row->q_rad, wrench, temp_c).X_TrackerTip;
+        }
+        Vec6 g;
+        g << X[0].translation() - X[1].translation(),
+            lie::logSO3(X[0].linear() * X[1].linear().transpose());
+        g /= 2.0 * step;
+        propagated += g * g.transpose();
+        if (mechanisms[k].kind == MechanismKind::kProfileGeometry) {
+          profile_geometry_m2 += g.head<3>().squaredNorm();
+        }
+      }
+    }
+    const ForwardResult answer = correctForward(*model, ws, row->q_rad, wrench, temp_c);
+    const auto squared = [](double x) { return x * x; };
+    const double share_m2 = propagated.topLeftCorner<3, 3>().trace();
+    EXPECT_GT(share_m2, 3.0 * squared(today.position_rms_m));  // the mechanisms dominate here
+    // Its share (0.6–0.8 %) is 300–400 times the tolerance below; the runtime's, to first
+    // order, agrees with the differences to 3e-4 of it (the rest: 5e-9).
+    EXPECT_GT(profile_geometry_m2, 0.004 * share_m2);
+    EXPECT_NEAR(squared(answer.accuracy.position_rms_m) - squared(today.position_rms_m), share_m2,
+                2e-5 * share_m2);
+    const double share_rad2 = propagated.bottomRightCorner<3, 3>().trace();
+    EXPECT_NEAR(squared(answer.accuracy.orientation_rms_rad) - squared(today.orientation_rms_rad),
+                share_rad2, 2e-5 * share_rad2);
+    const PoseAccuracy expected =
+        poseAccuracy(model->file, model->physical.chain_Tracker, ws.chain, ws.torque_nm,
+                     answer.X_TrackerTip.linear(), {}, &propagated);
+    EXPECT_NEAR(answer.accuracy.position_bound_m, expected.position_bound_m,
+                2e-5 * expected.position_bound_m);
+    EXPECT_NEAR(answer.accuracy.orientation_bound_rad, expected.orientation_bound_rad,
+                2e-5 * expected.orientation_bound_rad);
+    std::cout << "[ mechanisms ] position bound " << today.position_bound_m * 1e3 << " mm -> "
+              << answer.accuracy.position_bound_m * 1e3 << " mm; profile geometry "
+              << profile_geometry_m2 / share_m2 << " of the share, relative difference "
+              << (squared(answer.accuracy.position_rms_m) - squared(today.position_rms_m)) /
+                         share_m2 - 1.0
+              << "\n";
+  }
 }
 
 }  // namespace

@@ -55,12 +55,13 @@ double lengthBound95(const Mat3& S) noexcept {
 
 PoseAccuracy poseAccuracy(const CalibratedModel& model, const KinematicChain& chain,
                           const ChainWorkspace& at_link_angles, const JointVector& torque_nm,
-                          const Mat3& R_TrackerTip, const GprUncertainty& gpr) noexcept {
+                          const Mat3& R_TrackerTip, const GprUncertainty& gpr,
+                          const Mat6* mechanism_covariance) noexcept {
   PoseAccuracy out;
   if (!model.accuracy) return out;
   const AccuracyFactors& factors = *model.accuracy;
   const int n = chain.dof();
-  Mat6 covariance = Mat6::Zero();
+  Mat6 covariance = mechanism_covariance != nullptr ? *mechanism_covariance : Mat6::Zero();
   const Vec3 p_Tip = tipPose(at_link_angles).translation();
   if (factors.geometry_factor.rows() == 6 * (n + 1)) {
     ParameterJacobian A(6, 6 * (n + 1));

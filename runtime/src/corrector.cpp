@@ -231,16 +231,34 @@ Pose correctedTip(const RuntimeModel& model, Workspace& ws, const JointVector& q
               lie::expSE3(residualTwist(model, ws, q_rad, *reading, X_physical.linear(), true)));
 }
 
+/// Whether the model's accuracy includes its mechanisms' σ (they are in the calls' workspace).
+bool statesMechanismAccuracy(const RuntimeModel& model) noexcept {
+  return model.file.accuracy && hasMechanismUncertainty(model.physical);
+}
+
 /// The accuracy of the corrected tip just evaluated at q (correctedTip, or the inverse's full
-/// model there): ws.chain at its link angles, ws.torque_nm, ws.gpr_input and ws.gpr_std.
-PoseAccuracy answerAccuracy(const RuntimeModel& model, const Workspace& ws,
+/// model there): ws.chain at its link angles, ws.torque_nm, ws.gpr_input and ws.gpr_std; the
+/// mechanisms' share evaluated again at (q, the call's load, temp_c) in ws.mechanism_accuracy.
+PoseAccuracy answerAccuracy(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                            const Prepared& call, const Vec6& wrench_Sensor, double temp_c,
                             const Mat3& R_TrackerTip) noexcept {
   if (!ws.with_accuracy || !model.file.accuracy) return PoseAccuracy{};
   const GprUncertainty gpr = model.file.gpr
                                  ? gprUncertainty(model.gpr, ws.gpr_input.data(), ws.gpr_std)
                                  : GprUncertainty{};
+  const bool with_mechanisms = statesMechanismAccuracy(model);
+  // A workspace made for another model holds its mechanisms: no bound rather than one without
+  // this model's share.
+  if (with_mechanisms && ws.mechanism_accuracy_for != &model.physical) return PoseAccuracy{};
+  Mat6 mechanism_covariance = Mat6::Zero();
+  if (with_mechanisms &&
+      !addMechanismCovariance(model.physical, &model.physical_constants, ws.chain, q_rad,
+                              wrench_Sensor, temp_c, call.payload ? &call.point : nullptr,
+                              ws.mechanism_accuracy, mechanism_covariance)) {
+    return PoseAccuracy{};
+  }
   return poseAccuracy(model.file, model.physical.chain_Tracker, ws.chain, ws.torque_nm,
-                      R_TrackerTip, gpr);
+                      R_TrackerTip, gpr, with_mechanisms ? &mechanism_covariance : nullptr);
 }
 
 /// σ/σ_f from the per-output std bound (raw units) that predictMeanAndBoundInto wrote: the
@@ -593,6 +611,10 @@ Workspace makeWorkspace(const RuntimeModel& model) {
     ws.gpr = model.gpr.makeWorkspace();
     ws.gpr_input.setZero(n + 6);
   }
+  if (statesMechanismAccuracy(model)) {
+    ws.mechanism_accuracy = makeMechanismAccuracyWorkspace(model.physical);
+    ws.mechanism_accuracy_for = &model.physical;
+  }
   return ws;
 }
 
@@ -650,7 +672,8 @@ ForwardResult forwardWith(const RuntimeModel& model, Workspace& ws, const JointV
   if (!call.at_target) result.X_FrameTcp = result.X_FrameTcp * call.X_TipTcp;
   if (!call.in_tracker) result.X_FrameTcp = call.X_TrackerFrame.inverse() * result.X_FrameTcp;
   if (model.file.gpr) result.gpr_std = ws.gpr_std;
-  result.accuracy = answerAccuracy(model, ws, result.X_TrackerTip.linear());
+  result.accuracy =
+      answerAccuracy(model, ws, q_rad, call, wrench_Sensor, temp_c, result.X_TrackerTip.linear());
   result.status = outOfDomain(model, result.gpr_std) ? Status::kOutOfDomain : Status::kOk;
   result.uncovered_joints = jointsOutsideCoverage(model.physical, q_rad);
   return result;
@@ -855,7 +878,8 @@ struct InverseIteration {
           correctedTip(model, ws, q_best_rad, call, wrench_Sensor, temp_c, &result.wrench_Sensor);
     }
     if (model.file.gpr) result.gpr_std = ws.gpr_std;
-    result.accuracy = answerAccuracy(model, ws, result.X_TrackerTip_predicted.linear());
+    result.accuracy = answerAccuracy(model, ws, q_best_rad, call, wrench_Sensor, temp_c,
+                                     result.X_TrackerTip_predicted.linear());
     result.uncovered_joints = jointsOutsideCoverage(model.physical, q_best_rad);
     const Pose X_TrackerTcp_predicted = call.at_target
                                             ? result.X_TrackerTip_predicted

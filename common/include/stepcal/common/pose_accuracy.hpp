@@ -48,9 +48,12 @@ double lengthBound95(const Mat3& S) noexcept;
 /// (tip position, orientation; tracker axes) Jacobian w.r.t. the parameters times their factors:
 /// the initial poses' (parameterJacobian of `chain` evaluated in `at_link_angles`), the
 /// compliances' (the tip point Jacobian's column j times τ_j). The measurement's variance per
-/// axis is the larger of the factors' stated noise and the GPR's noise. Allocation-free.
+/// axis is the larger of the factors' stated noise and the GPR's noise. mechanism_covariance,
+/// when given, is the mechanisms' share (addMechanismCovariance, mechanism_accuracy.hpp), added
+/// as it is. Allocation-free.
 PoseAccuracy poseAccuracy(const CalibratedModel& model, const KinematicChain& chain,
                           const ChainWorkspace& at_link_angles, const JointVector& torque_nm,
-                          const Mat3& R_TrackerTip, const GprUncertainty& gpr) noexcept;
+                          const Mat3& R_TrackerTip, const GprUncertainty& gpr,
+                          const Mat6* mechanism_covariance = nullptr) noexcept;
 
 }  // namespace stepcal

@@ -19,6 +19,7 @@
 #include "stepcal/common/chain.hpp"
 #include "stepcal/common/closed_form_ik.hpp"
 #include "stepcal/common/gpr_predictor.hpp"
+#include "stepcal/common/mechanism_accuracy.hpp"
 #include "stepcal/common/mechanisms.hpp"
 #include "stepcal/common/model_file.hpp"
 #include "stepcal/common/pose_accuracy.hpp"
@@ -166,6 +167,12 @@ struct Workspace {
   /// Whether the calls state their answer's accuracy (PoseAccuracy; a model without
   /// AccuracyFactors states none either way). Off only to time the calls without it.
   bool with_accuracy = true;
+  /// The mechanisms' share of the accuracy (mechanism_accuracy.hpp): a copy of the physical
+  /// model it was made for (mechanism_accuracy_for), only when its model has the calibration's
+  /// factors and a mechanism with a σ > 0; else empty and null. Used with another model whose
+  /// mechanisms have σ > 0, the calls state no accuracy (NaN): make a workspace for each model.
+  MechanismAccuracyWorkspace mechanism_accuracy;
+  const PhysicalModel* mechanism_accuracy_for = nullptr;
 };
 /// A workspace sized for the model (allocates; call off the real-time path).
 Workspace makeWorkspace(const RuntimeModel& model);

@@ -1,0 +1,125 @@
+#include "stepcal/common/mechanism_accuracy.hpp"
+
+#include <algorithm>
+
+#include "stepcal/common/lie.hpp"
+
+namespace stepcal {
+namespace {
+
+bool movesTheRobot(const Mechanism& m) noexcept { return !isMeasurementOnly(m.kind); }
+
+/// Whether ws.perturbed holds the model's mechanisms with the same parameter counts.
+bool fits(const PhysicalModel& model, const MechanismAccuracyWorkspace& ws) noexcept {
+  if (ws.perturbed.mechanisms.size() != model.mechanisms.size()) return false;
+  for (size_t k = 0; k < model.mechanisms.size(); ++k) {
+    if (ws.perturbed.mechanisms[k].parameters.size() != model.mechanisms[k].parameters.size()) {
+      return false;
+    }
+  }
+  return ws.link_rad.size() == model.chain_Tracker.dof();
+}
+
+/// The perturbed model's tip at the call's terms.
+Pose perturbedTip(const PhysicalConstants* constants, const JointVector& q_rad,
+                  const Vec6& wrench_Sensor, double temp_c, const PointPayload* payload,
+                  MechanismAccuracyWorkspace& ws) noexcept {
+  FixedPointStart start;
+  start.first_pass = &ws.first_pass;
+  PhysicalEvaluation how;
+  how.constants = constants;
+  how.start = &start;
+  how.payload = payload;
+  physicalLinkAngles(ws.perturbed, q_rad, wrench_Sensor, temp_c,
+                     {ws.chain, ws.link_rad, ws.torque_nm}, how);
+  return tipPose(ws.chain);
+}
+
+/// The gate of joint j's transmission profile at q (0 without one): how much of a
+/// profile_geometry of joint j the initial poses hold there.
+double profileGate(const PhysicalModel& model, int joint, const JointVector& q_rad) noexcept {
+  for (const Mechanism& m : model.mechanisms) {
+    if (m.kind == MechanismKind::kTransmissionError && m.joint == joint) {
+      return coverageGate(m.coverage, q_rad(joint));
+    }
+  }
+  return 0.0;
+}
+
+/// A profile_geometry's share, analytic: its parameter 6k + i moves initial pose k by the
+/// right-perturbation g δ (the gate g times it, to first order in exp of the gated sum), so its
+/// column is g times the identification matrix's (parameterJacobian) at the call's link angles,
+/// the tip point's rows ṗ = v − p̂ ω.
+void addProfileGeometryCovariance(const PhysicalModel& model, const Mechanism& m,
+                                  const JointVector& q_rad, const ChainWorkspace& at_link_angles,
+                                  Mat6& covariance) noexcept {
+  const double gate = profileGate(model, m.joint, q_rad);
+  const int columns = 6 * (model.chain_Tracker.dof() + 1);
+  if (gate == 0.0 || static_cast<int>(m.sigma.size()) != columns) return;
+  Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6 * (kMaxJoints + 1)> A(6, columns);
+  parameterJacobian(model.chain_Tracker, at_link_angles, A);
+  A.topRows<3>() -= lie::hat(tipPose(at_link_angles).translation()) * A.bottomRows<3>();
+  for (int c = 0; c < columns; ++c) {
+    const double sigma = m.sigma[static_cast<size_t>(c)];
+    if (!(sigma > 0.0)) continue;
+    const Vec6 g = A.col(c) * (gate * sigma);
+    covariance.noalias() += g * g.transpose();
+  }
+}
+
+}  // namespace
+
+MechanismAccuracyWorkspace makeMechanismAccuracyWorkspace(const PhysicalModel& model) {
+  MechanismAccuracyWorkspace ws;
+  ws.perturbed = model;
+  const int n = model.chain_Tracker.dof();
+  ws.link_rad.setZero(n);
+  ws.torque_nm.setZero(n);
+  return ws;
+}
+
+bool hasMechanismUncertainty(const PhysicalModel& model) noexcept {
+  for (const Mechanism& m : model.mechanisms) {
+    if (!movesTheRobot(m)) continue;
+    for (double s : m.sigma) {
+      if (s > 0.0) return true;
+    }
+  }
+  return false;
+}
+
+bool addMechanismCovariance(const PhysicalModel& model, const PhysicalConstants* constants,
+                            const ChainWorkspace& at_link_angles, const JointVector& q_rad,
+                            const Vec6& wrench_Sensor, double temp_c, const PointPayload* payload,
+                            MechanismAccuracyWorkspace& ws, Mat6& covariance) noexcept {
+  if (!fits(model, ws)) return false;
+  ws.first_pass.kept = false;
+  for (size_t k = 0; k < model.mechanisms.size(); ++k) {
+    const Mechanism& m = model.mechanisms[k];
+    if (!movesTheRobot(m)) continue;
+    if (m.kind == MechanismKind::kProfileGeometry) {
+      addProfileGeometryCovariance(model, m, q_rad, at_link_angles, covariance);
+      continue;
+    }
+    Mechanism& moved = ws.perturbed.mechanisms[k];
+    const int count = static_cast<int>(std::min(m.sigma.size(), m.parameters.size()));
+    for (int i = 0; i < count; ++i) {
+      const double sigma = m.sigma[static_cast<size_t>(i)];
+      if (!(sigma > 0.0)) continue;
+      const double step = kMechanismStep * sigma;
+      moved.parameter(i) = m.parameter(i) + step;
+      const Pose X_plus = perturbedTip(constants, q_rad, wrench_Sensor, temp_c, payload, ws);
+      moved.parameter(i) = m.parameter(i) - step;
+      const Pose X_minus = perturbedTip(constants, q_rad, wrench_Sensor, temp_c, payload, ws);
+      moved.parameter(i) = m.parameter(i);
+      Vec6 g;
+      g << X_plus.translation() - X_minus.translation(),
+          lie::logSO3(X_plus.linear() * X_minus.linear().transpose());
+      g /= 2.0 * kMechanismStep;
+      covariance.noalias() += g * g.transpose();
+    }
+  }
+  return true;
+}
+
+}  // namespace stepcal

@@ -505,6 +505,13 @@ TEST(MappedImport, RefusesABadRowByFileAndLine) {
       },
       "joints.log", 4, "Axis1",
       {"column 'Axis1' (joint angle, named by the mapping) is missing", "'A1'"});
+  // A finite number of degrees whose radians are not (a campaign could not hold it).
+  expectInputError(
+      [&] {
+        importers::importMapped(writeCell(dir.path(), withRobot(kKukaMapping), trackerExport(),
+                                          replaced(log, "110,250", "1e308")));
+      },
+      "joints.log", 8, "A3", {"expected a joint angle whose value in degrees", "'1e308'"});
 }
 
 TEST(MappedImport, RefusesABadMappingByLine) {
@@ -531,6 +538,14 @@ TEST(MappedImport, RefusesABadMappingByLine) {
             writeCell(dir.path(), replaced(mapping, "  tolerance_s: 0.1\n", "")));
       },
       "mapping.yaml", 28, "", {"mapping.join: required key 'tolerance_s' is missing"});
+  // A kept column named as one of the campaign's own.
+  expectInputError(
+      [&] {
+        importers::importMapped(writeCell(
+            dir.path(), replaced(mapping, "  temperature_c: T [C]\n",
+                                 "  temperature_c: T [C]\n  keep: {x_mm: \"X [mm]\"}\n")));
+      },
+      "mapping.yaml", 18, "", {"key 'keep': campaign column 'x_mm': expected a new bare name"});
 }
 
 TEST(MappedImport, TheCommandWritesNothingOnABadRow) {

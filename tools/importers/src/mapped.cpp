@@ -303,7 +303,14 @@ Eigen::Quaterniond orientationOf(const OrientationMapping& o, const Table& t,
     }
     return q.normalized();
   }
-  for (double& a : v) a = o.degrees ? a * kPi / 180.0 : a;  // (deg·π)/180: bit-exact as ipa.cpp
+  for (size_t i = 0; i < v.size(); ++i) {
+    v[i] = o.degrees ? v[i] * kPi / 180.0 : v[i];  // (deg·π)/180: bit-exact as ipa.cpp
+    if (!std::isfinite(v[i])) {
+      t.fail(t.lineOf(row), t.nameOf(cols[i]),
+             "expected an angle within the range of doubles in radians, got " +
+                 inQuotes(t.field(row, cols[i])));
+    }
+  }
   const std::string& axes = o.euler_axes;
   const bool intrinsic = axes[0] <= 'Z';
   const Eigen::AngleAxisd first(v[0], axisOf(axes[0])), second(v[1], axisOf(axes[1])),
@@ -320,10 +327,10 @@ std::string poseIdOf(const ImportMapping& m, const Table& tracker, int point_col
     return id.data();
   }
   const std::string_view name = tracker.field(row, point_col);
-  if (name.empty() || name.find_first_of(",\"\n") != std::string_view::npos) {
-    tracker.fail(
-        tracker.lineOf(row), m.tracker_point,
-        "point name " + inQuotes(name) + ": expected a non-empty name without ',' or '\"'");
+  if (name.empty() || name.find_first_of(",\"\r\n") != std::string_view::npos) {
+    tracker.fail(tracker.lineOf(row), m.tracker_point,
+                 "point name " + inQuotes(name) +
+                     ": expected a non-empty name without ',', '\"' or a carriage return");
   }
   return std::string(name);
 }
@@ -407,8 +414,14 @@ Measurement rowOf(const ImportMapping& m, const Table& tracker, const Table& joi
   for (size_t j = 0; j < c.joints.size(); ++j) {
     const double q =
         joints.number(joint_row, c.joints[j], m.joints_in_degrees ? "degrees" : "radians");
-    r.q_rad[static_cast<Eigen::Index>(j)] =
-        urdfJointAngle(m, j, m.joints_in_degrees ? q * kPi / 180.0 : q);
+    const double q_rad = urdfJointAngle(m, j, m.joints_in_degrees ? q * kPi / 180.0 : q);
+    if (!std::isfinite(q_rad) || !std::isfinite(q_rad * kDegPerRad)) {  // campaigns hold degrees
+      joints.fail(joints.lineOf(joint_row), m.joint_columns[j],
+                  "expected a joint angle whose value in degrees (sign and offset applied) is "
+                  "within the range of doubles, got " +
+                      inQuotes(joints.field(joint_row, c.joints[j])));
+    }
+    r.q_rad[static_cast<Eigen::Index>(j)] = q_rad;
   }
   if (c.load >= 0) {
     r.load_kg = joints.number(joint_row, c.load, "kg");

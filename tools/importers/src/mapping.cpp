@@ -5,6 +5,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -164,6 +165,22 @@ class Section {
   std::map<std::string, Entry> entries_;
 };
 
+/// Whether a name can be an extra column of a campaign (docs/campaign-format.md): bare, and not
+/// one of the format's own columns.
+bool isExtraColumnName(const std::string& name) {
+  static const std::array<const char*, 18> kCampaignColumns = {
+      "seq",   "pose_id", "set",  "load_kg", "fx_n", "fy_n", "fz_n", "mx_nm", "my_nm",
+      "mz_nm", "x_mm",    "y_mm", "z_mm",    "qw",   "qx",   "qy",   "qz",    "temp_c"};
+  if (name.empty() || name.find_first_of(" \t\",\r\n") != std::string::npos) return false;
+  if (std::find(kCampaignColumns.begin(), kCampaignColumns.end(), name) != kCampaignColumns.end()) {
+    return false;
+  }
+  const bool joint_like =
+      name.size() >= 6 && name.front() == 'q' && name.compare(name.size() - 4, 4, "_deg") == 0 &&
+      std::all_of(name.begin() + 1, name.end() - 4, [](char c) { return c >= '0' && c <= '9'; });
+  return !joint_like;
+}
+
 std::string resolved(const fs::path& folder, const std::string& path) {
   return fs::path(path).is_absolute() ? path : (folder / path).lexically_normal().string();
 }
@@ -272,10 +289,19 @@ void readTracker(const Section& top, const fs::path& folder, ImportMapping& m) {
     if (!keep.IsMap())
       t.fail(t.lineOf("keep"), "key 'keep': expected a mapping campaign_column: tracker_column");
     for (const auto& entry : keep) {
+      const int line = entry.first.Mark().line + 1;
       if (!entry.second.IsScalar() || entry.second.Scalar().empty()) {
-        t.fail(entry.first.Mark().line + 1, "key 'keep': expected a tracker column name");
+        t.fail(line, "key 'keep': expected a tracker column name");
       }
-      m.kept.emplace_back(entry.first.Scalar(), entry.second.Scalar());
+      const std::string name = entry.first.IsScalar() ? entry.first.Scalar() : std::string();
+      if (!isExtraColumnName(name) || std::any_of(m.kept.begin(), m.kept.end(),
+                                                  [&](const auto& k) { return k.first == name; })) {
+        t.fail(line, "key 'keep': campaign column " + inQuotes(name) +
+                         ": expected a new bare name (no spaces, quotes, commas or line breaks) "
+                         "that is none of the campaign's own columns (seq, pose_id, set, load_kg, "
+                         "qN_deg, fx_n … mz_nm, x_mm … z_mm, qw … qz, temp_c), each once");
+      }
+      m.kept.emplace_back(name, entry.second.Scalar());
     }
   }
   if (t.has("position_sigma_mm") != t.has("orientation_sigma_deg")) {

@@ -512,6 +512,14 @@ TEST(MappedImport, RefusesABadRowByFileAndLine) {
                                           replaced(log, "110,250", "1e308")));
       },
       "joints.log", 8, "A3", {"expected a joint angle whose value in degrees", "'1e308'"});
+  // A number of millimetres whose metres underflow the doubles.
+  expectInputError(
+      [&] {
+        importers::importMapped(writeCell(dir.path(), withRobot(kKukaMapping),
+                                          replaced(trackerExport(), "1234.5678", "1e-322")));
+      },
+      "tracker.csv", 4, "X [mm]",
+      {"expected a number (millimetres) within the range of doubles once converted", "'1e-322'"});
 }
 
 TEST(MappedImport, RefusesABadMappingByLine) {

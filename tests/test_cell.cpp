@@ -1,7 +1,8 @@
 // The cell around the calibrated robot (trainer/cell.hpp, docs/cell.md): the TCP fits and the
 // work-object fits against closed forms, then on the twin: a true tool 0.3 m beyond the target,
-// found from tracker shots and from four-point touches, and a work object touched with that TCP
-// or measured by the tracker, each against the twin's truth and within its stated σ.
+// found from tracker shots and from four-point touches, its axes from a 6-D target at it, and a
+// work object touched with that TCP or measured by the tracker, each against the twin's truth and
+// within its stated σ.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -389,6 +390,60 @@ TEST(CellOnTwin, ToolFromTrackerAndFourPoint) {
   }
 }
 
+// The TCP's axes from a 6-D target at it (the twin's tracker: 0.01° per axis) in 8 validation
+// poses, over 4 seeds: within 3σ of the true 23° turn (plus a floor: the model's own target
+// orientation error, which no row's scatter carries: 0.001°); printed for docs/cell.md.
+TEST(CellOnTwin, ToolAxesMeasuredWithinTheirSigma) {
+  constexpr double kTrackerSigma_rad = 0.01 * kRadPerDeg;
+  for (const uint64_t seed : {1, 2, 3, 4}) {
+    const TwinCell& c = twinCell(seed);
+    const twin::TwinRobot truth(c.options);
+    std::mt19937 random(uint32_t(seed) + 200);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    const auto rows = c.campaign.rowsIn(RowSet::kValidation);
+    std::vector<Pose> X;
+    std::vector<Mat3> R_measured;
+    for (size_t i = 0; i < rows.size() && X.size() < 8; i += rows.size() / 8) {
+      const JointVector& q = rows[i]->q_rad;
+      X.push_back(modelTarget(*c.model, truth, q));
+      const Vec3 noise = kTrackerSigma_rad * Vec3(normal(random), normal(random), normal(random));
+      R_measured.push_back(truth.X_TrackerTip(q, 0.0).linear() * kTargetTcp.linear() *
+                           lie::expSO3(noise));
+    }
+    const trainer::ToolOrientationFit fit =
+        trainer::fitToolOrientation(X, R_measured, kTrackerSigma_rad);
+    ASSERT_TRUE(fit.note.empty()) << fit.note;
+    const Vec3 e = lie::logSO3(fit.R_TipTcp.transpose() * kTargetTcp.linear());
+    std::printf("seed %d: TCP axes error %.5f %.5f %.5f deg, 1-sigma %.5f deg per axis, residual "
+                "rms %.5f deg\n",
+                int(seed), e[0] / kRadPerDeg, e[1] / kRadPerDeg, e[2] / kRadPerDeg,
+                std::sqrt(fit.covariance_rad2(0, 0)) / kRadPerDeg,
+                fit.rms_residual_rad / kRadPerDeg);
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_LT(std::abs(e[a]), 3 * std::sqrt(fit.covariance_rad2(a, a)) + 0.001 * kRadPerDeg)
+          << "seed " << seed << ", axis " << a;
+    }
+    // Against the flange's axes (--rotation's default), the turn itself: 23°.
+    EXPECT_GT(lie::logSO3(kTargetTcp.linear()).norm(), 100 * std::abs(e.norm()));
+  }
+}
+
+// Exact rotations: the fit returns them to rounding, with no residual; the σ is the stated one.
+TEST(ToolFit, AxesExact) {
+  std::vector<Pose> X;
+  std::vector<Mat3> R;
+  for (const Mat3& turn : touchOrientations()) {
+    X.push_back(poseOf(Vec3(1.0, 0.2, 0.5), Vec3(0.3, 1, 0.2), 0.7));
+    X.back().linear() = X.back().linear() * turn;
+    R.push_back(X.back().linear() * kTargetTcp.linear());
+  }
+  const trainer::ToolOrientationFit fit = trainer::fitToolOrientation(X, R, 1e-4);
+  EXPECT_LT((fit.R_TipTcp - kTargetTcp.linear()).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT(fit.rms_residual_rad, 1e-12);
+  EXPECT_NEAR(std::sqrt(fit.covariance_rad2(0, 0)), 1e-4 / std::sqrt(double(X.size())), 1e-15);
+  EXPECT_FALSE(trainer::fitToolOrientation({}, {}, 1e-4).note.empty());
+}
+
 /// A frame's error against the truth in its own axes: (origin shift, rotation), as FrameFit's
 /// covariance is.
 Vec6 frameError(const Pose& X_fit, const Pose& X_true) {
@@ -580,6 +635,18 @@ TEST(CellCommands, TrackerShotsSimilarTouchesAndATrackerFrame) {
   ASSERT_EQ(itself.status, 0) << itself.out;
   const nlohmann::json k = nlohmann::json::parse(test::readText(d + "/itself.json"));
   for (int a = 0; a < 3; ++a) EXPECT_NEAR(k["tcp_in_target_mm"][size_t(a)].get<double>(), 0.0, 0.005);
+  // Its rows are 6-D: the TCP's axes are measured, the target's own within 3σ + 0.001°.
+  EXPECT_NE(itself.out.find("axes measured from"), std::string::npos) << itself.out;
+  ASSERT_EQ(k["tcp_axes_from"], "measured");
+  const nlohmann::json& q = k["tool_from_target"];
+  const Eigen::Quaterniond q_TipTcp(q["qw"].get<double>(), q["qx"].get<double>(),
+                                    q["qy"].get<double>(), q["qz"].get<double>());
+  EXPECT_LT(Eigen::AngleAxisd(q_TipTcp).angle() / kRadPerDeg,
+            3 * std::sqrt(3.0) * k["tcp_orientation_sigma_deg"][0].get<double>() + 0.001);
+  const test::CommandResult given = test::run(kStepcal + " tool " + model_path + " " + d +
+                                              "/cell --rotation 1 0 0 0 --out " + d + "/given.json");
+  ASSERT_EQ(given.status, 0) << given.out;
+  EXPECT_EQ(nlohmann::json::parse(test::readText(d + "/given.json"))["tcp_axes_from"], "rotation");
 
   std::string alike = std::string(kTouchHeader) + "\n";
   for (const Vec3& axis : {Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1), Vec3(-1, 0, 0)}) {

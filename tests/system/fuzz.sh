@@ -7,6 +7,7 @@
 #           campaign         readCampaign (campaign.yaml + measurements.csv) and writeCampaign
 #           pose_list        readPoseList (poses.csv) and writePoseList
 #           ipa_import       importIpaSeries (the IPA UR10 series CSV + Trafo_TM_F_init.txt)
+#           import_mapped    importMapped (mapping.yaml + tracker export + joint log + transform)
 #           urdf             chainFromUrdf and bodyMassesFromUrdf
 # STEPCAL_FUZZ_SEED: libFuzzer's random seed (default: a new one per run, to find what earlier
 # runs did not). ctest sets 1: from the same seeds a run then tries the same inputs in the same
@@ -20,7 +21,7 @@ set -euo pipefail
 
 if (($# < 1)); then
   echo "usage: $0 TARGET [SECONDS]; TARGET: model_file, request_decoder, campaign, pose_list," \
-    "ipa_import, urdf" >&2
+    "ipa_import, import_mapped, urdf" >&2
   exit 2
 fi
 target=$1
@@ -78,6 +79,16 @@ case $target in
         > "$out/seeds/$(basename "$series")"
     done
     ;;
+  import_mapped)
+    flags+=(-I"$root/tools/importers/include" -DSTEPCAL_ROBOTS_DIR="\"$root/robots\"")
+    headers+=("$root/tools/importers/include" "$root/tools/importers/src")
+    sources=(common/src/{error,text_number,csv,lie,chain,urdf,campaign,robots}.cpp
+      tools/importers/src/{mapped,mapping,shared}.cpp)
+    # shellcheck disable=SC2207
+    libs=($(pkg-config --libs urdfdom yaml-cpp))
+    # The layouts of tests/test_import_mapped.cpp and a few rows of the IPA set's Series D.
+    cp "$root"/tests/fuzz/seeds/import_mapped/* "$out/seeds/"
+    ;;
   urdf)
     sources=(common/src/{error,text_number,lie,chain,urdf}.cpp)
     # shellcheck disable=SC2207
@@ -91,7 +102,7 @@ case $target in
     ;;
   *)
     echo "unknown fuzz target '$target'; expected model_file, request_decoder, campaign," \
-      "pose_list, ipa_import or urdf" >&2
+      "pose_list, ipa_import, import_mapped or urdf" >&2
     exit 2
     ;;
 esac

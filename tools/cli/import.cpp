@@ -40,7 +40,8 @@ Subcommand addImportCommand(CLI::App& app) {
   CLI::App* mapped = import->add_subcommand(
       "mapped",
       "a tracker export beside a joint log, columns and units named by a mapping file "
-      "(docs/cell.md)");
+      "(docs/cell.md): joined by row, time stamp or point name; each joint's sign and offset "
+      "(q_urdf = sign*q_log + offset); an F/T sensor's wrench from either file");
   mapped->add_option("mapping", a.mapping, "the mapping file (YAML, stepcal-import-mapping/1)")
       ->required();
   mapped->add_option("--out", a.mapped_out, "campaign folder to write")->required();

@@ -1,6 +1,8 @@
 // `stepcal tool MODEL TOUCHES|CAMPAIGN [--out TOOL.json]`: the tool's centre point (TCP) with the calibrated
 // robot, from tracker shots at it or from the four-point method, in every controller's terms
-// with its 1-σ (docs/cell.md).
+// with its 1-σ; its axes measured when a campaign's rows carry the TCP's orientation, else
+// --rotation's (docs/cell.md).
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -31,6 +33,7 @@ using report::format;
 struct ToolArgs {
   std::string model, touches, out;
   std::vector<double> rotation{1, 0, 0, 0};  ///< the TCP's axes in the flange's: qw qx qy qz
+  bool rotation_given = false;               ///< --rotation on the command line
   double payload_kg = -1;                    ///< < 0: none given
   std::vector<double> cog_mm{0, 0, 0};       ///< in the flange frame
 };
@@ -76,13 +79,13 @@ void printController(const char* what, const Pose& X) {
 
 trainer::ToolPointFit fitTouches(const ToolArgs& a, const runtime::RuntimeModel& model,
                                  const std::vector<Touch>& touches, double model_sigma_m,
-                                 std::string& method) {
+                                 std::string& method, std::vector<Pose>& X_TrackerTip) {
   std::optional<runtime::Payload> payload;
   if (a.payload_kg >= 0) {
     payload = runtime::Payload{a.payload_kg, Vec3(a.cog_mm[0], a.cog_mm[1], a.cog_mm[2]) * kMPerMm,
                                runtime::CogFrame::kFlange};
   }
-  const std::vector<Pose> X_TrackerTip = touchPoses(model, touches, payload, a.touches);
+  X_TrackerTip = touchPoses(model, touches, payload, a.touches);
   const bool tracker = touches.front().p_InTracker_m.has_value();
   std::vector<Vec3> measured;
   for (const Touch& t : touches) {
@@ -100,26 +103,65 @@ trainer::ToolPointFit fitTouches(const ToolArgs& a, const runtime::RuntimeModel&
                  : trainer::fitToolFromFixedPoint(X_TrackerTip, model_sigma_m);
 }
 
-int runTool(const ToolArgs& a) {
-  const std::unique_ptr<const runtime::RuntimeModel> model = runtime::RuntimeModel::load(a.model);
-  const std::vector<Touch> touches =
-      std::filesystem::is_directory(a.touches)
-          ? readCampaignShots(a.touches, model->file, a.model)
-          : readTouchFile(a.touches, int(model->file.chain_Tracker.dof()));
+/// The TCP's axes in the target's: measured when every row gives the TCP's orientation (a
+/// campaign of a 6-D target at the TCP) and --rotation is not given, else --rotation's (the
+/// flange's axes by default) turned into the target's.
+struct TcpAxes {
+  Mat3 R_TipTcp = Mat3::Identity();
+  std::optional<trainer::ToolOrientationFit> measured;
+};
+
+TcpAxes tcpAxes(const ToolArgs& a, const runtime::RuntimeModel& model,
+                const std::vector<Touch>& touches, const std::vector<Pose>& X_TrackerTip) {
+  TcpAxes axes;
+  const bool all_oriented = std::all_of(touches.begin(), touches.end(),
+                                        [](const Touch& t) { return t.R_TrackerTcp.has_value(); });
+  if (all_oriented && !a.rotation_given) {
+    std::vector<Mat3> R_TrackerTcp;
+    for (const Touch& t : touches) R_TrackerTcp.push_back(*t.R_TrackerTcp);
+    axes.measured =
+        trainer::fitToolOrientation(X_TrackerTip, R_TrackerTcp, modelOrientationSigma(model.file));
+    axes.R_TipTcp = axes.measured->R_TipTcp;
+    return axes;
+  }
   const Eigen::Quaterniond q_FlangeTcp(a.rotation[0], a.rotation[1], a.rotation[2], a.rotation[3]);
   if (!isUnitQuaternion(q_FlangeTcp)) {
     throw InputError("--rotation " + format("%g %g %g %g", a.rotation[0], a.rotation[1],
                                             a.rotation[2], a.rotation[3]) +
                      " is not a unit quaternion (qw qx qy qz); expected norm 1 within 1e-6");
   }
+  // Given in the flange's axes; from the target they turn by the flange's rotation.
+  const Mat3 R_TipFlange = model.has_flange ? Mat3(model.X_TipFlange.linear()) : Mat3::Identity();
+  axes.R_TipTcp = R_TipFlange * q_FlangeTcp.normalized().toRotationMatrix();
+  return axes;
+}
+
+void printMeasuredAxes(const trainer::ToolOrientationFit& fit, nlohmann::json& out) {
+  const Eigen::Quaterniond q(fit.R_TipTcp);
+  const double sigma_deg = std::sqrt(fit.covariance_rad2(0, 0)) * kDegPerRad;
+  std::cout << format("  axes measured from %d rows: qw qx qy qz %.9f %.9f %.9f %.9f (target "
+                      "axes), 1-sigma %.5f deg about each TCP axis; residual rms %.5f deg\n",
+                      fit.points, q.w(), q.x(), q.y(), q.z(), sigma_deg,
+                      fit.rms_residual_rad * kDegPerRad);
+  out["tcp_axes_from"] = "measured";
+  out["tcp_orientation_sigma_deg"] = {sigma_deg, sigma_deg, sigma_deg};
+  out["orientation_rms_residual_deg"] = fit.rms_residual_rad * kDegPerRad;
+}
+
+int runTool(const ToolArgs& a) {
+  const std::unique_ptr<const runtime::RuntimeModel> model = runtime::RuntimeModel::load(a.model);
+  const std::vector<Touch> touches =
+      std::filesystem::is_directory(a.touches)
+          ? readCampaignShots(a.touches, model->file, a.model)
+          : readTouchFile(a.touches, int(model->file.chain_Tracker.dof()));
   const double model_sigma_m = modelPointSigma(model->file);
   std::string method;
-  const trainer::ToolPointFit fit = fitTouches(a, *model, touches, model_sigma_m, method);
-
-  // The TCP's axes are given in the flange's; from the target they turn by the flange's rotation.
-  const Mat3 R_TipFlange = model->has_flange ? Mat3(model->X_TipFlange.linear()) : Mat3::Identity();
+  std::vector<Pose> X_TrackerTip;
+  const trainer::ToolPointFit fit =
+      fitTouches(a, *model, touches, model_sigma_m, method, X_TrackerTip);
+  const TcpAxes axes = tcpAxes(a, *model, touches, X_TrackerTip);
   Pose X_TipTcp = Pose::Identity();
-  X_TipTcp.linear() = R_TipFlange * q_FlangeTcp.normalized().toRotationMatrix();
+  X_TipTcp.linear() = axes.R_TipTcp;
   X_TipTcp.translation() = fit.p_TcpInTip_m;
 
   std::cout << "TCP by the " << method << " method from " << fit.points << " "
@@ -147,7 +189,8 @@ int runTool(const ToolArgs& a) {
                         {"rms_residual_mm", fit.rms_residual_m * kMmPerM},
                         {"least_spread_deg", fit.least_spread_rad * kDegPerRad},
                         {"well_conditioned", fit.well_conditioned}, {"note", fit.note},
-                        {"tool_from_target", poseJson(X_TipTcp)}};
+                        {"tool_from_target", poseJson(X_TipTcp)}, {"tcp_axes_from", "rotation"}};
+  if (axes.measured) printMeasuredAxes(*axes.measured, out);
   std::cout << "for the runtime and stepcal correct (from the target): tool_from target, "
                "tool_x_mm … tool_qz = "
             << toolColumns(X_TipTcp) << "\n";
@@ -191,15 +234,21 @@ Subcommand addToolCommand(CLI::App& app) {
       ->required();
   cmd->add_option("--out", a.out, "tool file to write (JSON: the TCP, its covariance, the "
                                   "controller terms; `stepcal frame --tool` and `stepcal correct --tool-file` read it)");
-  cmd->add_option("--rotation", a.rotation,
-                  "the TCP's axes in the flange's as a unit quaternion qw qx qy qz (a point "
-                  "fixes no orientation; default 1 0 0 0, the flange's axes)")
-      ->expected(4);
+  CLI::Option* rotation =
+      cmd->add_option("--rotation", a.rotation,
+                      "the TCP's axes in the flange's as a unit quaternion qw qx qy qz (a point "
+                      "fixes no orientation; default: measured when every row of a campaign "
+                      "gives the TCP's orientation (a 6-D target at the TCP), else 1 0 0 0, the "
+                      "flange's axes)")
+          ->expected(4);
   cmd->add_option("--payload", a.payload_kg, "the tool's mass during the touches, kg (its weight "
                                              "bends a compliant model; default: the wrench columns, "
                                              "else unloaded)");
   cmd->add_option("--cog", a.cog_mm, "its centre of gravity in the flange frame, mm")->expected(3);
-  return {cmd, [args] { return runTool(*args); }};
+  return {cmd, [args, rotation] {
+            args->rotation_given = rotation->count() > 0;
+            return runTool(*args);
+          }};
 }
 
 }  // namespace stepcal::cli

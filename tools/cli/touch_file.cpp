@@ -146,6 +146,15 @@ double modelPointSigma(const CalibratedModel& model) {
   return mean_m / kMeanNormPerAxisSigma;
 }
 
+double modelOrientationSigma(const CalibratedModel& model) {
+  const std::string full = trainer::modelLayers(model).back().first;
+  double mean_rad = 0.0;
+  for (const ValidationFigure& v : model.provenance.validation) {
+    if (v.method == full) mean_rad = std::max(mean_rad, v.mean_orientation_rad);
+  }
+  return mean_rad / kMeanNormPerAxisSigma;
+}
+
 std::vector<Pose> touchPoses(const runtime::RuntimeModel& model, const std::vector<Touch>& touches,
                              const std::optional<runtime::Payload>& payload,
                              const std::string& path) {
@@ -183,6 +192,7 @@ std::vector<Touch> readCampaignShots(const std::string& path, const CalibratedMo
     touch.id = row.pose_id;
     touch.q_rad = row.q_rad;
     touch.p_InTracker_m = row.p_TipInTracker_m;
+    if (row.has_orientation) touch.R_TrackerTcp = row.q_TrackerTip.toRotationMatrix();
     if (row.has_wrench) touch.wrench_Sensor = row.wrench_Sensor;
     touches.push_back(touch);
   }

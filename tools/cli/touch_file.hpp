@@ -18,6 +18,7 @@ struct Touch {
   std::string id;
   std::optional<JointVector> q_rad;           ///< the controller's joint reading
   std::optional<Vec3> p_InTracker_m;          ///< the tracker's measurement (x_mm … z_mm)
+  std::optional<Mat3> R_TrackerTcp;           ///< its orientation, from a campaign's qw … qz
   std::optional<Vec6> wrench_Sensor;          ///< fx_n … mz_nm when given
   std::string point;                          ///< three-point role: origin, x or xy
   std::optional<Vec3> p_NominalInFrame_m;     ///< a fiducial's nominal coordinates (nx_mm …)
@@ -29,8 +30,9 @@ struct Touch {
 /// both. Throws InputError naming the file, line and column.
 std::vector<Touch> readTouchFile(const std::string& path, int joints);
 
-/// Tracker shots at the TCP as a campaign (docs/campaign-format.md): every row's joints, wrench
-/// and measured point (its tip_link is then the reflector at the TCP). Throws InputError when the
+/// Tracker shots at the TCP as a campaign (docs/campaign-format.md): every row's joints, wrench,
+/// measured point and, where the row has one, measured orientation (its tip_link is then the
+/// reflector or 6-D target at the TCP). Throws InputError when the
 /// campaign is of another robot than the model's.
 std::vector<Touch> readCampaignShots(const std::string& path, const CalibratedModel& model,
                                      const std::string& model_path);
@@ -42,6 +44,10 @@ inline constexpr double kMeanNormPerAxisSigma = 1.5957691216057308;
 /// error on the validation rows at training (any load) over kMeanNormPerAxisSigma; 0 when the
 /// model holds no validation figures.
 double modelPointSigma(const CalibratedModel& model);
+
+/// One orientation's per-axis σ from the model's own accuracy, as modelPointSigma (its full
+/// layer's largest mean orientation error over kMeanNormPerAxisSigma), rad.
+double modelOrientationSigma(const CalibratedModel& model);
 
 /// The calibrated target's pose at each touch (the runtime's forward, the GPR and compliance
 /// included): under the touch's wrench (fx_n …), else the payload's weight when given, else

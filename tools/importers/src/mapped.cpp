@@ -105,6 +105,17 @@ class Table {
   double number(int row, int col, const std::string& unit) const {
     return *parseFinite(numberText(row, col, unit));
   }
+  /// The number times 10^decimal_shift (a unit's change, rounded once from the decimal text);
+  /// refuses one that the change takes out of the doubles' range.
+  double shiftedNumber(int row, int col, const std::string& unit, int decimal_shift) const {
+    const std::optional<double> v = parseFiniteShifted(numberText(row, col, unit), decimal_shift);
+    if (!v) {
+      fail(lineOf(row), nameOf(col),
+           "expected a number (" + unit + ") within the range of doubles once converted, got " +
+               inQuotes(field(row, col)));
+    }
+    return *v;
+  }
   const std::string& nameOf(int col) const { return names_[static_cast<size_t>(col)]; }
 
  private:
@@ -292,7 +303,14 @@ Eigen::Quaterniond orientationOf(const OrientationMapping& o, const Table& t,
     }
     return q.normalized();
   }
-  for (double& a : v) a = o.degrees ? a * kPi / 180.0 : a;  // (deg·π)/180: bit-exact as ipa.cpp
+  for (size_t i = 0; i < v.size(); ++i) {
+    v[i] = o.degrees ? v[i] * kPi / 180.0 : v[i];  // (deg·π)/180: bit-exact as ipa.cpp
+    if (!std::isfinite(v[i])) {
+      t.fail(t.lineOf(row), t.nameOf(cols[i]),
+             "expected an angle within the range of doubles in radians, got " +
+                 inQuotes(t.field(row, cols[i])));
+    }
+  }
   const std::string& axes = o.euler_axes;
   const bool intrinsic = axes[0] <= 'Z';
   const Eigen::AngleAxisd first(v[0], axisOf(axes[0])), second(v[1], axisOf(axes[1])),
@@ -309,17 +327,17 @@ std::string poseIdOf(const ImportMapping& m, const Table& tracker, int point_col
     return id.data();
   }
   const std::string_view name = tracker.field(row, point_col);
-  if (name.empty() || name.find_first_of(",\"\n") != std::string_view::npos) {
-    tracker.fail(
-        tracker.lineOf(row), m.tracker_point,
-        "point name " + inQuotes(name) + ": expected a non-empty name without ',' or '\"'");
+  if (name.empty() || name.find_first_of(",\"\r\n") != std::string_view::npos) {
+    tracker.fail(tracker.lineOf(row), m.tracker_point,
+                 "point name " + inQuotes(name) +
+                     ": expected a non-empty name without ',', '\"' or a carriage return");
   }
   return std::string(name);
 }
 
 /// Column positions the rows read.
 struct Columns {
-  std::vector<int> position, orientation, kept, joints;
+  std::vector<int> position, orientation, kept, joints, wrench;
   int temperature = -1, point = -1, load = -1;
 };
 
@@ -336,7 +354,41 @@ Columns columnsOf(const ImportMapping& m, const Table& tracker, const Table& joi
     c.temperature = tracker.column(m.temperature_column, "temperature");
   if (!m.tracker_point.empty()) c.point = tracker.column(m.tracker_point, "point name");
   if (!m.load_column.empty()) c.load = joints.column(m.load_column, "payload, kg");
+  if (m.wrench.table != WrenchMapping::Table::kNone) {
+    const Table& t = m.wrench.table == WrenchMapping::Table::kTracker ? tracker : joints;
+    for (const std::string& n : m.wrench.columns) c.wrench.push_back(t.column(n, "F/T reading"));
+  }
   return c;
+}
+
+/// The controller's angle of one joint in the URDF's sign and zero: q_urdf = sign·q_log + offset.
+double urdfJointAngle(const ImportMapping& m, size_t joint, double q_log_rad) {
+  double q = q_log_rad;
+  if (!m.joint_sign.empty() && m.joint_sign[joint] < 0) q = -q;
+  if (!m.joint_offset_rad.empty() && m.joint_offset_rad[joint] != 0.0) {
+    q += m.joint_offset_rad[joint];  // skipped at 0: -0.0 stays as written (byte-identical files)
+  }
+  return q;
+}
+
+/// The F/T reading of a row: all six cells or none, none only where the row is unloaded (the
+/// campaign's rule, docs/campaign-format.md). row: the row of the table the wrench is in.
+void readWrench(const ImportMapping& m, const Table& t, const Columns& c, int row, Measurement& r) {
+  const bool all_empty = std::all_of(c.wrench.begin(), c.wrench.end(),
+                                     [&](int col) { return t.field(row, col).empty(); });
+  if (all_empty && r.load_kg == 0.0) return;
+  if (all_empty) {
+    t.fail(t.lineOf(row), m.wrench.columns[0],
+           "no F/T reading on a row with payload " + formatShortest(r.load_kg) +
+               " kg; expected the six wrench values (a wrench may only be missing unloaded)");
+  }
+  for (int a = 0; a < 6; ++a) {
+    r.wrench_Sensor[a] = t.shiftedNumber(
+        row, c.wrench[static_cast<size_t>(a)],
+        (a < 3 ? m.wrench.force_unit : m.wrench.moment_unit) + ", all six wrench values or none",
+        a < 3 ? m.wrench.force_shift_to_newtons : m.wrench.moment_shift_to_newton_metres);
+  }
+  r.has_wrench = true;
 }
 
 Measurement rowOf(const ImportMapping& m, const Table& tracker, const Table& joints,
@@ -350,8 +402,7 @@ Measurement rowOf(const ImportMapping& m, const Table& tracker, const Table& joi
   const std::string length_unit = m.length_shift_to_metres == -3 ? "millimetres" : "metres";
   for (int a = 0; a < 3; ++a) {
     const int col = c.position[static_cast<size_t>(a)];
-    r.p_TipInTracker_m[a] =
-        *parseFiniteShifted(tracker.numberText(row, col, length_unit), m.length_shift_to_metres);
+    r.p_TipInTracker_m[a] = tracker.shiftedNumber(row, col, length_unit, m.length_shift_to_metres);
   }
   if (m.orientation.kind != OrientationKind::kNone) {
     r.q_TrackerTip = orientationOf(m.orientation, tracker, c.orientation, row);
@@ -363,7 +414,14 @@ Measurement rowOf(const ImportMapping& m, const Table& tracker, const Table& joi
   for (size_t j = 0; j < c.joints.size(); ++j) {
     const double q =
         joints.number(joint_row, c.joints[j], m.joints_in_degrees ? "degrees" : "radians");
-    r.q_rad[static_cast<Eigen::Index>(j)] = m.joints_in_degrees ? q * kPi / 180.0 : q;
+    const double q_rad = urdfJointAngle(m, j, m.joints_in_degrees ? q * kPi / 180.0 : q);
+    if (!std::isfinite(q_rad) || !std::isfinite(q_rad * kDegPerRad)) {  // campaigns hold degrees
+      joints.fail(joints.lineOf(joint_row), m.joint_columns[j],
+                  "expected a joint angle whose value in degrees (sign and offset applied) is "
+                  "within the range of doubles, got " +
+                      inQuotes(joints.field(joint_row, c.joints[j])));
+    }
+    r.q_rad[static_cast<Eigen::Index>(j)] = q_rad;
   }
   if (c.load >= 0) {
     r.load_kg = joints.number(joint_row, c.load, "kg");
@@ -371,6 +429,16 @@ Measurement rowOf(const ImportMapping& m, const Table& tracker, const Table& joi
       joints.fail(joints.lineOf(joint_row), m.load_column,
                   "expected a payload >= 0 kg, got " + inQuotes(joints.field(joint_row, c.load)));
     }
+    if (r.load_kg > 0 && c.wrench.empty()) {
+      joints.fail(joints.lineOf(joint_row), m.load_column,
+                  "payload " + inQuotes(joints.field(joint_row, c.load)) +
+                      " kg but the mapping names no wrench; expected tracker.wrench or "
+                      "joints.wrench (a loaded row needs the F/T reading)");
+    }
+  }
+  if (!c.wrench.empty()) {
+    const bool in_tracker = m.wrench.table == WrenchMapping::Table::kTracker;
+    readWrench(m, in_tracker ? tracker : joints, c, in_tracker ? row : joint_row, r);
   }
   return r;
 }
@@ -416,6 +484,7 @@ Campaign importMapped(const std::string& mapping_path) {
   c.base_link = m.base_link;
   c.tip_link = m.tip_link;
   c.flange_link = m.flange_link;
+  c.sensor_link = m.sensor_link;
   c.tracker = m.noise;
   c.gravity_in_base = m.gravity_in_base;
   c.joint_count = static_cast<int>(m.joint_columns.size());

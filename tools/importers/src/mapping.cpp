@@ -5,6 +5,8 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <filesystem>
 #include <map>
 
@@ -103,6 +105,38 @@ class Section {
     }
     return out;
   }
+  /// A list of exactly `count` finite numbers, each described by `each` in messages.
+  std::vector<double> numbers(const std::string& key, size_t count, const std::string& each) const {
+    if (!has(key)) fail(line_, "required key " + inQuotes(key) + " is missing");
+    const Entry& e = entries_.at(key);
+    const std::string expected = "expected a list of " + std::to_string(count) + " " + each;
+    if (!e.value.IsSequence() || e.value.size() != count) {
+      fail(e.line, "key " + inQuotes(key) + ": " + expected + ", got " +
+                       (e.value.IsSequence() ? "a list of " + std::to_string(e.value.size())
+                                             : shapeOf(e.value)));
+    }
+    std::vector<double> out;
+    for (size_t i = 0; i < count; ++i) {
+      const YAML::Node item = e.value[i];
+      const std::optional<double> v =
+          item.IsScalar() ? parseFinite(item.Scalar()) : std::optional<double>();
+      if (!v) {
+        fail(item.Mark().line + 1, "key " + inQuotes(key) + ", item " + std::to_string(i + 1) +
+                                       ": " + expected + ", got " + shapeOf(item));
+      }
+      out.push_back(*v);
+    }
+    return out;
+  }
+  /// A whole number >= 0 that fits an int (no float-to-int overflow on any value).
+  int count(const std::string& key, const std::string& what) const {
+    const double n = number(key, what + ", a whole number >= 0");
+    if (!(n >= 0 && n <= 1e9 && n == std::floor(n))) {
+      fail(lineOf(key), "key " + inQuotes(key) + ": expected " + what +
+                            ", a whole number >= 0, got " + shapeOf(node(key)));
+    }
+    return static_cast<int>(n);
+  }
   Vec3 vector3(const std::string& key, const std::string& unit) const {
     const std::vector<std::string> items = texts(key, 3);
     Vec3 v;
@@ -131,6 +165,22 @@ class Section {
   std::map<std::string, Entry> entries_;
 };
 
+/// Whether a name can be an extra column of a campaign (docs/campaign-format.md): bare, and not
+/// one of the format's own columns.
+bool isExtraColumnName(const std::string& name) {
+  static const std::array<const char*, 18> kCampaignColumns = {
+      "seq",   "pose_id", "set",  "load_kg", "fx_n", "fy_n", "fz_n", "mx_nm", "my_nm",
+      "mz_nm", "x_mm",    "y_mm", "z_mm",    "qw",   "qx",   "qy",   "qz",    "temp_c"};
+  if (name.empty() || name.find_first_of(" \t\",\r\n") != std::string::npos) return false;
+  if (std::find(kCampaignColumns.begin(), kCampaignColumns.end(), name) != kCampaignColumns.end()) {
+    return false;
+  }
+  const bool joint_like =
+      name.size() >= 6 && name.front() == 'q' && name.compare(name.size() - 4, 4, "_deg") == 0 &&
+      std::all_of(name.begin() + 1, name.end() - 4, [](char c) { return c >= '0' && c <= '9'; });
+  return !joint_like;
+}
+
 std::string resolved(const fs::path& folder, const std::string& path) {
   return fs::path(path).is_absolute() ? path : (folder / path).lexically_normal().string();
 }
@@ -144,13 +194,7 @@ TableFormat tableFormat(const Section& s, const fs::path& folder) {
   if (t.decimal_comma && t.separator == ',') {
     s.fail(s.lineOf("decimal"), "a decimal comma needs another separator (';', tab or space)");
   }
-  if (s.has("skip_lines")) {
-    const double n = s.number("skip_lines", "a count of lines >= 0");
-    if (n < 0 || n != static_cast<int>(n)) {
-      s.fail(s.lineOf("skip_lines"), "key 'skip_lines': expected a whole number >= 0");
-    }
-    t.skip_lines = static_cast<int>(n);
-  }
+  if (s.has("skip_lines")) t.skip_lines = s.count("skip_lines", "a count of lines");
   return t;
 }
 
@@ -163,13 +207,14 @@ std::optional<TimeColumn> timeColumn(const Section& s) {
 }
 
 void readRobot(const Section& top, const fs::path& folder, ImportMapping& m) {
-  const Section r = top.sub(
-      "robot", {"urdf", "base_link", "tip_link", "flange_link", "gravity_in_base", "add_tip_link"});
+  const Section r = top.sub("robot", {"urdf", "base_link", "tip_link", "flange_link", "sensor_link",
+                                      "gravity_in_base", "add_tip_link"});
   const std::string urdf = r.text("urdf");
   m.urdf_path = isRobotPath(urdf) ? resolved(folder, urdf) : robotDescriptionPath(urdf);
   m.base_link = r.text("base_link");
   m.tip_link = r.text("tip_link");
   m.flange_link = r.textOr("flange_link", "");
+  m.sensor_link = r.textOr("sensor_link", "");
   if (r.has("gravity_in_base")) m.gravity_in_base = r.vector3("gravity_in_base", "m/s²");
   if (!r.has("add_tip_link")) return;
   const Section a =
@@ -213,11 +258,27 @@ void readOrientation(const Section& t, OrientationMapping& o) {
   o.degrees = s.oneOf("unit", {"deg", "rad"}, "deg") == "deg";
 }
 
+/// The F/T sensor's columns in a table's section (tracker or joints), in one of them only.
+void readWrench(const Section& table, WrenchMapping::Table which, WrenchMapping& w) {
+  if (!table.has("wrench")) return;
+  if (w.table != WrenchMapping::Table::kNone) {
+    table.fail(table.lineOf("wrench"),
+               "a wrench is mapped in tracker and in joints; expected it in one of them");
+  }
+  const Section s = table.sub("wrench", {"columns", "force_unit", "moment_unit"});
+  w.table = which;
+  w.columns = s.texts("columns", 6);
+  w.force_unit = s.oneOf("force_unit", {"N", "kN"}, "N");
+  w.force_shift_to_newtons = w.force_unit == "kN" ? 3 : 0;
+  w.moment_unit = s.oneOf("moment_unit", {"Nm", "Nmm", "kNm"}, "Nm");
+  w.moment_shift_to_newton_metres = w.moment_unit == "Nmm" ? -3 : w.moment_unit == "kNm" ? 3 : 0;
+}
+
 void readTracker(const Section& top, const fs::path& folder, ImportMapping& m) {
   const Section t =
       top.sub("tracker", {"file", "separator", "decimal", "skip_lines", "position", "length_unit",
                           "orientation", "temperature_c", "keep", "position_sigma_mm",
-                          "orientation_sigma_deg", "time", "time_unit", "point_name"});
+                          "orientation_sigma_deg", "time", "time_unit", "point_name", "wrench"});
   m.tracker = tableFormat(t, folder);
   m.position_columns = t.texts("position", 3);
   m.length_shift_to_metres = t.oneOf("length_unit", {"mm", "m"}, "mm") == "mm" ? -3 : 0;
@@ -228,10 +289,19 @@ void readTracker(const Section& top, const fs::path& folder, ImportMapping& m) {
     if (!keep.IsMap())
       t.fail(t.lineOf("keep"), "key 'keep': expected a mapping campaign_column: tracker_column");
     for (const auto& entry : keep) {
+      const int line = entry.first.Mark().line + 1;
       if (!entry.second.IsScalar() || entry.second.Scalar().empty()) {
-        t.fail(entry.first.Mark().line + 1, "key 'keep': expected a tracker column name");
+        t.fail(line, "key 'keep': expected a tracker column name");
       }
-      m.kept.emplace_back(entry.first.Scalar(), entry.second.Scalar());
+      const std::string name = entry.first.IsScalar() ? entry.first.Scalar() : std::string();
+      if (!isExtraColumnName(name) || std::any_of(m.kept.begin(), m.kept.end(),
+                                                  [&](const auto& k) { return k.first == name; })) {
+        t.fail(line, "key 'keep': campaign column " + inQuotes(name) +
+                         ": expected a new bare name (no spaces, quotes, commas or line breaks) "
+                         "that is none of the campaign's own columns (seq, pose_id, set, load_kg, "
+                         "qN_deg, fx_n … mz_nm, x_mm … z_mm, qw … qz, temp_c), each once");
+      }
+      m.kept.emplace_back(name, entry.second.Scalar());
     }
   }
   if (t.has("position_sigma_mm") != t.has("orientation_sigma_deg")) {
@@ -249,17 +319,43 @@ void readTracker(const Section& top, const fs::path& folder, ImportMapping& m) {
   }
   m.tracker_time = timeColumn(t);
   m.tracker_point = t.textOr("point_name", "");
+  readWrench(t, WrenchMapping::Table::kTracker, m.wrench);
+}
+
+/// q_urdf = sign·q_log + offset: the controller's count of each axis turned into the URDF's.
+void readJointConvention(const Section& j, ImportMapping& m) {
+  const size_t n = m.joint_columns.size();
+  const std::string per_joint = " (one per name in joints.columns)";
+  if (j.has("sign")) {
+    const std::vector<double> sign = j.numbers("sign", n, "signs, each 1 or -1" + per_joint);
+    for (size_t i = 0; i < n; ++i) {
+      if (sign[i] != 1.0 && sign[i] != -1.0) {
+        j.fail(j.node("sign")[i].Mark().line + 1,
+               "key 'sign', item " + std::to_string(i + 1) + " (" + m.joint_columns[i] +
+                   "): expected 1 or -1, got " + inQuotes(j.node("sign")[i].Scalar()));
+      }
+      m.joint_sign.push_back(sign[i] > 0 ? 1 : -1);
+    }
+  }
+  if (j.has("offset_deg")) {
+    for (double offset_deg : j.numbers("offset_deg", n, "finite offsets in degrees" + per_joint)) {
+      m.joint_offset_rad.push_back(offset_deg * kRadPerDeg);
+    }
+  }
 }
 
 void readJoints(const Section& top, const fs::path& folder, ImportMapping& m) {
-  const Section j = top.sub("joints", {"file", "separator", "decimal", "skip_lines", "columns",
-                                       "unit", "time", "time_unit", "point_name", "load_kg"});
+  const Section j =
+      top.sub("joints", {"file", "separator", "decimal", "skip_lines", "columns", "unit", "sign",
+                         "offset_deg", "time", "time_unit", "point_name", "load_kg", "wrench"});
   m.joints = tableFormat(j, folder);
   m.joint_columns = j.texts("columns", 0);
   m.joints_in_degrees = j.oneOf("unit", {"deg", "rad"}, "deg") == "deg";
   m.joints_time = timeColumn(j);
   m.joints_point = j.textOr("point_name", "");
   m.load_column = j.textOr("load_kg", "");
+  readJointConvention(j, m);
+  readWrench(j, WrenchMapping::Table::kJoints, m.wrench);
 }
 
 void readJoin(const Section& top, ImportMapping& m) {
@@ -310,11 +406,13 @@ ImportMapping readImportMapping(const std::string& path) {
   readJoints(top, folder, m);
   readJoin(top, m);
   if (top.has("validation_from_row")) {
-    const double n = top.number("validation_from_row", "a row index >= 0");
-    if (n < 0 || n != static_cast<int>(n)) {
-      top.fail(top.lineOf("validation_from_row"), "expected a whole row index >= 0");
-    }
-    m.validation_from_row = static_cast<int>(n);
+    m.validation_from_row = top.count("validation_from_row", "a row index");
+  }
+  if (m.wrench.table != WrenchMapping::Table::kNone && m.sensor_link.empty()) {
+    throw InputError(
+        "a wrench is mapped but robot.sensor_link is missing; expected the link "
+        "whose axes the F/T sensor reports in",
+        path);
   }
   return m;
 }

@@ -39,12 +39,22 @@ struct OrientationMapping {
   bool degrees = true;
 };
 
+/// Where the F/T sensor's six columns are and in which units.
+struct WrenchMapping {
+  enum class Table { kNone, kTracker, kJoints } table = Table::kNone;
+  std::vector<std::string> columns;                  ///< fx, fy, fz, mx, my, mz in sensor_link axes
+  std::string force_unit = "N", moment_unit = "Nm";  ///< as the mapping names them
+  int force_shift_to_newtons = 0;         ///< decimal shift from the file's unit: N 0, kN +3
+  int moment_shift_to_newton_metres = 0;  ///< Nm 0, Nmm -3, kNm +3
+};
+
 /// The whole mapping file.
 struct ImportMapping {
   std::string file;  ///< the mapping file, for messages
   // Robot
   std::string urdf_path;
   std::string base_link, tip_link, flange_link;
+  std::string sensor_link;  ///< the F/T sensor's frame; required with a wrench
   std::optional<Vec3> gravity_in_base;
   struct AddedLink {
     std::string parent;
@@ -68,9 +78,13 @@ struct ImportMapping {
   TableFormat joints;
   std::vector<std::string> joint_columns;
   bool joints_in_degrees = false;
+  /// q_urdf = sign·q_log + offset per joint, in chain order; empty: sign +1 and offset 0.
+  std::vector<int> joint_sign;
+  std::vector<double> joint_offset_rad;
   std::optional<TimeColumn> joints_time;
   std::string joints_point;
   std::string load_column;  ///< load_kg column of the joint log; empty: every row unloaded
+  WrenchMapping wrench;     ///< from the tracker export or the joint log
   // Join
   enum class Join { kRow, kTimestamp, kPointName } join = Join::kRow;
   double tolerance_s = 0.0;

@@ -47,6 +47,27 @@ ToolPointFit fitToolFromTracker(const std::vector<Pose>& X_TrackerTip,
 /// At least 3 touches (4 recommended); orientations too similar give a fit that says so.
 ToolPointFit fitToolFromFixedPoint(const std::vector<Pose>& X_TrackerTip, double stated_sigma_m);
 
+/// The TCP's axes measured: a 6-D target at the TCP (a T-Mac, an SMR nest with orientation)
+/// gives R_TrackerTcp at each pose, the model R_TrackerTip; R_TipTcp is their mean, with its 1-σ.
+struct ToolOrientationFit {
+  Mat3 R_TipTcp = Mat3::Identity();
+  /// Covariance of the rotation ω about the TCP's own axes, R = R̂ · exp(ω), rad².
+  Mat3 covariance_rad2 = Mat3::Zero();
+  int points = 0;
+  double rms_residual_rad = 0;  ///< root mean square of the rows' angles from the mean
+  /// Per-axis scatter of one row, rad: the residuals' √(Σ|ω_i|² / (3(n − 1))), or the stated σ
+  /// when larger (or with one row). The covariance is its square over n.
+  double row_sigma_rad = 0;
+  std::string note;  ///< empty, or what is wrong
+};
+
+/// R_TipTcp from the model's target poses and the measured TCP orientations (tracker frame):
+/// the chordal mean of R_TrackerTip_iᵀ · R_TrackerTcp_i projected onto SO(3). stated_sigma_rad:
+/// one row's per-axis σ from the tracker and the model.
+ToolOrientationFit fitToolOrientation(const std::vector<Pose>& X_TrackerTip,
+                                      const std::vector<Mat3>& R_TrackerTcp,
+                                      double stated_sigma_rad);
+
 /// A work object's frame X_TrackerFrame fitted to points measured in the tracker frame, with the
 /// 1-σ of its origin (along the frame's own axes, m) and of its rotation (about them, rad).
 struct FrameFit {

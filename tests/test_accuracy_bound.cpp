@@ -146,13 +146,13 @@ TEST(AccuracyBound, TwinValidationRowsAreCoveredAtEachLoadAndTheExtrapolatedLoad
                              .accuracy.position_bound_m));
 }
 
-// Load effects outside the catalogue (the stress run's --foreign seed 44: an angle-dependent
-// stiffness of joint 3 and a bearing tilt of joint 2): the extended model's GPR per payload force
-// takes what its physical model leaves at the loads and moves no unloaded row. Its stated noise
-// is the unloaded rows' scatter, so at 0 kg the bound stays beside the error there (a Gaussian's
-// 95 % length bound is 1.75 times its mean length); it was raised to the loaded rows' scatter
-// before the GPR, and stated 6 times the error at every load. Loaded rows stay covered (the
-// GPR's own noise and variance). About 3 s of CPU.
+// Load effects outside the catalogue (the stress run's --foreign seed 44: the twin's
+// angle_dependent_stiffness of its joint 2 and bearing_tilt of its joint 1): the extended
+// model's GPR per payload force takes what its physical model leaves at the loads and moves no
+// unloaded row. Its stated noise is the unloaded rows' scatter, so at 0 kg the bound stays beside
+// the error there (a Gaussian's 95 % length bound is 1.75 times its mean length); raised to the
+// loaded rows' scatter before the GPR, it stated 6 times the error at every load. Loaded rows
+// stay covered (the GPR's own noise and variance). About 3 s of CPU.
 TEST(AccuracyBound, AForeignLoadEffectIsNotStatedAsNoiseAtZeroLoad) {
   const twin::ForeignMix mix = twin::drawForeignMix(44);
   std::vector<nlohmann::json> effects = mix.foreign;

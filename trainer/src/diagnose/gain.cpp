@@ -166,16 +166,31 @@ PoseModel inOwnFrames(PoseModel model, MeasurementFrames frames) {
 }
 
 // The extended model's measurement noise in its accuracy factors (it keeps the starting model's
-// parameter factors): the tracker's, raised to the extended physical model's residual scatter
-// where its GPR does not take that (none taken, or one per payload force: nothing unloaded).
+// parameter factors): the tracker's, raised to the extended physical model's residual scatter on
+// the fit rows its GPR does not take. None taken: every row it would have learned from. A GPR per
+// payload force moves no unloaded row and states at a load its own noise and variance, growing
+// with the force (its output gain): the unloaded fit rows' scatter, seen as the GPR's rows are
+// (asFirst). Raised to the loaded rows' scatter instead, the residual the GPR takes would be
+// stated again at every load, the unloaded one included.
 void statedNoiseOfExtended(AccuracyFactors& factors, const Campaign& campaign,
                            const ResidualModel& residual, const PoseModel& after,
-                           const std::vector<const Measurement*>& gpr_rows) {
+                           const std::vector<const Measurement*>& gpr_rows,
+                           const std::function<Measurement(const Measurement&)>& asFirst) {
   factors.position_noise_m = campaign.tracker.position_sigma_m;
   factors.orientation_noise_rad = campaign.tracker.orientation_sigma_rad;
-  if (!residual.taken || residual.gp.parameters().payload_force_reference_n > 0.0) {
+  if (!residual.taken) {
     raiseNoiseToResidual(factors, after, gpr_rows);
+    return;
   }
+  if (residual.gp.parameters().payload_force_reference_n <= 0.0) return;
+  std::vector<Measurement> unloaded;
+  for (const Measurement& row : campaign.rows) {
+    const bool loaded = row.load_kg > 0.0 && row.wrenchOrZero().head<3>().norm() > 0.0;
+    if (row.set != RowSet::kValidation && !loaded) unloaded.push_back(asFirst(row));
+  }
+  std::vector<const Measurement*> unloaded_rows;
+  for (const Measurement& row : unloaded) unloaded_rows.push_back(&row);
+  raiseNoiseToResidual(factors, after, unloaded_rows);
 }
 
 }  // namespace
@@ -239,7 +254,11 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
                                              options.calibration, extendedResidualTarget(gpr_rows));
   ext.gpr.reset();
   if (residual.taken) ext.gpr = residual.gp.parameters();
-  if (ext.accuracy) statedNoiseOfExtended(*ext.accuracy, campaign, residual, after, gpr_rows);
+  if (ext.accuracy) {
+    statedNoiseOfExtended(*ext.accuracy, campaign, residual, after, gpr_rows, [&](const Measurement& row) {
+      return inFirstCampaignTerms(withoutDrift(row, drift), found_frames, after);
+    });
+  }
   d.extended_gpr_rows = residual.training_rows;
   d.extended_gpr_z = residual.z_statistic;
   d.extended_gpr_taken = residual.taken;

@@ -57,9 +57,10 @@ double pooledMeanPosition(const std::vector<AccuracySummary>& summaries, const s
 double noiseFloorMean(double sigma_per_axis);
 
 /// Raises the factors' measurement noise to a model's residual scatter on rows where larger: the
-/// RMS per axis of the position errors (‖e‖² / 3) and of the rotation errors. What a model
-/// leaves that no GPR takes (none taken, or one per payload force at zero load) is then part of
-/// its stated accuracy (docs/method.md, "The accuracy bound").
+/// RMS per axis of the position errors (‖e‖² / 3) and of the rotation errors. Given the rows no
+/// GPR takes (every fit row when none is taken, the unloaded ones beside a GPR per payload force),
+/// what the model leaves there is then part of its stated accuracy (docs/method.md, "The
+/// accuracy bound").
 void raiseNoiseToResidual(AccuracyFactors& factors, const PoseModel& model,
                           const std::vector<const Measurement*>& rows);
 

@@ -34,7 +34,7 @@ Mechanism profile(std::vector<double> coefficients, AngleCoverage coverage = {})
 
 TEST(MechanismRegistry, EveryKindOnceInTheOrderOfItsValueWithItsName) {
   const std::vector<const MechanismTraits*>& registry = mechanismRegistry();
-  ASSERT_EQ(registry.size(), 14u);
+  ASSERT_EQ(registry.size(), 15u);
   for (size_t i = 0; i < registry.size(); ++i) {
     const MechanismTraits& traits = *registry[i];
     EXPECT_EQ(static_cast<size_t>(traits.kind), i + 1);

@@ -45,8 +45,8 @@ TEST(MechanismRegistry, EveryKindOnceInTheOrderOfItsValueWithItsName) {
     EXPECT_EQ(traits.torque_deflection, traits.deflection != nullptr) << traits.name;
   }
   EXPECT_EQ(findMechanismTraits(static_cast<MechanismKind>(0)), nullptr);
-  EXPECT_EQ(findMechanismTraits(static_cast<MechanismKind>(15)), nullptr);
-  EXPECT_STREQ(toString(static_cast<MechanismKind>(15)), "unknown");
+  EXPECT_EQ(findMechanismTraits(static_cast<MechanismKind>(16)), nullptr);
+  EXPECT_STREQ(toString(static_cast<MechanismKind>(16)), "unknown");
   EXPECT_FALSE(mechanismKindFromString("no_such_kind").has_value());
 }
 

@@ -127,8 +127,8 @@ TEST(ToolMountCompliance, APayloadsWeightShiftsTheTipInTheMountsAxes) {
     const PhysicalModel model = irb4400(with_sensor);
     const Tips t = tips(model, m, Vec6::Zero(), &payload);
     const Eigen::Matrix3d R_RootMount =
-        with_sensor ? framePose(model.chain_Tracker, t.plain, model.sensor_frame).linear()
-                    : t.plain.X_RootFrame[6].linear();
+        with_sensor ? Eigen::Matrix3d(framePose(model.chain_Tracker, t.plain, model.sensor_frame).linear())
+                    : Eigen::Matrix3d(t.plain.X_RootFrame[6].linear());
     const Vec3 expected =
         R_RootMount * mechanism::toolShift_m(m, R_RootMount.transpose() * weight_Root);
     ASSERT_GT(expected.norm(), 5e-5);

@@ -43,7 +43,8 @@ TEST_P(HiddenToolMount, IsNamedWithItsComplianceAndNoJointStandsInForIt) {
     EXPECT_NE(e.mechanism.kind, MechanismKind::kRegistrationDrift);
   }
   ASSERT_NE(found, nullptr);
-  const mechanism::ToolMountCompliance<const double> c = view<mechanism::ToolMountCompliance>(*found);
+  const mechanism::ToolMountCompliance<const double> c =
+      view<mechanism::ToolMountCompliance>(*found);
   // Each axis against the truth (0, 0, c) within 3σ; an axis held at its bound (σ 0) is zero.
   const double truth[3] = {0.0, 0.0, kCompliance_m_per_n};
   for (int i = 0; i < 3; ++i) {
@@ -59,11 +60,11 @@ TEST_P(HiddenToolMount, IsNamedWithItsComplianceAndNoJointStandsInForIt) {
     EXPECT_LT(g.after.mean_position_m, 1.5 * d.floor_position_m);
     worst = std::max(worst, g.after.mean_position_m / d.floor_position_m);
   }
-  std::printf("[ tool_mount ] %s: found c_x %.3g ± %.2g, c_y %.3g ± %.2g, c_z %.4g ± %.2g m/N "
-              "(truth 0, 0, %.3g), worst load %.2f× the floor; named: %s\n",
-              GetParam().c_str(), c.alongX_m_per_n(), found->sigma[0], c.alongY_m_per_n(),
-              found->sigma[1], c.alongZ_m_per_n(), found->sigma[2], kCompliance_m_per_n, worst,
-              effectsText(d).c_str());
+  std::printf(
+      "[ tool_mount ] %s: found c_x %.3g ± %.2g, c_y %.3g ± %.2g, c_z %.4g ± %.2g m/N "
+      "(truth 0, 0, %.3g), worst load %.2f× the floor; named: %s\n",
+      GetParam().c_str(), c.alongX_m_per_n(), found->sigma[0], c.alongY_m_per_n(), found->sigma[1],
+      c.alongZ_m_per_n(), found->sigma[2], kCompliance_m_per_n, worst, effectsText(d).c_str());
 }
 
 INSTANTIATE_TEST_SUITE_P(PaperProtocol, HiddenToolMount, ::testing::Values("mixed", "blocks"),

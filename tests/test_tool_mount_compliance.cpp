@@ -26,8 +26,7 @@ Mechanism mount(double c_x, double c_y, double c_z) {
 }
 
 TEST(ToolMountCompliance, TheRegistryNamesChecksAndDescribesIt) {
-  EXPECT_EQ(mechanismKindFromString("tool_mount_compliance"),
-            MechanismKind::kToolMountCompliance);
+  EXPECT_EQ(mechanismKindFromString("tool_mount_compliance"), MechanismKind::kToolMountCompliance);
   EXPECT_EQ(static_cast<int>(MechanismKind::kToolMountCompliance), 15) << "stored in model files";
   EXPECT_EQ(mechanismParameterNames(MechanismKind::kToolMountCompliance, 6),
             (std::vector<std::string>{"x_compliance_m_per_n", "y_compliance_m_per_n",
@@ -45,10 +44,9 @@ TEST(ToolMountCompliance, TheRegistryNamesChecksAndDescribesIt) {
 
 TEST(ToolMountCompliance, TheShiftIsItsClosedFormAndTheTwinsAlongZ) {
   const Vec3 force(30.0, -120.0, 410.0);
-  EXPECT_NEAR((mechanism::toolShift_m(mount(1e-7, 3e-7, 2e-7), force) -
-               Vec3(3e-6, -3.6e-5, 8.2e-5))
-                  .norm(),
-              0.0, 1e-18);
+  EXPECT_NEAR(
+      (mechanism::toolShift_m(mount(1e-7, 3e-7, 2e-7), force) - Vec3(3e-6, -3.6e-5, 8.2e-5)).norm(),
+      0.0, 1e-18);
   // The twin's mount gives along the sensor's z only: δ = c (z·F) z in any axes; the kind's
   // (0, 0, c) in the sensor's axes, turned into the base's, is the same shift.
   const twin::ToolMountCompliance twin_mount(2e-7);
@@ -57,7 +55,8 @@ TEST(ToolMountCompliance, TheShiftIsItsClosedFormAndTheTwinsAlongZ) {
   const Vec3 force_Base(-40.0, 25.0, -539.0);
   const Vec3 twin_shift = twin_mount.shift(force_Base, R_BaseSensor.col(2));
   const Vec3 kind_shift =
-      R_BaseSensor * mechanism::toolShift_m(mount(0.0, 0.0, 2e-7), R_BaseSensor.transpose() * force_Base);
+      R_BaseSensor *
+      mechanism::toolShift_m(mount(0.0, 0.0, 2e-7), R_BaseSensor.transpose() * force_Base);
   ASSERT_GT(twin_shift.norm(), 5e-5);
   EXPECT_NEAR((kind_shift - twin_shift).norm(), 0.0, 1e-17);
 }
@@ -127,8 +126,9 @@ TEST(ToolMountCompliance, APayloadsWeightShiftsTheTipInTheMountsAxes) {
     const PhysicalModel model = irb4400(with_sensor);
     const Tips t = tips(model, m, Vec6::Zero(), &payload);
     const Eigen::Matrix3d R_RootMount =
-        with_sensor ? Eigen::Matrix3d(framePose(model.chain_Tracker, t.plain, model.sensor_frame).linear())
-                    : Eigen::Matrix3d(t.plain.X_RootFrame[6].linear());
+        with_sensor
+            ? Eigen::Matrix3d(framePose(model.chain_Tracker, t.plain, model.sensor_frame).linear())
+            : Eigen::Matrix3d(t.plain.X_RootFrame[6].linear());
     const Vec3 expected =
         R_RootMount * mechanism::toolShift_m(m, R_RootMount.transpose() * weight_Root);
     ASSERT_GT(expected.norm(), 5e-5);

@@ -34,8 +34,8 @@ void toolMountComplianceFamilies(const FamilyContext& c) {
   }
   if (c.global.sensor_frame < 0 || !anyLoadedRow(c.fit)) {
     if (c.scope.only == nullptr) {  // once, in a whole round's screening
-      c.s.untestable.push_back({"tool_mount_compliance",
-                                "no F/T sensor frame or no loaded row: no force on the mount"});
+      c.s.untestable.push_back(
+          {"tool_mount_compliance", "no F/T sensor frame or no loaded row: no force on the mount"});
     }
     return;
   }
@@ -80,7 +80,9 @@ constexpr double kSignatureStep = 0.01;
 std::vector<Vec3> rowForces(const SignatureContext& c) {
   Vec6 bias = Vec6::Zero();
   for (const Mechanism& other : c.model.mechanisms) {
-    if (other.kind == MechanismKind::kSensorBias) bias = view<mechanism::SensorBias>(other).wrench();
+    if (other.kind == MechanismKind::kSensorBias) {
+      bias = view<mechanism::SensorBias>(other).wrench();
+    }
   }
   std::vector<Vec3> forces;
   for (const Measurement* row : c.fit.rows) {

@@ -33,8 +33,10 @@ TEST(ToolMountCompliance, TheRegistryNamesChecksAndDescribesIt) {
                                       "z_compliance_m_per_n"}));
   EXPECT_EQ(describe(mount(0.0, 0.0, 2e-7)), "tool_mount_compliance");
   EXPECT_EQ(mechanismProblem(mount(0.0, 1e-7, 2e-7), 6), "");
-  EXPECT_NE(mechanismProblem(mount(0.0, -1e-9, 2e-7), 6).find("expected ≥ 0"), std::string::npos)
-      << "a mount that moves against its force";
+  EXPECT_NE(mechanismProblem(mount(0.0, -1e-9, 2e-7), 6)
+                .find("compliances 0, -1e-09, 2e-07 m/N (x, y, z); expected ≥ 0"),
+            std::string::npos)
+      << "a mount that moves against its force: " << mechanismProblem(mount(0.0, -1e-9, 2e-7), 6);
   Mechanism on_a_joint = mount(0.0, 0.0, 2e-7);
   on_a_joint.joint = 2;
   EXPECT_NE(mechanismProblem(on_a_joint, 6), "") << "the mount is no joint's";

@@ -1,6 +1,7 @@
 #include "stepcal/common/mechanisms/tool_mount_compliance.hpp"
 
 #include "kinds.hpp"
+#include "stepcal/common/text_number.hpp"
 
 namespace stepcal::mechanism {
 namespace {
@@ -15,9 +16,9 @@ std::vector<std::string> names(int, int) {
 std::string problem(const Mechanism& m, int) {
   const View c = view<ToolMountCompliance>(m);
   if (!(c.alongX_m_per_n() >= 0.0 && c.alongY_m_per_n() >= 0.0 && c.alongZ_m_per_n() >= 0.0)) {
-    return std::string(toString(m.kind)) + " compliances " + std::to_string(c.alongX_m_per_n()) +
-           ", " + std::to_string(c.alongY_m_per_n()) + ", " + std::to_string(c.alongZ_m_per_n()) +
-           " m/N; expected ≥ 0";
+    return std::string(toString(m.kind)) + " compliances " +
+           formatShortest(c.alongX_m_per_n()) + ", " + formatShortest(c.alongY_m_per_n()) + ", " +
+           formatShortest(c.alongZ_m_per_n()) + " m/N (x, y, z); expected ≥ 0";
   }
   return {};
 }

@@ -691,7 +691,8 @@ TEST(Cli, SimulateWithASensorBiasOffsetsEveryReading) {
 // global cause had to explain its gain beside a joint's torque modulated by its angle
 // (modulated_stand_in.cpp: a joint_zero_drift of joint 4 of round 7, never chosen, no longer
 // significant beside joint 6's weight times harmonics 1–16 of its angle: 0.99 % of the round's
-// error, under the 1 % minimum); every other answer the same. Strings, counts and flags must be
+// error, under the 1 % minimum), and when tool_mount_compliance joined the catalogue (its one
+// untestable entry added: no loaded row); every other answer the same. Strings, counts and flags must be
 // equal; numbers
 // within 1e-4 relative, a signed-rank z and its p-value within 1e-2 (one rank's step moves z by
 // 6e-4 relative, and p by 2e-4), held-out gains and reductions also within 1e-5 absolute (mm, or a
@@ -788,7 +789,8 @@ TEST(Cli, TheDiagnosisOfUr10SeriesCIsTheStoredOne) {
 // had to explain its gain beside a joint's torque modulated by its angle (modulated_stand_in.cpp:
 // a coupling 2 → 3 of round 2 and a self weight of round 3, neither in the data, no longer
 // significant, with their modulated_stand_in; the nonlinear stiffness of joint 3 chosen at the
-// neighbouring τ₀ of its grid, τ₀ 155.39 → 155.42 N·m after the refit);
+// neighbouring τ₀ of its grid, τ₀ 155.39 → 155.42 N·m after the refit), and when
+// tool_mount_compliance joined the catalogue (4 candidates added, one a round, none significant);
 // every other answer the same. Made again after a change meant to change the answers:
 // `stepcal-diagnose-stress --seeds 3`, then `stepcal diagnose OUT/seed-3 --json` without timing_s.
 TEST(Cli, TheDiagnosisOfATwinMixIsTheStoredOne) {

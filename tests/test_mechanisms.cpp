@@ -34,7 +34,7 @@ Mechanism profile(std::vector<double> coefficients, AngleCoverage coverage = {})
 
 TEST(MechanismRegistry, EveryKindOnceInTheOrderOfItsValueWithItsName) {
   const std::vector<const MechanismTraits*>& registry = mechanismRegistry();
-  ASSERT_EQ(registry.size(), 14u);
+  ASSERT_EQ(registry.size(), 15u);
   for (size_t i = 0; i < registry.size(); ++i) {
     const MechanismTraits& traits = *registry[i];
     EXPECT_EQ(static_cast<size_t>(traits.kind), i + 1);
@@ -45,8 +45,8 @@ TEST(MechanismRegistry, EveryKindOnceInTheOrderOfItsValueWithItsName) {
     EXPECT_EQ(traits.torque_deflection, traits.deflection != nullptr) << traits.name;
   }
   EXPECT_EQ(findMechanismTraits(static_cast<MechanismKind>(0)), nullptr);
-  EXPECT_EQ(findMechanismTraits(static_cast<MechanismKind>(15)), nullptr);
-  EXPECT_STREQ(toString(static_cast<MechanismKind>(15)), "unknown");
+  EXPECT_EQ(findMechanismTraits(static_cast<MechanismKind>(16)), nullptr);
+  EXPECT_STREQ(toString(static_cast<MechanismKind>(16)), "unknown");
   EXPECT_FALSE(mechanismKindFromString("no_such_kind").has_value());
 }
 

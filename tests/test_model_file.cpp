@@ -792,7 +792,7 @@ TEST_F(ModelFileTest, NominalChainFollowsTheCalibratedChainAndDescribesTheSameRo
 
 TEST_F(ModelFileTest, MechanismsOfEveryKindRoundTripBetweenCompliancesAndGpr) {
   const CalibratedModel parsed = parse(bytes());
-  ASSERT_EQ(parsed.mechanisms.size(), 11u);
+  ASSERT_EQ(parsed.mechanisms.size(), 12u);
   for (size_t i = 0; i < parsed.mechanisms.size(); ++i) {
     EXPECT_EQ(parsed.mechanisms[i].kind, model().mechanisms[i].kind) << i;
   }
@@ -801,11 +801,11 @@ TEST_F(ModelFileTest, MechanismsOfEveryKindRoundTripBetweenCompliancesAndGpr) {
   const size_t compliance = payloadOf(b, "COMP");
   const size_t mech = payloadOf(b, "MECH");
   EXPECT_EQ(mech, compliance + 4 + 2 * 8 * 6 + 16);
-  EXPECT_EQ(getU32(b, mech), 11u);
+  EXPECT_EQ(getU32(b, mech), 12u);
   // Record by record: header, parameters, sigmas, coverage (arc count, arcs, fade);
   // 4 + Σ (20 + 16 p + 4 + 16 a + 8) bytes in all.
   size_t length = 4;
-  for (size_t i = 0; i < 11; ++i) {
+  for (size_t i = 0; i < 12; ++i) {
     const Mechanism& m = model().mechanisms[i];
     const size_t at = mechanismAt(b, i);
     EXPECT_EQ(getU32(b, at), static_cast<uint32_t>(m.kind));
@@ -855,8 +855,8 @@ TEST_F(ModelFileTest, EachMalformedMechanismIsRefusedWithItsOffsetIndexAndProble
                nonlinear = mechanismAt(b, 3), coupling = mechanismAt(b, 6);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const std::vector<Case> cases = {
-      {[&](auto& e) { putU32(e, backlash, 15); }, backlash, "mechanisms[0]",
-       "mechanism kind 15; expected 1 to 14"},
+      {[&](auto& e) { putU32(e, backlash, 16); }, backlash, "mechanisms[0]",
+       "mechanism kind 16; expected 1 to 15"},
       {[&](auto& e) { putU32(e, backlash + 4, 6); }, backlash, "mechanisms[0]",
        "backlash joint index 6; expected 0 to 5"},
       {[&](auto& e) { putU32(e, backlash + 4, uint32_t(-1)); }, backlash, "mechanisms[0]",
@@ -917,13 +917,14 @@ std::pair<std::vector<uint8_t>, size_t> withRecordRepeated(const std::vector<uin
 }
 
 TEST_F(ModelFileTest, MechanismsThatCannotBeTogetherOrLackTheirInputsAreRefused) {
-  // A second self_weight, sensor_bias or thermal_expansion.
+  // A second self_weight, sensor_bias, thermal_expansion or tool_mount_compliance.
   for (const auto& [index, kind] : {std::pair{size_t(1), std::string("self_weight")},
                                     std::pair{size_t(4), std::string("thermal_expansion")},
-                                    std::pair{size_t(5), std::string("sensor_bias")}}) {
+                                    std::pair{size_t(5), std::string("sensor_bias")},
+                                    std::pair{size_t(11), std::string("tool_mount_compliance")}}) {
     const auto [b, at] = withRecordRepeated(bytes(), index);
     const std::string message = refusal(b);
-    EXPECT_NE(message.find("byte " + std::to_string(at) + ", mechanisms[11]: a second " + kind +
+    EXPECT_NE(message.find("byte " + std::to_string(at) + ", mechanisms[12]: a second " + kind +
                            " (the first is mechanisms[" + std::to_string(index) +
                            "]); expected at most one"),
               std::string::npos)
@@ -940,7 +941,7 @@ TEST_F(ModelFileTest, MechanismsThatCannotBeTogetherOrLackTheirInputsAreRefused)
         std::tuple{size_t(10), std::string("off_axis_compliance"), 1}}) {
     const auto [b, at] = withRecordRepeated(bytes(), index);
     const std::string message = refusal(b);
-    EXPECT_NE(message.find("byte " + std::to_string(at) + ", mechanisms[11]: a second " + kind +
+    EXPECT_NE(message.find("byte " + std::to_string(at) + ", mechanisms[12]: a second " + kind +
                            " of joint " + std::to_string(joint) + " (the first is mechanisms[" +
                            std::to_string(index) +
                            "]); expected at most one per joint"),

@@ -147,6 +147,30 @@ TEST(Plan, OffAxisJointsJoinTheInformation) {
   EXPECT_THROW(trainer::planCampaign(chain, 0, options), InputError);
 }
 
+// The tool mount's compliance (tool_mount_compliance) adds its three compliances to the
+// information: the plan chooses other poses, still far better than random ones by that
+// information, and refuses it on a robot without a payload link.
+TEST(Plan, TheToolMountJoinsTheInformation) {
+  trainer::PlanOptions options;
+  options.poses = 15;
+  options.candidates = 1000;
+  const KinematicChain chain = irb4400();
+  const trainer::CampaignPlan without = trainer::planCampaign(chain, 0, options);
+  options.tool_mount = true;
+  const trainer::CampaignPlan with = trainer::planCampaign(chain, 0, options);
+  bool other_poses = false;
+  for (size_t i = 0; i < with.rows.size(); ++i) {
+    other_poses = other_poses || with.rows[i].q_rad != without.rows[i].q_rad;
+  }
+  EXPECT_TRUE(other_poses);
+  options.selection = trainer::PoseSelection::kRandom;
+  const double random = trainer::planCampaign(chain, 0, options).log_det_information;
+  EXPECT_GT(with.log_det_information, random + 5.0) << with.log_det_information << " vs " << random;
+  options.selection = trainer::PoseSelection::kDOptimal;
+  options.loads_kg = {0.0};
+  EXPECT_THROW(trainer::planCampaign(chain, -1, options), InputError);
+}
+
 // A robot without an F/T sensor (the UR10) is planned unloaded: every pose once, at 0 kg, within
 // its limits and visible; payloads need a link to hang from.
 TEST(Plan, RobotWithoutASensorIsPlannedUnloaded) {

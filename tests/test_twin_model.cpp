@@ -194,6 +194,45 @@ TEST(ModelTwin, AnOffAxisComplianceIsSwitchedOnAtARealisticSize) {
   expectRefused([&] { twin::simulateFromModel(o, nullptr); }, {"holds one already"});
 }
 
+TEST(ModelTwin, AToolMountIsSwitchedOnAtARealisticSize) {
+  // A mount 5e6 N/m stiff along the sensor's z: the loaded rows move by a few hundredths of a
+  // millimetre, at most c times the 55 kg payload's weight; the unloaded ones not at all.
+  const test::TempDir dir;
+  const Calibrated c = calibrated(dir);
+  twin::ModelTwinOptions o = noiseless(c.model_path, c.campaign_dir);
+  const Campaign plain = twin::simulateFromModel(o, nullptr);
+  o.tool_mount_compliance_m_per_n = 2e-7;
+  nlohmann::json truth;
+  const Campaign mounted = twin::simulateFromModel(o, &truth);
+  ASSERT_EQ(plain.rows.size(), mounted.rows.size());
+  double sum_m = 0.0, largest_m = 0.0, largest_unloaded_m = 0.0;
+  int loaded_55 = 0;
+  for (size_t i = 0; i < plain.rows.size(); ++i) {
+    const double moved_m =
+        (mounted.rows[i].p_TipInTracker_m - plain.rows[i].p_TipInTracker_m).norm();
+    if (plain.rows[i].load_kg == 0.0) {
+      largest_unloaded_m = std::max(largest_unloaded_m, moved_m);
+    } else if (plain.rows[i].load_kg == 55.0) {
+      sum_m += moved_m;
+      ++loaded_55;
+    }
+    largest_m = std::max(largest_m, moved_m);
+  }
+  ASSERT_GT(loaded_55, 0);
+  const double mean_55_m = sum_m / loaded_55;
+  EXPECT_GT(mean_55_m, 0.01e-3);
+  // The reading's force is the payload's weight plus its noise (0.2 N): c · 55 kg · g, and 1 %.
+  EXPECT_LT(largest_m, 1.01 * 2e-7 * 55.0 * 9.81);
+  EXPECT_LT(largest_unloaded_m, 0.01 * mean_55_m);
+  std::printf("[ tool_mount ] 2e-7 m/N: 55 kg rows move by %.4f mm mean, %.4f mm at most, "
+              "unloaded ones %.2g mm at most\n",
+              1e3 * mean_55_m, 1e3 * largest_m, 1e3 * largest_unloaded_m);
+  EXPECT_EQ(truth.at("added_mechanisms").at(0).at("name"), "tool_mount_compliance");
+  // Not a mount that moves against its force.
+  o.tool_mount_compliance_m_per_n = -1e-7;
+  expectRefused([&] { twin::simulateFromModel(o, nullptr); }, {"tool_mount_compliance", "≥ 0"});
+}
+
 TEST(ModelTwin, NoiseIsTheCampaignsStatedNoiseAndTheSeedsOwn) {
   const test::TempDir dir;
   const Calibrated c = calibrated(dir);

@@ -12,6 +12,7 @@
 #include "stepcal/common/mechanisms/off_axis_compliance.hpp"
 #include "stepcal/common/mechanisms/sensor_bias.hpp"
 #include "stepcal/common/mechanisms/thermal_expansion.hpp"
+#include "stepcal/common/mechanisms/tool_mount_compliance.hpp"
 #include "stepcal/common/units.hpp"
 
 namespace stepcal {
@@ -448,6 +449,30 @@ class FixedPoint {
     }
   }
 
+  /// The tool_mount_compliance's shift of the tip under the load's force, at the last frames
+  /// (after the passes: the shift moves no joint, and the torques it would change by moving the
+  /// load ~0.1 mm are left out, as the link angles' own effect on them is not): the measured
+  /// force in the sensor's axes, or the payload's weight in the mount's. The frames another
+  /// evaluation keeps (FirstPass) are copied before it, unshifted.
+  void shiftTool(bool has_sensor, const PointPayload* payload) noexcept {
+    const Mechanism* mount = nullptr;
+    for (const Mechanism& m : model_.mechanisms) {
+      if (m.kind == MechanismKind::kToolMountCompliance) mount = &m;
+    }
+    if (mount == nullptr || (!has_sensor && payload == nullptr)) return;
+    const bool sensor_known =
+        model_.sensor_frame >= 0 &&
+        model_.sensor_frame < static_cast<int>(chain_.frames().size());
+    const Eigen::Matrix3d R_RootMount =
+        sensor_known ? framePose(chain_, ws_, model_.sensor_frame).linear()
+                     : ws_.X_RootFrame[static_cast<size_t>(n_)].linear();
+    const Vec3 force_Mount =
+        has_sensor ? Vec3(side_.wrench_Sensor.head<3>())
+                   : Vec3(R_RootMount.transpose() * (payload->mass_kg * model_.gravity_Tracker));
+    ws_.X_RootFrame[static_cast<size_t>(n_ + 1)].translation() +=
+        R_RootMount * mechanism::toolShift_m(*mount, force_Mount);
+  }
+
   /// Keeps this evaluation's frames at θ₀ for the next ones, when it evaluated them.
   void keepFirstPass() noexcept {
     if (!kept_frames_) return;
@@ -567,6 +592,7 @@ void solveFixedPoint(const PhysicalModel& model, const JointVector& q_rad,
     fixed_point.run<false>(passes, has_sensor, how.payload);
   }
   fixed_point.evaluate();
+  fixed_point.shiftTool(has_sensor, has_payload ? how.payload : nullptr);
   if (how.start != nullptr && how.start->deflection_out_rad != nullptr) {
     *how.start->deflection_out_rad = out.theta_rad - side.theta0_rad;
   }

@@ -439,11 +439,15 @@ double outOfDomainThreshold(const GprPredictor& gpr) {
 }
 
 /// Whether the physical model turns a measured wrench into deflection: a linear compliance,
-/// any kind whose deflection follows the joint's torque, or a tilt that follows the load.
+/// any kind whose deflection follows the joint's torque, or a tilt or a tool's shift that
+/// follows the load.
 bool physicalNeedsWrench(const CalibratedModel& file) noexcept {
   if (file.sensor_frame < 0) return false;
   for (const Mechanism& m : file.mechanisms) {
-    if (isTorqueDeflection(m.kind) || m.kind == MechanismKind::kOffAxisCompliance) return true;
+    if (isTorqueDeflection(m.kind) || m.kind == MechanismKind::kOffAxisCompliance ||
+        m.kind == MechanismKind::kToolMountCompliance) {
+      return true;
+    }
   }
   return file.compliance_rad_per_nm.size() > 0 && !file.compliance_rad_per_nm.isZero(0.0);
 }

@@ -51,7 +51,8 @@ inline Mechanism mechanism(MechanismKind kind, int joint, int source_joint, int 
 /// [5] sensor_bias, [6] joint_coupling (joint 5 → joint 6), [7] profile_geometry (joint 3: tens
 /// of µm and µrad on every initial pose), [8] torsion_curve (joint 5: lost motion and two knees,
 /// linear above 400 N·m), [9] joint_zero_drift (joint 2: 30 µrad/K about 20 °C), [10]
-/// off_axis_compliance (joint 1: a base bearing 5e6 and 7e6 N·m/rad stiff across its axis).
+/// off_axis_compliance (joint 1: a base bearing 5e6 and 7e6 N·m/rad stiff across its axis), [11]
+/// tool_mount_compliance (a mount 1e7, 7e6 and 5e6 N/m stiff along the sensor's x, y, z).
 inline std::vector<Mechanism> mechanismOfEveryKind() {
   return {mechanism(MechanismKind::kBacklash, 1, -1, 0, {2e-4, 5.0}),
           mechanism(MechanismKind::kSelfWeight, -1, -1, 0, selfWeightParameters()),
@@ -65,7 +66,8 @@ inline std::vector<Mechanism> mechanismOfEveryKind() {
           mechanism(MechanismKind::kTorsionCurve, 4, -1, 2,
                     {1.5e-4, 4.0, 3e-6, 40.0, 1e-6, 150.0, 400.0}),
           mechanism(MechanismKind::kJointZeroDrift, 1, -1, 0, {3e-5, 20.0}),
-          mechanism(MechanismKind::kOffAxisCompliance, 0, -1, 0, {2e-7, 1.4e-7})};
+          mechanism(MechanismKind::kOffAxisCompliance, 0, -1, 0, {2e-7, 1.4e-7}),
+          mechanism(MechanismKind::kToolMountCompliance, -1, -1, 0, {1e-7, 1.4e-7, 2e-7})};
 }
 
 }  // namespace stepcal::test

@@ -239,6 +239,9 @@ Subcommand addPlanCommand(CLI::App& app) {
                    "joints (1-based) whose compliance across the axis (off_axis_compliance: "
                    "bearing tilt, link bending) the poses should also identify, e.g. 1,2")
       ->delimiter(',');
+  plan->add_flag("--tool-mount", plan_args.options.tool_mount,
+                 "the poses should also identify the tool mount's compliance along the sensor's "
+                 "axes (tool_mount_compliance)");
   plan->add_option("--out", plan_args.out, "pose list to write (poses.csv)")->required();
   return {plan, [args, poses] {
             args->poses_given = poses->count() > 0;

@@ -84,6 +84,7 @@ void runSimulateModel(const SimulateArgs& a) {
   for (const std::string& spec : a.off_axis_compliance) {
     options.off_axis_compliance.push_back(offAxisComplianceSpec(spec, joints));
   }
+  options.tool_mount_compliance_m_per_n = a.tool_mount_compliance_m_per_n;
   twin::writeModelSimulation(options, a.out);
 }
 
@@ -164,6 +165,11 @@ Subcommand addSimulateCommand(CLI::App& app) {
                    "with --model: switch on a tilt of joint J across its axis in the twin, "
                    "c M⊥ (off_axis_compliance, isotropic), J:C with J a joint of the model's chain "
                    "(1-based) and C in [0, 1e-5) rad/(N·m), e.g. 1:1.7e-7; repeatable")
+      ->needs(model_option);
+  simulate
+      ->add_option("--tool-mount-compliance", sim.tool_mount_compliance_m_per_n,
+                   "with --model: switch on the tool's mount giving along the F/T sensor's z in "
+                   "the twin (tool_mount_compliance, 0, 0, C), C ≥ 0 m/N, e.g. 2e-7")
       ->needs(model_option);
   for (const char* robot_only : {"--robot", "--base-link", "--tip-link", "--sensor-link",
                                  "--protocol", "--stiffness"}) {

@@ -30,6 +30,8 @@ struct SimulateArgs {
   double temperature_ramp_c = 0.0;    ///< --temperature-ramp-c (TwinOptions)
   /// --off-axis-compliance JOINT:C (with --model): ModelTwinOptions::off_axis_compliance
   std::vector<std::string> off_axis_compliance;
+  /// --tool-mount-compliance C (with --model): ModelTwinOptions::tool_mount_compliance_m_per_n
+  double tool_mount_compliance_m_per_n = 0.0;
 };
 
 /// Writes the campaign a.out (and its truth.json): of a robot drawn from its URDF, or with

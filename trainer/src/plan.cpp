@@ -59,7 +59,7 @@ double segmentDistance(const Vec3& a0, const Vec3& a1, const Vec3& b0, const Vec
 
 /// A visible candidate pose and its identification block (rows: unloaded position, then each
 /// payload's deflection; columns: 6(n+1) geometry, n compliance, two tilt compliances per
-/// PlanOptions::off_axis_joints).
+/// PlanOptions::off_axis_joints, three mount compliances with PlanOptions::tool_mount).
 struct Candidate {
   JointVector q_rad;
   Eigen::MatrixXd block;
@@ -113,6 +113,18 @@ void addTiltColumns(const KinematicChain& chain, const ChainWorkspace& ws, const
   }
 }
 
+/// The tip's motion per unit mount compliance along each of the sensor's axes under the
+/// payload's force force_Sensor (mechanisms/tool_mount_compliance.hpp): a shift (F·e) e, e the
+/// axis, that turns nothing; in the rows from `first`, the columns from `column`.
+void addToolMountColumns(const Pose& X_BaseSensor, const Vec3& force_Sensor, const PlanOptions& o,
+                         int first, int column, Eigen::MatrixXd& block) {
+  if (!o.tool_mount) return;
+  for (int axis = 0; axis < 3; ++axis) {
+    block.block(first, column + axis, 3, 1) =
+        X_BaseSensor.linear().col(axis) * force_Sensor(axis) / o.position_sigma_m;
+  }
+}
+
 /// The re-check's columns of the initial-pose Jacobian A (6 × 6(n+1)): the registration's and
 /// the tool's blocks, and each inner joint's zero (its block times its twist: recheck.cpp).
 Eigen::Matrix<double, 6, Eigen::Dynamic> recheckColumns(const KinematicChain& chain,
@@ -136,8 +148,9 @@ Eigen::MatrixXd identificationBlock(const KinematicChain& chain, int sensor_fram
   const bool rotation = o.orientation_sigma_rad > 0.0;
   const int rows = rotation ? 6 : 3;
   const int tilt_columns = 2 * static_cast<int>(o.off_axis_joints.size());
+  const int mount_columns = o.tool_mount ? 3 : 0;
   Eigen::MatrixXd block = Eigen::MatrixXd::Zero(rows * (1 + static_cast<int>(payloads_kg.size())),
-                                                geometry_columns + n + tilt_columns);
+                                                geometry_columns + n + tilt_columns + mount_columns);
   Eigen::Matrix<double, 6, Eigen::Dynamic> A(6, 6 * (n + 1));
   parameterJacobian(chain, ws, A);
   if (o.recheck) A = recheckColumns(chain, A);
@@ -166,6 +179,8 @@ Eigen::MatrixXd identificationBlock(const KinematicChain& chain, int sensor_fram
           J_tip.bottomRows<3>() * tau_nm.asDiagonal() / o.orientation_sigma_rad;
     }
     addTiltColumns(chain, ws, W_Base, o, first, geometry_columns + n, block);
+    addToolMountColumns(X_BaseSensor, wrench_Sensor.head<3>(), o, first,
+                        geometry_columns + n + tilt_columns, block);
   }
   return block;
 }
@@ -191,6 +206,10 @@ void validate(const KinematicChain& chain, int sensor_frame, const PlanOptions& 
            "a joint 1 to " + std::to_string(chain.dof()) + " of a robot with a payload link",
            "a tilt across a joint's axis is identified by a payload's moment");
     }
+  }
+  if (o.tool_mount && sensor_frame < 0) {
+    fail("the tool mount's compliance on a robot without a payload link", "a payload link",
+         "the mount gives under a payload's force, read in the sensor's axes");
   }
   if (o.poses < 1) fail("poses = " + std::to_string(o.poses), ">= 1", "e.g. 30");
   if (!o.given_candidates.empty()) {

@@ -18,6 +18,7 @@ const MechanismTraits& registrationDriftTraits();   // 11
 const MechanismTraits& sessionFramesTraits();       // 12
 const MechanismTraits& campaignJointZeroTraits();   // 13
 const MechanismTraits& offAxisComplianceTraits();   // 14
+const MechanismTraits& toolMountComplianceTraits();  // 15
 }  // namespace stepcal::mechanism
 
 namespace stepcal {
@@ -29,7 +30,7 @@ const std::vector<const MechanismTraits*>& mechanismRegistry() {
       &nonlinearStiffnessTraits(), &thermalExpansionTraits(),  &sensorBiasTraits(),
       &jointCouplingTraits(),     &profileGeometryTraits(),    &torsionCurveTraits(),
       &jointZeroDriftTraits(),    &registrationDriftTraits(),  &sessionFramesTraits(),
-      &campaignJointZeroTraits(), &offAxisComplianceTraits(),
+      &campaignJointZeroTraits(), &offAxisComplianceTraits(),  &toolMountComplianceTraits(),
   };
   return registry;
 }

@@ -172,6 +172,16 @@ std::string offAxisLine(const trainer::Diagnosis& d, const Mechanism& m) {
   return text;
 }
 
+/// What the rows identify of the tool mount's compliance: each axis's size against its σ (an
+/// axis held at zero is a stiff one, or one the rows' force does not move along).
+std::string toolMountLine(const Mechanism& m) {
+  return describe(m) + format(": the tool's shift along the sensor's x, y and z per newton of "
+                              "the load's force along it, %.3g ± %.2g, %.3g ± %.2g and %.3g ± "
+                              "%.2g m/N; a shift beyond the last joint that turns nothing",
+                              m.parameter(0), m.sigma[0], m.parameter(1), m.sigma[1],
+                              m.parameter(2), m.sigma[2]);
+}
+
 // What a candidate's fit without the physics' bounds broke, and what the fit within them kept.
 std::string impossibleText(const trainer::CandidateScore& c) {
   return format("%s: physically impossible unbounded (%s; held-out gain %.4f mm, z %.1f); within "
@@ -299,6 +309,8 @@ std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
       }
     } else if (m.kind == MechanismKind::kOffAxisCompliance) {
       lines.push_back(offAxisLine(d, m));
+    } else if (m.kind == MechanismKind::kToolMountCompliance) {
+      lines.push_back(toolMountLine(m));
     } else if (m.kind == MechanismKind::kSelfWeight && !f.gravity_torque_std_nm.empty()) {
       std::string text =
           "self_weight: link masses and centres of mass from the URDF; the compliance of joint(s)";

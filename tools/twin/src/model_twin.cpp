@@ -79,7 +79,7 @@ PhysicalModel withAdded(PhysicalModel physical, const std::vector<Mechanism>& ad
   return physical;
 }
 
-/// The options' off_axis_compliance entries as mechanisms.
+/// The options' off_axis_compliance entries and tool mount as mechanisms.
 std::vector<Mechanism> addedMechanisms(const ModelTwinOptions& options) {
   std::vector<Mechanism> added;
   for (const auto& [joint, compliance] : options.off_axis_compliance) {
@@ -88,6 +88,13 @@ std::vector<Mechanism> addedMechanisms(const ModelTwinOptions& options) {
     m.joint = joint;
     m.parameters = {compliance, compliance};
     m.sigma = {0.0, 0.0};
+    added.push_back(std::move(m));
+  }
+  if (options.tool_mount_compliance_m_per_n != 0.0) {  // a negative one is refused (withAdded)
+    Mechanism m;
+    m.kind = MechanismKind::kToolMountCompliance;
+    m.parameters = {0.0, 0.0, options.tool_mount_compliance_m_per_n};
+    m.sigma = {0.0, 0.0, 0.0};
     added.push_back(std::move(m));
   }
   return added;
@@ -280,6 +287,10 @@ nlohmann::json truthOf(const ModelTwinOptions& options, const CalibratedModel& m
     added.push_back({{"name", "off_axis_compliance"},
                      {"joint", joint + 1},
                      {"compliance_rad_per_nm", compliance}});
+  }
+  if (options.tool_mount_compliance_m_per_n != 0.0) {
+    added.push_back({{"name", "tool_mount_compliance"},
+                     {"compliance_m_per_n", options.tool_mount_compliance_m_per_n}});
   }
   return {
       {"format", kFormat},

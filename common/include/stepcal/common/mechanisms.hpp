@@ -19,6 +19,9 @@
 //                  M_j the load's moment about that origin; inside the fixed point, each pass's
 //                  tilt from the pass's frames, applied to the next: the joint's initial pose
 //                  T_{j-1} · exp(ω̂ θ_j) exp(t̂_j) exp(−ω̂ θ_j))
+//                  and the tip shifted by R_RootMount · C · F_Mount    (tool_mount_compliance:
+//                  F the load's force in the mount's axes, the sensor frame's or else the
+//                  last joint's; at the fixed point's last frames, after its passes)
 // A registration_drift is not the robot's: the tracker's frame moving during a campaign. The
 // diagnosis fits it (X_TrackerTip measured = exp(ξ̂(s)) · X_TrackerTip, s the row's time order)
 // so that it does not pass for a property of the arm; a model file never holds one, and no
@@ -57,6 +60,7 @@ enum class MechanismKind : uint32_t {
   kSessionFrames = 12,      ///< a campaign's own tracker station and tool: measurement, not robot
   kCampaignJointZero = 13,  ///< joint j: its zero in each later campaign against the first's
   kOffAxisCompliance = 14,  ///< joint j: its frame tilts across its axis by the moment it carries
+  kToolMountCompliance = 15,  ///< the tool shifts on its mount by the load's force (m/N per axis)
 };
 
 /// Snake-case name, e.g. "transmission_error".

@@ -50,6 +50,8 @@ std::string signatureXLabel(const trainer::EffectSignature& s) {
     case trainer::SignatureVariable::kTemperature: return "temperature (°C)";
     case trainer::SignatureVariable::kMomentAcrossAxis:
       return "joint " + joint + " moment about " + (s.direction == 0 ? "u" : "v") + " (N·m)";
+    case trainer::SignatureVariable::kForceAlongMountAxis:
+      return std::string("force along the mount's ") + "xyz"[s.direction] + " (N)";
   }
   return "";
 }
@@ -67,6 +69,8 @@ std::string signatureYLabel(const trainer::EffectSignature& s) {
     case trainer::SignatureResponse::kFrameTilt:
       return "joint " + std::to_string(s.joint + 1) + " frame tilt about " +
              (s.direction == 0 ? "u" : "v") + " (µrad)";
+    case trainer::SignatureResponse::kToolShift:
+      return std::string("tool shift along the mount's ") + "xyz"[s.direction] + " (µm)";
   }
   return "";
 }

@@ -448,12 +448,16 @@ enum class SignatureVariable {
   /// off_axis_compliance: the load's moment about the joint's origin along one direction across
   /// its axis (EffectSignature::direction), N·m
   kMomentAcrossAxis,
+  /// tool_mount_compliance: the load's force along one of the mount's axes
+  /// (EffectSignature::direction: 0 x, 1 y, 2 z), N
+  kForceAlongMountAxis,
 };
 
 /// What a signature's values are: the joint's link-angle offset, rad, the links' length scale
-/// change (thermal expansion), dimensionless, or the joint frame's tilt about one direction
-/// across its axis (off_axis_compliance), rad.
-enum class SignatureResponse { kLinkAngle, kLengthScale, kFrameTilt };
+/// change (thermal expansion), dimensionless, the joint frame's tilt about one direction
+/// across its axis (off_axis_compliance), rad, or the tool's shift along one of its mount's
+/// axes (tool_mount_compliance), m.
+enum class SignatureResponse { kLinkAngle, kLengthScale, kFrameTilt, kToolShift };
 
 /// A found effect against its own variable on the fit rows: a partial-residual plot. At each row
 /// the fitted effect, and the effect plus what the extended model leaves there along the
@@ -466,7 +470,8 @@ struct EffectSignature {
   SignatureVariable variable = SignatureVariable::kJointAngle;
   int variable_joint = -1;  ///< kJointAngle, kJointTorque: the variable's joint (0-based)
   SignatureResponse response = SignatureResponse::kLinkAngle;
-  /// kFrameTilt: the direction across the joint's axis, 0 u, 1 v (mechanism::tiltDirections)
+  /// kFrameTilt: the direction across the joint's axis, 0 u, 1 v (mechanism::tiltDirections);
+  /// kToolShift: the mount's axis, 0 x, 1 y, 2 z
   int direction = -1;
   /// Per fit row kept: the variable, the fitted effect and the partial residual (SI).
   std::vector<double> x, effect, partial_residual;

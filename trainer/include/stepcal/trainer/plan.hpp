@@ -72,6 +72,10 @@ struct PlanOptions {
   /// information, so the plan seeks poses whose payload moment across the joint's axis varies
   /// and moves the tip. Empty: geometry and compliance only.
   std::vector<int> off_axis_joints;
+  /// Whether the poses should also identify the tool mount's compliance (tool_mount_compliance):
+  /// its three compliances join the information, so the plan seeks poses whose payload force
+  /// varies along each of the sensor's axes. Needs a payload link.
+  bool tool_mount = false;
   /// A re-check's plan (`stepcal plan --recheck`, trainer/recheck.hpp): the information of what
   /// a re-check fits, the registration (6), the tool (6) and the zeros of joints 2 … n−1, in
   /// place of the whole geometry's 6(n+1) columns; compliance columns at the payloads as ever.

@@ -11,7 +11,7 @@ const std::vector<FamilyBuilder>& familyBuilders() {
       torqueDeflectionFamilies, jointCouplingFamilies,     selfWeightFamilies,
       sensorBiasFamilies,       thermalExpansionFamilies,  registrationDriftFamilies,
       jointZeroDriftFamilies,   campaignJointZeroFamilies, transmissionErrorFamilies,
-      offAxisComplianceFamilies,
+      offAxisComplianceFamilies, toolMountComplianceFamilies,
   };
   return builders;
 }
@@ -21,7 +21,7 @@ const KindFit* findKindFit(MechanismKind kind) {
       &backlashFit(),         &nonlinearStiffnessFit(), &torsionCurveFit(),
       &selfWeightFit(),       &sensorBiasFit(),         &thermalExpansionFit(),
       &registrationDriftFit(), &jointZeroDriftFit(),    &sessionFramesFit(),
-      &offAxisComplianceFit(),
+      &offAxisComplianceFit(),  &toolMountComplianceFit(),
   };
   for (const KindFit* fit : fits) {
     if (fit->kind == kind) return fit;
@@ -34,6 +34,7 @@ const KindSignature* findKindSignature(MechanismKind kind) {
       &transmissionErrorSignature(), &backlashSignature(),        &nonlinearStiffnessSignature(),
       &torsionCurveSignature(),      &jointCouplingSignature(),   &selfWeightSignature(),
       &thermalExpansionSignature(),  &jointZeroDriftSignature(),   &offAxisComplianceSignature(),
+      &toolMountComplianceSignature(),
   };
   for (const KindSignature* signature : signatures) {
     if (signature->kind == kind) return signature;

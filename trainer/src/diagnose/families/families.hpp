@@ -56,6 +56,7 @@ void jointZeroDriftFamilies(const FamilyContext& c);
 void campaignJointZeroFamilies(const FamilyContext& c);
 void transmissionErrorFamilies(const FamilyContext& c);
 void offAxisComplianceFamilies(const FamilyContext& c);
+void toolMountComplianceFamilies(const FamilyContext& c);
 
 /// How the diagnosis fits a kind's parameters, beyond its physics (MechanismTraits). One per
 /// kind that needs one, in families/<kind>.cpp, listed in findKindFit (families.cpp); a kind
@@ -94,6 +95,7 @@ const KindFit& registrationDriftFit();
 const KindFit& jointZeroDriftFit();
 const KindFit& sessionFramesFit();
 const KindFit& offAxisComplianceFit();
+const KindFit& toolMountComplianceFit();
 
 /// How the diagnosis draws a found effect of a kind against its own variable (diagnose.hpp
 /// EffectSignature). One per kind that has one, in families/<kind>.cpp, listed in
@@ -117,6 +119,7 @@ const KindSignature& selfWeightSignature();
 const KindSignature& thermalExpansionSignature();
 const KindSignature& jointZeroDriftSignature();
 const KindSignature& offAxisComplianceSignature();
+const KindSignature& toolMountComplianceSignature();
 
 /// A mechanism of a kind at zero, sized for an n-joint chain.
 Mechanism blank(MechanismKind kind, int dof, int joint = -1, int source = -1, int order = 0);

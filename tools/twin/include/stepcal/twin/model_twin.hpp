@@ -57,6 +57,10 @@ struct ModelTwinOptions {
   /// c rad/(N·m)) an isotropic off_axis_compliance of that joint (a bearing's tilt across its
   /// axis, c M⊥; about 1e-7 on a heavy robot's base), where the model holds none.
   std::vector<std::pair<int, double>> off_axis_compliance;
+  /// The tool's mount switched on in the twin beside the model's own mechanisms: a
+  /// tool_mount_compliance giving along the sensor's z by this many m/N (as the URDF twin's
+  /// tool_mount_compliance; about 2e-7 for a compliant mount), where the model holds none; 0 none.
+  double tool_mount_compliance_m_per_n = 0.0;
 };
 
 /// A robot that moves as a model's physical part says (no GPR). Noiseless.

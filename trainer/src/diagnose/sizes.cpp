@@ -148,7 +148,7 @@ std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fi
     }
     CauseSize size = sizeOf(M, H, ridge_n, value_n, variance);
     const std::vector<PhysicalBound> bounds = physicalBounds(m, model.global.chain_Tracker);
-    size.on_bound = std::any_of(bounds.begin(), bounds.end(), [&m](const PhysicalBound& b) {
+    size.on_bound = !urdf_self_weight && std::any_of(bounds.begin(), bounds.end(), [&m](const PhysicalBound& b) {
       return b.value(m) <= b.tolerance;
     });
     size.variance = variance;

@@ -158,7 +158,9 @@ struct FoundEffect {
   /// least 80 %) and nothing more once it was in the model: the data cannot tell them from it.
   std::vector<Mechanism> alternatives;
   /// Its size in the final fit: χ² of what the data identify of it over the size_dof directions
-  /// they determine (a profile: cᵀ Σ_c⁻¹ c over 2·order); every cause kept has χ² > dof.
+  /// they determine (a profile: cᵀ Σ_c⁻¹ c over 2·order; a global cause whose fit ended on a
+  /// bound of its physics, where that χ² falls short: what the fit loses without it, in units of
+  /// the residual variance); every cause kept has χ² > dof.
   double size_chi2 = 0.0;
   int size_dof = 0;
 };

@@ -245,9 +245,9 @@ double lossWithout(const Search& search, size_t effect, const CauseSize& size) {
 
 // Whether data, not the code, left a named cause without a size: in the final fit what the data
 // identify of it lies within one σ of zero (sizes.hpp), or, for a cause at a bound of its
-// physics, the fit loses less than that without it (lossWithout). Such a cause is dropped, the weakest
-// first, with a line in the verdict, and the model fitted again without it; the rest of the
-// diagnosis stands.
+// physics, the fit loses less than that without it (lossWithout). Such a cause is dropped, the
+// weakest first, with a line in the verdict, and the model fitted again without it; the rest of
+// the diagnosis stands.
 void dropCausesWithoutSize(Search& search) {
   DiagnosisModel& dm = search.model;
   Diagnosis& d = search.d;

@@ -148,9 +148,8 @@ std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fi
     }
     CauseSize size = sizeOf(M, H, ridge_n, value_n, variance);
     const std::vector<PhysicalBound> bounds = physicalBounds(m, model.global.chain_Tracker);
-    size.on_bound = !urdf_self_weight && std::any_of(bounds.begin(), bounds.end(), [&m](const PhysicalBound& b) {
-      return b.value(m) <= b.tolerance;
-    });
+    const auto held = [&m](const PhysicalBound& b) { return b.value(m) <= b.tolerance; };
+    size.on_bound = !urdf_self_weight && std::any_of(bounds.begin(), bounds.end(), held);
     size.variance = variance;
     sizes.push_back(size);
   }

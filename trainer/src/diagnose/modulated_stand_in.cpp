@@ -125,9 +125,12 @@ void scoreBesideStandInBlocks(std::vector<Scored>& scored, std::vector<size_t>& 
       }
     }
     CandidateScore score = scored[k].score;
-    score.p_value = compare(least_block->alone, *least).p;
+    const Comparison cause = compare(least_block->alone, *least);
+    score.p_value = cause.p;
     score.relative_reduction = (least_block->alone.total() - least->total()) / base_total;
     if (!is_significant(score)) continue;
+    scored[k].score.beside_modulated = {least_block->joint, least_block->order, cause.gain_mm,
+                                        score.relative_reduction, cause.z};
     CrossValidation::Outcome own = base;
     for (size_t i = 0; i < own.pose_sse.size(); ++i) {
       own.pose_sse[i] -= least_block->alone.pose_sse[i] - least->pose_sse[i];

@@ -104,6 +104,14 @@ struct CandidateScore {
     double gain_mm = 0.0, reduction = 0.0, z = 0.0;
   };
   ModulatedStandIn modulated_stand_in;
+  /// Significant only beside a joint's modulated columns, in a round where they set every cause
+  /// significant alone aside (its reduction alone stays in the score's other fields).
+  struct BesideModulated {
+    int joint = -1;           ///< 0-based joint of the modulated columns; −1: not scored so
+    int modulated_order = 0;  ///< their order
+    double gain_mm = 0.0, reduction = 0.0, z = 0.0;  ///< the cause beside them
+  };
+  BesideModulated beside_modulated;
   bool significant = false;  ///< physical, p < family_alpha / (configurations in the round), enough removed
   bool chosen = false;
 };

@@ -236,6 +236,23 @@ std::vector<std::string> standInLines(const trainer::Diagnosis& d) {
   return lines;
 }
 
+// The causes chosen significant only beside a joint's torque modulated by its angle (the
+// round's causes significant alone all stood in for it): one line each.
+std::vector<std::string> besideModulatedLines(const trainer::Diagnosis& d) {
+  std::vector<std::string> lines;
+  for (const trainer::CandidateScore& c : d.candidates) {
+    const trainer::CandidateScore::BesideModulated& b = c.beside_modulated;
+    if (b.joint < 0 || !c.chosen) continue;
+    lines.push_back(format(
+        "%s, round %d, is significant only beside a stiffness that varies with joint %d's angle "
+        "(beside the joint's torque times harmonics 1-%d of its angle it adds %.4f mm held out, "
+        "%.1f %% of the round's error, z %.1f; alone z %.1f)",
+        describe(c.mechanism).c_str(), c.round, b.joint + 1, b.modulated_order, b.gain_mm,
+        100.0 * b.reduction, b.z, c.z_statistic));
+  }
+  return lines;
+}
+
 std::vector<std::string> identifiabilityLines(const trainer::Diagnosis& d) {
   std::vector<std::string> lines;
   for (const trainer::ModelChange& c : d.changes) {
@@ -556,6 +573,7 @@ std::string formatDiagnosis(const trainer::Diagnosis& d, double seconds_calibrat
   }
   for (const std::string& line : impossibleLines(d)) out += "  not named: " + line + "\n";
   for (const std::string& line : standInLines(d)) out += "  not named: " + line + "\n";
+  for (const std::string& line : besideModulatedLines(d)) out += "  beside a varying stiffness: " + line + "\n";
   for (const std::string& line : identifiabilityLines(d)) out += "  identifiability: " + line + "\n";
   for (const trainer::LoadModulatedProfile& f : d.load_modulated_profiles) {
     out += "  profile or load: " + loadModulatedProfileText(f) + "\n";
@@ -677,6 +695,13 @@ nlohmann::json candidateJson(const trainer::CandidateScore& c) {
                                {"cv_gain_mm", m.gain_mm},
                                {"relative_reduction", m.reduction},
                                {"z_statistic", m.z}};
+  }
+  if (const trainer::CandidateScore::BesideModulated& b = c.beside_modulated; b.joint >= 0) {
+    x["beside_modulated"] = {{"joint", b.joint + 1},
+                             {"modulated_order", b.modulated_order},
+                             {"cv_gain_mm", b.gain_mm},
+                             {"relative_reduction", b.reduction},
+                             {"z_statistic", b.z}};
   }
   return x;
 }

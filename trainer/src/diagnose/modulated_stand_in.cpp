@@ -76,6 +76,72 @@ std::vector<ModulatedBlock> significantBlocks(const std::vector<Scored>& scored,
   return passing;
 }
 
+// Where every significant family of the round was set aside: each other global family of the
+// round fitted beside the blocks of the joints it set them aside for (the block that leaves it
+// least), and kept as significant where it is so there at the round's level (is_significant on its
+// reduction of the round's error beside the block), ranked on that reduction. A catalogued cause
+// much smaller than the varying stiffness stays below the round's level on its own (fresh foreign
+// seed 79: a sensor bias of 28 N at z 3.2 alone, z 14.0 beside joint 2's block).
+void scoreBesideStandInBlocks(std::vector<Scored>& scored, std::vector<size_t>& significant,
+                              const std::vector<size_t>& set_aside,
+                              const std::vector<ModulatedBlock>& blocks, const CrossValidation& cv,
+                              const std::function<bool(const CandidateScore&)>& is_significant) {
+  std::vector<const ModulatedBlock*> hiding;  // the blocks of the joints that set causes aside
+  for (const ModulatedBlock& b : blocks) {
+    const bool sets_aside = std::any_of(set_aside.begin(), set_aside.end(), [&](size_t k) {
+      return scored[k].score.modulated_stand_in.joint == b.joint;
+    });
+    if (sets_aside) hiding.push_back(&b);
+  }
+  std::vector<size_t> tried;
+  std::vector<CrossValidation::Correction> beside;  // per family tried, per hiding block
+  for (size_t k = 0; k < scored.size(); ++k) {
+    const MechanismKind kind = scored[k].score.mechanism.kind;
+    // A time-order family is named only through its confound test (confounds.hpp).
+    if (scored[k].family->stage != Stage::kGlobal || !scored[k].score.physical ||
+        kind == MechanismKind::kRegistrationDrift || kind == MechanismKind::kJointZeroDrift ||
+        std::find(set_aside.begin(), set_aside.end(), k) != set_aside.end()) {
+      continue;
+    }
+    tried.push_back(k);
+    for (const ModulatedBlock* b : hiding) beside.push_back(globalBeside(scored[k], cv, b->columns));
+  }
+  if (tried.empty() || hiding.empty()) return;
+  std::vector<const CrossValidation::Correction*> pointers = {&cv.base()};
+  for (const CrossValidation::Correction& c : beside) pointers.push_back(&c);
+  const std::vector<CrossValidation::Outcome> outcomes = cv.heldOut(pointers);
+  const CrossValidation::Outcome& base = outcomes.front();
+  const double base_total = std::max(base.total(), 1e-300);
+  size_t next = 1;
+  for (size_t k : tried) {
+    const CrossValidation::Outcome* least = nullptr;
+    const ModulatedBlock* least_block = nullptr;
+    for (const ModulatedBlock* b : hiding) {
+      const CrossValidation::Outcome& with = outcomes[next++];
+      if (least == nullptr ||
+          b->alone.total() - with.total() < least_block->alone.total() - least->total()) {
+        least = &with;
+        least_block = b;
+      }
+    }
+    CandidateScore score = scored[k].score;
+    const Comparison cause = compare(least_block->alone, *least);
+    score.p_value = cause.p;
+    score.relative_reduction = (least_block->alone.total() - least->total()) / base_total;
+    if (!is_significant(score)) continue;
+    scored[k].score.beside_modulated = {least_block->joint, least_block->order, cause.gain_mm,
+                                        score.relative_reduction, cause.z};
+    CrossValidation::Outcome own = base;
+    for (size_t i = 0; i < own.pose_sse.size(); ++i) {
+      own.pose_sse[i] -= least_block->alone.pose_sse[i] - least->pose_sse[i];
+    }
+    scored[k].total = own.total();
+    scored[k].outcome = std::move(own);
+    scored[k].score.significant = true;
+    significant.push_back(k);
+  }
+}
+
 }  // namespace
 
 void setAsideModulatedStandIns(std::vector<Scored>& scored, std::vector<size_t>& significant,
@@ -150,6 +216,10 @@ void setAsideModulatedStandIns(std::vector<Scored>& scored, std::vector<size_t>&
                                             set_aside.end();
                                    }),
                     significant.end());
+  if (significant.empty() && !set_aside.empty()) {
+    scoreBesideStandInBlocks(scored, significant, set_aside, blocks, cv, is_significant);
+    return;
+  }
   // Ranked on it where only global causes compete: a profile is not fitted beside the block, so
   // beside one the round compares every family on its reduction alone.
   const bool profile_competes = std::any_of(significant.begin(), significant.end(), [&](size_t k) {

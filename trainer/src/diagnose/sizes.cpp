@@ -146,7 +146,12 @@ std::vector<CauseSize> causeSizes(const DiagnosisModel& model, const FitRows& fi
                                    p.index) != effect.compliance_joints.end();
       if (p.mechanism == k || frees) M.push_back(geometry + static_cast<Eigen::Index>(c));
     }
-    sizes.push_back(sizeOf(M, H, ridge_n, value_n, variance));
+    CauseSize size = sizeOf(M, H, ridge_n, value_n, variance);
+    const std::vector<PhysicalBound> bounds = physicalBounds(m, model.global.chain_Tracker);
+    const auto held = [&m](const PhysicalBound& b) { return b.value(m) <= b.tolerance; };
+    size.on_bound = !urdf_self_weight && std::any_of(bounds.begin(), bounds.end(), held);
+    size.variance = variance;
+    sizes.push_back(size);
   }
   return sizes;
 }

@@ -23,6 +23,11 @@ namespace stepcal::trainer::diagnosis {
 struct CauseSize {
   double chi2 = 0.0;
   int dof = 0;
+  /// Whether its fit ended on a bound of its physics (a lumped link mass at zero, a centre of
+  /// mass at its link's reach; never a profile): there the linearised χ² measures the bounded
+  /// estimate, not what the fit loses without the cause.
+  bool on_bound = false;
+  double variance = 0.0;  ///< the residual variance χ² is in units of
   bool hasSize() const { return dof > 0 && chi2 > static_cast<double>(dof); }
 };
 

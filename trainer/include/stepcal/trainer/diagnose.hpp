@@ -104,6 +104,14 @@ struct CandidateScore {
     double gain_mm = 0.0, reduction = 0.0, z = 0.0;
   };
   ModulatedStandIn modulated_stand_in;
+  /// Significant only beside a joint's modulated columns, in a round where they set every cause
+  /// significant alone aside (its reduction alone stays in the score's other fields).
+  struct BesideModulated {
+    int joint = -1;           ///< 0-based joint of the modulated columns; −1: not scored so
+    int modulated_order = 0;  ///< their order
+    double gain_mm = 0.0, reduction = 0.0, z = 0.0;  ///< the cause beside them
+  };
+  BesideModulated beside_modulated;
   bool significant = false;  ///< physical, p < family_alpha / (configurations in the round), enough removed
   bool chosen = false;
 };
@@ -158,7 +166,9 @@ struct FoundEffect {
   /// least 80 %) and nothing more once it was in the model: the data cannot tell them from it.
   std::vector<Mechanism> alternatives;
   /// Its size in the final fit: χ² of what the data identify of it over the size_dof directions
-  /// they determine (a profile: cᵀ Σ_c⁻¹ c over 2·order); every cause kept has χ² > dof.
+  /// they determine (a profile: cᵀ Σ_c⁻¹ c over 2·order; a global cause whose fit ended on a
+  /// bound of its physics, where that χ² falls short: what the fit loses without it, in units of
+  /// the residual variance); every cause kept has χ² > dof.
   double size_chi2 = 0.0;
   int size_dof = 0;
 };

@@ -660,24 +660,16 @@ int exitStatusFor(size_t lines, const Tally& tally) {
 std::map<std::string, Pose> commandLineFrames(const CorrectArgs& args) {
   std::map<std::string, Pose> frames;
   for (const std::string& given : args.program_frames) {
-    const size_t eq = given.rfind('=');
-    const std::vector<std::string_view> numbers =
-        eq == std::string::npos ? std::vector<std::string_view>{} : splitFields(std::string_view(given).substr(eq + 1));
-    std::vector<double> v;
-    for (const std::string_view n : numbers) {
-      const std::optional<double> value = parseFinite(n);
-      if (value) v.push_back(*value);
-    }
-    if (eq == 0 || v.size() != 7 || numbers.size() != 7) {
+    const auto named = namedNumbers(given, 7);
+    if (!named) {
       throw InputError("--program-frame " + inQuotes(given) + ": expected NAME=x,y,z,qw,qx,qy,qz (mm and a unit quaternion)");
     }
+    const std::vector<double>& v = named->second;
     const Eigen::Quaterniond q(v[3], v[4], v[5], v[6]);
     if (!isUnitQuaternion(q)) {
       throw InputError("--program-frame " + inQuotes(given) + ": the quaternion has norm " + formatShortest(q.norm()) + "; expected a unit quaternion (within 1e-6)");
     }
-    std::string name = given.substr(0, eq);
-    for (char& c : name) c = char(std::toupper(static_cast<unsigned char>(c)));
-    frames[name] = poseFromPositionQuaternion(Vec3(v[0], v[1], v[2]) * kMPerMm, q);
+    frames[named->first] = poseFromPositionQuaternion(Vec3(v[0], v[1], v[2]) * kMPerMm, q);
   }
   return frames;
 }

@@ -41,23 +41,31 @@ GivenLoad loadValues(const programs::Load& load, const std::map<std::string, Giv
 
 }  // namespace
 
+std::optional<std::pair<std::string, std::vector<double>>> namedNumbers(const std::string& given,
+                                                                        size_t count) {
+  const size_t eq = given.rfind('=');
+  if (eq == 0 || eq == std::string::npos) return std::nullopt;
+  const std::vector<std::string_view> numbers = splitFields(std::string_view(given).substr(eq + 1));
+  std::vector<double> v;
+  for (const std::string_view n : numbers) {
+    const std::optional<double> value = parseFinite(n);
+    if (value) v.push_back(*value);
+  }
+  if (v.size() != count || numbers.size() != count) return std::nullopt;
+  return std::make_pair(upperCase(given.substr(0, eq)), std::move(v));
+}
+
 std::map<std::string, GivenLoad> commandLineLoads(const std::vector<std::string>& program_loads) {
   std::map<std::string, GivenLoad> loads;
   for (const std::string& given : program_loads) {
-    const size_t eq = given.rfind('=');
-    const std::vector<std::string_view> numbers =
-        eq == std::string::npos ? std::vector<std::string_view>{} : splitFields(std::string_view(given).substr(eq + 1));
-    std::vector<double> v;
-    for (const std::string_view n : numbers) {
-      const std::optional<double> value = parseFinite(n);
-      if (value) v.push_back(*value);
-    }
-    if (eq == 0 || eq == std::string::npos || v.size() != 4 || numbers.size() != 4) {
+    const auto named = namedNumbers(given, 4);
+    if (!named) {
       throw InputError("--program-load " + inQuotes(given) +
                        ": expected NAME=kg,x,y,z (the mass, then the centre of gravity in mm in the flange frame)");
     }
+    const std::vector<double>& v = named->second;
     if (v[0] < 0.0) throw InputError("--program-load " + inQuotes(given) + ": a negative mass; expected kg ≥ 0");
-    loads[upperCase(given.substr(0, eq))] = GivenLoad{v[0], Vec3(v[1], v[2], v[3]) * kMPerMm};
+    loads[named->first] = GivenLoad{v[0], Vec3(v[1], v[2], v[3]) * kMPerMm};
   }
   return loads;
 }

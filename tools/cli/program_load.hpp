@@ -4,6 +4,8 @@
 // PAYLOAD[n]) or, for a load it names without values, --program-load's; how each target's report
 // line and --json name it.
 #include <map>
+#include <optional>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -20,6 +22,11 @@ struct GivenLoad {
   double mass_kg = 0.0;
   Vec3 p_CoG_m = Vec3::Zero();
 };
+
+/// An option's NAME=a,b,… (--program-load, --program-frame): the name in upper case and exactly
+/// `count` finite numbers; nullopt when it is not of that form.
+std::optional<std::pair<std::string, std::vector<double>>> namedNumbers(const std::string& given,
+                                                                        size_t count);
 
 /// --program-load's values by upper-case name. Throws InputError for a malformed one.
 std::map<std::string, GivenLoad> commandLineLoads(const std::vector<std::string>& program_loads);

@@ -39,7 +39,7 @@ libs=()
 seed_main=0  # 1: the target's source, built with -DSTEPCAL_FUZZ_SEED_MAIN, writes the seeds
 case $target in
   model_file)
-    sources=(common/src/{error,lie,chain,compliance,mechanisms,model_file,atomic_file}.cpp)
+    sources=(common/src/{error,text_number,lie,chain,compliance,mechanisms,model_file,atomic_file}.cpp)
     # Each mechanism kind's own file (common/src/mechanisms/, as the CMake build globs them).
     for kind_source in "$root"/common/src/mechanisms/*.cpp; do sources+=("${kind_source#"$root"/}"); done
     seed_main=1

@@ -375,6 +375,29 @@ TEST(ProgramLoads, ALoadWithoutValuesIsRefusedNamingTheOption) {
   }
 }
 
+// Malformed option values (a count off, a word for a number, no name, a negative mass) are refused
+// naming the option and its value; nothing is written.
+TEST(ProgramLoads, MalformedLoadAndFrameOptionsAreRefused) {
+  const Demo& d = demo();
+  const test::TempDir dir;
+  const LoadedProgram krl = loadedPrograms()[0];
+  const std::string program = (dir.path() / krl.file).string(), out = (dir.path() / "out").string();
+  test::writeText(program, krl.text);
+  const std::pair<std::string, std::string> cases[] = {
+      {"--program-load 'LOAD_DATA[1]=60,10,0'", "expected NAME=kg,x,y,z"},
+      {"--program-load 'LOAD_DATA[1]=60,ten,0,200'", "expected NAME=kg,x,y,z"},
+      {"--program-load '=60,10,0,200'", "expected NAME=kg,x,y,z"},
+      {"--program-load 'LOAD_DATA[1]=-60,10,0,200'", "a negative mass; expected kg ≥ 0"},
+      {"--program-frame 'TOOL=0,0,300,1,0,0'", "expected NAME=x,y,z,qw,qx,qy,qz"},
+      {"--program-frame 'TOOL=0,0,300,2,0,0,0'", "expected a unit quaternion"}};
+  for (const auto& [option, expected] : cases) {
+    const test::CommandResult r = test::run(kStepcal + " correct " + d.model + " " + program + " --out " + out + " " + option);
+    EXPECT_EQ(r.status, 2) << option << "\n" << r.out;
+    EXPECT_NE(r.out.find(expected), std::string::npos) << option << "\n" << r.out;
+    EXPECT_FALSE(std::filesystem::exists(out)) << option;
+  }
+}
+
 // A .dat's points name no load (their .src holds the $LOAD): --program-load LOAD=… serves them,
 // else they are unloaded, and their lines say which.
 TEST(ProgramLoads, LoadServesTheTargetsWhoseProgramNamesNone) {

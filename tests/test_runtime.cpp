@@ -1281,9 +1281,11 @@ TEST(Runtime, MechanismSigmaWidensTheBoundByItsPropagatedShare) {
     const Vec6 wrench = row->wrenchOrZero();
     const ForwardResult certain_answer =
         correctForward(*certain_model, certain_ws, row->q_rad, wrench, temp_c);
-    const PoseAccuracy today =
-        poseAccuracy(certain_model->file, certain_model->physical.chain_Tracker, certain_ws.chain,
-                     certain_ws.torque_nm, certain_answer.X_TrackerTip.linear(), {});
+    const Mat6 certain_share =
+        parameterCovariance(certain_model->file, certain_model->physical.chain_Tracker,
+                            certain_ws.chain, certain_ws.torque_nm);
+    const PoseAccuracy today = poseAccuracy(*certain_model->file.accuracy, certain_share,
+                                            certain_answer.X_TrackerTip.linear(), {});
     EXPECT_EQ(certain_answer.accuracy.position_bound_m, today.position_bound_m);
     EXPECT_EQ(certain_answer.accuracy.orientation_bound_rad, today.orientation_bound_rad);
 
@@ -1321,9 +1323,10 @@ TEST(Runtime, MechanismSigmaWidensTheBoundByItsPropagatedShare) {
     const double share_rad2 = propagated.bottomRightCorner<3, 3>().trace();
     EXPECT_NEAR(squared(answer.accuracy.orientation_rms_rad) - squared(today.orientation_rms_rad),
                 share_rad2, 2e-5 * share_rad2);
+    const Mat6 share = parameterCovariance(model->file, model->physical.chain_Tracker, ws.chain,
+                                           ws.torque_nm, &propagated);
     const PoseAccuracy expected =
-        poseAccuracy(model->file, model->physical.chain_Tracker, ws.chain, ws.torque_nm,
-                     answer.X_TrackerTip.linear(), {}, &propagated);
+        poseAccuracy(*model->file.accuracy, share, answer.X_TrackerTip.linear(), {});
     EXPECT_NEAR(answer.accuracy.position_bound_m, expected.position_bound_m,
                 2e-5 * expected.position_bound_m);
     EXPECT_NEAR(answer.accuracy.orientation_bound_rad, expected.orientation_bound_rad,

@@ -129,7 +129,9 @@ Eigen::VectorXi farthestPointSubset(const Eigen::MatrixXd& Z, Eigen::Index r) {
 GprPredictor GprPredictor::fromParameters(const GprParameters& parameters) {
   requireFinite(parameters.alpha, parameters.inputs_normalised.rows(),
                 parameters.output_mean.size(), "alpha");
-  return factorised(parameters);
+  GprPredictor predictor = factorised(parameters);
+  predictor.held_out_noise_ = predictor.heldOutNoiseOfAlpha();
+  return predictor;
 }
 
 GprPredictor GprPredictor::conditioned(GprParameters parameters) {
@@ -138,7 +140,27 @@ GprPredictor GprPredictor::conditioned(GprParameters parameters) {
   GprParameters& g = predictor.parameters_;
   g.alpha = L.triangularView<Eigen::Lower>().solve(g.targets_standardised);
   L.triangularView<Eigen::Lower>().transpose().solveInPlace(g.alpha);
+  predictor.held_out_noise_ = predictor.heldOutNoiseOfAlpha();
   return predictor;
+}
+
+Eigen::VectorXd GprPredictor::heldOutNoiseOfAlpha() const {
+  const GprParameters& g = parameters_;
+  const Eigen::Index m = g.alpha.rows();
+  // diag (K + σ_n² I)⁻¹: the squared column norms of L⁻¹.
+  const Eigen::MatrixXd L_inverse = cholesky_lower_.triangularView<Eigen::Lower>().solve(
+      Eigen::MatrixXd::Identity(m, m));
+  const Eigen::ArrayXd precision = L_inverse.colwise().squaredNorm().transpose().array();
+  // Point i predicted from the others: residual α_i / [K⁻¹]_ii, predictive variance
+  // 1 / [K⁻¹]_ii, of which all but σ_n² is the latent function's.
+  const double latent_variance =
+      (precision.inverse() - g.noise_sigma * g.noise_sigma).max(0.0).mean();
+  Eigen::VectorXd noise(g.alpha.cols());
+  for (Eigen::Index o = 0; o < g.alpha.cols(); ++o) {
+    const double residual_variance = (g.alpha.col(o).array() / precision).square().mean();
+    noise(o) = std::sqrt(std::max(0.0, residual_variance - latent_variance));
+  }
+  return noise;
 }
 
 GprPredictor GprPredictor::factorised(GprParameters parameters) {

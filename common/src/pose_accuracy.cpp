@@ -30,14 +30,13 @@ void addPropagated(const A_t& A, const Eigen::MatrixXd& F, Mat6& covariance) noe
 
 }  // namespace
 
-GprUncertainty gprUncertainty(const GprPredictor& gpr, const double* x_raw,
+GprUncertainty gprUncertainty(const GprPredictor& gpr, const Vec6& noise, const double* x_raw,
                               const Vec6& std) noexcept {
   GprUncertainty out;
   const GprParameters& g = gpr.parameters();
   if (g.alpha.cols() != 6) return out;
-  const double gain = gpr.outputGain(x_raw);
   out.std = std;
-  for (int o = 0; o < 6; ++o) out.noise(o) = g.noise_sigma * g.output_scale(o) * gain;
+  out.noise = noise * gpr.outputGain(x_raw);
   out.tracker_axes = g.payload_force_reference_n > 0.0;
   return out;
 }
@@ -53,15 +52,13 @@ double lengthBound95(const Mat3& S) noexcept {
   return std::sqrt(t2 / t1 * chi2);
 }
 
-PoseAccuracy poseAccuracy(const CalibratedModel& model, const KinematicChain& chain,
-                          const ChainWorkspace& at_link_angles, const JointVector& torque_nm,
-                          const Mat3& R_TrackerTip, const GprUncertainty& gpr,
-                          const Mat6* mechanism_covariance) noexcept {
-  PoseAccuracy out;
-  if (!model.accuracy) return out;
+Mat6 parameterCovariance(const CalibratedModel& model, const KinematicChain& chain,
+                         const ChainWorkspace& at_link_angles, const JointVector& torque_nm,
+                         const Mat6* mechanism_covariance) noexcept {
+  Mat6 covariance = mechanism_covariance != nullptr ? *mechanism_covariance : Mat6::Zero();
+  if (!model.accuracy) return covariance;
   const AccuracyFactors& factors = *model.accuracy;
   const int n = chain.dof();
-  Mat6 covariance = mechanism_covariance != nullptr ? *mechanism_covariance : Mat6::Zero();
   const Vec3 p_Tip = tipPose(at_link_angles).translation();
   if (factors.geometry_factor.rows() == 6 * (n + 1)) {
     ParameterJacobian A(6, 6 * (n + 1));
@@ -76,6 +73,12 @@ PoseAccuracy poseAccuracy(const CalibratedModel& model, const KinematicChain& ch
     for (int j = 0; j < n; ++j) J.col(j) *= torque_nm(j);
     addPropagated(J, factors.compliance_factor, covariance);
   }
+  return covariance;
+}
+
+PoseAccuracy poseAccuracy(const AccuracyFactors& factors, const Mat6& parameter_covariance,
+                          const Mat3& R_TrackerTip, const GprUncertainty& gpr) noexcept {
+  PoseAccuracy out;
   // The GPR's latent variance and the measurement's noise, per output axis.
   Vec6 variance;
   for (int o = 0; o < 6; ++o) {
@@ -83,9 +86,9 @@ PoseAccuracy poseAccuracy(const CalibratedModel& model, const KinematicChain& ch
     variance(o) = gpr.std(o) * gpr.std(o) + std::max(stated * stated, gpr.noise(o) * gpr.noise(o));
   }
   const Mat3 R = gpr.tracker_axes ? Mat3::Identity() : R_TrackerTip;
-  const Mat3 S_p = covariance.topLeftCorner<3, 3>() +
+  const Mat3 S_p = parameter_covariance.topLeftCorner<3, 3>() +
                    R * variance.head<3>().asDiagonal() * R.transpose();
-  const Mat3 S_w = covariance.bottomRightCorner<3, 3>() +
+  const Mat3 S_w = parameter_covariance.bottomRightCorner<3, 3>() +
                    R * variance.tail<3>().asDiagonal() * R.transpose();
   out.position_rms_m = std::sqrt(std::max(0.0, S_p.trace()));
   out.position_bound_m = lengthBound95(S_p);

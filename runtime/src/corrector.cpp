@@ -236,29 +236,82 @@ bool statesMechanismAccuracy(const RuntimeModel& model) noexcept {
   return model.file.accuracy && hasMechanismUncertainty(model.physical);
 }
 
-/// The accuracy of the corrected tip just evaluated at q (correctedTip, or the inverse's full
-/// model there): ws.chain at its link angles, ws.torque_nm, ws.gpr_input and ws.gpr_std; the
-/// mechanisms' share evaluated again at (q, the call's load, temp_c) in ws.mechanism_accuracy.
-PoseAccuracy answerAccuracy(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
-                            const Prepared& call, const Vec6& wrench_Sensor, double temp_c,
-                            const Mat3& R_TrackerTip) noexcept {
-  if (!ws.with_accuracy || !model.file.accuracy) return PoseAccuracy{};
-  const GprUncertainty gpr = model.file.gpr
-                                 ? gprUncertainty(model.gpr, ws.gpr_input.data(), ws.gpr_std)
-                                 : GprUncertainty{};
+/// The fitted parameters' share of the covariance (parameterCovariance) of the tip just
+/// evaluated at q: ws.chain at its link angles, ws.torque_nm; the mechanisms' share evaluated
+/// again at (q, the call's load, temp_c) in ws.mechanism_accuracy. False when the mechanisms'
+/// share cannot be stated (a workspace made for another model, a failed evaluation).
+bool parameterShare(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                    const Prepared& call, const Vec6& wrench_Sensor, double temp_c,
+                    Mat6& covariance) noexcept {
   const bool with_mechanisms = statesMechanismAccuracy(model);
   // A workspace made for another model holds its mechanisms: no bound rather than one without
   // this model's share.
-  if (with_mechanisms && ws.mechanism_accuracy_for != &model.physical) return PoseAccuracy{};
+  if (with_mechanisms && ws.mechanism_accuracy_for != &model.physical) return false;
   Mat6 mechanism_covariance = Mat6::Zero();
   if (with_mechanisms &&
       !addMechanismCovariance(model.physical, &model.physical_constants, ws.chain, q_rad,
                               wrench_Sensor, temp_c, call.payload ? &call.point : nullptr,
                               ws.mechanism_accuracy, mechanism_covariance)) {
+    return false;
+  }
+  covariance = parameterCovariance(model.file, model.physical.chain_Tracker, ws.chain,
+                                   ws.torque_nm, &mechanism_covariance);
+  return true;
+}
+
+/// The accuracy of the corrected tip just evaluated at q (correctedTip, or the inverse's full
+/// model there): the parameters' share as parameterShare says, the GPR's from ws.gpr_input and
+/// ws.gpr_std.
+PoseAccuracy answerAccuracy(const RuntimeModel& model, Workspace& ws, const JointVector& q_rad,
+                            const Prepared& call, const Vec6& wrench_Sensor, double temp_c,
+                            const Mat3& R_TrackerTip) noexcept {
+  if (!ws.with_accuracy || !model.file.accuracy) return PoseAccuracy{};
+  const GprUncertainty gpr =
+      model.file.gpr ? gprUncertainty(model.gpr, model.gpr_noise, ws.gpr_input.data(), ws.gpr_std)
+                     : GprUncertainty{};
+  Mat6 covariance;
+  if (!parameterShare(model, ws, q_rad, call, wrench_Sensor, temp_c, covariance)) {
     return PoseAccuracy{};
   }
-  return poseAccuracy(model.file, model.physical.chain_Tracker, ws.chain, ws.torque_nm,
-                      R_TrackerTip, gpr, with_mechanisms ? &mechanism_covariance : nullptr);
+  return poseAccuracy(*model.file.accuracy, covariance, R_TrackerTip, gpr);
+}
+
+/// RuntimeModel::gpr_noise: per output, the GPR's held-out noise (GprPredictor::heldOutNoise,
+/// raw units) less the mean over its training inputs of the parameters' share in its output
+/// axes (over the output gain² for a GPR per payload force; an input at zero force adds none).
+Vec6 gprWhiteNoise(const RuntimeModel& model) {
+  const GprParameters& g = *model.file.gpr;
+  const int n = model.file.chain_Tracker.dof();
+  const bool tracker_axes = g.payload_force_reference_n > 0.0;
+  Workspace ws = makeWorkspace(model);
+  Vec6 share = Vec6::Zero();
+  const Eigen::Index m = g.inputs_normalised.rows();
+  Eigen::VectorXd x_raw(n + 6);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    x_raw = g.input_offset + g.input_scale.cwiseProduct(g.inputs_normalised.row(i).transpose());
+    const double gain = model.gpr.outputGain(x_raw.data());
+    if (gain == 0.0) continue;
+    const JointVector q_rad = x_raw.head(n);
+    const Vec6 wrench_Sensor = x_raw.tail<6>();
+    // The training rows' temperature is not among the GPR's inputs: not measured.
+    const double temp_c = std::numeric_limits<double>::quiet_NaN();
+    const Pose X_TrackerTip =
+        physicalTip(model, ws, q_rad, kOwnTerms, wrench_Sensor, temp_c, false);
+    Mat6 covariance;
+    if (!parameterShare(model, ws, q_rad, kOwnTerms, wrench_Sensor, temp_c, covariance)) continue;
+    const Mat3 R = tracker_axes ? Mat3(Mat3::Identity()) : Mat3(X_TrackerTip.linear());
+    share.head<3>() += (R.transpose() * covariance.topLeftCorner<3, 3>() * R).diagonal() /
+                       (gain * gain);
+    share.tail<3>() += (R.transpose() * covariance.bottomRightCorner<3, 3>() * R).diagonal() /
+                       (gain * gain);
+  }
+  share /= static_cast<double>(m);
+  Vec6 noise;
+  for (int o = 0; o < 6; ++o) {
+    const double held_out = model.gpr.heldOutNoise()(o) * g.output_scale(o);
+    noise(o) = std::sqrt(std::max(0.0, held_out * held_out - share(o)));
+  }
+  return noise;
 }
 
 /// σ/σ_f from the per-output std bound (raw units) that predictMeanAndBoundInto wrote: the
@@ -573,6 +626,7 @@ std::unique_ptr<const RuntimeModel> build(CalibratedModel file, uint64_t model_i
   }
   model->file = std::move(file);
   model->model_id = model_id;
+  if (model->file.gpr && model->file.accuracy) model->gpr_noise = gprWhiteNoise(*model);
   return model;
 }
 

@@ -43,6 +43,14 @@ class GprPredictor {
   /// Inputs that vary over the training set (the others enter every distance alike).
   int varyingInputs() const noexcept { return static_cast<int>(varying_dims_.size()); }
   const GprParameters& parameters() const noexcept { return parameters_; }
+  /// Each output's noise 1-σ in standardised units, as its training points left out one at a
+  /// time show it (docs/method.md, "The accuracy bound"): √max(0, mean_i r_io² − mean_i (v_i −
+  /// σ_n²)), r_io = α_io / [K⁻¹]_ii the residual of point i predicted from the others, v_i =
+  /// 1 / [K⁻¹]_ii its predictive variance, K = K_f + σ_n² I: with the latent variance, each
+  /// output's left-out residuals on average. One σ_n serves every output in the fit; this is
+  /// each output's own (a tracker's position noise is not its orientation's). An output quieter
+  /// than the GP's latent variance alone explains gets 0.
+  const Eigen::VectorXd& heldOutNoise() const noexcept { return held_out_noise_; }
   /// L with L Lᵀ = K + σ_n² I, m × m, lower triangular (strict upper triangle zero).
   const Eigen::MatrixXd& choleskyLower() const noexcept { return cholesky_lower_; }
   Workspace makeWorkspace() const;
@@ -87,6 +95,8 @@ class GprPredictor {
   /// ‖z̃_i‖² + ‖z̃‖² − 2 z̃_iᵀz̃ (clamped at 0) over the inputs that vary in training by one
   /// matrix–vector product, plus the others' shared (z̃_d − x̃_d)², then exp.
   void kernelColumn(const double* x_raw, Workspace& workspace) const noexcept;
+  /// heldOutNoise from α and the factor (O(m³), once at construction).
+  Eigen::VectorXd heldOutNoiseOfAlpha() const;
   /// Zero mean and std (std_out may be null): the correction at zero force.
   void zeroOutputs(double* mean_out, double* std_out) const noexcept;
   /// Mean and std (may be null) times the gain, for a GPR per payload force.
@@ -109,6 +119,7 @@ class GprPredictor {
   Eigen::VectorXd scaled_input_norms_;     // m: ‖row i of scaled_inputs_‖²
   Eigen::VectorXi subset_indices_;         // r, ascending
   Eigen::MatrixXd subset_cholesky_inverse_;  // r × r: L_S⁻¹ (lower triangular)
+  Eigen::VectorXd held_out_noise_;           // P, standardised units
 };
 
 /// The residual twist in the tip's axes (docs/method.md eq. 32) from a GPR's output at a tip of

@@ -100,7 +100,7 @@ struct AccuracyFactors {
   /// 1-σ per axis of a measured position and orientation (m, rad): the tracker's stated
   /// noise, raised to the model's residual scatter on the fit rows no GPR takes (none taken:
   /// every fit row; a GPR per payload force, which moves no unloaded row: the unloaded ones). A
-  /// GPR's own noise σ_n is added at run time (pose_accuracy.hpp).
+  /// GPR's own white noise per output is added at run time (RuntimeModel::gpr_noise).
   double position_noise_m = 0.0, orientation_noise_rad = 0.0;
   /// 6(n+1) × r (or empty): the initial poses' right-perturbations δt_k (docs/method.md eq. 7,
   /// the rows ordered as parameterJacobian's columns), covariance F Fᵀ, r the fit's rank; the

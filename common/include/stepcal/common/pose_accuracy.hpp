@@ -27,15 +27,16 @@ struct PoseAccuracy {
 /// What the GPR adds at the pose (none without a GPR: zeros).
 struct GprUncertainty {
   Vec6 std = Vec6::Zero();  ///< its predictive latent 1-σ per output (the call's gpr_std)
-  /// Its noise 1-σ per output at this input (σ_n · output scale · output gain), raw units.
-  Vec6 noise = Vec6::Zero();
+  Vec6 noise = Vec6::Zero();  ///< its white noise 1-σ per output at this input, raw units
   /// Whether its outputs are in the tracker's axes (a GPR per payload force) rather than the
   /// tip's.
   bool tracker_axes = false;
 };
 
-/// The GPR's share at input x_raw, given the std (bound) its prediction there gave.
-GprUncertainty gprUncertainty(const GprPredictor& gpr, const double* x_raw,
+/// The GPR's share at input x_raw, given the std (bound) its prediction there gave and its white
+/// noise per output at unit output gain (raw units; the runtime's, set at load from the GPR's
+/// held-out residuals: RuntimeModel::gpr_noise), times the output gain at x_raw.
+GprUncertainty gprUncertainty(const GprPredictor& gpr, const Vec6& noise, const double* x_raw,
                               const Vec6& std) noexcept;
 
 /// The 95 % point of the length of a zero-mean Gaussian 3-vector with covariance S: the
@@ -44,16 +45,21 @@ GprUncertainty gprUncertainty(const GprPredictor& gpr, const double* x_raw,
 /// for an isotropic S (h = 3) and for a rank-one S (h = 1).
 double lengthBound95(const Mat3& S) noexcept;
 
-/// The pose's accuracy: Σ = G Gᵀ + the GPR's and the measurement's variance, G the pose's
-/// (tip position, orientation; tracker axes) Jacobian w.r.t. the parameters times their factors:
-/// the initial poses' (parameterJacobian of `chain` evaluated in `at_link_angles`), the
-/// compliances' (the tip point Jacobian's column j times τ_j). The measurement's variance per
-/// axis is the larger of the factors' stated noise and the GPR's noise. mechanism_covariance,
-/// when given, is the mechanisms' share (addMechanismCovariance, mechanism_accuracy.hpp), added
-/// as it is. Allocation-free.
-PoseAccuracy poseAccuracy(const CalibratedModel& model, const KinematicChain& chain,
-                          const ChainWorkspace& at_link_angles, const JointVector& torque_nm,
-                          const Mat3& R_TrackerTip, const GprUncertainty& gpr,
-                          const Mat6* mechanism_covariance = nullptr) noexcept;
+/// The fitted parameters' share of a pose's covariance (tip position, orientation; tracker
+/// axes): G Gᵀ, G the pose's Jacobian w.r.t. the parameters times their factors: the initial
+/// poses' (parameterJacobian of `chain` evaluated in `at_link_angles`), the compliances' (the tip
+/// point Jacobian's column j times τ_j); plus mechanism_covariance, when given (the mechanisms'
+/// share, addMechanismCovariance, mechanism_accuracy.hpp). Zero beside mechanism_covariance for
+/// a model without AccuracyFactors. Allocation-free.
+Mat6 parameterCovariance(const CalibratedModel& model, const KinematicChain& chain,
+                         const ChainWorkspace& at_link_angles, const JointVector& torque_nm,
+                         const Mat6* mechanism_covariance = nullptr) noexcept;
+
+/// The pose's accuracy from its parameters' covariance (parameterCovariance) plus the GPR's
+/// latent variance and the measurement's: per axis, the larger of the factors' stated noise and
+/// the GPR's white noise (in the tip's axes R_TrackerTip, or the tracker's for a GPR per payload
+/// force). Allocation-free.
+PoseAccuracy poseAccuracy(const AccuracyFactors& factors, const Mat6& parameter_covariance,
+                          const Mat3& R_TrackerTip, const GprUncertainty& gpr) noexcept;
 
 }  // namespace stepcal

@@ -111,6 +111,12 @@ struct RuntimeModel {
   /// (GprPredictor::relativeStdBound: the GP on a subset of ≤ 48 training points), never below
   /// the exact predictive std.
   double out_of_domain_relative_std = 1.0;
+  /// The GPR's white noise 1-σ per output at unit output gain, raw units (v m, ω rad), set at
+  /// load: what its training points, each left out, show beyond its latent variance
+  /// (GprPredictor::heldOutNoise), less the mean of the fitted parameters' share of the
+  /// covariance at those points, which the bound states on its own (docs/method.md, "The
+  /// accuracy bound"). Zero without a GPR or accuracy factors.
+  Vec6 gpr_noise = Vec6::Zero();
   /// Centre of a sphere holding every tip position the arm can reach: origin of T_{0,1}(0),
   /// tracker frame, m.
   Vec3 p_ReachCentreInTracker_m = Vec3::Zero();

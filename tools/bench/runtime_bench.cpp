@@ -12,6 +12,7 @@
 // correction of the same (q, wrench) from a seed 2° off on every joint (alternating sign), with a
 // deadline far away so that the solver's own tolerances end it. Each call is timed alone with
 // std::chrono::steady_clock after a warm-up; heap allocations are counted over the timed calls.
+// After the calls, the model file is loaded 20 times (`load`: p50 and max, ms).
 // Beside it, the same inverse seeded by the nominal chain's closed form in the pose's branch
 // (`inverse_closed_form_seed`: runtime/closed_form_seed.hpp, the 2°-off joints only choosing the
 // turns; the seed's own cost is timed with it), and each inverse's step count at p50 and p99
@@ -45,6 +46,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -680,6 +682,10 @@ void printText(const nlohmann::json& report, const std::string& pose_description
   std::cout << "closed-form layout of the nominal chain: " << report["closed_form_layout"]
             << "\n";
   std::cout << "allocations during the timed calls: " << report["allocations"] << "\n";
+  const nlohmann::json& load = report["load"];
+  std::cout << "model load (RuntimeModel::load, " << load["loads"] << " times): p50 "
+            << load["p50_ms"].get<double>() << " ms, max " << load["max_ms"].get<double>()
+            << " ms\n";
   std::cout << "real-time settings: " << report["realtime"].dump() << "\n";
   if (report.contains("kdl")) {
     const nlohmann::json& k = report["kdl"];
@@ -689,6 +695,21 @@ void printText(const nlohmann::json& report, const std::string& pose_description
               << "; KDL / stepcal inverse: p50 " << k["ratio_p50"].get<double>() << "x, p99 "
               << k["ratio_p99"].get<double>() << "x\n";
   }
+}
+
+/// RuntimeModel::load of the model file, kLoads times (its GPR's factor and white noise, the
+/// physical model's constants): p50 and max, ms.
+nlohmann::json loadTimes(const std::string& model_path) {
+  constexpr int kLoads = 20;
+  std::vector<double> ms;
+  for (int i = 0; i < kLoads; ++i) {
+    const auto start = std::chrono::steady_clock::now();
+    const std::unique_ptr<const runtime::RuntimeModel> model = runtime::RuntimeModel::load(model_path);
+    ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  }
+  std::sort(ms.begin(), ms.end());
+  return {{"loads", kLoads}, {"p50_ms", ms[kLoads / 2]}, {"max_ms", ms.back()}};
 }
 
 /// Loads the model, draws the poses, times every series and prints the report.
@@ -714,8 +735,8 @@ void runBench(const BenchOptions& options) {
     writeAnswers(*model, ws, drawn.poses, options.temp_c, options.answers_path);
   }
 
-  const nlohmann::json report =
-      makeReport(options, drawn, series, calls.kdl_side, realtime_report);
+  nlohmann::json report = makeReport(options, drawn, series, calls.kdl_side, realtime_report);
+  report["load"] = loadTimes(options.model_path);
   if (options.json) {
     std::cout << report.dump(2) << "\n";
   } else {

@@ -1,6 +1,7 @@
 #include "stepcal/common/mechanism_accuracy.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "stepcal/common/lie.hpp"
 
@@ -67,6 +68,36 @@ void addProfileGeometryCovariance(const PhysicalModel& model, const Mechanism& m
   }
 }
 
+/// A transmission_error's share, analytic: its coefficient a_k (b_k) moves joint j's link angle
+/// by g(q_j) sin(k q_j) (cos) per unit, so the tip by joint j's twist at the tip point times it
+/// (first order: the deflection's change with the pose, ~10⁻³ of it, left out, as a
+/// profile_geometry's). The coefficients independent: the profile's variance at q_j times the
+/// column's outer product.
+void addTransmissionErrorCovariance(const PhysicalModel& model, const Mechanism& m,
+                                    const JointVector& q_rad, const ChainWorkspace& at_link_angles,
+                                    Mat6& covariance) noexcept {
+  const double q = q_rad(m.joint);
+  const double gate = coverageGate(m.coverage, q);
+  if (gate == 0.0) return;
+  const int order = static_cast<int>(std::min(m.sigma.size(), m.parameters.size())) / 2;
+  const double sin_q = std::sin(q), cos_q = std::cos(q);
+  double sin_kq = sin_q, cos_kq = cos_q, variance = 0.0;
+  for (int k = 1; k <= order; ++k) {
+    const double sigma_sin = m.sigma[static_cast<size_t>(2 * (k - 1))];
+    const double sigma_cos = m.sigma[static_cast<size_t>(2 * (k - 1) + 1)];
+    variance += sigma_sin * sigma_sin * sin_kq * sin_kq + sigma_cos * sigma_cos * cos_kq * cos_kq;
+    const double next_sin = sin_kq * cos_q + cos_kq * sin_q;  // harmonics by recurrence
+    cos_kq = cos_kq * cos_q - sin_kq * sin_q;
+    sin_kq = next_sin;
+  }
+  if (!(variance > 0.0)) return;
+  const Vec6 twist = jointTwistInRoot(model.chain_Tracker, at_link_angles, m.joint + 1);
+  Vec6 column;
+  column << twist.head<3>() - tipPose(at_link_angles).translation().cross(twist.tail<3>()),
+      twist.tail<3>();
+  covariance.noalias() += (gate * gate * variance) * column * column.transpose();
+}
+
 }  // namespace
 
 MechanismAccuracyWorkspace makeMechanismAccuracyWorkspace(const PhysicalModel& model) {
@@ -99,6 +130,10 @@ bool addMechanismCovariance(const PhysicalModel& model, const PhysicalConstants*
     if (!movesTheRobot(m)) continue;
     if (m.kind == MechanismKind::kProfileGeometry) {
       addProfileGeometryCovariance(model, m, q_rad, at_link_angles, covariance);
+      continue;
+    }
+    if (m.kind == MechanismKind::kTransmissionError) {
+      addTransmissionErrorCovariance(model, m, q_rad, at_link_angles, covariance);
       continue;
     }
     Mechanism& moved = ws.perturbed.mechanisms[k];

@@ -1,7 +1,8 @@
 // What the mechanisms' fitted uncertainty adds to a pose's covariance (docs/method.md, "The
 // accuracy bound"): each mechanism parameter's 1-σ (the model file's MECH section) propagated
-// to the tip by a central finite difference of the physical model, the parameters taken as
-// independent (the model file keeps no correlations between them).
+// to the tip, analytically for the transmission profiles and their geometry, else by a central
+// finite difference of the physical model, the parameters taken as independent (the model file
+// keeps no correlations between them).
 #pragma once
 
 #include "stepcal/common/chain.hpp"
@@ -31,8 +32,9 @@ inline constexpr double kMechanismStep = 1e-3;
 /// covariance += Σ g gᵀ over every parameter i of every mechanism with σ_i > 0, g the pose's
 /// change per 1-σ, the tip position and the rotation vector in the tracker's axes: of a
 /// profile_geometry analytically (its gate times the identification matrix's column at
-/// at_link_angles, the call's frames; first order: the deflection's change with the geometry
-/// is left out), of every other kind (tip(p + ε σ_i) ⊖ tip(p − ε σ_i)) / 2ε, the tip that of
+/// at_link_angles, the call's frames), of a transmission_error too (its gate times the harmonic's
+/// sine or cosine at q_j times joint j's twist at the tip point; both first order: the
+/// deflection's change with the pose is left out), of every other kind (tip(p + ε σ_i) ⊖ tip(p − ε σ_i)) / 2ε, the tip that of
 /// physicalLinkAngles at (q, wrench, temp_c, payload), its model's full fixed point. constants:
 /// physicalConstants(model) or null (no profile_geometry parameter is moved, so they hold).
 /// Allocation-free; false when ws does not fit the model (nothing added).

@@ -230,5 +230,34 @@ TEST(AccuracyBound, AForeignLoadEffectIsNotStatedAsNoiseAtZeroLoad) {
   }
 }
 
+// A hidden transmission error (the twin's joint 3, harmonic 3): the extended model carries its
+// profile's coefficients' covariance as a factor whose diagonal is the coefficients' σ², and its
+// bound, with the coefficients correlated, still covers the held-out rows at each load.
+TEST(AccuracyBound, AProfilesCoefficientsCovarianceIsWrittenWithItsSigma) {
+  const nlohmann::json profile = {{"name", "transmission_error"}, {"joint", 3}, {"harmonic", 3},
+                                  {"sin_rad", 6e-5}, {"cos_rad", -4e-5}};
+  Campaign campaign;
+  const trainer::Diagnosis d = trainer::test_support::diagnoseSimulation(
+      trainer::test_support::paperOptions(23, {profile}), &campaign);
+  const CalibratedModel& model = d.extended_model;
+  ASSERT_TRUE(model.accuracy.has_value());
+  int profiles = 0;
+  for (const Mechanism& m : model.mechanisms) profiles += m.kind == MechanismKind::kTransmissionError;
+  ASSERT_GE(profiles, 1);
+  ASSERT_EQ(model.accuracy->profile_factors.size(), static_cast<size_t>(profiles));
+  for (const ProfileCovarianceFactor& f : model.accuracy->profile_factors) {
+    const Mechanism& m = model.mechanisms[f.mechanism];
+    ASSERT_EQ(m.kind, MechanismKind::kTransmissionError);
+    const Eigen::VectorXd variance = (f.factor * f.factor.transpose()).diagonal();
+    for (Eigen::Index i = 0; i < variance.size(); ++i) {
+      EXPECT_NEAR(std::sqrt(variance(i)), m.sigma[static_cast<size_t>(i)], 1e-9 * m.sigma[static_cast<size_t>(i)]);
+    }
+  }
+  const auto runtime_model = runtime::RuntimeModel::fromModel(model, 6);
+  for (const auto& [load_kg, c] : validationCoverage(*runtime_model, campaign)) {
+    EXPECT_GE(c.percent(), 85.0) << load_kg << " kg";  // 80 or 50 rows: 4σ below 95 %
+  }
+}
+
 }  // namespace
 }  // namespace stepcal

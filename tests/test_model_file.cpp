@@ -406,13 +406,21 @@ TEST_F(ModelFileTest, AccuracyFactorsRoundTripAreOptionalAndCheckedByField) {
   a.geometry_factor.resize(6 * (n + 1), 30);
   for (Eigen::Index i = 0; i < a.geometry_factor.size(); ++i) a.geometry_factor(i) = normal(rng);
   a.compliance_factor = Eigen::MatrixXd::Identity(n, n) * 1e-8;
+  // mechanismOfEveryKind()[2]: a transmission_error of 2 harmonics, 4 coefficients.
+  ASSERT_EQ(with.mechanisms[2].kind, MechanismKind::kTransmissionError);
+  a.profile_factors.push_back({2, Eigen::MatrixXd(4, 2)});
+  for (Eigen::Index i = 0; i < 8; ++i) a.profile_factors[0].factor(i) = normal(rng);
   with.accuracy = a;
   const std::vector<uint8_t> b = serializeModel(with);
-  EXPECT_EQ(b.size(), bytes().size() + 16 + 4 + 16 + 8 + 6 * (n + 1) * 30 * 8 + 4 + n * n * 8);
+  EXPECT_EQ(b.size(), bytes().size() + 16 + 4 + 16 + 8 + 6 * (n + 1) * 30 * 8 + 4 + n * n * 8 +
+                          4 + 8 + 4 * 2 * 8);
   const CalibratedModel parsed = parse(b);
   ASSERT_TRUE(parsed.accuracy.has_value());
   EXPECT_EQ(parsed.accuracy->geometry_factor, a.geometry_factor);
   EXPECT_EQ(parsed.accuracy->compliance_factor, a.compliance_factor);
+  ASSERT_EQ(parsed.accuracy->profile_factors.size(), 1u);
+  EXPECT_EQ(parsed.accuracy->profile_factors[0].mechanism, 2u);
+  EXPECT_EQ(parsed.accuracy->profile_factors[0].factor, a.profile_factors[0].factor);
   EXPECT_EQ(parsed.accuracy->position_noise_m, a.position_noise_m);
   EXPECT_EQ(parsed.accuracy->orientation_noise_rad, a.orientation_noise_rad);
   EXPECT_EQ(serializeModel(parsed), b);
@@ -426,7 +434,8 @@ TEST_F(ModelFileTest, AccuracyFactorsRoundTripAreOptionalAndCheckedByField) {
     const std::string message = refusal(edited);
     EXPECT_NE(message.find(field), std::string::npos) << message;
   };
-  refusedNaming(accu, [](auto& e, size_t at) { putU32(e, at, 2); }, "accuracy.layout_version");
+  refusedNaming(accu, [](auto& e, size_t at) { putU32(e, at, 1); }, "accuracy.layout_version");
+  refusedNaming(accu, [](auto& e, size_t at) { putU32(e, at, 3); }, "accuracy.layout_version");
   refusedNaming(accu + 4, [](auto& e, size_t at) { putF64(e, at, -1.0); },
                 "accuracy.position_noise_m");
   refusedNaming(accu + 20, [](auto& e, size_t at) { putU32(e, at, 7); }, "accuracy.geometry_rows");
@@ -436,7 +445,21 @@ TEST_F(ModelFileTest, AccuracyFactorsRoundTripAreOptionalAndCheckedByField) {
                 "accuracy.geometry_factor(1, 1): nan");
   refusedNaming(accu + 28 + 8 * 6 * (n + 1) * 30, [](auto& e, size_t at) { putU32(e, at, 2); },
                 "accuracy.compliance_count");
+  const size_t profiles = accu + 28 + 8 * 6 * (n + 1) * 30 + 4 + 8 * n * n;
+  refusedNaming(profiles, [](auto& e, size_t at) { putU32(e, at, 99); }, "accuracy.profile_count");
+  refusedNaming(profiles + 4, [](auto& e, size_t at) { putU32(e, at, 0); },  // a backlash
+                "accuracy.profile_factors[0].mechanism");
+  refusedNaming(profiles + 8, [](auto& e, size_t at) { putU32(e, at, 5); },
+                "accuracy.profile_factors[0].rank");
+  refusedNaming(profiles + 12 + 8, [](auto& e, size_t at) { putF64(e, at, std::nan("")); },
+                "accuracy.profile_factors[0].factor(0, 1): nan");
 
+  CalibratedModel not_a_profile = with;
+  not_a_profile.accuracy->profile_factors[0].mechanism = 0;
+  EXPECT_THROW(serializeModel(not_a_profile), InputError);
+  CalibratedModel too_wide = with;
+  too_wide.accuracy->profile_factors[0].factor.resize(4, 5);
+  EXPECT_THROW(serializeModel(too_wide), InputError);
   with.accuracy->compliance_factor.resize(2, 2);
   EXPECT_THROW(serializeModel(with), InputError);
 }

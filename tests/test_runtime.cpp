@@ -1171,8 +1171,10 @@ TEST(Runtime, AnswerAtTheWristSingularityIsFlagged) {
 
 TEST(Runtime, RealTimeCallsAllocateNothing) {
   const RuntimeModel& model = paperRuntime();
-  const auto with_every_mechanism =
-      RuntimeModel::fromModel(withMechanisms(mechanismOfEveryKind(), true), 19);
+  CalibratedModel every = withMechanisms(mechanismOfEveryKind(), true);
+  // The transmission profile's share through its coefficients' covariance factor.
+  every.accuracy->profile_factors = {{2, Eigen::MatrixXd::Constant(4, 3, 1e-6)}};
+  const auto with_every_mechanism = RuntimeModel::fromModel(std::move(every), 19);
   {
     // Positive control: the counter sees the workspace's buffers being allocated.
     test::AllocationCounter counter;
@@ -1344,7 +1346,7 @@ TEST(Runtime, MechanismSigmaWidensTheBoundByItsPropagatedShare) {
 // twist at the tip point), against central differences of the whole model, one coefficient at a
 // time, on a 6-harmonic profile of joint 2 whose σ dominate the bound, unloaded and under a 40 kg
 // row's wrench: the deflection's change with the pose, which the first order leaves out, is
-// below the differences' own error here (1e-8 of the share).
+// below the differences' own error here (1e-8 of the share). Then with a covariance factor.
 TEST(Runtime, ATransmissionProfilesShareIsItsVarianceAtTheAngleTimesTheJointsTwist) {
   std::vector<double> coefficients;
   for (int k = 1; k <= 6; ++k) {
@@ -1390,6 +1392,38 @@ TEST(Runtime, ATransmissionProfilesShareIsItsVarianceAtTheAngleTimesTheJointsTwi
               << std::sqrt(share_m2) * 1e3 << " mm rms, relative difference "
               << (with_share - without) / share_m2 - 1.0 << "\n";
   }
+
+  // With its coefficients' covariance factor F in the model (AccuracyFactors::profile_factors),
+  // the share is the differences along F's columns, each moving every coefficient at once; here
+  // the coefficients' errors cancel on this arc where each σ alone would not.
+  CalibratedModel correlated = withMechanisms({profile}, false);
+  Eigen::MatrixXd F(12, 3);
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> normal(0.0, 4e-5);
+  for (Eigen::Index i = 0; i < F.size(); ++i) F(i) = normal(rng);
+  correlated.accuracy->profile_factors = {{0, F}};
+  const auto correlated_model = RuntimeModel::fromModel(correlated, 13);
+  Workspace correlated_ws = makeWorkspace(*correlated_model);
+  double share_m2 = 0.0;
+  for (Eigen::Index c = 0; c < F.cols(); ++c) {
+    Pose X[2];
+    for (int side = 0; side < 2; ++side) {
+      Mechanism moved = certain_profile;
+      for (Eigen::Index i = 0; i < F.rows(); ++i) {
+        moved.parameters[size_t(i)] += (side == 0 ? step : -step) * F(i, c);
+      }
+      const auto moved_model = RuntimeModel::fromModel(withMechanisms({moved}, false), 14);
+      Workspace moved_ws = makeWorkspace(*moved_model);
+      X[side] = correctForward(*moved_model, moved_ws, loaded->q_rad, Vec6::Zero(), 20.0).X_TrackerTip;
+    }
+    share_m2 += ((X[0].translation() - X[1].translation()) / (2.0 * step)).squaredNorm();
+  }
+  const double with_factor = squared(
+      correctForward(*correlated_model, correlated_ws, loaded->q_rad, Vec6::Zero(), 20.0)
+          .accuracy.position_rms_m);
+  const double without = squared(
+      correctForward(*certain, certain_ws, loaded->q_rad, Vec6::Zero(), 20.0).accuracy.position_rms_m);
+  EXPECT_NEAR(with_factor - without, share_m2, 1e-6 * share_m2);
 }
 
 }  // namespace

@@ -69,33 +69,56 @@ void addProfileGeometryCovariance(const PhysicalModel& model, const Mechanism& m
 }
 
 /// A transmission_error's share, analytic: its coefficient a_k (b_k) moves joint j's link angle
-/// by g(q_j) sin(k q_j) (cos) per unit, so the tip by joint j's twist at the tip point times it
-/// (first order: the deflection's change with the pose, ~10⁻³ of it, left out, as a
-/// profile_geometry's). The coefficients independent: the profile's variance at q_j times the
-/// column's outer product.
+/// by g(q_j) sin(k q_j) (cos) per unit, b(q_j) the vector of these, so the tip by joint j's twist
+/// at the tip point times bᵀ δc (first order: the deflection's change with the pose left out, as
+/// a profile_geometry's). Its variance at q_j is ‖Fᵀ b‖² with the coefficients' covariance factor
+/// F when the model has it, else Σ_i σ_i² b_i² (independent).
 void addTransmissionErrorCovariance(const PhysicalModel& model, const Mechanism& m,
+                                    const ProfileCovarianceFactor* factor,
                                     const JointVector& q_rad, const ChainWorkspace& at_link_angles,
                                     Mat6& covariance) noexcept {
   const double q = q_rad(m.joint);
   const double gate = coverageGate(m.coverage, q);
   if (gate == 0.0) return;
   const int order = static_cast<int>(std::min(m.sigma.size(), m.parameters.size())) / 2;
+  Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 2 * kMaxHarmonics, 1> basis(2 * order);
   const double sin_q = std::sin(q), cos_q = std::cos(q);
-  double sin_kq = sin_q, cos_kq = cos_q, variance = 0.0;
-  for (int k = 1; k <= order; ++k) {
-    const double sigma_sin = m.sigma[static_cast<size_t>(2 * (k - 1))];
-    const double sigma_cos = m.sigma[static_cast<size_t>(2 * (k - 1) + 1)];
-    variance += sigma_sin * sigma_sin * sin_kq * sin_kq + sigma_cos * sigma_cos * cos_kq * cos_kq;
+  double sin_kq = sin_q, cos_kq = cos_q;
+  for (int k = 0; k < order; ++k) {
+    basis(2 * k) = gate * sin_kq;
+    basis(2 * k + 1) = gate * cos_kq;
     const double next_sin = sin_kq * cos_q + cos_kq * sin_q;  // harmonics by recurrence
     cos_kq = cos_kq * cos_q - sin_kq * sin_q;
     sin_kq = next_sin;
+  }
+  double variance = 0.0;
+  if (factor != nullptr && factor->factor.rows() == basis.size()) {
+    for (Eigen::Index c = 0; c < factor->factor.cols(); ++c) {
+      const double u = factor->factor.col(c).dot(basis);
+      variance += u * u;
+    }
+  } else {
+    for (int i = 0; i < 2 * order; ++i) {
+      const double sigma = m.sigma[static_cast<size_t>(i)];
+      variance += sigma * sigma * basis(i) * basis(i);
+    }
   }
   if (!(variance > 0.0)) return;
   const Vec6 twist = jointTwistInRoot(model.chain_Tracker, at_link_angles, m.joint + 1);
   Vec6 column;
   column << twist.head<3>() - tipPose(at_link_angles).translation().cross(twist.tail<3>()),
       twist.tail<3>();
-  covariance.noalias() += (gate * gate * variance) * column * column.transpose();
+  covariance.noalias() += variance * column * column.transpose();
+}
+
+/// The factor of mechanism k among profile_factors (ascending), or null.
+const ProfileCovarianceFactor* factorOf(const std::vector<ProfileCovarianceFactor>* profile_factors,
+                                        size_t k) noexcept {
+  if (profile_factors == nullptr) return nullptr;
+  for (const ProfileCovarianceFactor& f : *profile_factors) {
+    if (f.mechanism == k) return &f;
+  }
+  return nullptr;
 }
 
 }  // namespace
@@ -120,6 +143,7 @@ bool hasMechanismUncertainty(const PhysicalModel& model) noexcept {
 }
 
 bool addMechanismCovariance(const PhysicalModel& model, const PhysicalConstants* constants,
+                            const std::vector<ProfileCovarianceFactor>* profile_factors,
                             const ChainWorkspace& at_link_angles, const JointVector& q_rad,
                             const Vec6& wrench_Sensor, double temp_c, const PointPayload* payload,
                             MechanismAccuracyWorkspace& ws, Mat6& covariance) noexcept {
@@ -133,7 +157,8 @@ bool addMechanismCovariance(const PhysicalModel& model, const PhysicalConstants*
       continue;
     }
     if (m.kind == MechanismKind::kTransmissionError) {
-      addTransmissionErrorCovariance(model, m, q_rad, at_link_angles, covariance);
+      addTransmissionErrorCovariance(model, m, factorOf(profile_factors, k), q_rad, at_link_angles,
+                                     covariance);
       continue;
     }
     Mechanism& moved = ws.perturbed.mechanisms[k];

@@ -214,7 +214,8 @@ class Writer {
 
 /// Refuses accuracy factors of sizes the ACCU layout cannot express.
 template <class Refuse>
-void checkAccuracyWritable(const AccuracyFactors& a, int n, const Refuse& refuse) {
+void checkAccuracyWritable(const AccuracyFactors& a, int n, const std::vector<Mechanism>& mechanisms,
+                           const Refuse& refuse) {
   const Eigen::Index g = a.geometry_factor.rows(), r = a.geometry_factor.cols();
   if (!((g == 0 && r == 0) || (g == 6 * (n + 1) && r <= g))) {
     refuse("accuracy.geometry_factor is " + std::to_string(g) + " × " + std::to_string(r) +
@@ -226,6 +227,22 @@ void checkAccuracyWritable(const AccuracyFactors& a, int n, const Refuse& refuse
     refuse("accuracy.compliance_factor is " + std::to_string(c) + " × " +
            std::to_string(a.compliance_factor.cols()) + "; expected 0 × 0 or " +
            std::to_string(n) + " × " + std::to_string(n));
+  }
+  for (size_t i = 0; i < a.profile_factors.size(); ++i) {
+    const ProfileCovarianceFactor& p = a.profile_factors[i];
+    const std::string field = "accuracy.profile_factors[" + std::to_string(i) + "]";
+    if (p.mechanism >= mechanisms.size() ||
+        mechanisms[p.mechanism].kind != MechanismKind::kTransmissionError ||
+        (i > 0 && p.mechanism <= a.profile_factors[i - 1].mechanism)) {
+      refuse(field + " is for mechanism " + std::to_string(p.mechanism) +
+             "; expected a transmission_error's index, ascending");
+    }
+    const Eigen::Index rows = 2 * mechanisms[p.mechanism].order;
+    if (p.factor.rows() != rows || p.factor.cols() > rows) {
+      refuse(field + " is " + std::to_string(p.factor.rows()) + " × " +
+             std::to_string(p.factor.cols()) + "; expected " + std::to_string(rows) + " × r, r ≤ " +
+             std::to_string(rows));
+    }
   }
 }
 
@@ -298,7 +315,9 @@ void checkWritable(const CalibratedModel& model, const std::string& source) {
              std::to_string(kMaxMechanismParameters));
     }
   }
-  if (model.accuracy) checkAccuracyWritable(*model.accuracy, model.chain_Tracker.dof(), refuse);
+  if (model.accuracy) {
+    checkAccuracyWritable(*model.accuracy, model.chain_Tracker.dof(), model.mechanisms, refuse);
+  }
   const ModelProvenance& p = model.provenance;
   checkString(p.campaign_hash, "provenance.campaign_hash");
   checkString(p.created_utc, "provenance.created_utc");
@@ -758,7 +777,7 @@ void readProvenance(Reader& in, ModelProvenance& p) {
 }
 
 /// The ACCU section: the factors of the parameters' covariance and the measurement noise.
-AccuracyFactors readAccuracy(Reader& in, int n) {
+AccuracyFactors readAccuracy(Reader& in, int n, const std::vector<Mechanism>& mechanisms) {
   const size_t version_at = in.offset();
   const uint32_t version = in.u32("accuracy.layout_version");
   if (version != AccuracyFactors::kLayoutVersion) {
@@ -786,6 +805,24 @@ AccuracyFactors readAccuracy(Reader& in, int n) {
             std::to_string(c) + "; expected 0 or the dof, " + std::to_string(n));
   }
   a.compliance_factor = in.matrix(c, c, "accuracy.compliance_factor");
+  const uint32_t k = in.count("accuracy.profile_count", 0, uint32_t(mechanisms.size()), 8);
+  for (uint32_t i = 0; i < k; ++i) {
+    const std::string field = "accuracy.profile_factors[" + std::to_string(i) + "]";
+    ProfileCovarianceFactor p;
+    const size_t m_at = in.offset();
+    p.mechanism = in.u32(field + ".mechanism");
+    if (p.mechanism >= mechanisms.size() ||
+        mechanisms[p.mechanism].kind != MechanismKind::kTransmissionError ||
+        (i > 0 && p.mechanism <= a.profile_factors.back().mechanism)) {
+      in.fail(m_at, field + ".mechanism",
+              std::to_string(p.mechanism) +
+                  "; expected the index of a transmission_error in MECH, ascending");
+    }
+    const uint32_t rows = uint32_t(2 * mechanisms[p.mechanism].order);
+    const uint32_t r = in.count(field + ".rank", 0, rows, 8 * size_t(rows));
+    p.factor = in.matrix(rows, r, field + ".factor");
+    a.profile_factors.push_back(std::move(p));
+  }
   return a;
 }
 
@@ -853,7 +890,7 @@ CalibratedModel parseChecked(const uint8_t* data, size_t size, const std::string
   in.leaveSection();
   if (in.offset() != crc_at) {
     in.enterSection(kAccuracy, crc_at);
-    model.accuracy = readAccuracy(in, model.chain_Tracker.dof());
+    model.accuracy = readAccuracy(in, model.chain_Tracker.dof(), model.mechanisms);
     in.leaveSection();
   }
   if (in.offset() != crc_at) {
@@ -982,6 +1019,12 @@ std::vector<uint8_t> serializeModel(const CalibratedModel& model) {
     out.rowMajor(a.geometry_factor);
     out.u32(uint32_t(a.compliance_factor.rows()));
     out.rowMajor(a.compliance_factor);
+    out.u32(uint32_t(a.profile_factors.size()));
+    for (const ProfileCovarianceFactor& p : a.profile_factors) {
+      out.u32(p.mechanism);
+      out.u32(uint32_t(p.factor.cols()));
+      out.rowMajor(p.factor);
+    }
     out.endSection(at);
   }
 

@@ -249,7 +249,8 @@ bool parameterShare(const RuntimeModel& model, Workspace& ws, const JointVector&
   if (with_mechanisms && ws.mechanism_accuracy_for != &model.physical) return false;
   Mat6 mechanism_covariance = Mat6::Zero();
   if (with_mechanisms &&
-      !addMechanismCovariance(model.physical, &model.physical_constants, ws.chain, q_rad,
+      !addMechanismCovariance(model.physical, &model.physical_constants,
+                              &model.file.accuracy->profile_factors, ws.chain, q_rad,
                               wrench_Sensor, temp_c, call.payload ? &call.point : nullptr,
                               ws.mechanism_accuracy, mechanism_covariance)) {
     return false;

@@ -3,6 +3,8 @@
 #include <chrono>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
+
 #include "../least_squares.hpp"
 #include "search.hpp"
 #include "stepcal/common/lie.hpp"
@@ -193,6 +195,39 @@ void statedNoiseOfExtended(AccuracyFactors& factors, const Campaign& campaign,
   raiseNoiseToResidual(factors, after, unloaded_rows);
 }
 
+/// Each transmission profile's coefficients' covariance as its factor V √Λ (over the eigenvalues
+/// above 1e-14 of the largest), for the transmission_error of its joint among `mechanisms` where
+/// that holds the coefficients and σ of the fit the covariance is from (else its σ stand alone).
+std::vector<ProfileCovarianceFactor> profileFactors(const std::vector<Profile>& profiles,
+                                                    const std::vector<Mechanism>& mechanisms) {
+  std::vector<ProfileCovarianceFactor> factors;
+  for (size_t k = 0; k < mechanisms.size(); ++k) {
+    const Mechanism& m = mechanisms[k];
+    if (m.kind != MechanismKind::kTransmissionError) continue;
+    for (const Profile& p : profiles) {
+      const Eigen::MatrixXd& covariance = p.coefficient_covariance;
+      if (p.mechanism.joint != m.joint || covariance.rows() != 2 * m.order ||
+          p.mechanism.parameters != m.parameters) {
+        continue;
+      }
+      bool its_fit = true;
+      for (Eigen::Index i = 0; i < covariance.rows(); ++i) {
+        its_fit = its_fit && std::sqrt(std::max(0.0, covariance(i, i))) == m.sigma[size_t(i)];
+      }
+      if (!its_fit) continue;
+      const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(covariance);
+      const Eigen::VectorXd& lambda = eigen.eigenvalues();  // ascending
+      Eigen::Index kept = 0;
+      while (kept < lambda.size() && lambda(lambda.size() - 1 - kept) > 1e-14 * lambda.maxCoeff()) {
+        ++kept;
+      }
+      factors.push_back({static_cast<uint32_t>(k), eigen.eigenvectors().rightCols(kept) *
+                                                       lambda.tail(kept).cwiseSqrt().asDiagonal()});
+    }
+  }
+  return factors;
+}
+
 }  // namespace
 
 void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
@@ -231,6 +266,7 @@ void extendAndEvaluate(const Campaign& campaign, const CalibratedModel& model,
   ext.chain_Tracker = extended_physical.chain_Tracker;
   ext.X_TrackerBase = X_TrackerBase;
   ext.mechanisms = extended_physical.mechanisms;
+  if (ext.accuracy) ext.accuracy->profile_factors = profileFactors(search.model.profiles, ext.mechanisms);
   const bool any_compliance = extended_physical.compliance_rad_per_nm.maxCoeff() > 0.0;
   if (model.compliance_rad_per_nm.size() == n || any_compliance) {
     ext.compliance_rad_per_nm = extended_physical.compliance_rad_per_nm;

@@ -34,6 +34,9 @@ struct Profile {
   /// 2·order where they lie one σ from it. Its harmonics may each lie within one σ where its
   /// values over the angles it covers are far from zero (on an arc they trade with each other).
   double size_chi2 = 0.0;
+  /// Σ_c, 2·order × 2·order, from the joint fit that gave the coefficients and their σ (empty:
+  /// none; its diagonal is σ² while they are that fit's).
+  Eigen::MatrixXd coefficient_covariance;
 };
 
 struct DiagnosisModel {

@@ -127,7 +127,8 @@ void storeStage2(DiagnosisModel& model, const Eigen::MatrixXd& H, const Eigen::V
       p.mechanism.sigma[static_cast<size_t>(i)] = std::sqrt(std::max(0.0, covariance(at + i, at + i)));
     }
     const Eigen::VectorXd c = x.segment(at, w);
-    p.size_chi2 = c.dot(covariance.block(at, at, w, w).ldlt().solve(c));
+    p.coefficient_covariance = covariance.block(at, at, w, w);
+    p.size_chi2 = c.dot(p.coefficient_covariance.ldlt().solve(c));
     // The geometry's least-squares answer to this profile's effect, with the opposite sign.
     const Eigen::MatrixXd response = geometry_gram.solve(H.block(0, at, geometry, w));
     p.geometry = -response * x.segment(at, w);

@@ -7,6 +7,7 @@
 
 #include "stepcal/common/chain.hpp"
 #include "stepcal/common/mechanisms.hpp"
+#include "stepcal/common/model_file.hpp"
 #include "stepcal/common/types.hpp"
 
 namespace stepcal {
@@ -33,12 +34,15 @@ inline constexpr double kMechanismStep = 1e-3;
 /// change per 1-σ, the tip position and the rotation vector in the tracker's axes: of a
 /// profile_geometry analytically (its gate times the identification matrix's column at
 /// at_link_angles, the call's frames), of a transmission_error too (its gate times the harmonic's
-/// sine or cosine at q_j times joint j's twist at the tip point; both first order: the
-/// deflection's change with the pose is left out), of every other kind (tip(p + ε σ_i) ⊖ tip(p − ε σ_i)) / 2ε, the tip that of
+/// sine or cosine at q_j times joint j's twist at the tip point, its coefficients correlated as
+/// its factor in profile_factors says where it has one (the model's AccuracyFactors, may be
+/// null); both first order: the deflection's change with the pose is left out), of every other
+/// kind (tip(p + ε σ_i) ⊖ tip(p − ε σ_i)) / 2ε, the tip that of
 /// physicalLinkAngles at (q, wrench, temp_c, payload), its model's full fixed point. constants:
 /// physicalConstants(model) or null (no profile_geometry parameter is moved, so they hold).
 /// Allocation-free; false when ws does not fit the model (nothing added).
 bool addMechanismCovariance(const PhysicalModel& model, const PhysicalConstants* constants,
+                            const std::vector<ProfileCovarianceFactor>* profile_factors,
                             const ChainWorkspace& at_link_angles, const JointVector& q_rad,
                             const Vec6& wrench_Sensor, double temp_c, const PointPayload* payload,
                             MechanismAccuracyWorkspace& ws, Mat6& covariance) noexcept;

@@ -26,9 +26,12 @@
 //             v × {str method, f64 load_kg, i32 rows, f64 mean_position_m, max_position_m,
 //             mean_orientation_rad}
 //     "ACCU"  (optional; absent in files written before it, which load as before) u32 layout
-//             version (1); f64 position_noise_m, orientation_noise_rad; u32 g (0 or 6(n+1)),
+//             version (2); f64 position_noise_m, orientation_noise_rad; u32 g (0 or 6(n+1)),
 //             u32 r (≤ g); f64 geometry_factor[g × r]; u32 c (0 or n); f64
-//             compliance_factor[c × c] (AccuracyFactors)
+//             compliance_factor[c × c]; u32 k (≤ the mechanisms); k × {u32 mechanism (a
+//             transmission_error's index in MECH, ascending), u32 r (≤ 2·order), f64
+//             factor[2·order × r]} (AccuracyFactors; layout 1, without the profiles' factors,
+//             is refused with a hint to re-run `stepcal calibrate` / `stepcal diagnose`)
 //   trailer   4 B  u32 CRC-32 (IEEE 802.3) of every preceding byte
 //
 // pose = 12 f64, row-major [R | p]; str = u32 byte count (≤ 4096) then the bytes, no terminator.
@@ -90,13 +93,21 @@ struct ModelProvenance {
   std::vector<ValidationFigure> validation;
 };
 
+/// A transmission profile's coefficients' covariance as its factor: Σ_c = F Fᵀ. Fitted on an arc,
+/// its harmonics trade with each other, so each alone is far less certain than the profile's
+/// values on the arc; their σ taken as independent would state that too.
+struct ProfileCovarianceFactor {
+  uint32_t mechanism = 0;  ///< index into CalibratedModel::mechanisms: a transmission_error
+  Eigen::MatrixXd factor;  ///< 2·order × r (r ≤ 2·order), rad; rows as its parameters
+};
+
 /// What the runtime needs to state how accurate a corrected pose is (docs/method.md, "The
 /// accuracy bound"): the fitted parameters' covariance as factors F with Σ = F Fᵀ, so that a
 /// pose's covariance is (J F)(J F)ᵀ with J its Jacobian w.r.t. the parameters, and the noise of
 /// a measurement of the pose.
 struct AccuracyFactors {
   /// Layout version of the ACCU section this build writes and reads.
-  static constexpr uint32_t kLayoutVersion = 1;
+  static constexpr uint32_t kLayoutVersion = 2;
   /// 1-σ per axis of a measured position and orientation (m, rad): the tracker's stated
   /// noise, raised to the model's residual scatter on the fit rows no GPR takes (none taken:
   /// every fit row; a GPR per payload force, which moves no unloaded row: the unloaded ones). A
@@ -109,6 +120,9 @@ struct AccuracyFactors {
   /// n × n (or empty): the joint compliances' covariance factor, rad/(N·m); zero rows for the
   /// joints taken as rigid.
   Eigen::MatrixXd compliance_factor;
+  /// The transmission profiles whose coefficients' covariance the fit gave, in ascending order of
+  /// mechanism; a profile without one states its coefficients' σ as independent.
+  std::vector<ProfileCovarianceFactor> profile_factors;
 };
 
 /// Everything the runtime needs to correct a pose.
